@@ -1,0 +1,784 @@
+"""Input-output records: :class:`IOData`, splitting, detrending and file I/O.
+
+An :class:`IOData` holds ``u`` of shape ``(N, n_u)`` and ``y`` of shape ``(N, n_y)`` sampled
+every ``dt`` seconds, channel names and units, and free metadata (plant, parameters,
+signal, seed, flexid version...).  It is checked on construction: finite values, equal
+lengths, at least two samples, a positive sample time.
+
+Files
+-----
+* **CSV** (``.csv``): flexid writes one comment line ``# flexid-iodata {json}`` with the
+  sample time, the channel names, units and the metadata, then a header row
+  ``time,<inputs...>,<outputs...>`` and one row per sample.  Plain CSV files with a header
+  row are read too: name the input and output columns, or let flexid take columns called
+  ``u``, ``u1``, ``u2``... as inputs and ``y``, ``y1``... as outputs; a column ``t`` or
+  ``time`` gives the sample time.
+* **NPZ** (``.npz``): arrays ``u``, ``y``, ``dt`` and a JSON string ``meta``; written and
+  read without pickle.
+* **DaISy-style** ``.dat`` / ``.txt``: whitespace-separated numbers, optional ``%`` or ``#``
+  comment lines; the user names the input and output columns (0-based indices).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import DataError, DataFileError, check_finite
+
+__all__ = ["IOData", "load", "save"]
+
+_CSV_MAGIC = "# flexid-iodata "
+_FORMAT_VERSION = 1
+
+
+def _as_2d(values: Any, what: str) -> np.ndarray:
+    try:
+        array = np.array(values, dtype=float, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{what} must be numeric: {exc}") from None
+    if array.ndim == 1:
+        array = array[:, None]
+    if array.ndim != 2:
+        raise DataError(
+            f"{what} must be 1-D (one channel) or 2-D (samples x channels), "
+            f"got shape {array.shape}"
+        )
+    return array
+
+
+def _names(names: Sequence[str] | str | None, count: int, prefix: str, what: str) -> tuple:
+    if names is None:
+        if count == 1:
+            return (prefix,)
+        return tuple(f"{prefix}{i + 1}" for i in range(count))
+    if isinstance(names, str):
+        names = [names]
+    names = tuple(str(n) for n in names)
+    if len(names) != count:
+        raise DataError(f"{what}: {len(names)} name(s) given for {count} channel(s)")
+    return names
+
+
+def _jsonable(value: Any) -> Any:
+    """Convert numpy scalars/arrays and tuples in metadata into plain JSON types."""
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+class IOData:
+    """A sampled input-output record.
+
+    Parameters
+    ----------
+    u : array_like, shape (N,) or (N, n_u)
+        Input samples; one column per input channel (units in ``input_units``).
+    y : array_like, shape (N,) or (N, n_y)
+        Output samples; one column per output channel.
+    dt : float, optional
+        Sample time in seconds (default 1.0: "one sample").  Must be positive and finite.
+    input_names, output_names : sequence of str, optional
+        Channel names; default ``u``/``u1, u2...`` and ``y``/``y1, y2...``.
+    input_units, output_units : sequence of str, optional
+        Channel units (free text, e.g. ``"N m"``); default empty strings.
+    metadata : mapping, optional
+        Free JSON-serialisable information (plant, parameters, signal, seed...).
+
+    Raises
+    ------
+    DataError
+        On NaN or infinite samples (the message names the channel and the sample), on
+        inputs and outputs of different lengths, on fewer than two samples, on a
+        non-positive or non-finite ``dt`` and on name/unit lists of the wrong length.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from flexid import IOData
+    >>> d = IOData(np.ones(10), np.arange(10.0), dt=0.01, input_names=["torque"])
+    >>> d.n_samples, d.n_inputs, d.n_outputs
+    (10, 1, 1)
+    >>> est, val = d.split(0.7)
+    >>> est.n_samples, val.n_samples
+    (7, 3)
+    """
+
+    __slots__ = (
+        "_u",
+        "_y",
+        "dt",
+        "input_names",
+        "input_units",
+        "metadata",
+        "output_names",
+        "output_units",
+    )
+
+    def __init__(
+        self,
+        u: Any,
+        y: Any,
+        dt: float = 1.0,
+        *,
+        input_names: Sequence[str] | str | None = None,
+        output_names: Sequence[str] | str | None = None,
+        input_units: Sequence[str] | str | None = None,
+        output_units: Sequence[str] | str | None = None,
+        metadata: Mapping[str, Any] | None = None,
+    ) -> None:
+        u = _as_2d(u, "input u")
+        y = _as_2d(y, "output y")
+        if u.shape[0] != y.shape[0]:
+            raise DataError(
+                f"inputs and outputs have different lengths: u has {u.shape[0]} samples, "
+                f"y has {y.shape[0]}"
+            )
+        if u.shape[0] < 2:
+            raise DataError(f"a record needs at least 2 samples, got {u.shape[0]}")
+        if u.shape[1] == 0 or y.shape[1] == 0:
+            raise DataError(
+                f"a record needs at least one input and one output channel, "
+                f"got {u.shape[1]} input(s) and {y.shape[1]} output(s)"
+            )
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise DataError(f"sample time dt must be a number, got {dt!r}") from None
+        if not math.isfinite(dt) or dt <= 0:
+            raise DataError(f"sample time dt must be positive and finite, got {dt!r}")
+        self.input_names = _names(input_names, u.shape[1], "u", "input_names")
+        self.output_names = _names(output_names, y.shape[1], "y", "output_names")
+        for array, names, kind in ((u, self.input_names, "input"), (y, self.output_names, "output")):
+            for j, name in enumerate(names):
+                check_finite(array[:, j], f"{kind} {name!r}")
+        self.input_units = _names(input_units, u.shape[1], "", "input_units") if input_units \
+            is not None else ("",) * u.shape[1]
+        self.output_units = _names(output_units, y.shape[1], "", "output_units") if \
+            output_units is not None else ("",) * y.shape[1]
+        u.setflags(write=False)
+        y.setflags(write=False)
+        self._u = u
+        self._y = y
+        self.dt = dt
+        self.metadata = dict(metadata or {})
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def u(self) -> np.ndarray:
+        """Inputs, shape ``(N, n_u)`` (read-only)."""
+        return self._u
+
+    @property
+    def y(self) -> np.ndarray:
+        """Outputs, shape ``(N, n_y)`` (read-only)."""
+        return self._y
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples ``N``."""
+        return self._u.shape[0]
+
+    @property
+    def n_inputs(self) -> int:
+        """Number of input channels ``n_u``."""
+        return self._u.shape[1]
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of output channels ``n_y``."""
+        return self._y.shape[1]
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample instants ``k * dt`` in seconds, shape ``(N,)``."""
+        return np.arange(self.n_samples) * self.dt
+
+    def __len__(self) -> int:
+        return self.n_samples
+
+    def __repr__(self) -> str:
+        return (
+            f"IOData(N={self.n_samples}, dt={self.dt:g} s, inputs={list(self.input_names)}, "
+            f"outputs={list(self.output_names)})"
+        )
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, IOData):
+            return NotImplemented
+        return (
+            self.dt == other.dt
+            and self.input_names == other.input_names
+            and self.output_names == other.output_names
+            and self.input_units == other.input_units
+            and self.output_units == other.output_units
+            and self.metadata == other.metadata
+            and np.array_equal(self._u, other._u)
+            and np.array_equal(self._y, other._y)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # ------------------------------------------------------------------ derived records
+    def replace(self, **changes: Any) -> IOData:
+        """Return a copy with some fields replaced (``u``, ``y``, ``dt``, names, units, metadata)."""
+        fields = {
+            "u": self._u,
+            "y": self._y,
+            "dt": self.dt,
+            "input_names": self.input_names,
+            "output_names": self.output_names,
+            "input_units": self.input_units,
+            "output_units": self.output_units,
+            "metadata": self.metadata,
+        }
+        unknown = set(changes) - set(fields)
+        if unknown:
+            raise TypeError(f"IOData.replace() got unknown field(s): {sorted(unknown)}")
+        fields.update(changes)
+        u = fields.pop("u")
+        y = fields.pop("y")
+        dt = fields.pop("dt")
+        return IOData(u, y, dt, **fields)
+
+    def __getitem__(self, index: slice) -> IOData:
+        """Samples ``index`` (a slice) as a new record with the same channels and metadata."""
+        if not isinstance(index, slice):
+            raise TypeError("IOData supports slicing by samples only, e.g. data[100:500]")
+        return self.replace(u=self._u[index], y=self._y[index])
+
+    def select(
+        self,
+        inputs: Sequence[str | int] | str | int | None = None,
+        outputs: Sequence[str | int] | str | int | None = None,
+    ) -> IOData:
+        """Keep some channels, given by name or 0-based index.
+
+        Parameters
+        ----------
+        inputs, outputs : str, int or sequence of them, optional
+            Channels to keep, in the order given; ``None`` keeps all.
+
+        Raises
+        ------
+        DataError
+            If a channel does not exist.
+        """
+        ui = self._channel_indices(inputs, self.input_names, "input")
+        yi = self._channel_indices(outputs, self.output_names, "output")
+        return self.replace(
+            u=self._u[:, ui],
+            y=self._y[:, yi],
+            input_names=[self.input_names[i] for i in ui],
+            output_names=[self.output_names[i] for i in yi],
+            input_units=[self.input_units[i] for i in ui],
+            output_units=[self.output_units[i] for i in yi],
+        )
+
+    @staticmethod
+    def _channel_indices(which, names: tuple, kind: str) -> list[int]:
+        if which is None:
+            return list(range(len(names)))
+        if isinstance(which, (str, int, np.integer)):
+            which = [which]
+        indices = []
+        for item in which:
+            if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+                if not -len(names) <= item < len(names):
+                    raise DataError(
+                        f"{kind} channel index {item} out of range; the record has "
+                        f"{len(names)} {kind}(s): {list(names)}"
+                    )
+                indices.append(int(item) % len(names))
+            elif item in names:
+                indices.append(names.index(item))
+            else:
+                raise DataError(f"no {kind} channel {item!r}; the record has {list(names)}")
+        return indices
+
+    def split(
+        self, fraction: float | None = None, *, index: int | None = None
+    ) -> tuple[IOData, IOData]:
+        """Split into an estimation and a validation record.
+
+        Parameters
+        ----------
+        fraction : float, optional
+            Share of the samples, in (0, 1), that goes to the first (estimation) record;
+            the first ``round(fraction * N)`` samples.  Default 2/3, as in the paper.
+        index : int, optional
+            Split at this sample instead: samples ``[0, index)`` and ``[index, N)``.
+
+        Returns
+        -------
+        estimation, validation : IOData
+            Both keep the channels and metadata; ``metadata["split"]`` records the part.
+
+        Raises
+        ------
+        DataError
+            If both or an invalid ``fraction``/``index`` is given, or if either part would
+            have fewer than two samples.
+        """
+        n = self.n_samples
+        if fraction is not None and index is not None:
+            raise DataError("give either fraction or index to split(), not both")
+        if index is None:
+            fraction = 2.0 / 3.0 if fraction is None else fraction
+            if not (isinstance(fraction, (int, float)) and 0.0 < fraction < 1.0):
+                raise DataError(f"split fraction must lie strictly between 0 and 1, got {fraction!r}")
+            index = int(round(fraction * n))
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+            raise DataError(f"split index must be an integer, got {index!r}")
+        index = int(index)
+        if index < 0:
+            index += n
+        if not 2 <= index <= n - 2:
+            raise DataError(
+                f"split at sample {index} leaves fewer than 2 samples in a part of a "
+                f"{n}-sample record"
+            )
+        first = self[:index]
+        second = self[index:]
+        first.metadata["split"] = {"part": "estimation", "start": 0, "stop": index}
+        second.metadata["split"] = {"part": "validation", "start": index, "stop": n}
+        return first, second
+
+    def detrend(self, kind: str = "constant") -> IOData:
+        """Remove the mean (``"constant"``) or a least-squares line (``"linear"``) per channel.
+
+        The removed offsets are stored in ``metadata["detrend"]`` (for ``"constant"``) so a
+        model's output can be put back in physical units.
+        """
+        if kind not in ("constant", "linear"):
+            raise DataError(f"detrend kind must be 'constant' or 'linear', got {kind!r}")
+        from scipy.signal import detrend as _detrend
+
+        u = _detrend(self._u, axis=0, type=kind)
+        y = _detrend(self._y, axis=0, type=kind)
+        meta = dict(self.metadata)
+        info: dict[str, Any] = {"kind": kind}
+        if kind == "constant":
+            info["u_mean"] = self._u.mean(axis=0).tolist()
+            info["y_mean"] = self._y.mean(axis=0).tolist()
+        meta["detrend"] = info
+        return self.replace(u=u, y=y, metadata=meta)
+
+    # ------------------------------------------------------------------ serialisation
+    def _header(self) -> dict:
+        return {
+            "format": "flexid-iodata",
+            "version": _FORMAT_VERSION,
+            "dt": self.dt,
+            "input_names": list(self.input_names),
+            "output_names": list(self.output_names),
+            "input_units": list(self.input_units),
+            "output_units": list(self.output_units),
+            "metadata": _jsonable(self.metadata),
+        }
+
+    @classmethod
+    def _from_header(cls, header: Mapping, u: np.ndarray, y: np.ndarray, source: str) -> IOData:
+        try:
+            return cls(
+                u,
+                y,
+                header["dt"],
+                input_names=header["input_names"],
+                output_names=header["output_names"],
+                input_units=header.get("input_units"),
+                output_units=header.get("output_units"),
+                metadata=header.get("metadata", {}),
+            )
+        except KeyError as exc:
+            raise DataFileError(f"{source}: flexid header lacks the key {exc}") from None
+        except DataError as exc:
+            raise type(exc)(f"{source}: {exc}") from None
+
+    def to_csv(self, path: str | os.PathLike) -> Path:
+        """Write a CSV file with a JSON metadata line and a header row; return its path.
+
+        Numbers are written with ``repr`` precision (17 significant digits), so reading the
+        file back gives bit-identical arrays.
+        """
+        path = Path(path)
+        buffer = io.StringIO()
+        buffer.write(_CSV_MAGIC + json.dumps(self._header(), sort_keys=True) + "\n")
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow(["time", *self.input_names, *self.output_names])
+        table = np.column_stack([self.time, self._u, self._y])
+        for row in table:
+            writer.writerow([repr(float(v)) for v in row])
+        _write_text(path, buffer.getvalue())
+        return path
+
+    def to_npz(self, path: str | os.PathLike) -> Path:
+        """Write an uncompressed ``.npz`` (arrays ``u``, ``y``, ``dt``, JSON ``meta``), no pickle."""
+        path = Path(path)
+        meta = np.array(json.dumps(self._header(), sort_keys=True))
+        buffer = io.BytesIO()
+        np.savez(buffer, u=self._u, y=self._y, dt=np.array(self.dt), meta=meta)
+        _write_bytes(path, buffer.getvalue())
+        return path
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write to ``.csv`` or ``.npz`` according to the suffix; return the path."""
+        return save(self, path)
+
+    @classmethod
+    def from_npz(cls, path: str | os.PathLike) -> IOData:
+        """Read a file written by :meth:`to_npz` (pickle is never allowed)."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as archive:
+                missing = {"u", "y", "meta"} - set(archive.files)
+                if missing:
+                    raise DataFileError(f"{path}: NPZ file lacks the array(s) {sorted(missing)}")
+                u, y = archive["u"], archive["y"]
+                header = json.loads(str(archive["meta"]))
+        except DataFileError:
+            raise
+        except FileNotFoundError:
+            raise DataFileError(f"{path}: no such file") from None
+        except (OSError, ValueError, json.JSONDecodeError) as exc:
+            raise DataFileError(f"{path}: not a readable flexid NPZ file ({exc})") from None
+        return cls._from_header(header, u, y, str(path))
+
+    @classmethod
+    def from_csv(
+        cls,
+        path: str | os.PathLike,
+        inputs: Sequence[str | int] | str | int | None = None,
+        outputs: Sequence[str | int] | str | int | None = None,
+        dt: float | None = None,
+        *,
+        metadata: Mapping[str, Any] | None = None,
+    ) -> IOData:
+        """Read a CSV file with a header row.
+
+        Parameters
+        ----------
+        path : path-like
+            The file.  A file written by :meth:`to_csv` restores everything; other
+            arguments then select channels only.
+        inputs, outputs : column names or 0-based indices, optional
+            Which columns are inputs and outputs.  Default: columns named ``u``/``u<k>``
+            are inputs and ``y``/``y<k>`` outputs.
+        dt : float, optional
+            Sample time in seconds.  Default: from a ``t``/``time`` column, else 1.0
+            (recorded as assumed in ``metadata["dt_assumed"]``).
+        metadata : mapping, optional
+            Extra metadata to merge in.
+
+        Raises
+        ------
+        DataFileError
+            If the file is missing, empty, has no header, a row of the wrong width, or a
+            cell that is not a number (the message gives the line and column).
+        DataError
+            On NaN/inf values, unknown column names, or too few samples.
+        """
+        path = Path(path)
+        text = _read_text(path)
+        lines = text.splitlines()
+        header: dict | None = None
+        start = 0
+        if lines and lines[0].startswith(_CSV_MAGIC):
+            try:
+                header = json.loads(lines[0][len(_CSV_MAGIC):])
+            except json.JSONDecodeError as exc:
+                raise DataFileError(f"{path}: line 1: malformed flexid metadata ({exc})") from None
+            start = 1
+        while start < len(lines) and (not lines[start].strip() or lines[start].startswith("#")):
+            start += 1
+        if start >= len(lines):
+            raise DataFileError(f"{path}: no header row and no data")
+        rows = list(csv.reader(lines[start:]))
+        columns = [c.strip() for c in rows[0]]
+        if not columns or any(not c for c in columns):
+            raise DataFileError(f"{path}: line {start + 1}: empty column name in the header")
+        try:
+            [float(c) for c in columns]
+        except ValueError:
+            pass
+        else:
+            raise DataFileError(
+                f"{path}: line {start + 1}: the first row is numeric; a CSV file needs a "
+                "header row with column names (use a .dat file for bare numbers)"
+            )
+        table = _parse_rows(rows[1:], len(columns), path, first_line=start + 2, columns=columns)
+        if header is not None:
+            n_u = len(header.get("input_names", []))
+            n_y = len(header.get("output_names", []))
+            if table.shape[1] != 1 + n_u + n_y:
+                raise DataFileError(
+                    f"{path}: the header lists {n_u} input(s) and {n_y} output(s) but rows "
+                    f"have {table.shape[1]} columns"
+                )
+            data = cls._from_header(header, table[:, 1:1 + n_u], table[:, 1 + n_u:], str(path))
+            if inputs is not None or outputs is not None:
+                data = data.select(inputs, outputs)
+            if metadata:
+                data.metadata.update(metadata)
+            return data
+        return _assemble(cls, table, columns, inputs, outputs, dt, path, metadata)
+
+    @classmethod
+    def from_dat(
+        cls,
+        path: str | os.PathLike,
+        inputs: Sequence[int] | int,
+        outputs: Sequence[int] | int,
+        dt: float | None = None,
+        *,
+        input_names: Sequence[str] | None = None,
+        output_names: Sequence[str] | None = None,
+        metadata: Mapping[str, Any] | None = None,
+    ) -> IOData:
+        """Read a whitespace-separated numeric file (DaISy style).
+
+        Parameters
+        ----------
+        path : path-like
+            The file; lines starting with ``%`` or ``#`` and blank lines are skipped.
+        inputs, outputs : int or sequence of int
+            0-based column indices of the inputs and outputs (required: such files have
+            no header).
+        dt : float, optional
+            Sample time in seconds; default 1.0, recorded as assumed.
+        input_names, output_names : sequence of str, optional
+            Channel names; default ``u``/``y`` style names.
+        metadata : mapping, optional
+            Extra metadata.
+
+        Raises
+        ------
+        DataFileError
+            Missing or unreadable file, ragged rows, non-numeric entries.
+        DataError
+            Column indices out of range, NaN/inf, too few samples.
+        """
+        path = Path(path)
+        text = _read_text(path)
+        rows = []
+        numbers: list[int] = []
+        for lineno, line in enumerate(text.splitlines(), start=1):
+            stripped = line.strip()
+            if not stripped or stripped[0] in "%#":
+                continue
+            rows.append(stripped.replace(",", " ").split())
+            numbers.append(lineno)
+        if not rows:
+            raise DataFileError(f"{path}: no numeric rows")
+        width = len(rows[0])
+        table = np.empty((len(rows), width))
+        for i, (row, lineno) in enumerate(zip(rows, numbers)):
+            if len(row) != width:
+                raise DataFileError(
+                    f"{path}: line {lineno}: {len(row)} column(s), expected {width}"
+                )
+            try:
+                table[i] = [float(v) for v in row]
+            except ValueError:
+                bad = next(v for v in row if not _is_float(v))
+                raise DataFileError(f"{path}: line {lineno}: {bad!r} is not a number") from None
+        columns = [str(j) for j in range(width)]
+        ins = [inputs] if isinstance(inputs, (int, np.integer)) else list(inputs)
+        outs = [outputs] if isinstance(outputs, (int, np.integer)) else list(outputs)
+        for j in (*ins, *outs):
+            if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < width:
+                raise DataError(f"{path}: column {j!r} out of range; the file has {width} columns")
+        meta = {"source": str(path), **(metadata or {})}
+        if dt is None:
+            dt, meta["dt_assumed"] = 1.0, True
+        return cls(
+            table[:, ins],
+            table[:, outs],
+            dt,
+            input_names=input_names,
+            output_names=output_names,
+            metadata=meta,
+        )
+
+    def describe(self) -> str:
+        """A short human-readable description: length, sample time, channel statistics."""
+        lines = [repr(self)]
+        for kind, names, units, array in (
+            ("input", self.input_names, self.input_units, self._u),
+            ("output", self.output_names, self.output_units, self._y),
+        ):
+            for j, name in enumerate(names):
+                col = array[:, j]
+                unit = f" [{units[j]}]" if units[j] else ""
+                lines.append(
+                    f"  {kind:6s} {name}{unit}: mean {col.mean():.4g}, std {col.std():.4g}, "
+                    f"range [{col.min():.4g}, {col.max():.4g}]"
+                )
+        return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- helpers
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _read_text(path: Path) -> str:
+    try:
+        with open(path, encoding="utf-8", newline="") as handle:
+            return handle.read()
+    except FileNotFoundError:
+        raise DataFileError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise DataFileError(f"{path}: is a directory, not a data file") from None
+    except UnicodeDecodeError:
+        raise DataFileError(f"{path}: not a text file (cannot decode as UTF-8)") from None
+    except OSError as exc:
+        raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def _write_text(path: Path, text: str) -> None:
+    _write_bytes(path, text.encode("utf-8"))
+
+
+def _write_bytes(path: Path, payload: bytes) -> None:
+    """Write atomically: a temporary file in the same folder, then rename."""
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, "wb") as handle:
+            handle.write(payload)
+        os.replace(tmp, path)
+    except OSError as exc:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise DataFileError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+def _parse_rows(rows: list, width: int, path: Path, first_line: int, columns: list) -> np.ndarray:
+    body = [(i, r) for i, r in enumerate(rows) if r and any(c.strip() for c in r)]
+    table = np.empty((len(body), width))
+    for k, (i, row) in enumerate(body):
+        lineno = first_line + i
+        if len(row) != width:
+            raise DataFileError(f"{path}: line {lineno}: {len(row)} field(s), expected {width}")
+        for j, cell in enumerate(row):
+            try:
+                table[k, j] = float(cell)
+            except ValueError:
+                raise DataFileError(
+                    f"{path}: line {lineno}, column {columns[j]!r}: {cell.strip()!r} is not a number"
+                ) from None
+    return table
+
+
+def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IOData:
+    def resolve(which, kind):
+        if isinstance(which, (str, int, np.integer)):
+            which = [which]
+        out = []
+        for item in which:
+            if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+                if not 0 <= item < len(columns):
+                    raise DataError(f"{path}: {kind} column {item} out of range ({len(columns)} columns)")
+                out.append(int(item))
+            elif item in columns:
+                out.append(columns.index(item))
+            else:
+                raise DataError(f"{path}: no column {item!r} for the {kind}s; columns: {columns}")
+        return out
+
+    def default(prefix):
+        return [
+            j for j, c in enumerate(columns)
+            if c.lower() == prefix or (c.lower().startswith(prefix) and c[1:].isdigit())
+        ]
+
+    ins = resolve(inputs, "input") if inputs is not None else default("u")
+    outs = resolve(outputs, "output") if outputs is not None else default("y")
+    if not ins or not outs:
+        raise DataError(
+            f"{path}: cannot tell inputs from outputs among columns {columns}; name them "
+            "(inputs=..., outputs=..., or --inputs/--outputs on the command line)"
+        )
+    meta = {"source": str(path), **(metadata or {})}
+    time_cols = [j for j, c in enumerate(columns) if c.lower() in ("t", "time")]
+    if dt is None:
+        if time_cols and table.shape[0] >= 2:
+            steps = np.diff(table[:, time_cols[0]])
+            dt = float(np.median(steps))
+            if not np.allclose(steps, dt, rtol=1e-3, atol=1e-12):
+                meta["dt_note"] = "time column not uniform; dt is its median step"
+        else:
+            dt, meta["dt_assumed"] = 1.0, True
+    return cls(
+        table[:, ins],
+        table[:, outs],
+        dt,
+        input_names=[columns[j] for j in ins],
+        output_names=[columns[j] for j in outs],
+        metadata=meta,
+    )
+
+
+def load(path: str | os.PathLike, **options: Any) -> IOData:
+    """Read a record from ``.csv``, ``.npz`` or ``.dat``/``.txt`` according to the suffix.
+
+    Keyword options are passed to :meth:`IOData.from_csv`, :meth:`IOData.from_npz` or
+    :meth:`IOData.from_dat`.
+
+    Raises
+    ------
+    DataFileError
+        For an unknown suffix, a missing or malformed file.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return IOData.from_csv(path, **options)
+    if suffix == ".npz":
+        if options:
+            data = IOData.from_npz(path)
+            return data.select(options.get("inputs"), options.get("outputs"))
+        return IOData.from_npz(path)
+    if suffix in (".dat", ".txt"):
+        if options.get("inputs") is None or options.get("outputs") is None:
+            raise DataError(
+                f"{path}: a .dat file has no header; name the input and output columns "
+                "(0-based), e.g. inputs=0, outputs=1"
+            )
+        return IOData.from_dat(path, **options)
+    raise DataFileError(f"{path}: unknown data file type {suffix!r}; use .csv, .npz or .dat")
+
+
+def save(data: IOData, path: str | os.PathLike) -> Path:
+    """Write ``data`` to ``.csv`` or ``.npz`` according to the suffix; return the path."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return data.to_csv(path)
+    if suffix == ".npz":
+        return data.to_npz(path)
+    raise DataFileError(f"{path}: unknown output type {suffix!r}; use .csv or .npz")

@@ -1,0 +1,43 @@
+"""Gymnasium environments for the simulated flexible plants.
+
+``flexid/FlexibleManipulator-v0``
+    Single-link flexible manipulator: finite-difference Euler-Bernoulli beam on a motor hub
+    (:mod:`flexid.envs.beam`, :mod:`flexid.envs.manipulator`).
+``flexid/TwinRotor-v0``
+    Twin rotor MIMO system, Feedback 33-220 phenomenological model
+    (:mod:`flexid.envs.twin_rotor`).
+
+Both are registered when :mod:`flexid` is imported; the entry points are strings, so the
+physics modules are imported only when an environment is made.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+MANIPULATOR_ID = "flexid/FlexibleManipulator-v0"
+TWIN_ROTOR_ID = "flexid/TwinRotor-v0"
+
+__all__ = ["MANIPULATOR_ID", "TWIN_ROTOR_ID", "register_environments"]
+
+
+def register_environments() -> None:
+    """Register the flexid environments with Gymnasium (idempotent)."""
+    registry = gymnasium.envs.registration.registry
+    if MANIPULATOR_ID not in registry:
+        gymnasium.register(
+            id=MANIPULATOR_ID,
+            entry_point="flexid.envs.manipulator:FlexibleManipulatorEnv",
+            vector_entry_point="flexid.envs.manipulator:FlexibleManipulatorVectorEnv",
+            max_episode_steps=2000,
+        )
+    if TWIN_ROTOR_ID not in registry:
+        gymnasium.register(
+            id=TWIN_ROTOR_ID,
+            entry_point="flexid.envs.twin_rotor:TwinRotorEnv",
+            vector_entry_point="flexid.envs.twin_rotor:TwinRotorVectorEnv",
+            max_episode_steps=600,
+        )
+
+
+register_environments()

@@ -1,0 +1,142 @@
+"""Typed exceptions raised by flexid.
+
+Every error flexid raises on purpose derives from :class:`FlexidError`, so a caller can
+catch them all in one place; each also derives from the built-in exception a Python user
+would expect (``ValueError`` for bad values, ``LookupError`` for unknown names, ``OSError``
+for unreadable files), so generic handlers keep working.  The command line turns any
+``FlexidError`` into one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "ActionError",
+    "BudgetError",
+    "ConfigError",
+    "DataError",
+    "DataFileError",
+    "FlexidError",
+    "HyperParameterError",
+    "ModelOrderError",
+    "OptimiserError",
+    "PlantParameterError",
+    "RegistryError",
+    "StoreError",
+    "UnknownNameError",
+    "UnknownOptimiserError",
+    "check_finite",
+]
+
+
+class FlexidError(Exception):
+    """Base class of every error flexid raises on purpose."""
+
+
+class DataError(FlexidError, ValueError):
+    """Input-output data that cannot be used: NaN/inf, mismatched lengths, bad sample time..."""
+
+
+class DataFileError(DataError, OSError):
+    """A data or result file that is missing, unreadable or malformed."""
+
+
+class ModelOrderError(FlexidError, ValueError):
+    """Invalid model orders (``na``, ``nb``, ``nk``), or too few samples for them."""
+
+
+class OptimiserError(FlexidError):
+    """Base class of optimiser and registry errors."""
+
+
+class UnknownNameError(FlexidError, LookupError):
+    """A name (plant, signal, cost, optimiser...) that flexid does not know.
+
+    Parameters
+    ----------
+    kind : str
+        What was looked up, e.g. ``"optimiser"``.
+    name : str
+        The unknown name.
+    known : iterable of str
+        The names that would have worked; listed in the message.
+    """
+
+    def __init__(self, kind: str, name: str, known=()):
+        self.kind = kind
+        self.name = name
+        self.known = sorted(known)
+        listing = ", ".join(self.known) if self.known else "none"
+        super().__init__(f"unknown {kind} {name!r}; known: {listing}")
+
+    def __str__(self) -> str:  # LookupError/KeyError would quote the message
+        return str(self.args[0])
+
+
+class UnknownOptimiserError(UnknownNameError, OptimiserError):
+    """An optimiser name that is neither built in nor provided by a plugin."""
+
+    def __init__(self, name: str, known=()):
+        super().__init__("optimiser", name, known)
+
+
+class RegistryError(OptimiserError, ValueError):
+    """A registry misuse, such as registering a name twice."""
+
+
+class HyperParameterError(OptimiserError, ValueError):
+    """An unknown, wrongly typed or out-of-range optimiser hyper-parameter."""
+
+
+class BudgetError(FlexidError, ValueError):
+    """An invalid evaluation budget or stopping rule."""
+
+
+class PlantParameterError(FlexidError, ValueError):
+    """An invalid physical parameter or option of a simulated plant."""
+
+
+class ActionError(FlexidError, ValueError):
+    """An action given to an environment that cannot be applied (wrong shape, NaN, inf)."""
+
+
+class ConfigError(FlexidError, ValueError):
+    """An invalid configuration file or key."""
+
+
+class StoreError(FlexidError):
+    """A result store that cannot be opened, read or written."""
+
+
+def check_finite(array: np.ndarray, what: str, error: type[FlexidError] = DataError) -> None:
+    """Raise ``error`` naming the first non-finite entry of ``array``.
+
+    Parameters
+    ----------
+    array : ndarray
+        Values to check; any shape.
+    what : str
+        Name of the array in the message, e.g. ``"input 'torque'"``.
+    error : type, optional
+        Exception class to raise (default :class:`DataError`).
+
+    Raises
+    ------
+    FlexidError
+        If any entry is NaN or infinite; the message gives its index, its value and how
+        many entries are affected.
+    """
+    array = np.asarray(array)
+    if array.dtype.kind not in "fc":
+        return
+    bad = ~np.isfinite(array)
+    if bad.any():
+        where = np.argwhere(bad)
+        first = tuple(int(i) for i in where[0])
+        index = first[0] if len(first) == 1 else first
+        label = "sample" if array.ndim <= 1 else "index (sample, channel)"
+        raise error(
+            f"{what} has {int(bad.sum())} non-finite value(s); the first is "
+            f"{array[first]!r} at {label} {index}"
+        )

@@ -1,0 +1,28 @@
+"""Pure random search: the floor every optimiser must beat."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Optimiser, Param, SearchSpace
+from .registry import register
+
+__all__ = ["RandomSearch"]
+
+
+@register
+class RandomSearch(Optimiser):
+    """Uniform random sampling of the box, a batch at a time.
+
+    The first batch is the shared initial population; every later batch is drawn uniformly
+    in the box from the run's generator.  The best point ever sampled is the result.
+    """
+
+    name = "random-search"
+    reference = "Brooks, Operations Research 6(2):244-251, 1958"
+    points = Param(int, 50, "samples per batch (one iteration)", low=1)
+
+    def search(self, space: SearchSpace, rng: np.random.Generator):
+        yield space.initial_population(self.points)
+        while True:
+            yield space.uniform(self.points, rng)

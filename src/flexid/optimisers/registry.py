@@ -1,0 +1,244 @@
+"""The optimiser registry: built-ins, configured variants and third-party plugins.
+
+* ``@register`` puts an :class:`~flexid.optimisers.base.Optimiser` subclass under its
+  ``name``; registering a taken name is a :class:`~flexid.errors.RegistryError`.
+* :func:`register_variant` registers a configured variant (the same algorithm with other
+  default hyper-parameters) under its own name, e.g. ``hbcsd-paper-trs``.
+* Third-party packages expose optimisers through the entry-point group
+  ``flexid.optimisers`` (``name = "package.module:Class"``).  They are loaded lazily, the
+  first time the registry is listed or a name is not found among the built-ins.  A plugin
+  that fails to import, or is not an Optimiser subclass, raises a :class:`PluginWarning`
+  and is skipped: it never breaks flexid.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib
+import importlib.util
+import warnings
+from importlib.metadata import entry_points
+from typing import Any
+
+from ..errors import HyperParameterError, RegistryError, UnknownOptimiserError
+from .base import Optimiser, Param
+
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "PluginWarning",
+    "available",
+    "create",
+    "describe",
+    "get",
+    "register",
+    "register_variant",
+    "reload_plugins",
+    "unregister",
+]
+
+ENTRY_POINT_GROUP = "flexid.optimisers"
+
+# modules of flexid.optimisers that define built-in optimisers (imported on first use)
+_BUILTIN_MODULES = (
+    "sda",
+    "bfa",
+    "hbcsd",
+    "pso",
+    "de",
+    "ga",
+    "cmaes",
+    "random_search",
+    "scipy_methods",
+)
+
+_REGISTRY: dict[str, type[Optimiser]] = {}
+_SOURCES: dict[str, str] = {}
+_state = {"builtins": False, "plugins": False}
+
+
+class PluginWarning(UserWarning):
+    """A third-party optimiser plugin could not be loaded and was skipped."""
+
+
+def register(cls: type[Optimiser] | None = None, *, name: str | None = None, source: str = "flexid"):
+    """Class decorator: register an optimiser under ``name`` (default ``cls.name``).
+
+    Raises
+    ------
+    RegistryError
+        If the name is empty, already taken, or the class is not an Optimiser subclass.
+    """
+
+    def decorate(klass: type[Optimiser]) -> type[Optimiser]:
+        if not (isinstance(klass, type) and issubclass(klass, Optimiser)):
+            raise RegistryError(f"only Optimiser subclasses can be registered, not {klass!r}")
+        key = name or klass.name
+        if not key or not isinstance(key, str):
+            raise RegistryError(f"{klass.__name__} has no name to register under")
+        if key in _REGISTRY:
+            raise RegistryError(
+                f"an optimiser named {key!r} is already registered (from {_SOURCES[key]})"
+            )
+        if key != klass.name:
+            klass = type(klass.__name__, (klass,), {"name": key, "__module__": klass.__module__})
+        _REGISTRY[key] = klass
+        _SOURCES[key] = source
+        return klass
+
+    return decorate(cls) if cls is not None else decorate
+
+
+def register_variant(
+    name: str, base: str | type[Optimiser], doc: str = "", **defaults: Any
+) -> type[Optimiser]:
+    """Register ``base`` with other default hyper-parameters under ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The variant's registry name.
+    base : str or Optimiser subclass
+        The algorithm.
+    doc : str
+        One line saying where the settings come from.
+    **defaults
+        New defaults, validated now against the base's hyper-parameters.
+
+    Returns
+    -------
+    type
+        The variant class (a subclass of ``base``).
+    """
+    base_cls = get(base) if isinstance(base, str) else base
+    spec = base_cls.hyperparameters()
+    unknown = sorted(set(defaults) - set(spec))
+    if unknown:
+        raise HyperParameterError(
+            f"variant {name!r}: unknown hyper-parameter(s) {unknown} of {base_cls.name!r}"
+        )
+    namespace: dict[str, Any] = {
+        "name": name,
+        "__module__": base_cls.__module__,
+        "__doc__": (doc or f"{base_cls.name} with other defaults") + "\n\n" + (base_cls.__doc__ or ""),
+        "variant_of": base_cls.name,
+        "variant_doc": doc,
+    }
+    for key, value in defaults.items():
+        param = copy.copy(spec[key])
+        param.default = value
+        namespace[key] = param  # type() calls __set_name__, which validates the default
+    variant = type(f"{base_cls.__name__}_{_identifier(name)}", (base_cls,), namespace)
+    variant.check(variant())  # cross-parameter rules hold for the new defaults
+    return register(variant, source=_SOURCES.get(base_cls.name, "flexid") + " (variant)")
+
+
+def _identifier(name: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in name)
+
+
+def unregister(name: str) -> None:
+    """Remove ``name`` from the registry (for tests and interactive work)."""
+    _REGISTRY.pop(name, None)
+    _SOURCES.pop(name, None)
+
+
+def _load_builtins() -> None:
+    if _state["builtins"]:
+        return
+    _state["builtins"] = True
+    for module in _BUILTIN_MODULES:
+        qualified = f"{__package__}.{module}"
+        if importlib.util.find_spec(qualified) is not None:
+            importlib.import_module(qualified)
+
+
+def _load_plugins() -> None:
+    if _state["plugins"]:
+        return
+    _state["plugins"] = True
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        if ep.name in _REGISTRY:
+            if _SOURCES.get(ep.name, "").startswith("plugin") and _SOURCES[ep.name].endswith(ep.value):
+                continue
+            warnings.warn(
+                f"flexid: optimiser plugin {ep.name!r} ({ep.value}) clashes with an "
+                "existing optimiser of that name; skipped",
+                PluginWarning,
+                stacklevel=3,
+            )
+            continue
+        try:
+            obj = ep.load()
+        except Exception as exc:  # a broken plugin must never break flexid
+            warnings.warn(
+                f"flexid: optimiser plugin {ep.name!r} ({ep.value}) failed to load: "
+                f"{type(exc).__name__}: {exc}; skipped",
+                PluginWarning,
+                stacklevel=3,
+            )
+            continue
+        if not (isinstance(obj, type) and issubclass(obj, Optimiser)):
+            warnings.warn(
+                f"flexid: optimiser plugin {ep.name!r} ({ep.value}) is not an "
+                "flexid.optimisers.Optimiser subclass; skipped",
+                PluginWarning,
+                stacklevel=3,
+            )
+            continue
+        if ep.name in _REGISTRY:  # the plugin registered itself on import
+            continue
+        register(obj, name=ep.name, source=f"plugin {ep.value}")
+
+
+def reload_plugins() -> None:
+    """Look for entry-point plugins again (after installing a package at run time)."""
+    importlib.invalidate_caches()
+    _state["plugins"] = False
+    _load_plugins()
+
+
+def get(name: str) -> type[Optimiser]:
+    """The optimiser class registered under ``name``.
+
+    Raises
+    ------
+    UnknownOptimiserError
+        If neither a built-in nor a plugin has that name; the message lists the names.
+    """
+    _load_builtins()
+    if name not in _REGISTRY:
+        _load_plugins()
+    if name not in _REGISTRY:
+        raise UnknownOptimiserError(name, available())
+    return _REGISTRY[name]
+
+
+def create(name: str, **params: Any) -> Optimiser:
+    """An instance of optimiser ``name`` with validated hyper-parameters ``params``."""
+    return get(name)(**params)
+
+
+def available() -> list[str]:
+    """Names of every registered optimiser, built-ins, variants and plugins, sorted."""
+    _load_builtins()
+    _load_plugins()
+    return sorted(_REGISTRY)
+
+
+def describe(name: str) -> dict[str, Any]:
+    """Name, source, reference, summary and hyper-parameters (type, default, range, doc)."""
+    cls = get(name)
+    doc = (cls.__doc__ or "").strip().splitlines()
+    params: dict[str, dict] = {k: p.describe() for k, p in cls.hyperparameters().items()}
+    return {
+        "name": name,
+        "source": _SOURCES.get(name, "?"),
+        "variant_of": getattr(cls, "variant_of", None),
+        "summary": doc[0] if doc else "",
+        "reference": cls.reference,
+        "hyperparameters": params,
+    }
+
+
+# re-exported for plugin authors: ``from flexid.optimisers import Optimiser, Param, register``
+__all__ += ["Optimiser", "Param"]
