@@ -49,8 +49,7 @@ def _as_2d(values: Any, what: str) -> np.ndarray:
         array = array[:, None]
     if array.ndim != 2:
         raise DataError(
-            f"{what} must be 1-D (one channel) or 2-D (samples x channels), "
-            f"got shape {array.shape}"
+            f"{what} must be 1-D (one channel) or 2-D (samples x channels), got shape {array.shape}"
         )
     return array
 
@@ -167,13 +166,22 @@ class IOData:
             raise DataError(f"sample time dt must be positive and finite, got {dt!r}")
         self.input_names = _names(input_names, u.shape[1], "u", "input_names")
         self.output_names = _names(output_names, y.shape[1], "y", "output_names")
-        for array, names, kind in ((u, self.input_names, "input"), (y, self.output_names, "output")):
+        for array, names, kind in (
+            (u, self.input_names, "input"),
+            (y, self.output_names, "output"),
+        ):
             for j, name in enumerate(names):
                 check_finite(array[:, j], f"{kind} {name!r}")
-        self.input_units = _names(input_units, u.shape[1], "", "input_units") if input_units \
-            is not None else ("",) * u.shape[1]
-        self.output_units = _names(output_units, y.shape[1], "", "output_units") if \
-            output_units is not None else ("",) * y.shape[1]
+        self.input_units = (
+            _names(input_units, u.shape[1], "", "input_units")
+            if input_units is not None
+            else ("",) * u.shape[1]
+        )
+        self.output_units = (
+            _names(output_units, y.shape[1], "", "output_units")
+            if output_units is not None
+            else ("",) * y.shape[1]
+        )
         u.setflags(write=False)
         y.setflags(write=False)
         self._u = u
@@ -239,7 +247,7 @@ class IOData:
 
     # ------------------------------------------------------------------ derived records
     def replace(self, **changes: Any) -> IOData:
-        """Return a copy with some fields replaced (``u``, ``y``, ``dt``, names, units, metadata)."""
+        """A copy with some fields replaced (``u``, ``y``, ``dt``, names, units, metadata)."""
         fields = {
             "u": self._u,
             "y": self._y,
@@ -344,8 +352,10 @@ class IOData:
         if index is None:
             fraction = 2.0 / 3.0 if fraction is None else fraction
             if not (isinstance(fraction, (int, float)) and 0.0 < fraction < 1.0):
-                raise DataError(f"split fraction must lie strictly between 0 and 1, got {fraction!r}")
-            index = int(round(fraction * n))
+                raise DataError(
+                    f"split fraction must lie strictly between 0 and 1, got {fraction!r}"
+                )
+            index = round(fraction * n)
         if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
             raise DataError(f"split index must be an integer, got {index!r}")
         index = int(index)
@@ -431,7 +441,7 @@ class IOData:
         return path
 
     def to_npz(self, path: str | os.PathLike) -> Path:
-        """Write an uncompressed ``.npz`` (arrays ``u``, ``y``, ``dt``, JSON ``meta``), no pickle."""
+        """Write an ``.npz`` (arrays ``u``, ``y``, ``dt`` and JSON ``meta``), no pickle."""
         path = Path(path)
         meta = np.array(json.dumps(self._header(), sort_keys=True))
         buffer = io.BytesIO()
@@ -503,7 +513,7 @@ class IOData:
         start = 0
         if lines and lines[0].startswith(_CSV_MAGIC):
             try:
-                header = json.loads(lines[0][len(_CSV_MAGIC):])
+                header = json.loads(lines[0][len(_CSV_MAGIC) :])
             except json.JSONDecodeError as exc:
                 raise DataFileError(f"{path}: line 1: malformed flexid metadata ({exc})") from None
             start = 1
@@ -533,7 +543,7 @@ class IOData:
                     f"{path}: the header lists {n_u} input(s) and {n_y} output(s) but rows "
                     f"have {table.shape[1]} columns"
                 )
-            data = cls._from_header(header, table[:, 1:1 + n_u], table[:, 1 + n_u:], str(path))
+            data = cls._from_header(header, table[:, 1 : 1 + n_u], table[:, 1 + n_u :], str(path))
             if inputs is not None or outputs is not None:
                 data = data.select(inputs, outputs)
             if metadata:
@@ -600,7 +610,6 @@ class IOData:
             except ValueError:
                 bad = next(v for v in row if not _is_float(v))
                 raise DataFileError(f"{path}: line {lineno}: {bad!r} is not a number") from None
-        columns = [str(j) for j in range(width)]
         ins = [inputs] if isinstance(inputs, (int, np.integer)) else list(inputs)
         outs = [outputs] if isinstance(outputs, (int, np.integer)) else list(outputs)
         for j in (*ins, *outs):
@@ -689,7 +698,8 @@ def _parse_rows(rows: list, width: int, path: Path, first_line: int, columns: li
                 table[k, j] = float(cell)
             except ValueError:
                 raise DataFileError(
-                    f"{path}: line {lineno}, column {columns[j]!r}: {cell.strip()!r} is not a number"
+                    f"{path}: line {lineno}, column {columns[j]!r}: "
+                    f"{cell.strip()!r} is not a number"
                 ) from None
     return table
 
@@ -702,7 +712,9 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
         for item in which:
             if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
                 if not 0 <= item < len(columns):
-                    raise DataError(f"{path}: {kind} column {item} out of range ({len(columns)} columns)")
+                    raise DataError(
+                        f"{path}: {kind} column {item} out of range ({len(columns)} columns)"
+                    )
                 out.append(int(item))
             elif item in columns:
                 out.append(columns.index(item))
@@ -712,7 +724,8 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
 
     def default(prefix):
         return [
-            j for j, c in enumerate(columns)
+            j
+            for j, c in enumerate(columns)
             if c.lower() == prefix or (c.lower().startswith(prefix) and c[1:].isdigit())
         ]
 

@@ -87,7 +87,9 @@ class Budget:
         if self.max_time is not None and not (
             isinstance(self.max_time, (int, float)) and self.max_time > 0
         ):
-            raise BudgetError(f"max_time must be a positive number of seconds, got {self.max_time!r}")
+            raise BudgetError(
+                f"max_time must be a positive number of seconds, got {self.max_time!r}"
+            )
         if self.target is not None and not (
             isinstance(self.target, (int, float)) and not math.isnan(self.target)
         ):
@@ -101,7 +103,9 @@ class Budget:
         if isinstance(budget, Budget):
             return budget
         if budget is None:
-            raise BudgetError("a budget is required (for example budget=10_000 function evaluations)")
+            raise BudgetError(
+                "a budget is required (for example budget=10_000 function evaluations)"
+            )
         if isinstance(budget, Mapping):
             try:
                 return cls(**budget)
@@ -321,7 +325,9 @@ class Param:
             return "one of " + ", ".join(repr(c) for c in self.choices)
         if self.low is None and self.high is None:
             return "any"
-        left = ("(" if self.low_open else "[") + (f"{self.low:g}" if self.low is not None else "-inf")
+        left = ("(" if self.low_open else "[") + (
+            f"{self.low:g}" if self.low is not None else "-inf"
+        )
         right = (f"{self.high:g}" if self.high is not None else "inf") + (
             ")" if self.high_open or self.high is None else "]"
         )
@@ -712,7 +718,9 @@ def _normalise_seed(seed: Any) -> int:
     if seed is None:
         return int(np.random.SeedSequence().entropy)
     if isinstance(seed, np.random.SeedSequence):
-        return int(seed.entropy) if isinstance(seed.entropy, int) else int(seed.generate_state(1)[0])
+        return (
+            int(seed.entropy) if isinstance(seed.entropy, int) else int(seed.generate_state(1)[0])
+        )
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise OptimiserError(f"seed must be a non-negative integer or None, got {seed!r}")
     return int(seed)
@@ -778,7 +786,9 @@ def minimize(
     """
     opt = _resolve(optimiser, params)
     budget = Budget.coerce(budget)
-    callbacks = [] if callback is None else list(callback) if isinstance(callback, list) else [callback]
+    callbacks = (
+        [] if callback is None else list(callback) if isinstance(callback, list) else [callback]
+    )
     run = _Run(opt, problem, budget, seed, callbacks)
     generator = opt.search(run.space, run.rng)
     try:

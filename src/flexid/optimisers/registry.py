@@ -60,7 +60,9 @@ class PluginWarning(UserWarning):
     """A third-party optimiser plugin could not be loaded and was skipped."""
 
 
-def register(cls: type[Optimiser] | None = None, *, name: str | None = None, source: str = "flexid"):
+def register(
+    cls: type[Optimiser] | None = None, *, name: str | None = None, source: str = "flexid"
+):
     """Class decorator: register an optimiser under ``name`` (default ``cls.name``).
 
     Raises
@@ -119,7 +121,9 @@ def register_variant(
     namespace: dict[str, Any] = {
         "name": name,
         "__module__": base_cls.__module__,
-        "__doc__": (doc or f"{base_cls.name} with other defaults") + "\n\n" + (base_cls.__doc__ or ""),
+        "__doc__": (doc or f"{base_cls.name} with other defaults")
+        + "\n\n"
+        + (base_cls.__doc__ or ""),
         "variant_of": base_cls.name,
         "variant_doc": doc,
     }
@@ -158,7 +162,9 @@ def _load_plugins() -> None:
     _state["plugins"] = True
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         if ep.name in _REGISTRY:
-            if _SOURCES.get(ep.name, "").startswith("plugin") and _SOURCES[ep.name].endswith(ep.value):
+            if _SOURCES.get(ep.name, "").startswith("plugin") and _SOURCES[ep.name].endswith(
+                ep.value
+            ):
                 continue
             warnings.warn(
                 f"flexid: optimiser plugin {ep.name!r} ({ep.value}) clashes with an "

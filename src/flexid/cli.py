@@ -1,0 +1,451 @@
+"""The ``flexid`` command: generate, identify, compare, report, list.
+
+Every user error (a missing or malformed file, an unknown name, bad orders, invalid
+hyper-parameters or configuration keys) prints one line on stderr and exits with status 2;
+``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+from . import __version__
+from .errors import ConfigError, FlexidError
+
+__all__ = ["main"]
+
+DEFAULT_OUT = Path("flexid-results")
+
+
+class _UsageError(Exception):
+    """argparse error, reported in one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        raise _UsageError(f"{self.prog}: {message}")
+
+
+# ============================================================================ option parsing
+def _value(text: str) -> Any:
+    """A command-line value: JSON when it parses (numbers, true/false, lists), else a string."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        lowered = text.strip().lower()
+        if lowered in ("true", "false"):
+            return lowered == "true"
+        if lowered in ("none", "null"):
+            return None
+        return text
+
+
+def _key_values(items: Sequence[str] | None, what: str) -> dict[str, Any]:
+    """``["a=1", "b=x"]`` -> ``{"a": 1, "b": "x"}``."""
+    out: dict[str, Any] = {}
+    for item in items or []:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"{what} must look like NAME=VALUE, got {item!r}")
+        out[key.strip().replace("-", "_")] = _value(text.strip())
+    return out
+
+
+def _names(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise ConfigError("expected a comma-separated list of names")
+    return names
+
+
+def _int_list(text: str | None, what: str) -> Any:
+    if text is None:
+        return None
+    try:
+        values = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise ConfigError(f"{what} must be an integer or a comma-separated list of integers, got {text!r}") from None
+    return values[0] if len(values) == 1 else values
+
+
+def _columns(text: str | None) -> Any:
+    """Column names or 0-based indices, comma-separated."""
+    if text is None:
+        return None
+    items: list[Any] = []
+    for part in text.split(","):
+        part = part.strip()
+        items.append(int(part) if part.lstrip("-").isdigit() else part)
+    return items
+
+
+def _bounds(text: str) -> Any:
+    if text == "auto":
+        return "auto"
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise ConfigError(f"--bounds must be 'auto', a half-width S or LOW,HIGH, got {text!r}") from None
+    if len(values) == 1:
+        return values[0]
+    if len(values) == 2:
+        return tuple(values)
+    raise ConfigError(f"--bounds must be 'auto', a half-width S or LOW,HIGH, got {text!r}")
+
+
+# ============================================================================ commands
+def _cmd_generate(args: argparse.Namespace) -> int:
+    from .datasets import generate
+
+    options: dict[str, Any] = {"seed": args.seed}
+    if args.preset:
+        options["preset"] = args.preset
+    if args.signal:
+        options["signal"] = args.signal
+    if args.samples is not None:
+        options["n_samples"] = args.samples
+    if args.dt is not None:
+        options["dt"] = args.dt
+    if args.outputs:
+        options["outputs"] = _names(args.outputs)
+    if args.noise is not None:
+        options["noise_std"] = _value(args.noise)
+    signal_options = _key_values(args.signal_option, "--signal-option")
+    if signal_options:
+        options["signal_options"] = signal_options
+    plant_params = _key_values(args.param, "--param")
+    if plant_params:
+        options["plant_params"] = plant_params
+    data = generate(args.plant, **options)
+    path = Path(args.output)
+    if path.suffix.lower() not in (".csv", ".npz"):
+        raise ConfigError(f"--output must end in .csv or .npz, got {args.output!r}")
+    if path.parent and not path.parent.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+    data.save(path)
+    print(f"wrote {path}: {data.describe().splitlines()[0]}")
+    return 0
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from .identify import identify
+
+    load_options: dict[str, Any] = {}
+    if args.inputs is not None:
+        load_options["inputs"] = _columns(args.inputs)
+    if args.outputs is not None:
+        load_options["outputs"] = _columns(args.outputs)
+    if args.dt is not None:
+        load_options["dt"] = args.dt
+    split: Any = args.split
+    if split is not None and split > 1:
+        if not float(split).is_integer():
+            raise ConfigError(f"--split must be a fraction in (0, 1) or a sample index, got {split}")
+        split = int(split)
+    budget: Any = args.budget
+    if args.iterations is not None:
+        budget = {"max_fe": args.budget, "max_iter": args.iterations}
+    ident = identify(
+        args.file,
+        args.na,
+        _int_list(args.nb, "--nb"),
+        _int_list(args.nk, "--nk") if args.nk is not None else 1,
+        optimiser=args.optimiser,
+        params=_key_values(args.param, "--param"),
+        cost=args.cost,
+        predictor=args.predictor,
+        bounds=_bounds(args.bounds),
+        budget=budget,
+        seed=args.seed,
+        split=split,
+        output=_columns(args.output)[0] if args.output is not None else None,
+        detrend=args.detrend,
+        max_lag=args.max_lag,
+        load_options=load_options,
+        callback=_identify_progress(args),
+    )
+    if args.figures:
+        from .plots import identification_figures
+
+        paths = identification_figures(ident, args.figures)
+        if not args.json:
+            print(f"figures: {len(paths)} PNG files in {args.figures}")
+    if args.json:
+        print(json.dumps(ident.to_dict(), indent=2, allow_nan=False, default=_json_default))
+    else:
+        print(ident.summary())
+    return 0
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
+
+
+def _identify_progress(args: argparse.Namespace):
+    if args.json or args.no_progress or args.optimiser == "ls" or not sys.stderr.isatty():
+        return None
+    from .progress import ProgressBar
+
+    bar = ProgressBar(args.budget, f"{args.optimiser}")
+    state = {"fe": 0}
+
+    def callback(info) -> None:
+        bar.update(info.fe - state["fe"], f"best {info.best:.5g}")
+        state["fe"] = info.fe
+        if info.max_fe is not None and info.fe >= info.max_fe:
+            bar.close()
+
+    return callback
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from .compare import compare
+    from .config import default_spec, load_config
+
+    overrides = {
+        "runs": args.runs,
+        "budget": args.budget,
+        "seed": args.seed,
+    }
+    if args.config:
+        if args.plant:
+            raise ConfigError("give either a CONFIG file or --plant, not both")
+        specs = load_config(args.config)
+        from dataclasses import replace
+
+        changes = {k: v for k, v in overrides.items() if v is not None}
+        if args.optimisers:
+            from .config import OptimiserSpec
+
+            changes["optimisers"] = tuple(OptimiserSpec(n) for n in _names(args.optimisers))
+        specs = [replace(s, **changes) for s in specs]
+    else:
+        budget: Any = args.budget if args.budget is not None else 10_000
+        specs = [
+            default_spec(
+                plant=args.plant or "manipulator",
+                optimisers=_names(args.optimisers),
+                runs=args.runs if args.runs is not None else 5,
+                budget=budget,
+                seed=args.seed if args.seed is not None else 0,
+                na=args.na,
+                nb=_int_list(args.nb, "--nb"),
+                nk=_int_list(args.nk, "--nk") if args.nk is not None else 1,
+                metric=args.cost,
+                predictor=args.predictor,
+            )
+        ]
+    store = Path(args.store) if args.store else DEFAULT_OUT / "results.sqlite"
+    outputs = []
+    for spec in specs:
+        result = compare(
+            spec,
+            store=store,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            progress=not (args.no_progress or args.json),
+            retry_failed=args.retry_failed,
+        )
+        outputs.append(result)
+        if not args.json:
+            print(result.summary())
+            print(f"\n{result.spec.runs * len(result.spec.optimisers)} runs in store {store} "
+                  f"({result.elapsed:.1f} s this time)")
+        if not args.no_figures:
+            from .plots import PlottingUnavailable, comparison_figures
+
+            figdir = Path(args.figures) if args.figures else store.parent
+            slug = "".join(c if c.isalnum() else "-" for c in spec.name).strip("-")
+            try:
+                paths = comparison_figures(result, figdir, prefix=f"{slug}-")
+            except PlottingUnavailable as exc:
+                if not args.json:
+                    print(f"(no figures: {exc})")
+            else:
+                if not args.json:
+                    print(f"figures: {', '.join(str(p) for p in paths)}")
+        if not args.json:
+            print()
+    if args.json:
+        print(json.dumps([r.to_dict() for r in outputs], indent=2))
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .report import write_report
+
+    outdir = Path(args.output) if args.output else Path(args.store).with_suffix("") .parent / "report"
+    path = write_report(args.store, outdir, fmt=args.format, key=args.key, figures=not args.no_figures)
+    print(f"wrote {path}")
+    return 0
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    what = args.what
+    if what == "optimisers":
+        from .optimisers import available, describe
+
+        entries = [describe(name) for name in available()]
+        if args.json:
+            print(json.dumps(entries, indent=2, default=str))
+            return 0
+        for e in entries:
+            origin = f" (variant of {e['variant_of']})" if e["variant_of"] else ""
+            src = "" if e["source"] == "flexid" else f" [{e['source']}]"
+            print(f"{e['name']}{origin}{src}: {e['summary']}")
+            for pname, p in e["hyperparameters"].items():
+                print(f"    {pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}")
+        return 0
+    if what == "signals":
+        from .signals import describe_signals
+
+        print(describe_signals())
+        return 0
+    if what in ("plants", "presets"):
+        from .datasets import PRESETS
+
+        if what == "plants":
+            print("manipulator  single-link flexible manipulator (torque -> hub angle, hub velocity, "
+                  "tip deflection, tip acceleration), gymnasium id flexid/FlexibleManipulator-v0")
+            print("twin-rotor   twin rotor MIMO system (main/tail rotor voltages -> pitch, yaw, rates), "
+                  "gymnasium id flexid/TwinRotor-v0")
+            return 0
+        for name, preset in PRESETS.items():
+            print(f"{name}: {json.dumps(preset, default=str)}")
+        return 0
+    if what == "environments":
+        import gymnasium
+
+        for env_id in sorted(k for k in gymnasium.envs.registry if k.startswith("flexid/")):
+            print(env_id)
+        return 0
+    raise ConfigError(f"unknown list {what!r}")  # pragma: no cover (argparse choices)
+
+
+# ============================================================================ parser
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="flexid",
+        description="Flexible-plant simulators, ARX identification with pluggable optimisers, "
+        "and fair optimiser comparison.",
+    )
+    parser.add_argument("--version", action="version", version=f"flexid {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    g = sub.add_parser("generate", help="write a synthetic dataset from a simulated plant")
+    g.add_argument("plant", help="manipulator or twin-rotor")
+    g.add_argument("--preset", help="paper-manipulator or paper-twin-rotor")
+    g.add_argument("--signal", help="excitation signal (flexid list signals)")
+    g.add_argument("--samples", type=int, help="number of samples")
+    g.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    g.add_argument("--dt", type=float, help="sample time in seconds")
+    g.add_argument("--outputs", help="output channels to keep, comma-separated")
+    g.add_argument("--noise", help="measurement noise std per output, or e.g. 1%% of each output's std")
+    g.add_argument("--signal-option", action="append", metavar="NAME=VALUE", help="signal option (repeatable)")
+    g.add_argument("--param", action="append", metavar="NAME=VALUE", help="plant parameter (repeatable)")
+    g.add_argument("--output", "-o", required=True, help="output file, .csv or .npz")
+    g.set_defaults(func=_cmd_generate)
+
+    i = sub.add_parser("identify", help="identify an ARX model from a record")
+    i.add_argument("file", help="record: .csv, .npz or .dat")
+    i.add_argument("--na", type=int, required=True, help="number of poles (A coefficients)")
+    i.add_argument("--nb", help="B coefficients per input (default: na)")
+    i.add_argument("--nk", help="input delay in samples per input (default 1)")
+    i.add_argument("--optimiser", default="hbcsd", help="registered optimiser or 'ls' (default hbcsd)")
+    i.add_argument("--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter")
+    i.add_argument("--cost", default="paper", help="paper | rmse | nrmse | sse | mse")
+    i.add_argument("--predictor", default="one-step", help="one-step | simulation")
+    i.add_argument("--bounds", default="auto", help="auto, a half-width S, or LOW,HIGH")
+    i.add_argument("--budget", type=int, default=20_000, help="function evaluations (default 20000)")
+    i.add_argument("--iterations", type=int, help="also stop after this many iterations")
+    i.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    i.add_argument("--split", type=float, help="estimation share (default 2/3) or sample index")
+    i.add_argument("--inputs", help="input columns (names or 0-based indices)")
+    i.add_argument("--outputs", help="output columns (names or 0-based indices)")
+    i.add_argument("--output", help="which output to model when there are several")
+    i.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
+    i.add_argument("--detrend", action="store_true", help="remove the estimation means")
+    i.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
+    i.add_argument("--figures", help="write the paper's figures (PNG) to this folder")
+    i.add_argument("--json", action="store_true", help="print a machine-readable result")
+    i.add_argument("--no-progress", action="store_true", help="no progress bar")
+    i.set_defaults(func=_cmd_identify)
+
+    c = sub.add_parser("compare", help="compare optimisers on identical problems")
+    c.add_argument("config", nargs="?", help="comparison configuration (.toml)")
+    c.add_argument("--plant", help="manipulator or twin-rotor (built-in comparison)")
+    c.add_argument("--optimisers", help="comma-separated optimiser names")
+    c.add_argument("--runs", type=int, help="runs (seeds) per optimiser")
+    c.add_argument("--budget", type=int, help="function evaluations per run")
+    c.add_argument("--seed", type=int, help="comparison seed")
+    c.add_argument("--na", type=int, help="model order (built-in comparison)")
+    c.add_argument("--nb", help="B coefficients (built-in comparison)")
+    c.add_argument("--nk", help="input delay (built-in comparison)")
+    c.add_argument("--cost", default="paper", help="paper | rmse | nrmse | sse | mse")
+    c.add_argument("--predictor", default="one-step", help="one-step | simulation")
+    c.add_argument("--store", help=f"SQLite result store (default {DEFAULT_OUT}/results.sqlite)")
+    c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+    c.add_argument("--scheduler", help="dask.distributed scheduler address")
+    c.add_argument("--figures", help="folder for the figures (default: next to the store)")
+    c.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    c.add_argument("--retry-failed", action="store_true", help="run failed runs again")
+    c.add_argument("--json", action="store_true", help="print machine-readable results")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.set_defaults(func=_cmd_compare)
+
+    r = sub.add_parser("report", help="write a Markdown/HTML report of a result store")
+    r.add_argument("store", help="SQLite result store")
+    r.add_argument("--output", "-o", help="report folder (default: report/ next to the store)")
+    r.add_argument("--format", default="md", choices=["md", "html"], help="md or html")
+    r.add_argument("--key", help="only the comparison with this key (prefix)")
+    r.add_argument("--no-figures", action="store_true", help="tables only")
+    r.set_defaults(func=_cmd_report)
+
+    li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
+    li.add_argument("what", choices=["optimisers", "signals", "plants", "presets", "environments"])
+    li.add_argument("--json", action="store_true", help="machine-readable (optimisers)")
+    li.set_defaults(func=_cmd_list)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; return the exit status (0 ok, 2 user error)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    debug = "--debug" in argv
+    try:
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help()
+            return 2
+        return int(args.func(args) or 0)
+    except _UsageError as exc:
+        print(f"{exc} (see flexid --help)", file=sys.stderr)
+        return 2
+    except FlexidError as exc:
+        if debug:
+            raise
+        print(f"flexid: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("flexid: interrupted (finished runs are in the store; rerun to resume)", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,658 @@
+"""Compare optimisers on identical plants: same data, same initial populations, same budgets.
+
+:func:`compare` runs every optimiser of a :class:`~flexid.config.ComparisonSpec` for
+``runs`` seeds.  Run ``r`` of every optimiser uses the same seed (spawned from the
+comparison seed with ``numpy.random.SeedSequence``), hence the same initial population, and
+the same FE budget.  Least squares, the exact optimum of the one-step cost, is the reference
+row.  Every finished run is written at once to a :class:`~flexid.store.ResultStore`; a rerun
+skips finished runs, so a comparison killed part-way resumes.  Runs execute serially, in a
+process pool (``workers``) or on a dask.distributed cluster (``scheduler``); the numbers do not
+depend on where they ran.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .arx import ARXStructure
+from .config import SCHEDULE, ComparisonSpec, OptimiserSpec
+from .data import IOData
+from .errors import ConfigError, FlexidError, StoreError
+from .identify import SearchBox, prepare_data, search_box
+from .objective import ARXCost
+from .optimisers import Budget, Problem, get, minimize
+from .statistics import rank_sum_against_best, summarise
+from .store import ResultStore
+from .validation import validate
+
+__all__ = ["ComparisonResult", "build_data", "compare", "run_seed"]
+
+LS_LABEL = "ls"
+
+
+# ================================================================================ context
+def run_seed(comparison_seed: int, run: int) -> int:
+    """Seed of run ``run``: child ``run`` of ``SeedSequence(comparison_seed)``, as an int.
+
+    It does not depend on the number of runs, so adding runs keeps the earlier ones.
+    """
+    child = np.random.SeedSequence(comparison_seed, spawn_key=(run,))
+    return int(child.generate_state(1, dtype=np.uint64)[0] >> np.uint64(1))
+
+
+def build_data(spec: ComparisonSpec) -> IOData:
+    """The record of a comparison: simulated from the plant, or read from the file."""
+    d = spec.data
+    if d.file is not None:
+        from .data import load
+
+        options = {k: v for k, v in (("inputs", d.inputs), ("outputs", d.outputs), ("dt", d.dt)) if v is not None}
+        return load(d.file, **options)
+    from .datasets import generate
+
+    options: dict[str, Any] = {"seed": d.seed}
+    for key in ("preset", "signal", "n_samples", "noise_std"):
+        value = getattr(d, key)
+        if value is not None:
+            options[key] = value
+    if d.signal_options:
+        options["signal_options"] = dict(d.signal_options)
+    if d.plant_params:
+        options["plant_params"] = dict(d.plant_params)
+    if d.outputs is not None:
+        options["outputs"] = d.outputs
+    return generate(d.plant, **options)
+
+
+class _Context:
+    """What every run of a comparison shares: records, structure, cost, box."""
+
+    def __init__(self, spec: ComparisonSpec, est: IOData, val: IOData) -> None:
+        self.spec = spec
+        self.est = est
+        self.val = val
+        m = spec.model
+        nb = m.nb if m.nb is not None else m.na
+        self.structure = ARXStructure(m.na, nb, m.nk)
+        if self.structure.n_inputs != est.n_inputs:
+            raise ConfigError(
+                f"the record has {est.n_inputs} input(s) but [model] gives {self.structure.n_inputs}"
+            )
+        self.structure.check_samples(est.n_samples)
+        self.structure.check_samples(val.n_samples)
+        c = spec.cost
+        self.cost = ARXCost(
+            self.structure, est, metric=c.metric, predictor=c.predictor, weight=c.weight,
+            penalty=c.penalty, initial=c.initial,
+        )
+        self.theta_ls = np.asarray(self.cost.theta_ls, dtype=float)
+        self.box: SearchBox = search_box(self.structure, spec.bounds, self.theta_ls)
+
+    @classmethod
+    def from_spec(cls, spec: ComparisonSpec) -> _Context:
+        d = spec.data
+        est, val = prepare_data(build_data(spec), output=d.output, split=d.split, detrend=d.detrend)
+        return cls(spec, est, val)
+
+    def payload(self) -> dict[str, Any]:
+        """Picklable arguments to rebuild the context in a worker process."""
+        return {"spec": self.spec.to_dict(), "est": self.est, "val": self.val}
+
+
+_WORKER_CONTEXT: dict[str, _Context] = {}
+
+
+def _context_from_payload(payload: Mapping[str, Any]) -> _Context:
+    spec = ComparisonSpec.from_dict(payload["spec"])
+    cached = _WORKER_CONTEXT.get(spec.key)
+    if cached is None:
+        cached = _Context(spec, payload["est"], payload["val"])
+        _WORKER_CONTEXT.clear()
+        _WORKER_CONTEXT[spec.key] = cached
+    return cached
+
+
+def _init_worker(payload: Mapping[str, Any]) -> None:
+    _context_from_payload(payload)
+
+
+# ================================================================================ one run
+def _compact_history(history) -> dict[str, list]:
+    """Change points of the best-so-far step function (exact), plus the first and last rows."""
+    fe = history.fe
+    best = history.best
+    if fe.size == 0:
+        return {"fe": [], "best": []}
+    keep = np.ones(fe.size, dtype=bool)
+    keep[1:] = best[1:] < best[:-1]
+    keep[-1] = True
+    return {"fe": fe[keep].tolist(), "best": [float(b) for b in best[keep]]}
+
+
+def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
+    report = validate(model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.cost.initial)
+    err = report.error_range_one_step
+    return {
+        "fit_one_step": float(report.fit_one_step),
+        "fit_simulation": float(report.fit_simulation),
+        "rmse_one_step": float(report.rmse_one_step),
+        "error_min": float(err[0]),
+        "error_max": float(err[1]),
+        "correlation_passed": bool(report.passed),
+    }
+
+
+def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
+    est_err = model.residuals(ctx.est.u, ctx.est.y[:, 0])[ctx.structure.start:]
+    return {
+        "theta": [float(v) for v in model.theta],
+        "stable": bool(model.is_stable),
+        "max_pole_radius": float(model.max_pole_radius),
+        "estimation_error_min": float(est_err.min()),
+        "estimation_error_max": float(est_err.max()),
+    }
+
+
+def _least_squares_record(ctx: _Context) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    model = ctx.structure.model(ctx.theta_ls, dt=ctx.est.dt)
+    cost = float(ctx.cost(ctx.theta_ls[None, :])[0])
+    record = {
+        "label": LS_LABEL,
+        "optimiser": LS_LABEL,
+        "params": {},
+        "fingerprint": LS_LABEL,
+        "run": 0,
+        "seed": 0,
+        "status": "ok",
+        "cost": cost,
+        "nfev": 0,
+        "nit": 0,
+        "stop": "closed form",
+        "history": {"fe": [0], "best": [cost]},
+    }
+    record.update(_model_numbers(model, ctx))
+    record["validation"] = _validation_numbers(model, ctx)
+    record["wall_time"] = time.perf_counter() - t0
+    return record
+
+
+def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, Any]:
+    """One optimiser run; an exception becomes a failed record, never a crash."""
+    record: dict[str, Any] = {
+        "label": opt.display,
+        "optimiser": opt.name,
+        "params": dict(opt.params),
+        "fingerprint": opt.fingerprint(),
+        "run": run,
+        "seed": seed,
+    }
+    t0 = time.perf_counter()
+    try:
+        problem = Problem(ctx.cost, ctx.box.lower, ctx.box.upper, name="arx")
+        budget = Budget(max_fe=ctx.spec.max_fe)
+        result = minimize(opt.name, problem, budget, seed, params=opt.params)
+        model = ctx.structure.model(result.x, dt=ctx.est.dt)
+        record.update(
+            status="ok",
+            cost=float(result.fun),
+            nfev=int(result.nfev),
+            nit=int(result.nit),
+            stop=result.stop,
+            history=_compact_history(result.history),
+        )
+        record.update(_model_numbers(model, ctx))
+        record["validation"] = _validation_numbers(model, ctx)
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except Exception as exc:  # an optimiser that raises is recorded, the others go on
+        record.update(
+            status="failed",
+            error=f"{type(exc).__name__}: {exc}",
+            traceback=traceback.format_exc(limit=8),
+        )
+    record["wall_time"] = time.perf_counter() - t0
+    return record
+
+
+def _run_task(payload: Mapping[str, Any], task: tuple) -> dict[str, Any]:
+    ctx = _context_from_payload(payload)
+    opt_dict, run, seed = task
+    return _run(ctx, OptimiserSpec(**opt_dict), run, seed)
+
+
+def _run_task_in_worker(task: tuple) -> dict[str, Any]:
+    ctx = next(iter(_WORKER_CONTEXT.values()))
+    opt_dict, run, seed = task
+    return _run(ctx, OptimiserSpec(**opt_dict), run, seed)
+
+
+# ================================================================================ result
+@dataclass
+class ComparisonResult:
+    """The runs of a comparison and their statistics.
+
+    Attributes
+    ----------
+    spec : ComparisonSpec
+    key : str
+        Store key.
+    reference : dict
+        The least-squares record (cost, fits, stability...).
+    records : dict
+        ``label -> list of run records`` (run order).
+    stats : dict
+        ``label -> summary`` (see :func:`flexid.statistics.summarise`), plus ``"tests"``.
+    reference_cost : float
+        The cost targets are relative to: least squares if its model is stable, else the
+        best stable cost found by any run (``reference_note`` says which).
+    """
+
+    spec: ComparisonSpec
+    key: str
+    reference: dict
+    records: dict
+    stats: dict = field(default_factory=dict)
+    reference_cost: float = math.nan
+    reference_note: str = ""
+    store_path: str | None = None
+    elapsed: float = 0.0
+
+    @classmethod
+    def from_records(
+        cls, spec: ComparisonSpec, key: str, records: Iterable[Mapping[str, Any]], **extra: Any
+    ) -> ComparisonResult:
+        by_label: dict[str, list] = {}
+        reference = None
+        order = [o.display for o in spec.optimisers]
+        for r in records:
+            if r["label"] == LS_LABEL:
+                reference = dict(r)
+                continue
+            if r["label"] in order and r["run"] < spec.runs:
+                by_label.setdefault(r["label"], []).append(dict(r))
+        if reference is None:
+            raise StoreError(f"comparison {key}: the least-squares reference row is missing")
+        by_label = {k: sorted(by_label.get(k, []), key=lambda r: r["run"]) for k in order}
+        result = cls(spec, key, reference, by_label, **extra)
+        result._compute()
+        return result
+
+    def _compute(self) -> None:
+        if self.reference.get("stable"):
+            self.reference_cost = float(self.reference["cost"])
+            self.reference_note = "least squares (the exact optimum of the one-step cost)"
+            if self.spec.cost.predictor != "one-step":
+                self.reference_note = "least squares (the one-step optimum; not the optimum of this cost)"
+        else:
+            stable = [
+                r["cost"] for rs in self.records.values() for r in rs
+                if r["status"] == "ok" and r.get("stable")
+            ]
+            self.reference_cost = float(min(stable)) if stable else math.nan
+            self.reference_note = (
+                "best stable cost of any run (least squares gives an UNSTABLE model here)"
+            )
+        self.stats = {
+            label: summarise(rs, self.reference_cost, self.spec.targets)
+            for label, rs in self.records.items()
+        }
+        costs = {
+            label: [r["cost"] for r in rs if r["status"] == "ok"]
+            for label, rs in self.records.items()
+        }
+        tests = rank_sum_against_best(costs)
+        for label, t in tests.items():
+            self.stats[label]["test"] = t
+
+    # ------------------------------------------------------------------ tables
+    def cost_table(self) -> str:
+        """Final cost, FE to target and success rate per optimiser (plain-text table)."""
+        targets = self.spec.targets
+        head = ["optimiser", "runs", "median", "IQR", "best"]
+        head += [f"FE to {t:g} (ok)" for t in targets]
+        head += ["p (Holm)", "time s"]
+        rows = [head]
+        ref = self.reference
+        rows.append(
+            ["least squares", "-", _f(ref["cost"]), "-", _f(ref["cost"])]
+            + ["-"] * len(targets) + ["-", f"{ref.get('wall_time', 0):.3f}"]
+        )
+        for label, s in self.stats.items():
+            runs = f"{s['ok']}" + (f" ({s['failed']} failed)" if s["failed"] else "")
+            if not s["ok"]:
+                rows.append([label, runs] + ["-"] * (len(head) - 2))
+                continue
+            row = [label, runs, _f(s["median"]), _f(s["iqr"]), _f(s["best"])]
+            for t in targets:
+                reach = s["reach"][str(t)]
+                fe = "-" if math.isnan(reach["median_fe"]) else f"{reach['median_fe']:.0f}"
+                row.append(f"{fe} ({reach['success'] * 100:.0f}%)")
+            test = s.get("test", {})
+            row.append("best" if test.get("best") else _p(test.get("p_holm")))
+            row.append(f"{s['median_time']:.2f}")
+            rows.append(row)
+        return _format_table(rows)
+
+    def validation_table(self) -> str:
+        """Held-out fits, modelling-error range and correlation-test pass rate (medians)."""
+        head = ["optimiser", "fit 1-step %", "fit sim %", "error range (1-step)", "corr. pass", "stable"]
+        rows = [head]
+        v = self.reference["validation"]
+        rows.append(
+            [
+                "least squares",
+                f"{v['fit_one_step']:.2f}",
+                f"{v['fit_simulation']:.2f}",
+                f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
+                "yes" if v["correlation_passed"] else "no",
+                "yes" if self.reference.get("stable") else "NO",
+            ]
+        )
+        for label, s in self.stats.items():
+            if not s["ok"]:
+                rows.append([label] + ["-"] * (len(head) - 1))
+                continue
+            rows.append(
+                [
+                    label,
+                    f"{s['fit_one_step']:.2f}",
+                    f"{s['fit_simulation']:.2f}",
+                    f"[{s['error_min']:.4g}, {s['error_max']:.4g}]",
+                    f"{s['correlation_pass_rate'] * 100:.0f}%",
+                    f"{s['stable_rate'] * 100:.0f}%",
+                ]
+            )
+        return _format_table(rows)
+
+    def summary(self) -> str:
+        """Both tables with a header saying what was compared and how."""
+        s = self.spec
+        m = s.model
+        lines = [
+            f"Comparison {s.name!r} [{self.key}]",
+            f"  data      : {s.data.describe()}",
+            f"  model     : ARX(na={m.na}, nb={m.nb if m.nb is not None else m.na}, nk={m.nk}), "
+            f"cost {s.cost.metric}, {s.cost.predictor} predictor",
+            f"  budget    : {s.budget_label()} per run, {s.runs} runs per optimiser, seed {s.seed}",
+            f"  reference : {self.reference_note}: {_f(self.reference_cost)}",
+            f"  targets   : reference x (1 + t), t in {list(s.targets)}",
+            "",
+            self.cost_table(),
+            "",
+            "Validation on the held-out record (medians over runs)",
+            self.validation_table(),
+        ]
+        failed = {k: v.get("errors") for k, v in self.stats.items() if v.get("failed")}
+        for label, errors in failed.items():
+            lines.append(f"  {label}: failed runs: {'; '.join(errors or [])}")
+        tests = [(k, v["test"]) for k, v in self.stats.items() if "test" in v]
+        best = [k for k, t in tests if t["best"]]
+        if best:
+            same = [k for k, t in tests if not t["best"] and not t["significant"] and not math.isnan(t["p_holm"])]
+            lines.append("")
+            lines.append(
+                f"Lowest median cost: {best[0]}. "
+                + (
+                    f"Not significantly different (rank-sum, Holm, 5 %): {', '.join(same)}."
+                    if same
+                    else "Every other optimiser is significantly worse (rank-sum, Holm, 5 %)."
+                )
+            )
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe result: spec, reference, statistics (without per-run histories)."""
+        return _json_safe(
+            {
+                "key": self.key,
+                "spec": self.spec.to_dict(),
+                "reference": {k: v for k, v in self.reference.items() if k != "history"},
+                "reference_cost": self.reference_cost,
+                "reference_note": self.reference_note,
+                "stats": self.stats,
+            }
+        )
+
+
+def _f(value: float) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    return f"{value:.5g}"
+
+
+def _p(value: float | None) -> str:
+    if value is None or math.isnan(value):
+        return "-"
+    return f"{value:.2g}" + ("*" if value < 0.05 else "")
+
+
+def _format_table(rows: list[list[str]]) -> str:
+    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
+    lines = []
+    for n, row in enumerate(rows):
+        cells = [str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(row, widths))]
+        lines.append("  ".join(cells).rstrip())
+        if n == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        return v if math.isfinite(v) else repr(v)
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+# ================================================================================ compare
+def _check_optimisers(spec: ComparisonSpec, store: ResultStore | None, key: str) -> None:
+    """Fail early on unknown optimisers or hyper-parameters, and on reused labels."""
+    for opt in spec.optimisers:
+        get(opt.name)(**opt.params)
+    if store is None:
+        return
+    stored = {}
+    for r in store.runs(key):
+        stored.setdefault(r["label"], r.get("fingerprint"))
+    for opt in spec.optimisers:
+        fp = stored.get(opt.display)
+        if fp is not None and fp != opt.fingerprint():
+            raise ConfigError(
+                f"label {opt.display!r} is stored for this comparison with other settings; "
+                "give the new settings another label or use another store"
+            )
+
+
+def compare(
+    spec: ComparisonSpec,
+    *,
+    store: str | Path | ResultStore | None = None,
+    workers: int = 1,
+    scheduler: str | Any | None = None,
+    progress: bool | Callable[[dict], Any] = False,
+    retry_failed: bool = False,
+) -> ComparisonResult:
+    """Run (or resume) a comparison and return its statistics.
+
+    Parameters
+    ----------
+    spec : ComparisonSpec
+        What to compare (see :mod:`flexid.config`).
+    store : path or ResultStore, optional
+        SQLite result store.  Each finished run is written at once; runs already in the store
+        are skipped.  Without a store the results live in memory only.
+    workers : int
+        Processes to run in parallel (1 = in this process).  The numbers do not depend on it.
+    scheduler : str or distributed.Client, optional
+        Address of a dask.distributed scheduler (requires the ``dask`` extra), or a client.
+    progress : bool or callable
+        Show a progress bar (``True``) or call ``progress(record)`` after each run.
+    retry_failed : bool
+        Run again the runs stored as failed (default: keep them).
+
+    Returns
+    -------
+    ComparisonResult
+
+    Raises
+    ------
+    ConfigError, UnknownOptimiserError, HyperParameterError, DataError, StoreError
+        Before any run starts, for an invalid specification.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError(f"workers must be a positive integer, got {workers!r}")
+    t0 = time.perf_counter()
+    owns_store = store is not None and not isinstance(store, ResultStore)
+    db = ResultStore(store) if owns_store else store
+    key = spec.key
+    try:
+        _check_optimisers(spec, db, key)
+        ctx = _Context.from_spec(spec)
+        records: list[dict[str, Any]] = []
+        done: set[tuple[str, int]] = set()
+        if db is not None:
+            db.add_comparison(key, spec.name, spec.to_dict())
+            done = db.finished(key, include_failed=not retry_failed)
+            records = [r for r in db.runs(key) if (r["label"], r["run"]) in done]
+        if (LS_LABEL, 0) not in done:
+            ls = _least_squares_record(ctx)
+            records.append(ls)
+            if db is not None:
+                db.write_run(key, ls)
+        tasks = [
+            (
+                {"name": o.name, "params": dict(o.params), "label": o.label},
+                r,
+                run_seed(spec.seed, r),
+            )
+            for r in range(spec.runs)
+            for o in spec.optimisers
+            if (o.display, r) not in done
+        ]
+        records = [r for r in records if not (r["status"] == "failed" and retry_failed)]
+        bar = _progress(progress, len(tasks), spec.name)
+        try:
+            for record in _execute(ctx, tasks, workers, scheduler):
+                if db is not None:
+                    db.write_run(key, record)
+                records.append(record)
+                bar(record)
+        finally:
+            bar(None)
+        return ComparisonResult.from_records(
+            spec,
+            key,
+            records,
+            store_path=str(db.path) if db is not None else None,
+            elapsed=time.perf_counter() - t0,
+        )
+    finally:
+        if owns_store and db is not None:
+            db.close()
+
+
+def _execute(ctx: _Context, tasks: Sequence[tuple], workers: int, scheduler: Any) -> Iterable[dict]:
+    """Yield finished run records as they complete (serial, processes or dask)."""
+    if not tasks:
+        return
+    if scheduler is not None:
+        yield from _execute_dask(ctx, tasks, scheduler)
+        return
+    if workers == 1:
+        for opt_dict, run, seed in tasks:
+            yield _run(ctx, OptimiserSpec(**opt_dict), run, seed)
+        return
+    payload = ctx.payload()
+    with ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=get_context("spawn"),
+        initializer=_init_worker,
+        initargs=(payload,),
+    ) as pool:
+        futures = [pool.submit(_run_task_in_worker, task) for task in tasks]
+        try:
+            for future in as_completed(futures):
+                yield future.result()
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
+
+
+def _execute_dask(ctx: _Context, tasks: Sequence[tuple], scheduler: Any) -> Iterable[dict]:
+    try:
+        from distributed import Client, as_completed as dask_completed
+    except ImportError:
+        raise ConfigError(
+            "--scheduler needs dask.distributed: pip install 'flexid[dask]'"
+        ) from None
+    client = scheduler if isinstance(scheduler, Client) else None
+    own = client is None
+    if own:
+        try:
+            client = Client(scheduler, timeout="20s")
+        except OSError as exc:
+            raise ConfigError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from None
+    try:
+        payload = client.scatter(ctx.payload(), broadcast=True)
+        futures = [client.submit(_run_task, payload, task, pure=False) for task in tasks]
+        for future in dask_completed(futures):
+            yield future.result()
+    finally:
+        if own:
+            client.close()
+
+
+def _progress(progress: bool | Callable, total: int, name: str) -> Callable[[dict | None], None]:
+    """A callback ``bar(record)`` per finished run; ``bar(None)`` closes it."""
+    if callable(progress) and not isinstance(progress, bool):
+        return lambda record: None if record is None else progress(record)
+    if not progress or total == 0:
+        return lambda record: None
+    from .progress import ProgressBar
+
+    bar = ProgressBar(total, f"{name}")
+
+    def update(record: dict | None) -> None:
+        if record is None:
+            bar.close()
+        else:
+            bar.update(1, f"{record['label']} run {record['run']}: {_f(record.get('cost', math.nan))}")
+
+    return update
+
+
+def load_result(store: str | Path | ResultStore, key: str | None = None) -> list[ComparisonResult]:
+    """Comparison results rebuilt from a store (all comparisons, or the one with ``key``)."""
+    db = store if isinstance(store, ResultStore) else ResultStore(store, readonly=True)
+    try:
+        entries = [db.comparison(key)] if key else db.comparisons()
+        results = []
+        for entry in entries:
+            spec = ComparisonSpec.from_dict(entry["spec"])
+            results.append(ComparisonResult.from_records(spec, entry["key"], db.runs(entry["key"]), store_path=str(db.path)))
+        return results
+    finally:
+        if db is not store:
+            db.close()
+
+
+__all__ += ["load_result"]
+_ = (FlexidError, SCHEDULE)

@@ -1,0 +1,385 @@
+"""Comparison specifications and their TOML configuration files.
+
+A comparison is fully described by a :class:`ComparisonSpec`: where the data come from
+(a simulated plant and its excitation, or a recorded file), the ARX orders, the cost, the
+search box, the optimisers with their hyper-parameters, the number of runs, the seed and
+the budget.  ``flexid compare CONFIG.toml`` reads one; ``flexid compare --plant ...``
+builds one from the defaults and the command-line options.
+
+Example (``experiments/paper-manipulator.toml`` is a complete one)::
+
+    name = "small-manipulator"
+
+    [data]
+    plant = "manipulator"          # or: file = "record.csv", inputs = ["u"], outputs = ["y"]
+    preset = "paper-manipulator"
+    seed = 0
+
+    [model]
+    na = 8
+    nb = 8
+    nk = 1
+
+    [cost]
+    metric = "paper"               # paper | rmse | nrmse | sse | mse
+    predictor = "one-step"         # one-step | simulation
+
+    [run]
+    runs = 10
+    seed = 1
+    budget = 10000                 # FE; a list runs several budgets; "schedule" = the
+                                   # optimisers' own loop counts (capped by schedule_cap)
+
+    [[optimisers]]
+    name = "hbcsd"
+    [[optimisers]]
+    name = "bfa"
+    params = { step_size = 0.01 }
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+__all__ = [
+    "DEFAULT_OPTIMISERS",
+    "ComparisonSpec",
+    "CostSpec",
+    "DataSpec",
+    "ModelSpec",
+    "OptimiserSpec",
+    "default_spec",
+    "load_config",
+]
+
+DEFAULT_OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de")
+SCHEDULE = "schedule"
+
+
+@dataclass(frozen=True)
+class DataSpec:
+    """Where the record comes from, and how it is split.
+
+    Either ``plant`` (simulate; ``preset``, ``signal``, ``n_samples``, ``seed``,
+    ``noise_std``, ``signal_options``, ``plant_params`` as in
+    :func:`flexid.datasets.generate`) or ``file`` (a CSV/NPZ/DAT record; ``inputs``,
+    ``outputs``, ``dt`` as in :func:`flexid.data.load`).  ``output`` picks the modelled
+    output channel; ``split`` is the estimation share (or a sample index); ``detrend``
+    removes the estimation means.
+    """
+
+    plant: str | None = None
+    preset: str | None = None
+    signal: str | None = None
+    n_samples: int | None = None
+    seed: int = 0
+    noise_std: Any = None
+    signal_options: dict = field(default_factory=dict)
+    plant_params: dict = field(default_factory=dict)
+    file: str | None = None
+    inputs: Any = None
+    outputs: Any = None
+    dt: float | None = None
+    output: str | int | None = None
+    split: float | int | None = None
+    detrend: bool = False
+
+    def __post_init__(self) -> None:
+        if (self.plant is None) == (self.file is None):
+            raise ConfigError("[data] needs exactly one of 'plant' (simulate) or 'file' (a record)")
+
+    def describe(self) -> str:
+        if self.file is not None:
+            return f"file {self.file}"
+        parts = [self.plant, self.preset or self.signal or "default signal"]
+        return " / ".join(p for p in parts if p) + f" (seed {self.seed})"
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """ARX orders in MATLAB's convention (``nb`` defaults to ``na``)."""
+
+    na: int = 8
+    nb: Any = None
+    nk: Any = 1
+
+
+@dataclass(frozen=True)
+class CostSpec:
+    """The cost the optimisers minimise (see :class:`flexid.objective.ARXCost`)."""
+
+    metric: str = "paper"
+    predictor: str = "one-step"
+    weight: float = 1e3
+    penalty: float = 1e9
+    initial: str = "measured"
+
+
+@dataclass(frozen=True)
+class OptimiserSpec:
+    """A registered optimiser, its hyper-parameters and the label it has in tables."""
+
+    name: str
+    params: dict = field(default_factory=dict)
+    label: str | None = None
+
+    @property
+    def display(self) -> str:
+        return self.label or self.name
+
+    def fingerprint(self) -> str:
+        text = json.dumps({"name": self.name, "params": self.params}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+@dataclass(frozen=True)
+class ComparisonSpec:
+    """Everything that determines a comparison's numbers.
+
+    The comparison's store key is a hash of the data, model, cost, box, budget, seed and
+    validation settings; it leaves out the name, the number of runs and the list of
+    optimisers, so adding runs or optimisers to a finished comparison reuses its runs.
+    """
+
+    name: str = "comparison"
+    data: DataSpec = field(default_factory=lambda: DataSpec(plant="manipulator", preset="paper-manipulator"))
+    model: ModelSpec = field(default_factory=ModelSpec)
+    cost: CostSpec = field(default_factory=CostSpec)
+    bounds: Any = "auto"
+    optimisers: tuple[OptimiserSpec, ...] = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
+    runs: int = 10
+    seed: int = 0
+    budget: int | str = 10_000
+    schedule_cap: int = 2_000_000
+    targets: tuple[float, ...] = (0.1, 0.01, 0.001)
+    max_lag: int = 25
+
+    def __post_init__(self) -> None:
+        _check_int(self.runs, "[run] runs", low=1)
+        _check_int(self.seed, "[run] seed", low=0)
+        _check_int(self.max_lag, "[validation] max_lag", low=1)
+        _check_int(self.schedule_cap, "[run] schedule_cap", low=1)
+        if self.budget != SCHEDULE:
+            _check_int(self.budget, "[run] budget", low=1)
+        if not self.optimisers:
+            raise ConfigError("a comparison needs at least one optimiser")
+        labels = [o.display for o in self.optimisers]
+        dup = sorted({x for x in labels if labels.count(x) > 1})
+        if dup:
+            raise ConfigError(f"optimiser labels must be unique; repeated: {dup} (set 'label')")
+        if "ls" in labels:
+            raise ConfigError("'ls' is the least-squares reference row, always included; remove it")
+        for t in self.targets:
+            if not (isinstance(t, (int, float)) and t > 0):
+                raise ConfigError(f"[run] targets must be positive relative tolerances, got {t!r}")
+
+    @property
+    def max_fe(self) -> int:
+        """The FE budget of every run (the cap in schedule mode)."""
+        return self.schedule_cap if self.budget == SCHEDULE else int(self.budget)
+
+    def key_material(self) -> dict[str, Any]:
+        return {
+            "data": asdict(self.data),
+            "model": asdict(self.model),
+            "cost": asdict(self.cost),
+            "bounds": self.bounds,
+            "seed": self.seed,
+            "budget": self.budget,
+            "schedule_cap": self.schedule_cap if self.budget == SCHEDULE else None,
+            "max_lag": self.max_lag,
+        }
+
+    @property
+    def key(self) -> str:
+        """Store key: a hash of what determines the runs' numbers."""
+        text = json.dumps(self.key_material(), sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["optimisers"] = [asdict(o) for o in self.optimisers]
+        out["targets"] = list(self.targets)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> ComparisonSpec:
+        d = dict(d)
+        d["data"] = DataSpec(**d["data"])
+        d["model"] = ModelSpec(**d["model"])
+        d["cost"] = CostSpec(**d["cost"])
+        d["optimisers"] = tuple(OptimiserSpec(**o) for o in d["optimisers"])
+        d["targets"] = tuple(d["targets"])
+        return cls(**d)
+
+    def budget_label(self) -> str:
+        return "paper loop counts" if self.budget == SCHEDULE else f"{self.budget} FE"
+
+
+def _check_int(value: Any, what: str, low: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ConfigError(f"{what} must be an integer >= {low}, got {value!r}")
+
+
+def _take(table: Mapping[str, Any], allowed: Sequence[str], section: str) -> dict[str, Any]:
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"[{section}] must be a table")
+    unknown = sorted(set(table) - set(allowed))
+    if unknown:
+        raise ConfigError(
+            f"unknown key(s) {', '.join(map(repr, unknown))} in [{section}]; "
+            f"allowed: {', '.join(allowed)}"
+        )
+    return dict(table)
+
+
+_DATA_KEYS = tuple(DataSpec.__dataclass_fields__)
+_MODEL_KEYS = tuple(ModelSpec.__dataclass_fields__)
+_COST_KEYS = tuple(CostSpec.__dataclass_fields__)
+_RUN_KEYS = ("runs", "seed", "budget", "schedule_cap", "targets")
+_TOP_KEYS = ("name", "description", "data", "model", "cost", "search", "run", "validation", "optimisers")
+
+
+def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> list[ComparisonSpec]:
+    """Comparison specs from a parsed configuration (one per budget listed)."""
+    top = _take(config, _TOP_KEYS, "top level")
+    try:
+        data = DataSpec(**_take(top.get("data", {}), _DATA_KEYS, "data")) if "data" in top else DataSpec(
+            plant="manipulator", preset="paper-manipulator"
+        )
+        model = ModelSpec(**_take(top.get("model", {}), _MODEL_KEYS, "model"))
+        cost = CostSpec(**_take(top.get("cost", {}), _COST_KEYS, "cost"))
+    except TypeError as exc:
+        raise ConfigError(f"{source}: {exc}") from None
+    search = _take(top.get("search", {}), ("bounds",), "search")
+    run = _take(top.get("run", {}), _RUN_KEYS, "run")
+    validation = _take(top.get("validation", {}), ("max_lag",), "validation")
+    entries = top.get("optimisers")
+    if entries is None:
+        optimisers = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
+    else:
+        if not isinstance(entries, list) or not entries:
+            raise ConfigError("[[optimisers]] must be a non-empty array of tables")
+        optimisers = []
+        for i, entry in enumerate(entries):
+            item = _take(entry, ("name", "params", "label"), f"optimisers #{i + 1}")
+            if "name" not in item or not isinstance(item["name"], str):
+                raise ConfigError(f"[[optimisers]] entry #{i + 1} needs a 'name'")
+            params = item.get("params", {})
+            if not isinstance(params, Mapping):
+                raise ConfigError(f"[[optimisers]] {item['name']!r}: 'params' must be a table")
+            optimisers.append(OptimiserSpec(item["name"], dict(params), item.get("label")))
+        optimisers = tuple(optimisers)
+    budgets = run.pop("budget", 10_000)
+    budgets = budgets if isinstance(budgets, list) else [budgets]
+    for b in budgets:
+        if b != SCHEDULE and (isinstance(b, bool) or not isinstance(b, int)):
+            raise ConfigError(f"[run] budget must be an FE count or 'schedule', got {b!r}")
+    if "targets" in run:
+        if not isinstance(run["targets"], list):
+            raise ConfigError("[run] targets must be a list of relative tolerances")
+        run["targets"] = tuple(run["targets"])
+    bounds = search.get("bounds", "auto")
+    if isinstance(bounds, list):
+        bounds = tuple(bounds)
+    name = top.get("name", Path(source).stem if source != "config" else "comparison")
+    specs = []
+    for b in budgets:
+        label = name if len(budgets) == 1 else f"{name} @ {'paper loops' if b == SCHEDULE else f'{b} FE'}"
+        specs.append(
+            ComparisonSpec(
+                name=label,
+                data=data,
+                model=model,
+                cost=cost,
+                bounds=bounds,
+                optimisers=optimisers,
+                budget=b,
+                max_lag=validation.get("max_lag", 25),
+                **run,
+            )
+        )
+    return specs
+
+
+def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
+    """Read a TOML comparison configuration.
+
+    Raises
+    ------
+    ConfigError
+        For a missing or malformed file, an unknown section or key, or an invalid value.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            config = tomllib.load(handle)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such configuration file") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a directory, not a configuration file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: malformed TOML ({exc})") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    specs = spec_from_mapping(config, source=str(path))
+    # a relative data file is relative to the configuration file
+    out = []
+    for spec in specs:
+        if spec.data.file is not None and not Path(spec.data.file).is_absolute():
+            data = replace(spec.data, file=str((path.parent / spec.data.file).resolve()))
+            spec = replace(spec, data=data)
+        out.append(spec)
+    return out
+
+
+def default_spec(
+    *,
+    plant: str = "manipulator",
+    optimisers: Sequence[str] | None = None,
+    runs: int = 5,
+    budget: int | str = 10_000,
+    seed: int = 0,
+    na: int | None = None,
+    nb: Any = None,
+    nk: Any = 1,
+    metric: str = "paper",
+    predictor: str = "one-step",
+) -> ComparisonSpec:
+    """The built-in comparison: the paper's experiment on a simulated plant, small by default.
+
+    ``plant`` is ``"manipulator"`` (ARX(8,8,1) of the end-point acceleration, paper preset)
+    or ``"twin-rotor"`` (ARX(5,5,1) of the pitch, vertical channel, paper preset).
+    """
+    from .errors import UnknownNameError
+
+    presets = {"manipulator": ("paper-manipulator", 8), "twin-rotor": ("paper-twin-rotor", 5)}
+    if plant not in presets:
+        raise UnknownNameError("plant", plant, presets)
+    preset, order = presets[plant]
+    na = order if na is None else na
+    names = list(optimisers) if optimisers else list(DEFAULT_OPTIMISERS)
+    return ComparisonSpec(
+        name=f"{plant}-default",
+        data=DataSpec(plant=plant, preset=preset, seed=0),
+        model=ModelSpec(na=na, nb=nb if nb is not None else na, nk=nk),
+        cost=CostSpec(metric=metric, predictor=predictor),
+        optimisers=tuple(OptimiserSpec(n) for n in names),
+        runs=runs,
+        seed=seed,
+        budget=budget,
+    )

@@ -1,0 +1,498 @@
+"""Identify an ARX model from a record in one call, with an optimiser or least squares.
+
+:func:`identify` splits the record (the paper uses the first 2/3 for estimation), builds the
+batched cost, searches an explicit box with the chosen optimiser (``"ls"`` gives least
+squares, the exact optimum of the one-step cost), and validates the model on the held-out
+part: fit % (one-step and simulation), modelling-error range, residual correlation tests,
+stability and spectra.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .arx import ARX, ARXStructure
+from .data import IOData, load
+from .errors import ConfigError, DataError, ModelOrderError
+from .objective import ARXCost
+from .optimisers import Budget, History, Problem, minimize
+from .validation import ValidationReport, validate
+
+__all__ = ["Identification", "SearchBox", "identify", "prepare_data", "search_box"]
+
+LEAST_SQUARES = "ls"
+
+
+# ================================================================================ search box
+@dataclass(frozen=True)
+class SearchBox:
+    """The box an optimiser searches, and the rule that made it.
+
+    Attributes
+    ----------
+    lower, upper : ndarray, shape (n_params,)
+        Bounds in the parameter order of :class:`~flexid.arx.ARXStructure`
+        (``a1..a_na``, then the ``b`` coefficients of each input).
+    rule : str
+        How the bounds were chosen (recorded with every result).
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    rule: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"rule": self.rule, "lower": self.lower.tolist(), "upper": self.upper.tolist()}
+
+
+def _round_up(value: float) -> float:
+    """Round up to one significant digit (0.061 -> 0.07, 3.2 -> 4)."""
+    if value <= 0 or not math.isfinite(value):
+        return 1.0
+    exponent = math.floor(math.log10(value))
+    return math.ceil(value / 10**exponent) * 10**exponent
+
+
+def search_box(
+    structure: ARXStructure,
+    bounds: Any = "auto",
+    theta_ls: np.ndarray | None = None,
+) -> SearchBox:
+    """The search box for an ARX structure.
+
+    Parameters
+    ----------
+    structure : ARXStructure
+        Model orders.
+    bounds : "auto", float, (low, high), mapping or (2, n_params) array, optional
+        * ``"auto"`` (default): ``|a_k| <= C(na, k)``, the binomial coefficients of
+          ``(z + 1)^na``, a box that contains *every* stable denominator (the coefficients
+          of a polynomial with all roots in the unit disc are bounded by those of
+          ``(z + 1)^na``); and ``|b| <= 2 max|b_LS|`` rounded up to one significant digit, a
+          data-informed scale from the least-squares estimate.
+        * a number ``s``: every parameter in ``[-s, s]``;
+        * ``(low, high)``: every parameter in ``[low, high]``;
+        * ``{"a": s or (low, high), "b": s or (low, high)}``;
+        * ``{"lower": [...], "upper": [...]}`` or an array of shape ``(2, n_params)``.
+    theta_ls : ndarray, optional
+        Least-squares estimate, needed by ``"auto"``.
+
+    Raises
+    ------
+    ConfigError
+        For bounds of the wrong form or length, or ``lower >= upper``.
+    """
+    n, na = structure.n_params, structure.na
+
+    def pair(value: Any, what: str) -> tuple[float, float]:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if value <= 0:
+                raise ConfigError(f"bounds {what}: a half-width must be positive, got {value}")
+            return -float(value), float(value)
+        if isinstance(value, Sequence) and len(value) == 2 and not isinstance(value, str):
+            return float(value[0]), float(value[1])
+        raise ConfigError(f"bounds {what}: expected a half-width or (low, high), got {value!r}")
+
+    if isinstance(bounds, str):
+        if bounds != "auto":
+            raise ConfigError(f"bounds must be 'auto', a number, (low, high) or a mapping, not {bounds!r}")
+        if theta_ls is None:
+            raise ConfigError("automatic bounds need the least-squares estimate")
+        a_half = np.array([math.comb(na, k) for k in range(1, na + 1)], dtype=float)
+        b_ls = np.asarray(theta_ls[na:], dtype=float)
+        b_half = _round_up(2.0 * float(np.max(np.abs(b_ls)))) if b_ls.size else 1.0
+        upper = np.concatenate([a_half, np.full(n - na, b_half)])
+        rule = f"auto: |a_k| <= C({na}, k) (contains every stable A), |b| <= {b_half:g} (2 max|b_LS|, rounded up)"
+        return SearchBox(-upper, upper, rule)
+    if isinstance(bounds, Mapping):
+        if set(bounds) <= {"lower", "upper"} and bounds:
+            try:
+                lower = np.asarray(bounds["lower"], dtype=float).reshape(-1)
+                upper = np.asarray(bounds["upper"], dtype=float).reshape(-1)
+            except KeyError as exc:
+                raise ConfigError(f"bounds mapping lacks {exc}") from None
+            rule = "explicit lower/upper"
+        else:
+            unknown = set(bounds) - {"a", "b"}
+            if unknown:
+                raise ConfigError(f"unknown bounds key(s) {sorted(unknown)}; use 'a' and 'b'")
+            a_lo, a_hi = pair(bounds.get("a", 2.0), "a")
+            b_lo, b_hi = pair(bounds.get("b", 1.0), "b")
+            lower = np.concatenate([np.full(na, a_lo), np.full(n - na, b_lo)])
+            upper = np.concatenate([np.full(na, a_hi), np.full(n - na, b_hi)])
+            rule = f"a in [{a_lo:g}, {a_hi:g}], b in [{b_lo:g}, {b_hi:g}]"
+    elif isinstance(bounds, np.ndarray) and bounds.ndim == 2:
+        if bounds.shape != (2, n):
+            raise ConfigError(f"bounds array must have shape (2, {n}), got {bounds.shape}")
+        lower, upper = bounds[0].astype(float), bounds[1].astype(float)
+        rule = "explicit lower/upper"
+    else:
+        lo, hi = pair(bounds, "")
+        lower, upper = np.full(n, lo), np.full(n, hi)
+        rule = f"every parameter in [{lo:g}, {hi:g}]"
+    if lower.shape != (n,) or upper.shape != (n,):
+        raise ConfigError(f"bounds need {n} values each ({structure.n_params} parameters)")
+    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
+        raise ConfigError("bounds must be finite")
+    bad = np.flatnonzero(lower >= upper)
+    if bad.size:
+        name = structure.param_names[int(bad[0])]
+        raise ConfigError(f"bounds: lower >= upper for parameter {name}")
+    return SearchBox(lower, upper, rule)
+
+
+# ================================================================================ data
+def prepare_data(
+    data: IOData | str | os.PathLike,
+    *,
+    output: str | int | None = None,
+    split: float | int | None = None,
+    validation: IOData | str | os.PathLike | None = None,
+    detrend: bool = False,
+    load_options: Mapping[str, Any] | None = None,
+) -> tuple[IOData, IOData]:
+    """Estimation and validation records from a record (or file) and a split rule.
+
+    Parameters
+    ----------
+    data : IOData or path
+        The record; a path is read with :func:`flexid.data.load`.
+    output : str or int, optional
+        The output channel to model when the record has several.
+    split : float or int, optional
+        A fraction in (0, 1) (default 2/3, the paper's rule) or a sample index.
+    validation : IOData or path, optional
+        A separate validation record; then all of ``data`` is used for estimation.
+    detrend : bool, optional
+        Remove the means of the estimation record from both (offsets from the estimation
+        part only, so no validation information leaks into the model).
+    """
+    options = dict(load_options or {})
+    if not isinstance(data, IOData):
+        data = load(data, **options)
+    if output is not None:
+        data = data.select(outputs=[output])
+    if data.n_outputs != 1:
+        raise DataError(
+            f"the record has {data.n_outputs} outputs {list(data.output_names)}; ARX models here "
+            "have one output: choose it (output=... or --output NAME)"
+        )
+    if validation is not None:
+        val = validation if isinstance(validation, IOData) else load(validation, **options)
+        if output is not None:
+            val = val.select(outputs=[output])
+        est = data
+    elif isinstance(split, (int, np.integer)) and not isinstance(split, bool) and split > 1:
+        est, val = data.split(index=int(split))
+    else:
+        est, val = data.split(split)
+    if detrend:
+        u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
+        info = {"kind": "constant", "u_mean": u0.tolist(), "y_mean": y0.tolist(), "from": "estimation"}
+        est = est.replace(u=est.u - u0, y=est.y - y0, metadata={**est.metadata, "detrend": info})
+        val = val.replace(u=val.u - u0, y=val.y - y0, metadata={**val.metadata, "detrend": info})
+    return est, val
+
+
+# ================================================================================ result
+@dataclass
+class Identification:
+    """The outcome of :func:`identify`.
+
+    Attributes
+    ----------
+    model : ARX
+        The identified model.
+    optimiser : str
+        Optimiser name (``"ls"`` for least squares).
+    params : dict
+        The optimiser's hyper-parameters.
+    cost : ARXCost
+        The cost that was minimised (on the estimation record).
+    cost_value : float
+        Cost of ``model`` under it.
+    cost_ls : float
+        Cost of the least-squares estimate under it (the reference).
+    box : SearchBox
+        The search box (for ``"ls"``: the box an optimiser would have searched).
+    result : scipy.optimize.OptimizeResult or None
+        The optimiser's result (``None`` for least squares).
+    estimation, validation : ValidationReport
+        Validation on the estimation and on the held-out record.
+    seed : int or None
+        Seed of the optimiser run.
+    timings : dict
+        Seconds spent optimising, validating and in total.
+    """
+
+    model: ARX
+    optimiser: str
+    params: dict
+    cost: ARXCost
+    cost_value: float
+    cost_ls: float
+    box: SearchBox
+    result: Any
+    estimation: ValidationReport
+    validation: ValidationReport
+    seed: int | None
+    timings: dict = field(default_factory=dict)
+    data_info: dict = field(default_factory=dict)
+
+    @property
+    def history(self) -> History | None:
+        """Best cost against function evaluations (``None`` for least squares)."""
+        return None if self.result is None else self.result.history
+
+    @property
+    def nfev(self) -> int:
+        """Function evaluations used (0 for least squares)."""
+        return 0 if self.result is None else int(self.result.nfev)
+
+    def summary(self) -> str:
+        """A readable multi-line account: data, search, cost, model, validation."""
+        s = self.model.structure
+        lines = [
+            f"ARX(na={s.na}, nb={list(s.nb)}, nk={list(s.nk)}) identified by {self.optimiser}"
+            + (f" (seed {self.seed})" if self.seed is not None else ""),
+            f"  data        : {self.data_info.get('description', '')}",
+            f"  cost        : {self.cost.describe()}",
+            f"  search box  : {self.box.rule}",
+        ]
+        if self.result is not None:
+            lines.append(
+                f"  search      : {self.result.nfev} FE, {self.result.nit} iterations, "
+                f"{self.result.message}"
+            )
+        ratio = self.cost_value / self.cost_ls if self.cost_ls > 0 else float("nan")
+        lines.append(
+            f"  final cost  : {self.cost_value:.6g}  (least squares {self.cost_ls:.6g}, "
+            f"ratio {ratio:.4g})"
+        )
+        lines.append(
+            f"  time        : optimise {self.timings.get('optimise_s', 0):.3f} s, "
+            f"validate {self.timings.get('validate_s', 0):.3f} s"
+        )
+        lines.append("")
+        lines.append(self.model.summary())
+        lines.append("")
+        lines.append("Estimation record")
+        lines.append(_indent(self.estimation.summary()))
+        lines.append("Validation record (held out)")
+        lines.append(_indent(self.validation.summary()))
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Machine-readable result (JSON-safe): coefficients, cost, fits, stability, timings."""
+        m = self.model
+        return {
+            "structure": {"na": m.structure.na, "nb": list(m.structure.nb), "nk": list(m.structure.nk)},
+            "optimiser": self.optimiser,
+            "params": _plain(self.params),
+            "seed": self.seed,
+            "cost": {
+                "description": self.cost.describe(),
+                "value": _num(self.cost_value),
+                "least_squares": _num(self.cost_ls),
+            },
+            "search": {
+                "box": self.box.to_dict(),
+                "nfev": self.nfev,
+                "nit": 0 if self.result is None else int(self.result.nit),
+                "message": "least squares (closed form)" if self.result is None else self.result.message,
+            },
+            "model": m.to_dict(),
+            "estimation": self.estimation.to_dict(),
+            "validation": self.validation.to_dict(),
+            "timings": {k: round(v, 6) for k, v in self.timings.items()},
+            "data": _plain(self.data_info),
+        }
+
+
+def _indent(text: str, prefix: str = "  ") -> str:
+    return "\n".join(prefix + line if line else line for line in text.splitlines())
+
+
+def _num(value: float) -> float | str:
+    return value if math.isfinite(value) else repr(value)
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
+# ================================================================================ identify
+def identify(
+    data: IOData | str | os.PathLike,
+    na: int,
+    nb: int | Sequence[int] | None = None,
+    nk: int | Sequence[int] = 1,
+    *,
+    optimiser: str = "hbcsd",
+    params: Mapping[str, Any] | None = None,
+    cost: str = "paper",
+    predictor: str = "one-step",
+    bounds: Any = "auto",
+    budget: Budget | int | Mapping[str, Any] = 20_000,
+    seed: int | None = 0,
+    split: float | int | None = None,
+    validation: IOData | str | os.PathLike | None = None,
+    output: str | int | None = None,
+    detrend: bool = False,
+    max_lag: int = 25,
+    weight: float = 1e3,
+    penalty: float = 1e9,
+    initial: str = "measured",
+    callback: Callable | None = None,
+    load_options: Mapping[str, Any] | None = None,
+) -> Identification:
+    """Identify ``A(q) y(t) = B(q) u(t - nk) + e(t)`` from a record and validate it.
+
+    Parameters
+    ----------
+    data : IOData or path
+        The record (CSV, NPZ or ``.dat`` when a path; see :func:`flexid.data.load`).
+    na, nb, nk : int
+        Orders and delay in MATLAB's convention (``nb`` defaults to ``na``; one ``nb``/``nk``
+        per input for several inputs).
+    optimiser : str
+        A registered optimiser name (``flexid list optimisers``) or ``"ls"`` for least
+        squares, the exact optimum of the one-step cost.
+    params : mapping, optional
+        The optimiser's hyper-parameters.
+    cost : str
+        ``"paper"`` (eq. 5-6: ``1e3 sqrt(sum e^2) / K``, plus 1e9 for an unstable model),
+        ``"rmse"``, ``"nrmse"``, ``"sse"`` or ``"mse"``.
+    predictor : str
+        ``"one-step"`` (equation error, as in the paper) or ``"simulation"`` (output error).
+    bounds : see :func:`search_box`
+        The search box; recorded in the result.
+    budget : int, Budget or mapping
+        Function evaluations (an int) or a :class:`~flexid.optimisers.Budget`.
+    seed : int, optional
+        Seed of the optimiser run (initial population and random draws).
+    split : float or int, optional
+        Estimation share (default 2/3) or split index.
+    validation : IOData or path, optional
+        A separate validation record.
+    output : str or int, optional
+        Output channel of a multi-output record.
+    detrend : bool
+        Remove the estimation record's means first.
+    max_lag : int
+        Lags of the correlation tests.
+    weight, penalty : float
+        Gain ``w`` and stability penalty of the paper cost.
+    initial : str
+        Initial conditions of the simulation predictor: ``"measured"`` or ``"zero"``.
+    callback : callable, optional
+        Called after each optimiser iteration (progress bars).
+    load_options : mapping, optional
+        Options for reading a file (``inputs``, ``outputs``, ``dt``).
+
+    Returns
+    -------
+    Identification
+
+    Raises
+    ------
+    DataError, DataFileError, ModelOrderError, UnknownNameError, HyperParameterError,
+    BudgetError, ConfigError
+        For bad data, files, orders, names, hyper-parameters, budgets or bounds.
+    """
+    t_start = time.perf_counter()
+    est, val = prepare_data(
+        data, output=output, split=split, validation=validation, detrend=detrend,
+        load_options=load_options,
+    )
+    if nb is None:
+        nb = [na] * est.n_inputs if est.n_inputs > 1 else na
+    structure = ARXStructure(na, nb, nk)
+    if structure.n_inputs != est.n_inputs:
+        raise ModelOrderError(
+            f"the record has {est.n_inputs} input(s) but the orders give {structure.n_inputs} "
+            "(one nb and nk per input)"
+        )
+    structure.check_samples(est.n_samples)
+    structure.check_samples(val.n_samples)
+    objective = ARXCost(
+        structure, est, metric=cost, predictor=predictor, weight=weight, penalty=penalty,
+        initial=initial,
+    )
+    theta_ls = np.asarray(objective.theta_ls, dtype=float)
+    box = search_box(structure, bounds, theta_ls)
+    cost_ls = float(objective(theta_ls[None, :])[0])
+
+    t_opt = time.perf_counter()
+    if optimiser == LEAST_SQUARES:
+        model = structure.least_squares(est.u, est.y[:, 0], dt=est.dt)
+        result, used_params, used_seed = None, {}, None
+        cost_value = cost_ls
+    else:
+        problem = Problem(objective, box.lower, box.upper, name="arx")
+        result = minimize(optimiser, problem, budget, seed, params=params, callback=callback)
+        model = structure.model(result.x, dt=est.dt)
+        used_params, used_seed = dict(result.params), result.seed
+        cost_value = float(result.fun)
+    t_val = time.perf_counter()
+    _name_model(model, est)
+    report_est = validate(model, est, max_lag=max_lag, initial=initial)
+    report_val = validate(model, val, max_lag=max_lag, initial=initial)
+    t_end = time.perf_counter()
+    info = {
+        "description": (
+            f"{est.n_samples} estimation + {val.n_samples} validation samples, dt {est.dt:g} s, "
+            f"inputs {list(est.input_names)}, output {est.output_names[0]!r}"
+        ),
+        "n_estimation": est.n_samples,
+        "n_validation": val.n_samples,
+        "dt": est.dt,
+        "inputs": list(est.input_names),
+        "output": est.output_names[0],
+        "source": est.metadata.get("source") or est.metadata.get("plant"),
+    }
+    return Identification(
+        model=model,
+        optimiser=optimiser,
+        params=used_params,
+        cost=objective,
+        cost_value=cost_value,
+        cost_ls=cost_ls,
+        box=box,
+        result=result,
+        estimation=report_est,
+        validation=report_val,
+        seed=used_seed,
+        timings={
+            "setup_s": t_opt - t_start,
+            "optimise_s": t_val - t_opt,
+            "validate_s": t_end - t_val,
+            "total_s": t_end - t_start,
+        },
+        data_info=info,
+    )
+
+
+def _name_model(model: ARX, data: IOData) -> None:
+    """Give the model the record's channel names where the model supports them."""
+    for attr, value in (("input_names", list(data.input_names)), ("output_name", data.output_names[0])):
+        if hasattr(model, attr):
+            try:
+                setattr(model, attr, value)
+            except AttributeError:
+                pass

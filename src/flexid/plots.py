@@ -1,0 +1,291 @@
+"""Figures: the paper's identification figures and comparison figures (matplotlib, optional).
+
+Install the ``plot`` extra (``pip install 'flexid[plot]'``) to use this module.  Every
+function draws on a given ``Axes`` or a new figure and returns the figure; the ``*_figures``
+functions write PNG files and return their paths.  The Agg backend is used, so no display is
+needed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .errors import FlexidError
+from .statistics import convergence_band
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .compare import ComparisonResult
+    from .identify import Identification
+
+__all__ = [
+    "comparison_figures",
+    "identification_figures",
+    "plot_comparison_convergence",
+    "plot_convergence",
+    "plot_correlations",
+    "plot_fe_to_target",
+    "plot_pole_zero",
+    "plot_spectra",
+    "plot_time_response",
+]
+
+
+class PlottingUnavailable(FlexidError, ImportError):
+    """matplotlib is not installed."""
+
+
+def _plt():
+    try:
+        import matplotlib
+    except ImportError:
+        raise PlottingUnavailable(
+            "figures need matplotlib: pip install 'flexid[plot]'"
+        ) from None
+    if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
+        matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _axes(ax, **fig_kw):
+    plt = _plt()
+    if ax is None:
+        fig, ax = plt.subplots(**fig_kw)
+        return fig, ax
+    return ax.figure, ax
+
+
+def _save(fig, path: Path) -> Path:
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    _plt().close(fig)
+    return path
+
+
+# ============================================================================ identification
+def plot_convergence(histories: dict[str, Any], *, ax=None, reference: float | None = None):
+    """Best cost against function evaluations, one line per run/optimiser.
+
+    Parameters
+    ----------
+    histories : dict
+        ``label -> History`` (or ``{"fe": [...], "best": [...]}``).
+    reference : float, optional
+        A horizontal line (least-squares cost).
+    """
+    fig, ax = _axes(ax, figsize=(6.4, 4.0))
+    for label, h in histories.items():
+        fe = np.asarray(h["fe"] if isinstance(h, dict) else h.fe, float)
+        best = np.asarray(h["best"] if isinstance(h, dict) else h.best, float)
+        finite = np.isfinite(best)
+        ax.step(fe[finite], best[finite], where="post", label=label)
+    if reference is not None and math.isfinite(reference):
+        ax.axhline(reference, color="k", ls="--", lw=1, label="least squares")
+    ax.set_yscale("log")
+    ax.set_xlabel("function evaluations")
+    ax.set_ylabel("best cost")
+    ax.set_title("Convergence")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axes=None):
+    """Measured and model output (top) and the modelling error (bottom).
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Time in seconds.
+    y, yhat : ndarray, shape (N,)
+        Measured and model output.
+    """
+    plt = _plt()
+    if axes is None:
+        fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.0, 4.8), height_ratios=[2, 1])
+    else:
+        fig = axes[0].figure
+    axes[0].plot(t, y, lw=1, label="measured")
+    axes[0].plot(t, yhat, lw=1, ls="--", label=label)
+    axes[0].set_ylabel("output")
+    axes[0].legend(loc="upper right")
+    axes[0].set_title(title)
+    axes[1].plot(t, y - yhat, lw=0.8, color="tab:red")
+    axes[1].set_ylabel("error")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return fig
+
+
+def plot_spectra(freq, spectra: dict[str, np.ndarray], *, ax=None, title: str = "Power spectral density"):
+    """Welch power spectra (dB) against frequency in Hz, one line per signal."""
+    fig, ax = _axes(ax, figsize=(6.4, 4.0))
+    for label, p in spectra.items():
+        p = np.asarray(p, float)
+        ax.plot(freq, 10 * np.log10(np.maximum(p, 1e-300)), lw=1, label=label)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("PSD [dB]")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
+    """Poles (x) and zeros (o) with the unit circle (dotted)."""
+    fig, ax = _axes(ax, figsize=(4.8, 4.8))
+    theta = np.linspace(0, 2 * np.pi, 400)
+    ax.plot(np.cos(theta), np.sin(theta), "k:", lw=1)
+    poles = np.asarray(poles)
+    zeros = np.asarray(zeros)
+    ax.plot(poles.real, poles.imag, "x", ms=8, mew=2, label="poles")
+    if zeros.size:
+        ax.plot(zeros.real, zeros.imag, "o", ms=7, mfc="none", mew=1.5, label="zeros")
+    ax.axhline(0, color="0.7", lw=0.5)
+    ax.axvline(0, color="0.7", lw=0.5)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("real")
+    ax.set_ylabel("imaginary")
+    ax.set_title(title)
+    ax.legend(loc="upper right")
+    return fig
+
+
+def plot_correlations(panels: Sequence[tuple[str, np.ndarray, np.ndarray, float]], *, title: str = ""):
+    """Correlation functions with their 95 % bands.
+
+    Parameters
+    ----------
+    panels : sequence of (title, lags, values, bound)
+        One panel each; ``bound`` is the half-width of the 95 % band (1.96/sqrt(N)).
+    """
+    plt = _plt()
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.0, 2.3 * len(panels)), squeeze=False)
+    for ax, (name, lags, values, bound) in zip(axes[:, 0], panels):
+        lags = np.asarray(lags)
+        ax.vlines(lags, 0, values, lw=1.5)
+        ax.plot(lags, values, ".", ms=4)
+        ax.axhline(bound, color="tab:red", ls=":", lw=1)
+        ax.axhline(-bound, color="tab:red", ls=":", lw=1)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_title(name, fontsize=10)
+        ax.set_ylim(-1.05, 1.05)
+        ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("lag [samples]")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def identification_figures(ident: Identification, outdir: str | Path, prefix: str = "") -> list[Path]:
+    """Write the paper's figures of an identification as PNG files.
+
+    Convergence (if an optimiser ran), measured vs model output with the error on the
+    estimation and validation records (one-step and simulation), power spectra, pole-zero
+    map with the unit circle, residual correlations with 95 % bands.
+    """
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    paths: list[Path] = []
+    p = prefix
+    if ident.history is not None:
+        fig = plot_convergence({ident.optimiser: ident.history}, reference=ident.cost_ls)
+        paths.append(_save(fig, outdir / f"{p}convergence.png"))
+    for part, report in (("estimation", ident.estimation), ("validation", ident.validation)):
+        arrays = report.arrays()
+        fig = plot_time_response(
+            arrays["time"],
+            arrays["y"],
+            arrays["y_simulation"],
+            title=f"{part}: simulation (free run), fit {report.fit_simulation:.1f} %",
+        )
+        paths.append(_save(fig, outdir / f"{p}{part}_simulation.png"))
+        fig = plot_time_response(
+            arrays["time"],
+            arrays["y"],
+            arrays["y_one_step"],
+            title=f"{part}: one-step prediction, fit {report.fit_one_step:.1f} %",
+        )
+        paths.append(_save(fig, outdir / f"{p}{part}_one_step.png"))
+    arrays = ident.validation.arrays()
+    fig = plot_spectra(
+        arrays["psd_frequency"],
+        {"measured": arrays["psd_measured"], "model (simulation)": arrays["psd_model"]},
+    )
+    paths.append(_save(fig, outdir / f"{p}spectra.png"))
+    fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())
+    paths.append(_save(fig, outdir / f"{p}pole_zero.png"))
+    fig = plot_correlations(ident.validation.correlation_panels(), title="Residual correlation tests (validation)")
+    paths.append(_save(fig, outdir / f"{p}correlations.png"))
+    return paths
+
+
+# ============================================================================ comparison
+def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
+    """Median (line) and quartiles (band) of the best cost against FE, per optimiser."""
+    fig, ax = _axes(ax, figsize=(7.0, 4.4))
+    max_fe = max(
+        (r["nfev"] for rs in result.records.values() for r in rs if r["status"] == "ok"), default=1
+    )
+    for label, records in result.records.items():
+        hist = [r["history"] for r in records if r["status"] == "ok"]
+        if not hist:
+            continue
+        band = convergence_band(hist, max_fe)
+        line = ax.plot(band["fe"], band["median"], lw=1.5, label=label)[0]
+        ax.fill_between(band["fe"], band["q25"], band["q75"], color=line.get_color(), alpha=0.2, lw=0)
+    ref = result.reference_cost
+    if math.isfinite(ref):
+        ax.axhline(ref, color="k", ls="--", lw=1, label="reference")
+    ax.set_yscale("log")
+    ax.set_xlabel("function evaluations")
+    ax.set_ylabel("best cost (median, quartiles)")
+    ax.set_title(f"{result.spec.name}: convergence over {result.spec.runs} runs")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
+    """Empirical distribution of the FE needed to reach ``reference * (1 + target)``.
+
+    Runs that never reach the target keep the curve below 1 (the success rate).
+    """
+    fig, ax = _axes(ax, figsize=(6.4, 4.0))
+    for label, stats in result.stats.items():
+        reach = stats.get("reach", {}).get(str(target))
+        if reach is None:
+            continue
+        fe = np.sort(np.asarray(reach["fe"], float))
+        n = fe.size
+        hit = fe[np.isfinite(fe)]
+        if hit.size:
+            x = np.concatenate([[0], hit])
+            y = np.arange(hit.size + 1) / n
+            ax.step(x, y, where="post", label=f"{label} ({hit.size}/{n})")
+        else:
+            ax.plot([], [], label=f"{label} (0/{n})")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("function evaluations")
+    ax.set_ylabel("fraction of runs at target")
+    ax.set_title(f"FE to reach reference x (1 + {target:g})")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return fig
+
+
+def comparison_figures(result: ComparisonResult, outdir: str | Path, prefix: str = "") -> list[Path]:
+    """Write the convergence band figure and one FE-to-target ECDF per target."""
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    paths = [_save(plot_comparison_convergence(result), outdir / f"{prefix}convergence.png")]
+    for t in result.spec.targets:
+        paths.append(_save(plot_fe_to_target(result, t), outdir / f"{prefix}fe_to_target_{t:g}.png"))
+    return paths

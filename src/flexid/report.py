@@ -1,0 +1,152 @@
+"""Markdown or HTML reports of the comparisons in a result store, with their figures."""
+
+from __future__ import annotations
+
+import html
+import re
+from pathlib import Path
+
+from .compare import ComparisonResult, load_result
+from .errors import ConfigError
+
+__all__ = ["write_report"]
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "-", text).strip("-").lower() or "comparison"
+
+
+def _markdown_table(text_table: str) -> str:
+    """Turn one of ComparisonResult's plain-text tables into a Markdown table."""
+    lines = [ln for ln in text_table.splitlines() if ln.strip()]
+    header = re.split(r"\s{2,}", lines[0].strip())
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for line in lines[2:]:
+        cells = re.split(r"\s{2,}", line.strip())
+        cells += [""] * (len(header) - len(cells))
+        out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def _section(result: ComparisonResult, outdir: Path, figures: bool) -> list[str]:
+    spec = result.spec
+    slug = f"{_slug(spec.name)}-{result.key[:8]}"
+    lines = [f"## {spec.name}", ""]
+    header, _, _ = result.summary().partition("\n\n")
+    lines += ["```", header, "```", ""]
+    lines += ["### Final cost and FE to target", "", _markdown_table(result.cost_table()), ""]
+    lines += [
+        "Costs are final best costs at the budget. *FE to t (ok)*: median function evaluations "
+        "to reach reference x (1 + t) over the runs that reached it, and the share of runs that "
+        "did. *p (Holm)*: two-sided rank-sum test against the optimiser with the lowest median, "
+        "Holm-corrected; * marks p < 0.05.",
+        "",
+    ]
+    lines += ["### Validation on the held-out record", "", _markdown_table(result.validation_table()), ""]
+    conclusion = result.summary().rsplit("\n", 1)[-1]
+    if conclusion.startswith("Lowest median cost"):
+        lines += [conclusion, ""]
+    if figures:
+        from .plots import comparison_figures
+
+        for path in comparison_figures(result, outdir, prefix=f"{slug}-"):
+            lines += [f"![{path.stem}]({path.name})", ""]
+    return lines
+
+
+def write_report(
+    store: str | Path,
+    outdir: str | Path,
+    *,
+    fmt: str = "md",
+    key: str | None = None,
+    figures: bool = True,
+) -> Path:
+    """Write ``report.md`` (or ``report.html``) and the PNG figures for a store.
+
+    Parameters
+    ----------
+    store : path
+        A result store written by :func:`flexid.compare.compare`.
+    outdir : path
+        Folder for the report and figures (created).
+    fmt : {"md", "html"}
+        Report format.
+    key : str, optional
+        Only this comparison (a unique key prefix).
+    figures : bool
+        Draw the figures (needs matplotlib).
+
+    Returns
+    -------
+    Path
+        The report file.
+    """
+    if fmt not in ("md", "html"):
+        raise ConfigError(f"report format must be 'md' or 'html', got {fmt!r}")
+    results = load_result(store, key)
+    if not results:
+        raise ConfigError(f"{store}: the store holds no comparison")
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    lines = ["# flexid comparison report", "", f"Store: `{store}`", ""]
+    for result in results:
+        lines += _section(result, outdir, figures)
+    markdown = "\n".join(lines) + "\n"
+    if fmt == "md":
+        path = outdir / "report.md"
+        path.write_text(markdown, encoding="utf-8")
+        return path
+    path = outdir / "report.html"
+    path.write_text(_to_html(markdown), encoding="utf-8")
+    return path
+
+
+def _to_html(markdown: str) -> str:
+    """A small Markdown subset (headings, code blocks, tables, images, paragraphs) to HTML."""
+    out = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>flexid report</title>",
+        "<style>body{font-family:sans-serif;max-width:70em;margin:auto}"
+        "table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:2px 6px;"
+        "text-align:right}td:first-child,th:first-child{text-align:left}"
+        "pre{background:#f4f4f4;padding:6px}</style></head><body>",
+    ]
+    lines = markdown.splitlines()
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        if line.startswith("```"):
+            j = i + 1
+            block = []
+            while j < len(lines) and not lines[j].startswith("```"):
+                block.append(html.escape(lines[j]))
+                j += 1
+            out.append("<pre>" + "\n".join(block) + "</pre>")
+            i = j + 1
+            continue
+        if line.startswith("|"):
+            rows = []
+            while i < len(lines) and lines[i].startswith("|"):
+                rows.append(lines[i])
+                i += 1
+            cells = [[html.escape(c.strip()) for c in r.strip("|").split("|")] for r in rows]
+            table = ["<table><tr>" + "".join(f"<th>{c}</th>" for c in cells[0]) + "</tr>"]
+            for row in cells[2:]:
+                table.append("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>")
+            out.append("".join(table) + "</table>")
+            continue
+        heading = re.match(r"^(#+) (.*)", line)
+        image = re.match(r"^!\[(.*)\]\((.*)\)$", line)
+        if heading:
+            n = len(heading.group(1))
+            out.append(f"<h{n}>{html.escape(heading.group(2))}</h{n}>")
+        elif image:
+            out.append(f"<p><img src='{html.escape(image.group(2))}' alt='{html.escape(image.group(1))}'></p>")
+        elif line.strip():
+            text = html.escape(line)
+            text = re.sub(r"`([^`]*)`", r"<code>\1</code>", text)
+            text = re.sub(r"\*([^*]+)\*", r"<em>\1</em>", text)
+            out.append(f"<p>{text}</p>")
+        i += 1
+    out.append("</body></html>")
+    return "\n".join(out)
