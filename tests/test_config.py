@@ -111,3 +111,33 @@ def test_relative_file_is_relative_to_config(tmp_path):
 def test_default_spec_unknown_plant():
     with pytest.raises(UnknownNameError, match="unknown plant 'boat'"):
         default_spec(plant="boat")
+
+
+def test_comparison_tables(tmp_path):
+    text = """
+name = "exp"
+[model]
+na = 5
+[run]
+runs = 4
+seed = 2
+[[optimisers]]
+name = "pso"
+[[comparison]]
+name = "loops"
+budget = "schedule"
+[[comparison]]
+name = "equal"
+budget = 900
+runs = 6
+optimisers = [ { name = "de", label = "DE" }, { name = "pso", params = { points = 20 } } ]
+"""
+    a, b = load_config(_write(tmp_path, text))
+    assert (a.name, a.budget, a.runs, a.seed) == ("loops", "schedule", 4, 2)
+    assert [o.name for o in a.optimisers] == ["pso"]
+    assert (b.name, b.budget, b.runs) == ("equal", 900, 6)
+    assert [o.display for o in b.optimisers] == ["DE", "pso"]
+    assert b.optimisers[1].params == {"points": 20}
+    assert a.model.na == b.model.na == 5
+    with pytest.raises(ConfigError, match=r"unknown key\(s\) 'colour' in \[comparison #1\]"):
+        load_config(_write(tmp_path, "[[comparison]]\ncolour = 1\n", "bad.toml"))

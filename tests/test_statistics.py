@@ -20,8 +20,9 @@ from flexid.statistics import (
 
 def test_best_at_is_a_step_function():
     h = {"fe": [10, 20, 50], "best": [5.0, 3.0, 1.0]}
-    np.testing.assert_array_equal(best_at(h, [0, 9, 10, 15, 20, 49, 50, 1000]),
-                                  [np.inf, np.inf, 5, 5, 3, 3, 1, 1])
+    np.testing.assert_array_equal(
+        best_at(h, [0, 9, 10, 15, 20, 49, 50, 1000]), [np.inf, np.inf, 5, 5, 3, 3, 1, 1]
+    )
     assert fe_to_target(h, 3.0) == 20
     assert fe_to_target(h, 4.0) == 20
     assert math.isnan(fe_to_target(h, 0.5))
@@ -51,19 +52,33 @@ def test_rank_sum_against_best():
     assert out["bad"]["significant"]
     raw = stats.mannwhitneyu(costs[best[0]], costs["bad"], alternative="two-sided").pvalue
     assert out["bad"]["p"] == pytest.approx(raw)
-    assert out["bad"]["p_holm"] == pytest.approx(min(1.0, 2 * raw), rel=1e-12) or out["bad"]["p_holm"] >= raw
+    assert (
+        out["bad"]["p_holm"] == pytest.approx(min(1.0, 2 * raw), rel=1e-12)
+        or out["bad"]["p_holm"] >= raw
+    )
     assert math.isnan(out["one"]["p"])
 
 
 def _rec(cost, hist, status="ok", **v):
-    return {"status": status, "cost": cost, "history": hist, "nfev": hist["fe"][-1],
-            "wall_time": 0.5, "stable": True, "validation": v}
+    return {
+        "status": status,
+        "cost": cost,
+        "history": hist,
+        "nfev": hist["fe"][-1],
+        "wall_time": 0.5,
+        "stable": True,
+        "validation": v,
+    }
 
 
 def test_summarise():
     recs = [
-        _rec(1.0, {"fe": [10, 100], "best": [3.0, 1.0]}, fit_one_step=90.0, correlation_passed=True),
-        _rec(2.0, {"fe": [10, 100], "best": [3.0, 2.0]}, fit_one_step=80.0, correlation_passed=False),
+        _rec(
+            1.0, {"fe": [10, 100], "best": [3.0, 1.0]}, fit_one_step=90.0, correlation_passed=True
+        ),
+        _rec(
+            2.0, {"fe": [10, 100], "best": [3.0, 2.0]}, fit_one_step=80.0, correlation_passed=False
+        ),
         _rec(1.05, {"fe": [10, 60, 100], "best": [3.0, 1.05, 1.05]}, fit_one_step=85.0),
         {"status": "failed", "error": "RuntimeError: x"},
     ]

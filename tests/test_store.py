@@ -11,7 +11,14 @@ from flexid.store import ResultStore
 
 
 def _record(label: str, run: int, status: str = "ok", **extra) -> dict:
-    return {"label": label, "run": run, "seed": 100 + run, "status": status, "cost": 1.0 + run, **extra}
+    return {
+        "label": label,
+        "run": run,
+        "seed": 100 + run,
+        "status": status,
+        "cost": 1.0 + run,
+        **extra,
+    }
 
 
 def test_write_and_read_back(tmp_path):
@@ -20,7 +27,9 @@ def test_write_and_read_back(tmp_path):
         store.add_comparison("k1", "demo", {"a": 1})
         store.add_comparison("k1", "renamed", {"a": 2})  # first write wins
         store.write_run("k1", _record("sda", 0))
-        store.write_run("k1", _record("sda", 1, history={"fe": [1, 2], "best": [3.0, float("inf")]}))
+        store.write_run(
+            "k1", _record("sda", 1, history={"fe": [1, 2], "best": [3.0, float("inf")]})
+        )
         store.write_run("k1", _record("bfa", 0, status="failed", error="ValueError: boom"))
         assert store.finished("k1") == {("sda", 0), ("sda", 1), ("bfa", 0)}
         assert store.finished("k1", include_failed=False) == {("sda", 0), ("sda", 1)}
@@ -67,7 +76,7 @@ def test_bad_stores(tmp_path):
     con.execute("CREATE TABLE x (a)")
     con.commit()
     con.close()
-    with pytest.raises(StoreError, match="not a (readable )?flexid result store"):
+    with pytest.raises(StoreError, match=r"not a (readable )?flexid result store"):
         ResultStore(other, readonly=True)
     with ResultStore(tmp_path / "ok.sqlite") as store:
         with pytest.raises(StoreError, match="no comparison"):

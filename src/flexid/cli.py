@@ -72,7 +72,9 @@ def _int_list(text: str | None, what: str) -> Any:
     try:
         values = [int(v) for v in text.split(",")]
     except ValueError:
-        raise ConfigError(f"{what} must be an integer or a comma-separated list of integers, got {text!r}") from None
+        raise ConfigError(
+            f"{what} must be an integer or a comma-separated list of integers, got {text!r}"
+        ) from None
     return values[0] if len(values) == 1 else values
 
 
@@ -93,7 +95,9 @@ def _bounds(text: str) -> Any:
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
-        raise ConfigError(f"--bounds must be 'auto', a half-width S or LOW,HIGH, got {text!r}") from None
+        raise ConfigError(
+            f"--bounds must be 'auto', a half-width S or LOW,HIGH, got {text!r}"
+        ) from None
     if len(values) == 1:
         return values[0]
     if len(values) == 2:
@@ -148,7 +152,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     split: Any = args.split
     if split is not None and split > 1:
         if not float(split).is_integer():
-            raise ConfigError(f"--split must be a fraction in (0, 1) or a sample index, got {split}")
+            raise ConfigError(
+                f"--split must be a fraction in (0, 1) or a sample index, got {split}"
+            )
         split = int(split)
     budget: Any = args.budget
     if args.iterations is not None:
@@ -261,8 +267,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         outputs.append(result)
         if not args.json:
             print(result.summary())
-            print(f"\n{result.spec.runs * len(result.spec.optimisers)} runs in store {store} "
-                  f"({result.elapsed:.1f} s this time)")
+            print(
+                f"\n{result.spec.runs * len(result.spec.optimisers)} runs in store {store} "
+                f"({result.elapsed:.1f} s this time)"
+            )
         if not args.no_figures:
             from .plots import PlottingUnavailable, comparison_figures
 
@@ -286,8 +294,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from .report import write_report
 
-    outdir = Path(args.output) if args.output else Path(args.store).with_suffix("") .parent / "report"
-    path = write_report(args.store, outdir, fmt=args.format, key=args.key, figures=not args.no_figures)
+    outdir = (
+        Path(args.output) if args.output else Path(args.store).with_suffix("").parent / "report"
+    )
+    path = write_report(
+        args.store, outdir, fmt=args.format, key=args.key, figures=not args.no_figures
+    )
     print(f"wrote {path}")
     return 0
 
@@ -317,10 +329,15 @@ def _cmd_list(args: argparse.Namespace) -> int:
         from .datasets import PRESETS
 
         if what == "plants":
-            print("manipulator  single-link flexible manipulator (torque -> hub angle, hub velocity, "
-                  "tip deflection, tip acceleration), gymnasium id flexid/FlexibleManipulator-v0")
-            print("twin-rotor   twin rotor MIMO system (main/tail rotor voltages -> pitch, yaw, rates), "
-                  "gymnasium id flexid/TwinRotor-v0")
+            print(
+                "manipulator  single-link flexible manipulator (torque -> hub angle, hub velocity, "
+                "tip deflection, tip acceleration), gymnasium id flexid/FlexibleManipulator-v0"
+            )
+            print(
+                "twin-rotor   twin rotor MIMO system "
+                "(main/tail rotor voltages -> pitch, yaw, rates), "
+                "gymnasium id flexid/TwinRotor-v0"
+            )
             return 0
         for name, preset in PRESETS.items():
             print(f"{name}: {json.dumps(preset, default=str)}")
@@ -353,9 +370,15 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     g.add_argument("--dt", type=float, help="sample time in seconds")
     g.add_argument("--outputs", help="output channels to keep, comma-separated")
-    g.add_argument("--noise", help="measurement noise std per output, or e.g. 1%% of each output's std")
-    g.add_argument("--signal-option", action="append", metavar="NAME=VALUE", help="signal option (repeatable)")
-    g.add_argument("--param", action="append", metavar="NAME=VALUE", help="plant parameter (repeatable)")
+    g.add_argument(
+        "--noise", help="measurement noise std per output, or e.g. 1%% of each output's std"
+    )
+    g.add_argument(
+        "--signal-option", action="append", metavar="NAME=VALUE", help="signal option (repeatable)"
+    )
+    g.add_argument(
+        "--param", action="append", metavar="NAME=VALUE", help="plant parameter (repeatable)"
+    )
     g.add_argument("--output", "-o", required=True, help="output file, .csv or .npz")
     g.set_defaults(func=_cmd_generate)
 
@@ -364,12 +387,18 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--na", type=int, required=True, help="number of poles (A coefficients)")
     i.add_argument("--nb", help="B coefficients per input (default: na)")
     i.add_argument("--nk", help="input delay in samples per input (default 1)")
-    i.add_argument("--optimiser", default="hbcsd", help="registered optimiser or 'ls' (default hbcsd)")
-    i.add_argument("--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter")
+    i.add_argument(
+        "--optimiser", default="hbcsd", help="registered optimiser or 'ls' (default hbcsd)"
+    )
+    i.add_argument(
+        "--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter"
+    )
     i.add_argument("--cost", default="paper", help="paper | rmse | nrmse | sse | mse")
     i.add_argument("--predictor", default="one-step", help="one-step | simulation")
     i.add_argument("--bounds", default="auto", help="auto, a half-width S, or LOW,HIGH")
-    i.add_argument("--budget", type=int, default=20_000, help="function evaluations (default 20000)")
+    i.add_argument(
+        "--budget", type=int, default=20_000, help="function evaluations (default 20000)"
+    )
     i.add_argument("--iterations", type=int, help="also stop after this many iterations")
     i.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     i.add_argument("--split", type=float, help="estimation share (default 2/3) or sample index")
@@ -441,7 +470,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"flexid: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("flexid: interrupted (finished runs are in the store; rerun to resume)", file=sys.stderr)
+        print(
+            "flexid: interrupted (finished runs are in the store; rerun to resume)", file=sys.stderr
+        )
         return 130
     except BrokenPipeError:
         return 0

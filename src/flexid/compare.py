@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from .arx import ARXStructure
-from .config import SCHEDULE, ComparisonSpec, OptimiserSpec
+from .config import ComparisonSpec, OptimiserSpec
 from .data import IOData
-from .errors import ConfigError, FlexidError, StoreError
+from .errors import ConfigError, StoreError
 from .identify import SearchBox, prepare_data, search_box
 from .objective import ARXCost
 from .optimisers import Budget, Problem, get, minimize
@@ -56,7 +56,11 @@ def build_data(spec: ComparisonSpec) -> IOData:
     if d.file is not None:
         from .data import load
 
-        options = {k: v for k, v in (("inputs", d.inputs), ("outputs", d.outputs), ("dt", d.dt)) if v is not None}
+        options = {
+            k: v
+            for k, v in (("inputs", d.inputs), ("outputs", d.outputs), ("dt", d.dt))
+            if v is not None
+        }
         return load(d.file, **options)
     from .datasets import generate
 
@@ -86,14 +90,20 @@ class _Context:
         self.structure = ARXStructure(m.na, nb, m.nk)
         if self.structure.n_inputs != est.n_inputs:
             raise ConfigError(
-                f"the record has {est.n_inputs} input(s) but [model] gives {self.structure.n_inputs}"
+                f"the record has {est.n_inputs} input(s) but [model] gives "
+                f"{self.structure.n_inputs}"
             )
         self.structure.check_samples(est.n_samples)
         self.structure.check_samples(val.n_samples)
         c = spec.cost
         self.cost = ARXCost(
-            self.structure, est, metric=c.metric, predictor=c.predictor, weight=c.weight,
-            penalty=c.penalty, initial=c.initial,
+            self.structure,
+            est,
+            metric=c.metric,
+            predictor=c.predictor,
+            weight=c.weight,
+            penalty=c.penalty,
+            initial=c.initial,
         )
         self.theta_ls = np.asarray(self.cost.theta_ls, dtype=float)
         self.box: SearchBox = search_box(self.structure, spec.bounds, self.theta_ls)
@@ -153,7 +163,7 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
 
 
 def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
-    est_err = model.residuals(ctx.est.u, ctx.est.y[:, 0])[ctx.structure.start:]
+    est_err = model.residuals(ctx.est.u, ctx.est.y[:, 0])[ctx.structure.start :]
     return {
         "theta": [float(v) for v in model.theta],
         "stable": bool(model.is_stable),
@@ -293,10 +303,14 @@ class ComparisonResult:
             self.reference_cost = float(self.reference["cost"])
             self.reference_note = "least squares (the exact optimum of the one-step cost)"
             if self.spec.cost.predictor != "one-step":
-                self.reference_note = "least squares (the one-step optimum; not the optimum of this cost)"
+                self.reference_note = (
+                    "least squares (the one-step optimum; not the optimum of this cost)"
+                )
         else:
             stable = [
-                r["cost"] for rs in self.records.values() for r in rs
+                r["cost"]
+                for rs in self.records.values()
+                for r in rs
                 if r["status"] == "ok" and r.get("stable")
             ]
             self.reference_cost = float(min(stable)) if stable else math.nan
@@ -326,7 +340,8 @@ class ComparisonResult:
         ref = self.reference
         rows.append(
             ["least squares", "-", _f(ref["cost"]), "-", _f(ref["cost"])]
-            + ["-"] * len(targets) + ["-", f"{ref.get('wall_time', 0):.3f}"]
+            + ["-"] * len(targets)
+            + ["-", f"{ref.get('wall_time', 0):.3f}"]
         )
         for label, s in self.stats.items():
             runs = f"{s['ok']}" + (f" ({s['failed']} failed)" if s["failed"] else "")
@@ -346,7 +361,14 @@ class ComparisonResult:
 
     def validation_table(self) -> str:
         """Held-out fits, modelling-error range and correlation-test pass rate (medians)."""
-        head = ["optimiser", "fit 1-step %", "fit sim %", "error range (1-step)", "corr. pass", "stable"]
+        head = [
+            "optimiser",
+            "fit 1-step %",
+            "fit sim %",
+            "error range (1-step)",
+            "corr. pass",
+            "stable",
+        ]
         rows = [head]
         v = self.reference["validation"]
         rows.append(
@@ -399,7 +421,11 @@ class ComparisonResult:
         tests = [(k, v["test"]) for k, v in self.stats.items() if "test" in v]
         best = [k for k, t in tests if t["best"]]
         if best:
-            same = [k for k, t in tests if not t["best"] and not t["significant"] and not math.isnan(t["p_holm"])]
+            same = [
+                k
+                for k, t in tests
+                if not t["best"] and not t["significant"] and not math.isnan(t["p_holm"])
+            ]
             lines.append("")
             lines.append(
                 f"Lowest median cost: {best[0]}. "
@@ -441,7 +467,10 @@ def _format_table(rows: list[list[str]]) -> str:
     widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
     lines = []
     for n, row in enumerate(rows):
-        cells = [str(c).ljust(w) if i == 0 else str(c).rjust(w) for i, (c, w) in enumerate(zip(row, widths))]
+        cells = [
+            str(c).ljust(w) if i == 0 else str(c).rjust(w)
+            for i, (c, w) in enumerate(zip(row, widths))
+        ]
         lines.append("  ".join(cells).rstrip())
         if n == 0:
             lines.append("  ".join("-" * w for w in widths))
@@ -598,7 +627,8 @@ def _execute(ctx: _Context, tasks: Sequence[tuple], workers: int, scheduler: Any
 
 def _execute_dask(ctx: _Context, tasks: Sequence[tuple], scheduler: Any) -> Iterable[dict]:
     try:
-        from distributed import Client, as_completed as dask_completed
+        from distributed import Client
+        from distributed import as_completed as dask_completed
     except ImportError:
         raise ConfigError(
             "--scheduler needs dask.distributed: pip install 'flexid[dask]'"
@@ -634,7 +664,9 @@ def _progress(progress: bool | Callable, total: int, name: str) -> Callable[[dic
         if record is None:
             bar.close()
         else:
-            bar.update(1, f"{record['label']} run {record['run']}: {_f(record.get('cost', math.nan))}")
+            bar.update(
+                1, f"{record['label']} run {record['run']}: {_f(record.get('cost', math.nan))}"
+            )
 
     return update
 
@@ -647,7 +679,11 @@ def load_result(store: str | Path | ResultStore, key: str | None = None) -> list
         results = []
         for entry in entries:
             spec = ComparisonSpec.from_dict(entry["spec"])
-            results.append(ComparisonResult.from_records(spec, entry["key"], db.runs(entry["key"]), store_path=str(db.path)))
+            results.append(
+                ComparisonResult.from_records(
+                    spec, entry["key"], db.runs(entry["key"]), store_path=str(db.path)
+                )
+            )
         return results
     finally:
         if db is not store:
@@ -655,4 +691,3 @@ def load_result(store: str | Path | ResultStore, key: str | None = None) -> list
 
 
 __all__ += ["load_result"]
-_ = (FlexidError, SCHEDULE)

@@ -156,7 +156,9 @@ class ComparisonSpec:
     """
 
     name: str = "comparison"
-    data: DataSpec = field(default_factory=lambda: DataSpec(plant="manipulator", preset="paper-manipulator"))
+    data: DataSpec = field(
+        default_factory=lambda: DataSpec(plant="manipulator", preset="paper-manipulator")
+    )
     model: ModelSpec = field(default_factory=ModelSpec)
     cost: CostSpec = field(default_factory=CostSpec)
     bounds: Any = "auto"
@@ -251,16 +253,57 @@ _DATA_KEYS = tuple(DataSpec.__dataclass_fields__)
 _MODEL_KEYS = tuple(ModelSpec.__dataclass_fields__)
 _COST_KEYS = tuple(CostSpec.__dataclass_fields__)
 _RUN_KEYS = ("runs", "seed", "budget", "schedule_cap", "targets")
-_TOP_KEYS = ("name", "description", "data", "model", "cost", "search", "run", "validation", "optimisers")
+_TOP_KEYS = (
+    "name",
+    "description",
+    "data",
+    "model",
+    "cost",
+    "search",
+    "run",
+    "validation",
+    "optimisers",
+    "comparison",
+)
+
+
+def _optimiser_specs(entries: Any, where: str) -> tuple[OptimiserSpec, ...]:
+    if not isinstance(entries, list) or not entries:
+        raise ConfigError(f"{where} must be a non-empty array of tables")
+    optimisers = []
+    for i, entry in enumerate(entries):
+        item = _take(entry, ("name", "params", "label"), f"{where} #{i + 1}")
+        if "name" not in item or not isinstance(item["name"], str):
+            raise ConfigError(f"{where} entry #{i + 1} needs a 'name'")
+        params = item.get("params", {})
+        if not isinstance(params, Mapping):
+            raise ConfigError(f"{where} {item['name']!r}: 'params' must be a table")
+        optimisers.append(OptimiserSpec(item["name"], dict(params), item.get("label")))
+    return tuple(optimisers)
+
+
+def _budgets(value: Any, where: str) -> list:
+    budgets = value if isinstance(value, list) else [value]
+    for b in budgets:
+        if b != SCHEDULE and (isinstance(b, bool) or not isinstance(b, int)):
+            raise ConfigError(f"{where} budget must be an FE count or 'schedule', got {b!r}")
+    return budgets
 
 
 def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> list[ComparisonSpec]:
-    """Comparison specs from a parsed configuration (one per budget listed)."""
+    """Comparison specs from a parsed configuration.
+
+    The top level describes one comparison; a list of budgets gives one comparison per
+    budget.  ``[[comparison]]`` tables describe several comparisons that share the top-level
+    data, model, cost, search and validation settings, each with its own ``name``,
+    ``budget``, ``runs``, ``seed`` and ``optimisers`` (defaults from the top level).
+    """
     top = _take(config, _TOP_KEYS, "top level")
     try:
-        data = DataSpec(**_take(top.get("data", {}), _DATA_KEYS, "data")) if "data" in top else DataSpec(
-            plant="manipulator", preset="paper-manipulator"
-        )
+        if "data" in top:
+            data = DataSpec(**_take(top["data"], _DATA_KEYS, "data"))
+        else:
+            data = DataSpec(plant="manipulator", preset="paper-manipulator")
         model = ModelSpec(**_take(top.get("model", {}), _MODEL_KEYS, "model"))
         cost = CostSpec(**_take(top.get("cost", {}), _COST_KEYS, "cost"))
     except TypeError as exc:
@@ -268,27 +311,11 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
     search = _take(top.get("search", {}), ("bounds",), "search")
     run = _take(top.get("run", {}), _RUN_KEYS, "run")
     validation = _take(top.get("validation", {}), ("max_lag",), "validation")
-    entries = top.get("optimisers")
-    if entries is None:
-        optimisers = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
+    if "optimisers" in top:
+        optimisers = _optimiser_specs(top["optimisers"], "[[optimisers]]")
     else:
-        if not isinstance(entries, list) or not entries:
-            raise ConfigError("[[optimisers]] must be a non-empty array of tables")
-        optimisers = []
-        for i, entry in enumerate(entries):
-            item = _take(entry, ("name", "params", "label"), f"optimisers #{i + 1}")
-            if "name" not in item or not isinstance(item["name"], str):
-                raise ConfigError(f"[[optimisers]] entry #{i + 1} needs a 'name'")
-            params = item.get("params", {})
-            if not isinstance(params, Mapping):
-                raise ConfigError(f"[[optimisers]] {item['name']!r}: 'params' must be a table")
-            optimisers.append(OptimiserSpec(item["name"], dict(params), item.get("label")))
-        optimisers = tuple(optimisers)
-    budgets = run.pop("budget", 10_000)
-    budgets = budgets if isinstance(budgets, list) else [budgets]
-    for b in budgets:
-        if b != SCHEDULE and (isinstance(b, bool) or not isinstance(b, int)):
-            raise ConfigError(f"[run] budget must be an FE count or 'schedule', got {b!r}")
+        optimisers = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
+    budgets = _budgets(run.pop("budget", 10_000), "[run]")
     if "targets" in run:
         if not isinstance(run["targets"], list):
             raise ConfigError("[run] targets must be a list of relative tolerances")
@@ -297,22 +324,44 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
     if isinstance(bounds, list):
         bounds = tuple(bounds)
     name = top.get("name", Path(source).stem if source != "config" else "comparison")
+    common = {
+        "data": data,
+        "model": model,
+        "cost": cost,
+        "bounds": bounds,
+        "max_lag": validation.get("max_lag", 25),
+    }
     specs = []
-    for b in budgets:
-        label = name if len(budgets) == 1 else f"{name} @ {'paper loops' if b == SCHEDULE else f'{b} FE'}"
-        specs.append(
-            ComparisonSpec(
-                name=label,
-                data=data,
-                model=model,
-                cost=cost,
-                bounds=bounds,
-                optimisers=optimisers,
-                budget=b,
-                max_lag=validation.get("max_lag", 25),
-                **run,
+    if "comparison" in top:
+        entries = top["comparison"]
+        if not isinstance(entries, list) or not entries:
+            raise ConfigError("[[comparison]] must be a non-empty array of tables")
+        for i, entry in enumerate(entries):
+            item = _take(
+                entry,
+                ("name", "budget", "runs", "seed", "optimisers", "schedule_cap"),
+                f"comparison #{i + 1}",
             )
+            opts = (
+                _optimiser_specs(item.pop("optimisers"), f"[[comparison]] #{i + 1} optimisers")
+                if "optimisers" in item
+                else optimisers
+            )
+            (budget,) = _budgets(item.pop("budget", budgets[0]), f"[[comparison]] #{i + 1}")
+            label = item.pop("name", f"{name} #{i + 1}")
+            specs.append(
+                ComparisonSpec(
+                    name=label, optimisers=opts, budget=budget, **common, **{**run, **item}
+                )
+            )
+        return specs
+    for b in budgets:
+        label = (
+            name
+            if len(budgets) == 1
+            else f"{name} @ {'paper loops' if b == SCHEDULE else f'{b} FE'}"
         )
+        specs.append(ComparisonSpec(name=label, optimisers=optimisers, budget=b, **common, **run))
     return specs
 
 

@@ -102,14 +102,19 @@ def search_box(
 
     if isinstance(bounds, str):
         if bounds != "auto":
-            raise ConfigError(f"bounds must be 'auto', a number, (low, high) or a mapping, not {bounds!r}")
+            raise ConfigError(
+                f"bounds must be 'auto', a number, (low, high) or a mapping, not {bounds!r}"
+            )
         if theta_ls is None:
             raise ConfigError("automatic bounds need the least-squares estimate")
         a_half = np.array([math.comb(na, k) for k in range(1, na + 1)], dtype=float)
         b_ls = np.asarray(theta_ls[na:], dtype=float)
         b_half = _round_up(2.0 * float(np.max(np.abs(b_ls)))) if b_ls.size else 1.0
         upper = np.concatenate([a_half, np.full(n - na, b_half)])
-        rule = f"auto: |a_k| <= C({na}, k) (contains every stable A), |b| <= {b_half:g} (2 max|b_LS|, rounded up)"
+        rule = (
+            f"auto: |a_k| <= C({na}, k) (contains every stable A), "
+            f"|b| <= {b_half:g} (2 max|b_LS|, rounded up)"
+        )
         return SearchBox(-upper, upper, rule)
     if isinstance(bounds, Mapping):
         if set(bounds) <= {"lower", "upper"} and bounds:
@@ -195,7 +200,12 @@ def prepare_data(
         est, val = data.split(split)
     if detrend:
         u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
-        info = {"kind": "constant", "u_mean": u0.tolist(), "y_mean": y0.tolist(), "from": "estimation"}
+        info = {
+            "kind": "constant",
+            "u_mean": u0.tolist(),
+            "y_mean": y0.tolist(),
+            "from": "estimation",
+        }
         est = est.replace(u=est.u - u0, y=est.y - y0, metadata={**est.metadata, "detrend": info})
         val = val.replace(u=val.u - u0, y=val.y - y0, metadata={**val.metadata, "detrend": info})
     return est, val
@@ -293,7 +303,11 @@ class Identification:
         """Machine-readable result (JSON-safe): coefficients, cost, fits, stability, timings."""
         m = self.model
         return {
-            "structure": {"na": m.structure.na, "nb": list(m.structure.nb), "nk": list(m.structure.nk)},
+            "structure": {
+                "na": m.structure.na,
+                "nb": list(m.structure.nb),
+                "nk": list(m.structure.nk),
+            },
             "optimiser": self.optimiser,
             "params": _plain(self.params),
             "seed": self.seed,
@@ -306,7 +320,9 @@ class Identification:
                 "box": self.box.to_dict(),
                 "nfev": self.nfev,
                 "nit": 0 if self.result is None else int(self.result.nit),
-                "message": "least squares (closed form)" if self.result is None else self.result.message,
+                "message": "least squares (closed form)"
+                if self.result is None
+                else self.result.message,
             },
             "model": m.to_dict(),
             "estimation": self.estimation.to_dict(),
@@ -417,7 +433,11 @@ def identify(
     """
     t_start = time.perf_counter()
     est, val = prepare_data(
-        data, output=output, split=split, validation=validation, detrend=detrend,
+        data,
+        output=output,
+        split=split,
+        validation=validation,
+        detrend=detrend,
         load_options=load_options,
     )
     if nb is None:
@@ -431,7 +451,12 @@ def identify(
     structure.check_samples(est.n_samples)
     structure.check_samples(val.n_samples)
     objective = ARXCost(
-        structure, est, metric=cost, predictor=predictor, weight=weight, penalty=penalty,
+        structure,
+        est,
+        metric=cost,
+        predictor=predictor,
+        weight=weight,
+        penalty=penalty,
         initial=initial,
     )
     theta_ls = np.asarray(objective.theta_ls, dtype=float)
@@ -490,7 +515,10 @@ def identify(
 
 def _name_model(model: ARX, data: IOData) -> None:
     """Give the model the record's channel names where the model supports them."""
-    for attr, value in (("input_names", list(data.input_names)), ("output_name", data.output_names[0])):
+    for attr, value in (
+        ("input_names", list(data.input_names)),
+        ("output_name", data.output_names[0]),
+    ):
         if hasattr(model, attr):
             try:
                 setattr(model, attr, value)

@@ -43,9 +43,7 @@ def _plt():
     try:
         import matplotlib
     except ImportError:
-        raise PlottingUnavailable(
-            "figures need matplotlib: pip install 'flexid[plot]'"
-        ) from None
+        raise PlottingUnavailable("figures need matplotlib: pip install 'flexid[plot]'") from None
     if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
         matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
@@ -123,7 +121,9 @@ def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axe
     return fig
 
 
-def plot_spectra(freq, spectra: dict[str, np.ndarray], *, ax=None, title: str = "Power spectral density"):
+def plot_spectra(
+    freq, spectra: dict[str, np.ndarray], *, ax=None, title: str = "Power spectral density"
+):
     """Welch power spectra (dB) against frequency in Hz, one line per signal."""
     fig, ax = _axes(ax, figsize=(6.4, 4.0))
     for label, p in spectra.items():
@@ -157,7 +157,9 @@ def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
     return fig
 
 
-def plot_correlations(panels: Sequence[tuple[str, np.ndarray, np.ndarray, float]], *, title: str = ""):
+def plot_correlations(
+    panels: Sequence[tuple[str, np.ndarray, np.ndarray, float]], *, title: str = ""
+):
     """Correlation functions with their 95 % bands.
 
     Parameters
@@ -184,7 +186,9 @@ def plot_correlations(panels: Sequence[tuple[str, np.ndarray, np.ndarray, float]
     return fig
 
 
-def identification_figures(ident: Identification, outdir: str | Path, prefix: str = "") -> list[Path]:
+def identification_figures(
+    ident: Identification, outdir: str | Path, prefix: str = ""
+) -> list[Path]:
     """Write the paper's figures of an identification as PNG files.
 
     Convergence (if an optimiser ran), measured vs model output with the error on the
@@ -222,7 +226,9 @@ def identification_figures(ident: Identification, outdir: str | Path, prefix: st
     paths.append(_save(fig, outdir / f"{p}spectra.png"))
     fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())
     paths.append(_save(fig, outdir / f"{p}pole_zero.png"))
-    fig = plot_correlations(ident.validation.correlation_panels(), title="Residual correlation tests (validation)")
+    fig = plot_correlations(
+        ident.validation.correlation_panels(), title="Residual correlation tests (validation)"
+    )
     paths.append(_save(fig, outdir / f"{p}correlations.png"))
     return paths
 
@@ -240,7 +246,9 @@ def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
             continue
         band = convergence_band(hist, max_fe)
         line = ax.plot(band["fe"], band["median"], lw=1.5, label=label)[0]
-        ax.fill_between(band["fe"], band["q25"], band["q75"], color=line.get_color(), alpha=0.2, lw=0)
+        ax.fill_between(
+            band["fe"], band["q25"], band["q75"], color=line.get_color(), alpha=0.2, lw=0
+        )
     ref = result.reference_cost
     if math.isfinite(ref):
         ax.axhline(ref, color="k", ls="--", lw=1, label="reference")
@@ -281,11 +289,15 @@ def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
     return fig
 
 
-def comparison_figures(result: ComparisonResult, outdir: str | Path, prefix: str = "") -> list[Path]:
+def comparison_figures(
+    result: ComparisonResult, outdir: str | Path, prefix: str = ""
+) -> list[Path]:
     """Write the convergence band figure and one FE-to-target ECDF per target."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     paths = [_save(plot_comparison_convergence(result), outdir / f"{prefix}convergence.png")]
     for t in result.spec.targets:
-        paths.append(_save(plot_fe_to_target(result, t), outdir / f"{prefix}fe_to_target_{t:g}.png"))
+        paths.append(
+            _save(plot_fe_to_target(result, t), outdir / f"{prefix}fe_to_target_{t:g}.png")
+        )
     return paths

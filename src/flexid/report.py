@@ -42,7 +42,12 @@ def _section(result: ComparisonResult, outdir: Path, figures: bool) -> list[str]
         "Holm-corrected; * marks p < 0.05.",
         "",
     ]
-    lines += ["### Validation on the held-out record", "", _markdown_table(result.validation_table()), ""]
+    lines += [
+        "### Validation on the held-out record",
+        "",
+        _markdown_table(result.validation_table()),
+        "",
+    ]
     conclusion = result.summary().rsplit("\n", 1)[-1]
     if conclusion.startswith("Lowest median cost"):
         lines += [conclusion, ""]
@@ -141,7 +146,10 @@ def _to_html(markdown: str) -> str:
             n = len(heading.group(1))
             out.append(f"<h{n}>{html.escape(heading.group(2))}</h{n}>")
         elif image:
-            out.append(f"<p><img src='{html.escape(image.group(2))}' alt='{html.escape(image.group(1))}'></p>")
+            out.append(
+                f"<p><img src='{html.escape(image.group(2))}' "
+                f"alt='{html.escape(image.group(1))}'></p>"
+            )
         elif line.strip():
             text = html.escape(line)
             text = re.sub(r"`([^`]*)`", r"<code>\1</code>", text)

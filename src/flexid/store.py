@@ -175,9 +175,7 @@ class ResultStore:
 
     def runs(self, key: str) -> list[dict[str, Any]]:
         """All run records of comparison ``key``, ordered by label then run index."""
-        rows = self._query(
-            "SELECT payload FROM runs WHERE key = ? ORDER BY label, run", (key,)
-        )
+        rows = self._query("SELECT payload FROM runs WHERE key = ? ORDER BY label, run", (key,))
         return [json.loads(p) for (p,) in rows]
 
     def iter_runs(self, key: str) -> Iterator[dict[str, Any]]:
