@@ -1,0 +1,156 @@
+"""Tests of the command line: the main commands run, and bad input gives one line and status 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from flexid.cli import main
+from flexid.data import IOData
+
+
+def _record(path, n=400, seed=0):
+    """A noise-free ARX(2,2,1) record written as CSV."""
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-1, 1, n)
+    y = np.zeros(n)
+    for t in range(2, n):
+        y[t] = 1.5 * y[t - 1] - 0.7 * y[t - 2] + 0.5 * u[t - 1] + 0.25 * u[t - 2]
+    IOData(u, y, dt=0.01).to_csv(path)
+    return path
+
+
+def _run(argv, capsys):
+    status = main(argv)
+    out = capsys.readouterr()
+    return status, out.out, out.err
+
+
+def test_identify_json_gives_coefficients_fits_and_timings(tmp_path, capsys):
+    path = _record(tmp_path / "rec.csv")
+    status, out, err = _run(
+        [
+            "identify", str(path), "--na", "2", "--nb", "2", "--nk", "1",
+            "--optimiser", "ls", "--json",
+        ],
+        capsys,
+    )
+    assert status == 0, err
+    result = json.loads(out)
+    theta = np.array(result["model"]["theta"])
+    np.testing.assert_allclose(theta, [-1.5, 0.7, 0.5, 0.25], atol=1e-8)
+    assert result["validation"]["fit_simulation"] > 99.99
+    assert "timings" in result and result["model"]["stable"] is True
+
+
+def test_identify_with_an_optimiser(tmp_path, capsys):
+    path = _record(tmp_path / "rec.csv")
+    status, out, err = _run(
+        [
+            "identify", str(path), "--na", "2", "--optimiser", "de", "--budget", "3000",
+            "--seed", "3", "--no-progress",
+        ],
+        capsys,
+    )
+    assert status == 0, err
+    assert "fit" in out.lower() and "de" in out
+
+
+def test_generate_writes_byte_identical_files(tmp_path, capsys):
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    for path in (a, b):
+        status, _, err = _run(
+            ["generate", "manipulator", "--signal", "prbs", "--samples", "300", "--seed", "4",
+             "--output", str(path)],
+            capsys,
+        )
+        assert status == 0, err
+    assert a.read_bytes() == b.read_bytes()
+    data = IOData.from_csv(a)
+    assert data.n_samples == 300
+    assert data.metadata["plant"] == "manipulator" and data.metadata["seed"] == 4
+
+
+def test_compare_small_builtin_and_report(tmp_path, capsys):
+    store = tmp_path / "r.sqlite"
+    argv = [
+        "compare", "--plant", "manipulator", "--optimisers", "sda,random-search",
+        "--runs", "2", "--budget", "400", "--na", "2", "--store", str(store),
+        "--no-progress", "--no-figures",
+    ]
+    status, out, err = _run(argv, capsys)
+    assert status == 0, err
+    assert "sda" in out and "ls" in out
+    status, out2, err = _run(argv, capsys)  # rerun: nothing new to do, same table
+    assert status == 0, err
+    assert out2.split("\n")[:8] == out.split("\n")[:8]
+    status, out, err = _run(
+        ["report", str(store), "--output", str(tmp_path / "rep"), "--no-figures"], capsys
+    )
+    assert status == 0, err
+    assert (tmp_path / "rep" / "report.md").exists()
+
+
+BAD = [
+    (["identify", "{missing}", "--na", "2"], "missing"),
+    (["identify", "{bad}", "--na", "2"], "bad"),
+    (["identify", "{good}", "--na", "-1"], "order"),
+    (["identify", "{good}", "--na", "2", "--optimiser", "no-such-thing"], "no-such-thing"),
+    (["identify", "{good}", "--na", "2", "--optimiser", "sda", "--param", "radius=7"], "radius"),
+    (["identify", "{good}", "--na", "2", "--optimiser", "sda", "--param", "colour=1"], "colour"),
+    (["identify", "{good}", "--na", "150"], "sample"),
+    (["compare", "--plant", "moon-lander"], "moon-lander"),
+    (["compare", "{badconfig}"], "colour"),
+    (["compare", "{missing}"], "missing"),
+    (["generate", "manipulator", "--signal", "jazz", "--output", "{out}"], "jazz"),
+    (["generate", "manipulator", "--samples", "-5", "--output", "{out}"], "samples"),
+    (["report", "{missing}"], "missing"),
+    (["identify"], "required"),
+]
+
+
+@pytest.mark.parametrize(("argv", "word"), BAD, ids=[" ".join(a[:3]) for a, _ in BAD])
+def test_bad_input_gives_one_line_and_status_2(argv, word, tmp_path, capsys):
+    good = _record(tmp_path / "good.csv")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("u,y\n1,2\n3,oops\n4,5\n")
+    badconfig = tmp_path / "bad.toml"
+    badconfig.write_text('name = "x"\ncolour = "red"\n')
+    paths = {
+        "missing": str(tmp_path / "missing.csv"),
+        "bad": str(bad),
+        "good": str(good),
+        "badconfig": str(badconfig),
+        "out": str(tmp_path / "out.csv"),
+    }
+    argv = [a.format(**paths) for a in argv]
+    status, _, err = _run(argv, capsys)
+    assert status == 2
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    assert word.lower() in err.lower(), err
+
+
+def test_entry_point_runs_as_a_module(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "flexid", "list", "optimisers"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert out.returncode == 0, out.stderr
+    for name in ("hbcsd", "bfa", "sda", "pso", "de"):
+        assert name in out.stdout
+    bad = subprocess.run(
+        [sys.executable, "-m", "flexid", "identify", str(tmp_path / "nope.csv"), "--na", "2"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert bad.returncode == 2
+    assert len(bad.stderr.strip().splitlines()) == 1

@@ -1,0 +1,79 @@
+"""Tests of flexid.plots: every figure of an identification and a comparison is drawn."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+
+from flexid.compare import compare  # noqa: E402
+from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec  # noqa: E402
+from flexid.data import IOData  # noqa: E402
+from flexid.identify import identify  # noqa: E402
+from flexid.plots import (  # noqa: E402
+    comparison_figures,
+    identification_figures,
+    plot_correlations,
+    plot_pole_zero,
+)
+
+
+def _record(n=500, seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-1, 1, n)
+    y = np.zeros(n)
+    for t in range(2, n):
+        y[t] = 1.2 * y[t - 1] - 0.5 * y[t - 2] + u[t - 1] + 0.01 * rng.standard_normal()
+    return IOData(u, y, dt=0.1)
+
+
+def _is_png(path) -> bool:
+    return path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 2000
+
+
+def test_identification_figures_are_the_papers_set(tmp_path):
+    ident = identify(_record(), 2, optimiser="sda", budget=800, seed=0)
+    paths = identification_figures(ident, tmp_path)
+    names = {p.name for p in paths}
+    assert {"convergence.png", "spectra.png", "pole_zero.png", "correlations.png"} <= names
+    assert {"validation_simulation.png", "validation_one_step.png"} <= names
+    assert all(_is_png(p) for p in paths)
+
+
+def test_least_squares_has_no_convergence_figure(tmp_path):
+    ident = identify(_record(), 2, optimiser="ls")
+    names = {p.name for p in identification_figures(ident, tmp_path, prefix="ls-")}
+    assert "ls-convergence.png" not in names and "ls-pole_zero.png" in names
+
+
+def test_pole_zero_map_draws_the_unit_circle_and_every_root():
+    fig = plot_pole_zero(np.array([0.5 + 0.5j, 0.5 - 0.5j]), np.array([-0.3]))
+    ax = fig.axes[0]
+    circle = ax.lines[0].get_xydata()
+    np.testing.assert_allclose(np.hypot(circle[:, 0], circle[:, 1]), 1.0, atol=1e-12)
+    assert len(ax.lines[1].get_xdata()) == 2  # poles
+    np.testing.assert_allclose(ax.lines[2].get_xdata(), [-0.3])  # zeros
+
+
+def test_correlation_panels_show_the_bands():
+    lags = np.arange(-5, 6)
+    fig = plot_correlations([("r_ee", lags, np.zeros(11), 0.1), ("r_ue", lags, np.ones(11), 0.2)])
+    assert len(fig.axes) == 2
+
+
+def test_comparison_figures(tmp_path):
+    spec = ComparisonSpec(
+        name="fig",
+        data=DataSpec(plant="manipulator", signal="uniform", n_samples=400, seed=0,
+                      outputs=["tip_acceleration"]),
+        model=ModelSpec(na=2),
+        optimisers=(OptimiserSpec("sda", {"points": 10}), OptimiserSpec("random-search")),
+        runs=2,
+        budget=300,
+        targets=(1.0,),
+    )
+    result = compare(spec, progress=False)
+    paths = comparison_figures(result, tmp_path, prefix="c-")
+    assert [p.name for p in paths] == ["c-convergence.png", "c-fe_to_target_1.png"]
+    assert all(_is_png(p) for p in paths)
