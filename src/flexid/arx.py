@@ -1,0 +1,464 @@
+"""ARX models in MATLAB's convention: structure, regressors, least squares, simulation, export.
+
+``A(q) y(t) = B_1(q) u_1(t - nk_1) + ... + B_m(q) u_m(t - nk_m) + e(t)`` with
+``A(q) = 1 + a_1 q^-1 + ... + a_na q^-na`` and
+``B_i(q) = b_i1 + b_i2 q^-1 + ... + b_i,nb_i q^-(nb_i - 1)``, exactly as MATLAB's ``arx``:
+``nb_i`` coefficients, the first multiplying ``u_i(t - nk_i)``.  The parameter vector is
+``theta = [a_1 .. a_na, b_11 .. b_1nb_1, b_21 ..]``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from scipy import linalg
+
+from .errors import DataError, ModelOrderError, check_finite
+from .stability import is_stable as _is_stable
+
+__all__ = ["ARX", "ARXStructure"]
+
+
+def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
+    items = [value] if np.isscalar(value) else list(value)
+    if not items:
+        raise ModelOrderError(f"{what} needs at least one value (one per input)")
+    out = []
+    for v in items:
+        if isinstance(v, bool) or not float(v).is_integer():
+            raise ModelOrderError(f"{what} must be an integer, got {v!r}")
+        if int(v) < low:
+            raise ModelOrderError(f"{what} must be >= {low}, got {int(v)}")
+        out.append(int(v))
+    return tuple(out)
+
+
+def _io_arrays(u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``u`` (N, n_u) and ``y`` (N,) as checked float arrays; ``u`` may be an IOData."""
+    from .data import IOData
+
+    if isinstance(u, IOData):
+        if y is not None:
+            raise DataError("pass either an IOData or (u, y) arrays, not both")
+        if u.n_outputs != 1:
+            raise DataError(
+                f"the record has {u.n_outputs} outputs; select one first, "
+                f"e.g. data.select(outputs=[{u.output_names[0]!r}])"
+            )
+        return u.u, u.y[:, 0]
+    if y is None:
+        raise DataError("the output y is missing")
+    u = np.asarray(u, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if u.ndim == 1:
+        u = u[:, None]
+    if y.ndim == 2 and y.shape[1] == 1:
+        y = y[:, 0]
+    if u.ndim != 2:
+        raise DataError(f"u must have shape (N,) or (N, n_u), got {u.shape}")
+    if y.ndim != 1:
+        raise DataError(f"y must have shape (N,) or (N, 1) (single output), got {y.shape}")
+    if u.shape[0] != y.shape[0]:
+        raise DataError(f"u has {u.shape[0]} samples but y has {y.shape[0]}")
+    check_finite(u, "u", DataError)
+    check_finite(y, "y", DataError)
+    return u, y
+
+
+class ARXStructure:
+    """The orders of an ARX model (MATLAB's ``[na nb nk]``).
+
+    Parameters
+    ----------
+    na : int
+        Number of ``A`` coefficients (poles), >= 0.
+    nb : int or sequence of int
+        Number of ``B`` coefficients per input, >= 0 (one value per input).
+    nk : int or sequence of int, optional
+        Input delay in samples per input, >= 0 (default 1).  A single value is used for
+        every input.
+
+    Attributes
+    ----------
+    n_params : int
+        ``na + sum(nb)``.
+    start : int
+        First sample with a complete regressor, ``max(na, max(nk_i + nb_i - 1))``.
+    param_names : list of str
+        ``["a1", ..., "b1", ...]`` (with ``[u_i]`` suffixes for several inputs).
+    """
+
+    def __init__(self, na: int, nb: int | Sequence[int], nk: int | Sequence[int] = 1) -> None:
+        (self.na,) = _orders(na, "na", 0)
+        self.nb = _orders(nb, "nb", 0)
+        nk_t = _orders(nk, "nk", 0)
+        if len(nk_t) == 1 and len(self.nb) > 1:
+            nk_t = nk_t * len(self.nb)
+        if len(nk_t) != len(self.nb):
+            raise ModelOrderError(
+                f"nb has {len(self.nb)} value(s) but nk has {len(nk_t)}; give one per input"
+            )
+        self.nk = nk_t
+        self.n_inputs = len(self.nb)
+        self.n_params = self.na + sum(self.nb)
+        if self.n_params == 0:
+            raise ModelOrderError("the model has no parameters (na = 0 and nb = 0)")
+        lags = [k + b - 1 for k, b in zip(self.nk, self.nb) if b > 0]
+        self.start = max([self.na, *lags])
+
+    @property
+    def param_names(self) -> list[str]:
+        names = [f"a{i + 1}" for i in range(self.na)]
+        for j, nb in enumerate(self.nb):
+            suffix = f"[u{j + 1}]" if self.n_inputs > 1 else ""
+            names += [f"b{i + 1}{suffix}" for i in range(nb)]
+        return names
+
+    def __repr__(self) -> str:
+        nb = self.nb[0] if self.n_inputs == 1 else list(self.nb)
+        nk = self.nk[0] if self.n_inputs == 1 else list(self.nk)
+        return f"ARXStructure(na={self.na}, nb={nb}, nk={nk})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, ARXStructure) and (self.na, self.nb, self.nk) == (
+            other.na,
+            other.nb,
+            other.nk,
+        )
+
+    def __hash__(self) -> int:
+        return hash((self.na, self.nb, self.nk))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"na": self.na, "nb": list(self.nb), "nk": list(self.nk)}
+
+    def check_samples(self, n_samples: int) -> None:
+        """Raise ModelOrderError unless the record leaves more equations than parameters."""
+        k = n_samples - self.start
+        if k <= self.n_params:
+            raise ModelOrderError(
+                f"too few samples for {self!r}: {n_samples} samples give {max(k, 0)} "
+                f"equations for {self.n_params} parameters (need more than "
+                f"{self.start + self.n_params} samples)"
+            )
+
+    def regressors(self, u: Any, y: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """Regressor matrix and target of the one-step equation ``y(t) = phi(t) theta + e(t)``.
+
+        Parameters
+        ----------
+        u : array_like (N,) or (N, n_u), or IOData
+            Inputs.
+        y : array_like (N,), optional
+            Output (omit when ``u`` is an IOData).
+
+        Returns
+        -------
+        Phi : ndarray, shape (N - start, n_params)
+            Row ``t - start`` is ``[-y(t-1) .. -y(t-na), u_1(t-nk_1) .. u_1(t-nk_1-nb_1+1), ..]``.
+        target : ndarray, shape (N - start,)
+            ``y(start:)``.
+        """
+        u, y = self._data(u, y)
+        self.check_samples(y.shape[0])
+        return self._phi(u, y, self.start), y[self.start :]
+
+    def _data(self, u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+        u, y = _io_arrays(u, y)
+        if u.shape[1] != self.n_inputs:
+            raise DataError(
+                f"the model has {self.n_inputs} input(s) (len(nb)) but u has {u.shape[1]} columns"
+            )
+        return u, y
+
+    def _phi(self, u: np.ndarray, y: np.ndarray, start: int) -> np.ndarray:
+        n = y.shape[0]
+        cols = [-y[start - i : n - i] for i in range(1, self.na + 1)]
+        for j, (nb, nk) in enumerate(zip(self.nb, self.nk)):
+            cols += [u[start - nk - i : n - nk - i, j] for i in range(nb)]
+        return np.column_stack(cols) if cols else np.zeros((n - start, 0))
+
+    def _phi_padded(self, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Regressors for every t >= 0 with zero pre-history (for one-step prediction)."""
+        pad = self.start
+        up = np.vstack([np.zeros((pad, u.shape[1])), u])
+        yp = np.concatenate([np.zeros(pad), y])
+        return self._phi(up, yp, pad)
+
+    def least_squares(self, u: Any, y: Any = None, dt: float = 1.0) -> ARX:
+        """Least-squares estimate (QR) with parameter standard deviations.
+
+        Parameters
+        ----------
+        u, y : see :meth:`regressors`
+        dt : float
+            Sample time in seconds (taken from an IOData when one is given).
+
+        Returns
+        -------
+        ARX
+            With ``param_std`` from ``sigma^2 (Phi' Phi)^-1`` and
+            ``noise_variance = SSE / (K - n_params)``.
+        """
+        from .data import IOData
+
+        if isinstance(u, IOData):
+            dt = u.dt
+        phi, target = self.regressors(u, y)
+        q, r = linalg.qr(phi, mode="economic")
+        diag = np.abs(np.diag(r))
+        if diag.size and diag.min() <= diag.max() * 1e-13:
+            raise DataError(
+                "the regressors are rank deficient (the input is not persistently exciting "
+                f"for {self!r}); use lower orders or a richer input"
+            )
+        theta = linalg.solve_triangular(r, q.T @ target)
+        resid = target - phi @ theta
+        k = target.shape[0]
+        sigma2 = float(resid @ resid) / (k - self.n_params)
+        rinv = linalg.solve_triangular(r, np.eye(self.n_params))
+        std = np.sqrt(sigma2 * np.sum(rinv * rinv, axis=1))
+        return ARX(self, theta, dt=dt, param_std=std, noise_variance=sigma2)
+
+    def model(self, theta: Any, dt: float = 1.0) -> ARX:
+        """An ARX model of this structure with parameters ``theta`` (n_params,)."""
+        return ARX(self, theta, dt=dt)
+
+
+class ARX:
+    """An ARX model with its parameters.
+
+    Parameters
+    ----------
+    structure : ARXStructure
+    theta : array_like, shape (n_params,)
+        ``[a_1 .. a_na, b ...]``.
+    dt : float
+        Sample time in seconds.
+    param_std, noise_variance : optional
+        Uncertainty from least squares.
+    """
+
+    def __init__(
+        self,
+        structure: ARXStructure,
+        theta: Any,
+        dt: float = 1.0,
+        param_std: Any = None,
+        noise_variance: float | None = None,
+    ) -> None:
+        theta = np.array(theta, dtype=float).reshape(-1)
+        if theta.shape != (structure.n_params,):
+            raise DataError(
+                f"theta has {theta.size} values but {structure!r} has {structure.n_params}"
+            )
+        check_finite(theta, "theta", DataError)
+        if not (np.isfinite(dt) and dt > 0):
+            raise DataError(f"dt must be a positive number of seconds, got {dt!r}")
+        self.structure = structure
+        self.theta = theta
+        self.theta.setflags(write=False)
+        self.dt = float(dt)
+        self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
+        self.noise_variance = None if noise_variance is None else float(noise_variance)
+
+    # ------------------------------------------------------------------ polynomials
+    @property
+    def a(self) -> np.ndarray:
+        """``[1, a_1, ..., a_na]``, shape (na + 1,)."""
+        return np.concatenate([[1.0], self.theta[: self.structure.na]])
+
+    @property
+    def b(self) -> list[np.ndarray]:
+        """Per input, ``[b_1 .. b_nb]`` (first multiplies ``u(t - nk)``)."""
+        out, i = [], self.structure.na
+        for nb in self.structure.nb:
+            out.append(self.theta[i : i + nb].copy())
+            i += nb
+        return out
+
+    def _b_delayed(self, j: int) -> np.ndarray:
+        """``B_j`` including the delay, in powers of ``q^-1``: ``[0]*nk + b``."""
+        return np.concatenate([np.zeros(self.structure.nk[j]), self.b[j]])
+
+    def _tf_num_den(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Numerator and denominator in positive powers of z (equal lengths)."""
+        num = self._b_delayed(j)
+        den = self.a
+        n = max(num.size, den.size)
+        return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
+
+    # ------------------------------------------------------------------ prediction
+    def predict(self, u: Any, y: Any = None) -> np.ndarray:
+        """One-step-ahead prediction ``yhat(t) = phi(t) theta``; samples before t = 0 are 0.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+        """
+        u, y = self.structure._data(u, y)
+        return self.structure._phi_padded(u, y) @ self.theta
+
+    def residuals(self, u: Any, y: Any = None) -> np.ndarray:
+        """``y - predict(u, y)``, shape (N,)."""
+        u, y = self.structure._data(u, y)
+        return y - self.structure._phi_padded(u, y) @ self.theta
+
+    def simulate(self, u: Any, y_init: Any = None) -> np.ndarray:
+        """Free-run (output-error) simulation.
+
+        Parameters
+        ----------
+        u : array_like (N,) or (N, n_u), or IOData
+        y_init : array_like, optional
+            Initial conditions: the first ``start`` outputs (measured values); the recursion
+            runs from ``t = start`` and the first ``start`` samples of the result are
+            ``y_init``.  Default: zero initial state (all signals zero before ``t = 0``).
+
+        Returns
+        -------
+        ndarray, shape (N,)
+        """
+        from scipy import signal
+
+        from .data import IOData
+
+        if isinstance(u, IOData):
+            y_meas = u.y[:, 0] if u.n_outputs == 1 else None
+            u = u.u
+            if y_init is True and y_meas is not None:
+                y_init = y_meas
+        u = np.asarray(u, dtype=float)
+        if u.ndim == 1:
+            u = u[:, None]
+        if u.ndim != 2 or u.shape[1] != self.structure.n_inputs:
+            raise DataError(f"u must have {self.structure.n_inputs} column(s), got {u.shape}")
+        check_finite(u, "u", DataError)
+        n = u.shape[0]
+        forced = np.zeros(n)
+        for j in range(self.structure.n_inputs):
+            forced += signal.lfilter(self._b_delayed(j), [1.0], u[:, j])
+        s = self.structure.start
+        if y_init is None or s == 0:
+            return signal.lfilter([1.0], self.a, forced)
+        y_init = np.asarray(y_init, dtype=float).reshape(-1)[:s]
+        if y_init.size < s:
+            raise DataError(f"y_init needs the first {s} outputs, got {y_init.size}")
+        check_finite(y_init, "y_init", DataError)
+        na = self.structure.na
+        out = np.empty(n)
+        out[:s] = y_init
+        if n > s:
+            # y(t) = forced(t) - sum a_i y(t-i) for t >= s, with y(s-1..s-na) = y_init
+            zi = signal.lfiltic([1.0], self.a, y_init[::-1][:na]) if na else None
+            if na:
+                out[s:] = signal.lfilter([1.0], self.a, forced[s:], zi=zi)[0]
+            else:
+                out[s:] = forced[s:]
+        return out
+
+    # ------------------------------------------------------------------ poles, zeros
+    def poles(self) -> np.ndarray:
+        """Roots of ``z^na A(z^-1)``, shape (na,)."""
+        return np.roots(self.a) if self.structure.na else np.zeros(0, dtype=complex)
+
+    def zeros(self, input: int = 0) -> np.ndarray:
+        """Zeros of ``B_input`` (finite, in z), shape (nb - 1 - leading zeros,)."""
+        b = np.trim_zeros(self.b[input], "f")
+        return np.roots(b) if b.size > 1 else np.zeros(0, dtype=complex)
+
+    @property
+    def is_stable(self) -> bool:
+        """True if every pole lies strictly inside the unit circle."""
+        return bool(_is_stable(self.theta[: self.structure.na])[0])
+
+    @property
+    def max_pole_radius(self) -> float:
+        p = self.poles()
+        return float(np.abs(p).max()) if p.size else 0.0
+
+    # ------------------------------------------------------------------ export
+    def to_control(self):
+        """A ``control.TransferFunction`` (1 output x n_inputs) with ``dt`` set."""
+        import control
+
+        nums, dens = [], []
+        for j in range(self.structure.n_inputs):
+            num, den = self._tf_num_den(j)
+            nums.append(num)
+            dens.append(den)
+        if self.structure.n_inputs == 1:
+            return control.tf(nums[0], dens[0], self.dt)
+        return control.tf([nums], [dens], self.dt)
+
+    def to_dlti(self, input: int = 0):
+        """A ``scipy.signal.dlti`` of one input's transfer function."""
+        from scipy import signal
+
+        num, den = self._tf_num_den(input)
+        return signal.dlti(num, den, dt=self.dt)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dictionary; :meth:`from_dict` restores the model exactly."""
+        return {
+            "na": self.structure.na,
+            "nb": list(self.structure.nb),
+            "nk": list(self.structure.nk),
+            "theta": self.theta.tolist(),
+            "param_names": self.structure.param_names,
+            "dt": self.dt,
+            "param_std": None if self.param_std is None else self.param_std.tolist(),
+            "noise_variance": self.noise_variance,
+            "stable": self.is_stable,
+            "max_pole_radius": self.max_pole_radius,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ARX:
+        try:
+            structure = ARXStructure(d["na"], d["nb"], d["nk"])
+            return cls(
+                structure,
+                d["theta"],
+                dt=d.get("dt", 1.0),
+                param_std=d.get("param_std"),
+                noise_variance=d.get("noise_variance"),
+            )
+        except KeyError as exc:
+            raise DataError(f"ARX dictionary lacks the key {exc.args[0]!r}") from None
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict())
+
+    @classmethod
+    def from_json(cls, text: str) -> ARX:
+        try:
+            return cls.from_dict(json.loads(text))
+        except json.JSONDecodeError as exc:
+            raise DataError(f"not an ARX model in JSON: {exc}") from None
+
+    def summary(self) -> str:
+        s = self.structure
+        lines = [f"ARX model {s!r}, dt = {self.dt:g} s"]
+        std = self.param_std
+        for i, name in enumerate(s.param_names):
+            extra = f"  +- {std[i]:.3g}" if std is not None else ""
+            lines.append(f"  {name:>8} = {self.theta[i]: .6g}{extra}")
+        if self.noise_variance is not None:
+            lines.append(f"  noise variance = {self.noise_variance:.4g}")
+        p = self.poles()
+        if p.size:
+            lines.append(
+                "  poles: " + ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
+            )
+        lines.append(
+            f"  {'stable' if self.is_stable else 'UNSTABLE'}, "
+            f"largest pole radius {self.max_pole_radius:.6f}"
+        )
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return f"ARX({self.structure!r}, theta={np.array2string(self.theta, precision=4)})"

@@ -1,0 +1,83 @@
+"""CMA-ES, the covariance matrix adaptation evolution strategy (Hansen)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Optimiser, Param, SearchSpace
+from .registry import register
+
+__all__ = ["CMAES"]
+
+
+@register
+class CMAES(Optimiser):
+    """(mu/mu_w, lambda)-CMA-ES with rank-one and rank-mu updates (Hansen's tutorial, 2016).
+
+    Works in coordinates normalised to the box (``[0, 1]^n``), starting at the centre of the
+    shared initial population's best point with step ``sigma0`` (fraction of the box width).
+    Samples outside the box are evaluated at their projection onto the box and ranked with a
+    quadratic penalty on the distance (``penalty`` times the squared normalised distance
+    times the median |cost|), a standard boundary handling.  The first batch is the shared
+    initial population (so every optimiser starts from the same points); the mean starts at
+    its best member.  One generation is one iteration (``lambda`` FE).
+    """
+
+    name = "cmaes"
+    reference = "Hansen & Ostermeier, Evol. Comput. 9(2):159-195, 2001; Hansen, arXiv:1604.00772"
+    population = Param(int, None, "lambda (None: 4 + floor(3 ln n))", low=2, none_ok=True)
+    sigma0 = Param(float, 0.3, "initial step as a fraction of the box width", low=0.0,
+                   low_open=True)
+    initial_points = Param(int, 50, "size of the shared initial population", low=1)
+    penalty = Param(float, 1.0, "boundary penalty weight", low=0.0)
+
+    def search(self, space: SearchSpace, rng: np.random.Generator):
+        n = space.dim
+        lo, width = space.lower, space.upper - space.lower
+        lam = self.population or 4 + int(3 * np.log(n))
+        mu = lam // 2
+        w = np.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
+        w /= w.sum()
+        mueff = 1.0 / np.sum(w**2)
+        cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
+        cs = (mueff + 2) / (n + mueff + 5)
+        c1 = 2 / ((n + 1.3) ** 2 + mueff)
+        cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
+        damps = 1 + 2 * max(0.0, np.sqrt((mueff - 1) / (n + 1)) - 1) + cs
+        chin = np.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
+
+        X0 = space.initial_population(self.initial_points)
+        F0 = yield X0
+        mean = (X0[int(np.argmin(F0))] - lo) / width
+        sigma = self.sigma0
+        C = np.eye(n)
+        pc = np.zeros(n)
+        ps = np.zeros(n)
+        B, D = np.eye(n), np.ones(n)
+        g = 0
+        while True:
+            g += 1
+            Z = rng.standard_normal((lam, n))
+            Y = (Z * D) @ B.T
+            Xn = mean + sigma * Y
+            Xc = np.clip(Xn, 0.0, 1.0)
+            F = yield lo + Xc * width
+            dist = np.sum((Xn - Xc) ** 2, axis=1)
+            finite = np.isfinite(F)
+            scale = np.median(np.abs(F[finite])) if finite.any() else 1.0
+            rank_cost = np.where(finite, F + self.penalty * max(scale, 1e-300) * dist, np.inf)
+            order = np.argsort(rank_cost, kind="stable")[:mu]
+            y_w = w @ Y[order]
+            mean = mean + sigma * y_w
+            c_inv_sqrt_y = B @ ((B.T @ y_w) / D)
+            ps = (1 - cs) * ps + np.sqrt(cs * (2 - cs) * mueff) * c_inv_sqrt_y
+            hsig = np.linalg.norm(ps) / np.sqrt(1 - (1 - cs) ** (2 * g)) / chin < 1.4 + 2 / (n + 1)
+            pc = (1 - cc) * pc + hsig * np.sqrt(cc * (2 - cc) * mueff) * y_w
+            Yo = Y[order]
+            C = ((1 - c1 - cmu) * C + c1 * (np.outer(pc, pc) + (1 - hsig) * cc * (2 - cc) * C)
+                 + cmu * (Yo.T * w) @ Yo)
+            sigma *= np.exp((cs / damps) * (np.linalg.norm(ps) / chin - 1))
+            sigma = min(sigma, 1e3)
+            C = (C + C.T) / 2
+            evals, B = np.linalg.eigh(C)
+            D = np.sqrt(np.maximum(evals, 1e-300))

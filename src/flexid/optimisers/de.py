@@ -1,0 +1,50 @@
+"""Differential evolution, DE/rand/1/bin (Storn & Price 1997)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Optimiser, Param, SearchSpace
+from .registry import register
+
+__all__ = ["DifferentialEvolution"]
+
+
+@register
+class DifferentialEvolution(Optimiser):
+    """DE/rand/1/bin with greedy one-to-one selection.
+
+    Mutant ``v_i = x_r1 + F (x_r2 - x_r3)`` with ``r1, r2, r3`` distinct and different
+    from ``i``; binomial crossover with rate ``CR`` and one forced component; a trial that
+    leaves the box is reset half-way between its parent and the violated bound
+    (bounce-back); the trial replaces its parent if it is not worse.  One generation is one
+    iteration (``population`` FE).
+    """
+
+    name = "de"
+    reference = "Storn & Price, J. Global Optimization 11:341-359, 1997"
+    population = Param(int, 50, "population size NP", low=4)
+    weight = Param(float, 0.5, "differential weight F", low=0.0, high=2.0, low_open=True)
+    crossover = Param(float, 0.9, "crossover rate CR", low=0.0, high=1.0)
+
+    def search(self, space: SearchSpace, rng: np.random.Generator):
+        NP, n = self.population, space.dim
+        X = space.initial_population(NP)
+        F = yield X
+        idx = np.arange(NP)
+        while True:
+            # three distinct indices, none equal to i: a random ordering of the
+            # other NP - 1 members, first three
+            picks = np.argsort(rng.random((NP, NP - 1)), axis=1)[:, :3]
+            pool = picks + (picks >= idx[:, None])  # skip i itself
+            r1, r2, r3 = pool[:, 0], pool[:, 1], pool[:, 2]
+            V = X[r1] + self.weight * (X[r2] - X[r3])
+            cross = rng.random((NP, n)) < self.crossover
+            cross[idx, rng.integers(0, n, NP)] = True
+            U = np.where(cross, V, X)
+            low, high = U < space.lower, U > space.upper
+            U = np.where(low, (X + space.lower) / 2, U)
+            U = np.where(high, (X + space.upper) / 2, U)
+            FU = yield U
+            better = FU <= F
+            X[better], F[better] = U[better], FU[better]

@@ -1,0 +1,148 @@
+"""Hybrid bacteria-chemotaxis spiral-dynamic algorithm (HBCSD) of Nasir & Tokhi (2014)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Optimiser, Param, SearchSpace
+from .bfa import tumble_directions
+from .registry import register, register_variant
+from .rotation import rotate_rows, rotation_matrix
+
+__all__ = ["HBCSD", "adaptive_weight"]
+
+
+def adaptive_weight(F: np.ndarray, c1: float, c2: float) -> np.ndarray:
+    """``g = c2 |f| / (c2 |f| + c1)`` in [0, 1): the weight of the linear adaptive law.
+
+    ``r = r_u + (r_l - r_u) g`` is eq. 1 of the paper, ``(r_l - r_u) / (1 + c1 / (c2 |f|))
+    + r_u``, written so that it is defined at ``f = 0`` (g = 0).  Non-finite costs give
+    ``g = 1``.
+    """
+    F = np.asarray(F, dtype=float)
+    a = c2 * np.abs(F)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.where(a + c1 > 0, a / (a + c1), 0.0)
+    return np.where(np.isfinite(F), g, 1.0)
+
+
+@register
+class HBCSD(Optimiser):
+    """Hybrid bacteria-chemotaxis spiral-dynamic algorithm.
+
+    Phase 1 (exploration, ``N_c`` iterations): Passino's chemotaxis only (tumble of step
+    ``C``, up to ``N_s`` swims; no reproduction, elimination or ``J_cc``), each bacterium
+    keeping its personal best.  Phase 2 (exploitation, ``k_max`` iterations): SDA from the
+    personal bests (no FE to start), centre = best, with the linearly adaptive radius and
+    angle of eq. 1 per point from the cost of its current position:
+    ``r_i = r_u + (r_l - r_u) g(f_i; c1_r, c2_r)`` and likewise ``theta_i``; a fixed
+    ``angle`` replaces the adaptive angle (manipulator setting), giving one GEMM per
+    iteration, otherwise a per-row Givens sweep.
+
+    Decisions (``algorithms.md`` 3.4): unguided tumble; cached start-of-step cost (``m`` to
+    ``m (N_s + 1)`` FE per chemotactic step); ``theta_l = theta_1``, ``theta_u = theta_2``;
+    ``k_max=None`` runs the spiral phase until the budget; ``clip`` off by default.
+    """
+
+    name = "hbcsd"
+    auto_iterations = False
+    reference = "Nasir & Tokhi, Eng. Appl. Artif. Intell. 33:31-46, 2014"
+    points = Param(int, 50, "bacteria / spiral points m", low=1)
+    n_chemotactic = Param(int, 100, "chemotactic steps N_c (phase 1)", low=0)
+    n_swim = Param(int, 4, "swim length N_s", low=0)
+    step_size = Param(float, 0.05, "chemotactic step C", low=0.0, low_open=True)
+    k_max = Param(int, None, "spiral iterations (None: until the budget)", low=0, none_ok=True)
+    r_lower = Param(float, 0.9, "radius r_l for large costs", low=0.0, high=1.0,
+                    low_open=True)
+    r_upper = Param(float, 0.99, "radius r_u for small costs", low=0.0, high=1.0,
+                    low_open=True)
+    c1_r = Param(float, 1.0, "radius law c1 (cost units, with c2)", low=0.0)
+    c2_r = Param(float, 1.0, "radius law c2", low=0.0, low_open=True)
+    angle = Param(float, None, "fixed angle theta (rad); None: adaptive", low=0.0,
+                  high=2 * np.pi, high_open=True, none_ok=True)
+    theta_lower = Param(float, np.pi / 4, "angle theta_l for large costs (rad)", low=0.0,
+                        high=2 * np.pi)
+    theta_upper = Param(float, np.pi / 4, "angle theta_u for small costs (rad)", low=0.0,
+                        high=2 * np.pi)
+    c1_theta = Param(float, 1.0, "angle law c1", low=0.0)
+    c2_theta = Param(float, 1.0, "angle law c2", low=0.0, low_open=True)
+    clip = Param(bool, False, "clip moved points to the box (deviation)")
+
+    def search(self, space: SearchSpace, rng: np.random.Generator):
+        m, C = self.points, self.step_size
+        X = space.initial_population(m)
+        J = (yield X).copy()
+        Pb, Jb = X.copy(), J.copy()
+        # ---- phase 1: chemotaxis with personal bests
+        for _ in range(self.n_chemotactic):
+            j_last = J.copy()
+            U = tumble_directions(rng, m, space.dim)
+            X = X + C * U
+            if self.clip:
+                X = space.clip(X)
+            J = (yield X).copy()
+            upd = J < Jb
+            Pb[upd], Jb[upd] = X[upd], J[upd]
+            swim = np.ones(m, dtype=bool)
+            for _ in range(self.n_swim):
+                swim &= J < j_last
+                if not swim.any():
+                    break
+                j_last[swim] = J[swim]
+                moved = X[swim] + C * U[swim]
+                if self.clip:
+                    moved = space.clip(moved)
+                X[swim] = moved
+                J[swim] = yield moved
+                upd = J < Jb
+                Pb[upd], Jb[upd] = X[upd], J[upd]
+            space.end_iteration("chemotaxis")
+        # ---- phase 2: adaptive spiral from the personal bests
+        yield from self.spiral(space, Pb, Jb)
+
+    def spiral(self, space: SearchSpace, Y: np.ndarray, F: np.ndarray):
+        """The adaptive SDA phase from points ``Y`` with known costs ``F`` (no FE to start)."""
+        Y, F = Y.copy(), F.copy()
+        b = int(np.argmin(F))
+        xs, fs = Y[b].copy(), F[b]
+        fixed = self.angle is not None
+        Rt = rotation_matrix(space.dim, self.angle).T if fixed else None
+        k = 0
+        while self.k_max is None or k < self.k_max:
+            r = self.r_upper + (self.r_lower - self.r_upper) * adaptive_weight(
+                F, self.c1_r, self.c2_r
+            )
+            D = Y - xs
+            if fixed:
+                D = D @ Rt
+            else:
+                th = self.theta_upper + (self.theta_lower - self.theta_upper) * adaptive_weight(
+                    F, self.c1_theta, self.c2_theta
+                )
+                D = rotate_rows(D, th)
+            Y = xs + r[:, None] * D
+            if self.clip:
+                Y = space.clip(Y)
+            F = (yield Y).copy()
+            b = int(np.argmin(F))
+            if F[b] < fs:
+                xs, fs = Y[b].copy(), F[b]
+            k += 1
+            space.end_iteration("spiral")
+
+
+register_variant(
+    "hbcsd-paper-manipulator", "hbcsd",
+    "Nasir & Tokhi 2014 section 5, manipulator: m=50, N_s=4, C=0.01, N_c=500, k_max=500, "
+    "theta=0.34 fixed, r_l=0.99, r_u=1, c1_r=0.1, c2_r=0.3",
+    points=50, n_swim=4, step_size=0.01, n_chemotactic=500, k_max=500, angle=0.34,
+    r_lower=0.99, r_upper=1.0, c1_r=0.1, c2_r=0.3,
+)
+register_variant(
+    "hbcsd-paper-trs", "hbcsd",
+    "Nasir & Tokhi 2014 section 5, twin rotor: m=10, N_s=4, C=0.04, N_c=50, k_max=150, "
+    "r_l=0.65, r_u=0.99, c1_r=996, c2_r=0.97, theta_1=1.03, theta_2=1.8, c1=110, c2=0.98",
+    points=10, n_swim=4, step_size=0.04, n_chemotactic=50, k_max=150, r_lower=0.65,
+    r_upper=0.99, c1_r=996.0, c2_r=0.97, angle=None, theta_lower=1.03, theta_upper=1.8,
+    c1_theta=110.0, c2_theta=0.98,
+)

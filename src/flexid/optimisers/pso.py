@@ -1,0 +1,54 @@
+"""Particle swarm optimisation (global best, constriction coefficients)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Optimiser, Param, SearchSpace
+from .registry import register
+
+__all__ = ["ParticleSwarm"]
+
+
+@register
+class ParticleSwarm(Optimiser):
+    """Global-best particle swarm with Clerc-Kennedy constriction.
+
+    ``v <- w v + c1 r1 (p_i - x) + c2 r2 (g - x)``, ``x <- x + v``, with ``w = 0.7298`` and
+    ``c1 = c2 = 1.49618`` (constriction factor of Clerc & Kennedy 2002).  Velocities are
+    clamped to ``v_max`` times the box width; positions leaving the box are put back on
+    its face with their velocity component zeroed (absorbing walls).  One iteration is one
+    swarm update (``particles`` FE).
+    """
+
+    name = "pso"
+    reference = "Kennedy & Eberhart 1995; Clerc & Kennedy, IEEE TEC 6(1):58-73, 2002"
+    particles = Param(int, 50, "swarm size", low=2)
+    inertia = Param(float, 0.7298, "inertia weight w", low=0.0)
+    cognitive = Param(float, 1.49618, "cognitive coefficient c1", low=0.0)
+    social = Param(float, 1.49618, "social coefficient c2", low=0.0)
+    v_max = Param(float, 0.2, "velocity clamp as a fraction of the box width", low=0.0,
+                  low_open=True)
+
+    def search(self, space: SearchSpace, rng: np.random.Generator):
+        n, P = space.dim, self.particles
+        width = space.upper - space.lower
+        vmax = self.v_max * width
+        X = space.initial_population(P)
+        V = rng.uniform(-1.0, 1.0, (P, n)) * vmax
+        F = yield X
+        pbest, pcost = X.copy(), F.copy()
+        while True:
+            g = pbest[int(np.argmin(pcost))]
+            r1 = rng.random((P, n))
+            r2 = rng.random((P, n))
+            V = (self.inertia * V + self.cognitive * r1 * (pbest - X)
+                 + self.social * r2 * (g - X))
+            np.clip(V, -vmax, vmax, out=V)
+            X = X + V
+            out = (X < space.lower) | (X > space.upper)
+            V[out] = 0.0
+            X = space.clip(X)
+            F = yield X
+            better = F < pcost
+            pbest[better], pcost[better] = X[better], F[better]

@@ -1,0 +1,1101 @@
+"""Model validation: fit, error range, residual correlation tests, spectra and stability.
+
+The plain-array functions (:func:`fit_percent`, :func:`rmse`, :func:`error_range`,
+:func:`xcorr`, :func:`correlation_test`, :func:`residual_tests`,
+:func:`billings_voon_tests`, :func:`psd`, :func:`stability_report`) work without a model;
+:func:`validate` runs all of them on a model and a record and returns a
+:class:`ValidationReport`.
+
+Conventions
+-----------
+Fit
+    ``fit % = 100 (1 - ||y - yhat|| / ||y - mean(y)||)`` (the NRMSE fit of MATLAB
+    ``compare``): 100 for a perfect model, 0 for the constant predictor ``mean(y)``, negative
+    for a model worse than that.  :func:`validate` reports it twice, always labelled: for the
+    **one-step** predictor and for the **simulation** (free run) predictor, both over the
+    samples ``t >= start`` (``start = model.structure.start``, the first sample with a full
+    regressor), so the initial samples neither help nor hurt.
+Correlation
+    ``xcorr(a, b, L)[tau] = sum_t a'(t) b'(t - tau) / sqrt(sum a'^2 sum b'^2)`` for
+    ``tau = -L..L``, where ``a' = a - mean(a)``, sums over the samples where both factors
+    exist (biased estimator: divided by the full energy, not by ``N - |tau|``).  A positive
+    lag therefore correlates ``a`` with *past* values of ``b``.
+Band
+    ``+-1.96 / sqrt(N)``: under the null hypothesis (white residual, independent of the
+    input) each estimated correlation is approximately normal with variance ``1/N``, so about
+    5 % of lags fall outside by chance.  (sysidentpy uses ``1.96/sqrt(2N-1)``, which flags
+    about three times too many lags.)
+Pass rule
+    A test over ``m`` counted lags passes when **both**
+
+    1. the number of lags outside the 95 % band is at most the 99 % quantile of
+       ``Binomial(m, 0.05)`` (the count expected by chance, e.g. 4 of 25, 6 of 51), and
+    2. no lag exceeds the simultaneous 99 % band ``z / sqrt(N)`` with the Bonferroni value
+       ``z = Phi^-1(1 - 0.005 / m)`` (about 3.3 for 51 lags), so one gross violation (a large
+       lag-1 autocorrelation, say) fails the test even if the other lags are quiet.
+
+    Each rule alone rejects a valid model in at most about 1 % of records, so a single test
+    wrongly fails in at most about 2 % of records (measured: 1-2 %), and a valid single-input
+    model fails at least one of the five tests in up to about 8 % of records; see
+    ``linear_passed`` and ``nonlinear_passed`` for the two groups.  A plain "no lag outside
+    the 95 % band" rule, as often read off plots, fails a perfect model in most records of 25 lags
+    (``1 - 0.95**25 = 72 %``).
+
+Tests (Billings & Voon 1986; Billings & Zhu 1994), with ``e`` the one-step residual and ``u``
+each input in turn; ``L = max_lag``:
+
+============================  ========================================  ===============
+name                          correlation                               counted lags
+============================  ========================================  ===============
+``auto e``                    ``phi_ee(tau) = corr(e(t), e(t-tau))``    ``1..L`` [#]_
+``cross u-e``                 ``phi_ue(tau) = corr(e(t), u(t-tau))``    ``-L..L``
+``BV e(eu)``                  ``corr(e(t), e(t-1-tau) u(t-1-tau))``     ``tau = 0..L-1``
+``BV u2'-e``                  ``corr(u^2'(t-tau), e(t))``               ``-L..L``
+``BV u2'-e2'``                ``corr(u^2'(t-tau), e^2'(t))``            ``-L..L``
+============================  ========================================  ===============
+
+.. [#] The autocorrelation is symmetric; lags ``-L..L`` are kept for plots, but only lags
+   ``1..L`` are counted, since the negative lags repeat them and would double every count.
+
+``u^2' = u^2 - mean(u^2)`` and ``e^2' = e^2 - mean(e^2)``; all correlations remove the
+means.  With a binary input (PRBS, +-a) ``u^2`` is constant, so the two ``u^2'`` tests carry
+no information; they are then marked "n/a" and count as passed.  The band is valid for any
+input spectrum as long as the residual is white (the null hypothesis), since then the
+variance of each estimated cross-correlation is ``1/N`` whatever the colour of ``u``.
+
+A linear model is adequate when ``phi_ee`` is an impulse and all other functions are
+zero (within the band): ``phi_ue`` at positive lags reveals un-modelled input dynamics, at
+negative lags output feedback; the three Billings-Voon functions reveal un-modelled
+nonlinear terms that the linear tests cannot see (a quadratic term in ``u`` or ``y`` leaves
+the second-order moments ``u^2'``-``e`` nonzero, for example).
+
+References
+----------
+S. A. Billings and W. S. F. Voon, "Correlation based model validity tests for non-linear
+models", Int. J. Control 44(1), 235-244, 1986.
+S. A. Billings and Q. M. Zhu, "Nonlinear model validation using correlation tests",
+Int. J. Control 60(6), 1107-1120, 1994.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import fft as sfft
+from scipy import signal, stats
+
+from .data import IOData
+from .errors import DataError, ModelOrderError, check_finite
+
+__all__ = [
+    "CorrelationTest",
+    "StabilityReport",
+    "ValidationReport",
+    "billings_voon_tests",
+    "correlation_bound",
+    "correlation_test",
+    "error_range",
+    "fit_percent",
+    "max_outside_allowed",
+    "psd",
+    "residual_tests",
+    "rmse",
+    "stability_report",
+    "validate",
+    "xcorr",
+]
+
+CONFIDENCE = 0.95
+"""Confidence level of the per-lag band ``z / sqrt(N)``."""
+
+PASS_LEVEL = 0.01
+"""False-rejection level of each of the two pass rules (see the module docstring)."""
+
+INITIAL_RULES = {
+    "measured": "simulation started from the first {start} measured output(s)",
+    "zero": "simulation started from rest (y = 0 and u = 0 before t = 0)",
+}
+
+
+# ============================================================================ input checks
+def _vector(x: Any, what: str) -> np.ndarray:
+    """A finite 1-D float array (a (N, 1) column is accepted)."""
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim == 2 and arr.shape[1] == 1:
+        arr = arr[:, 0]
+    if arr.ndim != 1:
+        raise DataError(f"{what} must be a 1-D array of samples, got shape {arr.shape}")
+    if arr.size == 0:
+        raise DataError(f"{what} is empty")
+    check_finite(arr, what)
+    return arr
+
+
+def _pair(y: Any, yhat: Any, what: str = "prediction") -> tuple[np.ndarray, np.ndarray]:
+    y = _vector(y, "measured output y")
+    yhat = _vector(yhat, what)
+    if y.shape != yhat.shape:
+        raise DataError(
+            f"measured output and {what} have different lengths: {y.size} and {yhat.size}"
+        )
+    return y, yhat
+
+
+def _check_max_lag(max_lag: Any, n: int, what: str = "record") -> int:
+    if isinstance(max_lag, bool) or not isinstance(max_lag, (int, np.integer)):
+        raise DataError(f"max_lag must be an integer, got {max_lag!r}")
+    max_lag = int(max_lag)
+    if max_lag < 1:
+        raise DataError(f"max_lag must be at least 1, got {max_lag}")
+    if n < 2 * max_lag + 2:
+        raise DataError(
+            f"{what} of {n} samples is too short for max_lag={max_lag}: correlation tests "
+            f"need at least 2*max_lag+2 = {2 * max_lag + 2} samples"
+        )
+    return max_lag
+
+
+# ============================================================================ fit numbers
+def fit_percent(y: Any, yhat: Any) -> float:
+    """NRMSE fit in percent, ``100 (1 - ||y - yhat|| / ||y - mean(y)||)``.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        Measured output.
+    yhat : array_like, shape (N,)
+        Model output (one-step prediction or simulation), same units as ``y``.
+
+    Returns
+    -------
+    float
+        100 for a perfect model, 0 for the mean predictor, negative when worse than that.
+
+    Raises
+    ------
+    DataError
+        On NaN/inf, a length mismatch or a constant ``y`` (the fit is then undefined).
+    """
+    y, yhat = _pair(y, yhat)
+    scale = np.linalg.norm(y - y.mean())
+    if scale == 0.0:
+        raise DataError("fit % is undefined for a constant measured output (||y - mean|| = 0)")
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / scale))
+
+
+def rmse(y: Any, yhat: Any) -> float:
+    """Root-mean-square error ``sqrt(mean((y - yhat)^2))``, in the units of ``y``."""
+    y, yhat = _pair(y, yhat)
+    return float(np.sqrt(np.mean((y - yhat) ** 2)))
+
+
+def error_range(y: Any, yhat: Any) -> tuple[float, float]:
+    """Smallest and largest modelling error ``y - yhat`` (the paper's "error range")."""
+    y, yhat = _pair(y, yhat)
+    err = y - yhat
+    return float(err.min()), float(err.max())
+
+
+# ============================================================================ correlation
+def xcorr(a: Any, b: Any, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised cross-correlation of ``a`` with ``b`` at lags ``-max_lag..max_lag``.
+
+    ``r[tau] = sum_t a'(t) b'(t - tau) / sqrt(sum a'^2 * sum b'^2)`` with the means removed
+    (``a' = a - mean(a)``) and the sum over the samples where both factors exist (biased
+    estimator).  ``xcorr(a, a, L)`` is 1 at lag 0; a positive lag correlates ``a`` with past
+    values of ``b``.  Computed with one real FFT, so the cost is ``O(N log N)`` whatever
+    ``max_lag``.
+
+    Parameters
+    ----------
+    a, b : array_like, shape (N,)
+        Signals of equal length.
+    max_lag : int
+        Largest lag in samples, ``1 <= max_lag <= N - 1``.
+
+    Returns
+    -------
+    lags : ndarray of int, shape (2 max_lag + 1,)
+        ``-max_lag..max_lag``.
+    r : ndarray, shape (2 max_lag + 1,)
+        Correlation coefficients in [-1, 1]; all zero if either signal is constant.
+    """
+    a = _vector(a, "first signal")
+    b = _vector(b, "second signal")
+    if a.size != b.size:
+        raise DataError(f"signals have different lengths: {a.size} and {b.size}")
+    n = a.size
+    if isinstance(max_lag, bool) or not isinstance(max_lag, (int, np.integer)):
+        raise DataError(f"max_lag must be an integer, got {max_lag!r}")
+    max_lag = int(max_lag)
+    if not 0 <= max_lag <= n - 1:
+        raise DataError(f"max_lag must lie in 0..{n - 1} for {n} samples, got {max_lag}")
+    a = a - a.mean()
+    b = b - b.mean()
+    lags = np.arange(-max_lag, max_lag + 1)
+    scale = math.sqrt(float(a @ a) * float(b @ b))
+    if scale == 0.0:
+        return lags, np.zeros(lags.size)
+    nfft = sfft.next_fast_len(n + max_lag, real=True)
+    c = sfft.irfft(sfft.rfft(a, nfft) * np.conj(sfft.rfft(b, nfft)), nfft)
+    # c[k] = sum_t a(t) b(t - k) for k >= 0; c[nfft - k] = sum_t a(t) b(t + k)
+    r = np.concatenate([c[nfft - max_lag :], c[: max_lag + 1]]) if max_lag else c[:1]
+    return lags, r / scale
+
+
+def correlation_bound(n: int, confidence: float = CONFIDENCE) -> float:
+    """Half-width ``z / sqrt(n)`` of the band (``1.96/sqrt(n)`` at 95 %)."""
+    z = stats.norm.ppf(0.5 + confidence / 2.0)
+    return float(z / math.sqrt(n))
+
+
+def max_outside_allowed(m: int, p: float = 1.0 - CONFIDENCE, level: float = PASS_LEVEL) -> int:
+    """Largest number of lags outside the band that a valid model shows by chance.
+
+    The ``1 - level`` quantile of ``Binomial(m, p)``: a white residual exceeds it in at most
+    ``level`` of records (e.g. 4 of 25 lags, 6 of 51 at the defaults).
+    """
+    return int(stats.binom.ppf(1.0 - level, m, p))
+
+
+@dataclass
+class CorrelationTest:
+    """One correlation test: the function, its band and the verdict.
+
+    Attributes
+    ----------
+    name : str
+        Short name, e.g. ``"auto e"`` or ``"cross torque-e"``.
+    description : str
+        The correlation in words / formula.
+    lags : ndarray of int, shape (K,)
+        Lags in samples (all lags, for plots).
+    values : ndarray, shape (K,)
+        Correlation coefficients.
+    counted : ndarray of bool, shape (K,)
+        Which lags the test counts (lag 0 of an autocorrelation and mirrored lags are not).
+    n_samples : int
+        Number of samples the correlation was estimated from.
+    bound : float
+        Half-width of the 95 % band, ``1.96/sqrt(n_samples)``.
+    strict_bound : float
+        Half-width of the simultaneous (Bonferroni) 99 % band over the counted lags.
+    n_outside : int
+        Counted lags outside the 95 % band.
+    n_lags : int
+        Number of counted lags ``m``.
+    max_outside : int
+        Allowed count: the 99 % quantile of ``Binomial(m, 0.05)``.
+    passed : bool
+        ``n_outside <= max_outside`` and no counted lag beyond ``strict_bound``.
+    applicable : bool
+        False when a signal of the test is constant (``u^2`` of a binary input): the
+        correlation is then identically zero and says nothing; the test counts as passed.
+    """
+
+    name: str
+    description: str
+    lags: np.ndarray
+    values: np.ndarray
+    counted: np.ndarray
+    n_samples: int
+    bound: float
+    strict_bound: float
+    n_outside: int
+    n_lags: int
+    max_outside: int
+    passed: bool
+    applicable: bool = True
+
+    @property
+    def fraction_outside(self) -> float:
+        """Share of counted lags outside the 95 % band."""
+        return self.n_outside / self.n_lags if self.n_lags else 0.0
+
+    @property
+    def max_abs(self) -> float:
+        """Largest ``|r|`` over the counted lags."""
+        vals = np.abs(self.values[self.counted])
+        return float(vals.max()) if vals.size else 0.0
+
+    def verdict(self) -> str:
+        """One line: ``"n of m lags outside the 95 % band (max allowed k): PASS"``."""
+        if not self.applicable:
+            return "n/a (a constant signal, e.g. u^2 of a binary input)"
+        word = "PASS" if self.passed else "FAIL"
+        extra = "" if self.max_abs <= self.strict_bound else "; a lag beyond the 99 % joint band"
+        return (
+            f"{self.n_outside} of {self.n_lags} lags outside the 95 % band "
+            f"(allowed {self.max_outside}){extra}: {word}"
+        )
+
+    def to_dict(self, arrays: bool = False) -> dict[str, Any]:
+        """JSON-safe plain types; the correlation arrays only when ``arrays`` is true."""
+        out: dict[str, Any] = {
+            "name": self.name,
+            "description": self.description,
+            "n_samples": int(self.n_samples),
+            "bound": float(self.bound),
+            "strict_bound": float(self.strict_bound),
+            "n_outside": int(self.n_outside),
+            "n_lags": int(self.n_lags),
+            "fraction_outside": float(self.fraction_outside),
+            "max_outside": int(self.max_outside),
+            "max_abs": self.max_abs,
+            "passed": bool(self.passed),
+            "applicable": bool(self.applicable),
+        }
+        if arrays:
+            out["lags"] = [int(v) for v in self.lags]
+            out["values"] = [float(v) for v in self.values]
+            out["counted"] = [bool(v) for v in self.counted]
+        return out
+
+
+def correlation_test(
+    name: str,
+    lags: np.ndarray,
+    values: np.ndarray,
+    n_samples: int,
+    counted: np.ndarray | None = None,
+    description: str = "",
+    applicable: bool = True,
+) -> CorrelationTest:
+    """Judge a correlation function against the 95 % band with the module's pass rule.
+
+    Parameters
+    ----------
+    name : str
+        Name of the test.
+    lags, values : ndarray, shape (K,)
+        Lags and correlation coefficients (e.g. from :func:`xcorr`).
+    n_samples : int
+        Samples used for the estimate; sets the band ``1.96/sqrt(n_samples)``.
+    counted : ndarray of bool, shape (K,), optional
+        Lags to count; default all.
+    description : str
+        Formula or words for reports.
+    applicable : bool
+        False marks an uninformative test (a constant signal); it then passes.
+    """
+    lags = np.asarray(lags)
+    values = np.asarray(values, dtype=float)
+    counted = np.ones(lags.size, dtype=bool) if counted is None else np.asarray(counted, bool)
+    m = int(counted.sum())
+    bound = correlation_bound(n_samples)
+    z_strict = stats.norm.ppf(1.0 - PASS_LEVEL / (2.0 * max(m, 1)))
+    strict = float(z_strict / math.sqrt(n_samples))
+    absval = np.abs(values[counted])
+    n_out = int(np.count_nonzero(absval > bound))
+    allowed = max_outside_allowed(m)
+    passed = (n_out <= allowed and not bool(np.any(absval > strict))) or not applicable
+    return CorrelationTest(
+        name=name,
+        description=description,
+        lags=lags,
+        values=values,
+        counted=counted,
+        n_samples=int(n_samples),
+        bound=bound,
+        strict_bound=strict,
+        n_outside=n_out,
+        n_lags=m,
+        max_outside=allowed,
+        passed=bool(passed),
+        applicable=bool(applicable),
+    )
+
+
+def _inputs_2d(u: Any, n: int) -> np.ndarray:
+    arr = np.asarray(u, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise DataError(f"input u must have shape (N,) or (N, n_u), got {arr.shape}")
+    if arr.shape[0] != n:
+        raise DataError(
+            f"input and residual have different lengths: u has {arr.shape[0]} samples, "
+            f"the residual {n}"
+        )
+    check_finite(arr, "input u")
+    return arr
+
+
+def _input_names(names: Sequence[str] | None, n_u: int) -> list[str]:
+    if names is None:
+        return ["u"] if n_u == 1 else [f"u{i + 1}" for i in range(n_u)]
+    names = list(names)
+    if len(names) != n_u:
+        raise DataError(f"{len(names)} input names given for {n_u} inputs")
+    return [str(n) for n in names]
+
+
+def residual_tests(
+    e: Any, u: Any, max_lag: int = 25, input_names: Sequence[str] | None = None
+) -> list[CorrelationTest]:
+    """Whiteness and independence tests of a residual (MATLAB ``resid``, with correct bands).
+
+    Parameters
+    ----------
+    e : array_like, shape (N,)
+        Residual (one-step prediction error).
+    u : array_like, shape (N,) or (N, n_u)
+        Inputs over the same samples.
+    max_lag : int
+        Largest lag ``L``; needs ``N >= 2 L + 2``.
+    input_names : sequence of str, optional
+        Names used in the test names (default ``u`` or ``u1, u2, ...``).
+
+    Returns
+    -------
+    list of CorrelationTest
+        ``auto e`` (lags ``-L..L`` stored, ``1..L`` counted) and one ``cross <input>-e``
+        per input (``corr(e(t), u(t - tau))``, lags ``-L..L`` all counted).
+    """
+    e = _vector(e, "residual e")
+    n = e.size
+    max_lag = _check_max_lag(max_lag, n, "residual")
+    u = _inputs_2d(u, n)
+    names = _input_names(input_names, u.shape[1])
+    lags, r = xcorr(e, e, max_lag)
+    tests = [
+        correlation_test(
+            "auto e", lags, r, n, counted=lags > 0, description="phi_ee(tau) = corr(e(t), e(t-tau))"
+        )
+    ]
+    for j, name in enumerate(names):
+        lags, r = xcorr(e, u[:, j], max_lag)
+        tests.append(
+            correlation_test(
+                f"cross {name}-e",
+                lags,
+                r,
+                n,
+                description=f"phi_ue(tau) = corr(e(t), {name}(t-tau))",
+            )
+        )
+    return tests
+
+
+def billings_voon_tests(
+    e: Any, u: Any, max_lag: int = 25, input_names: Sequence[str] | None = None
+) -> list[CorrelationTest]:
+    """Higher-order correlation tests for un-modelled nonlinear terms (Billings & Voon 1986).
+
+    Parameters
+    ----------
+    e : array_like, shape (N,)
+        Residual (one-step prediction error).
+    u : array_like, shape (N,) or (N, n_u)
+        Inputs over the same samples.
+    max_lag : int
+        Largest lag ``L``; needs ``N >= 2 L + 2``.
+    input_names : sequence of str, optional
+        Names used in the test names.
+
+    Returns
+    -------
+    list of CorrelationTest
+        Per input: ``BV e(eu)``, ``corr(e(t), e(t-1-tau) u(t-1-tau))`` for ``tau = 0..L-1``
+        (stored at lags ``tau``); ``BV u2'-e``, ``corr(u^2'(t-tau), e(t))`` for
+        ``tau = -L..L``; ``BV u2'-e2'``, ``corr(u^2'(t-tau), e^2'(t))`` for ``tau = -L..L``.
+    """
+    e = _vector(e, "residual e")
+    n = e.size
+    max_lag = _check_max_lag(max_lag, n, "residual")
+    u = _inputs_2d(u, n)
+    names = _input_names(input_names, u.shape[1])
+    e2 = e * e
+    tests = []
+    for j, name in enumerate(names):
+        uj = u[:, j]
+        lags, r = xcorr(e, e * uj, max_lag)
+        keep = lags >= 1  # corr(e(t), (e u)(t - k)) at k = 1 + tau
+        tests.append(
+            correlation_test(
+                f"BV e({name}e)" if len(names) > 1 else "BV e(eu)",
+                lags[keep] - 1,
+                r[keep],
+                n,
+                description=f"corr(e(t), e(t-1-tau) {name}(t-1-tau)), tau = 0..{max_lag - 1}",
+            )
+        )
+        u2 = uj * uj  # xcorr removes the mean: u^2' = u^2 - mean(u^2)
+        u2_varies = bool(np.ptp(u2) > 1e-12 * max(float(np.max(np.abs(u2))), 1e-300))
+        lags, r = xcorr(e, u2, max_lag)
+        tests.append(
+            correlation_test(
+                f"BV {name}2'-e",
+                lags,
+                r,
+                n,
+                description=f"corr({name}^2'(t-tau), e(t)), tau = -{max_lag}..{max_lag}",
+                applicable=u2_varies,
+            )
+        )
+        lags, r = xcorr(e2, u2, max_lag)
+        tests.append(
+            correlation_test(
+                f"BV {name}2'-e2'",
+                lags,
+                r,
+                n,
+                description=f"corr({name}^2'(t-tau), e^2'(t)), tau = -{max_lag}..{max_lag}",
+                applicable=u2_varies,
+            )
+        )
+    return tests
+
+
+# ============================================================================ spectra
+def psd(x: Any, dt: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Welch power spectral density (Hann window, 50 % overlap, mean removed).
+
+    Parameters
+    ----------
+    x : array_like, shape (N,)
+        Signal.
+    dt : float
+        Sample time in seconds.
+    nperseg : int, optional
+        Segment length; default ``min(N, max(256, 2**floor(log2(N / 8))))`` (about eight
+        segments for long records, never fewer than 256 samples of resolution).
+
+    Returns
+    -------
+    f : ndarray, shape (nperseg // 2 + 1,)
+        Frequencies in Hz, ``0..1/(2 dt)``.
+    p : ndarray, shape (nperseg // 2 + 1,)
+        One-sided PSD in ``units(x)^2 / Hz``.
+    """
+    x = _vector(x, "signal")
+    if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
+        raise DataError(f"sample time dt must be a positive finite number, got {dt!r}")
+    n = x.size
+    if n < 4:
+        raise DataError(f"a PSD needs at least 4 samples, got {n}")
+    if nperseg is None:
+        nperseg = min(n, max(256, 2 ** math.floor(math.log2(max(n / 8, 1)))))
+    if isinstance(nperseg, bool) or not isinstance(nperseg, (int, np.integer)) or nperseg < 4:
+        raise DataError(f"nperseg must be an integer >= 4, got {nperseg!r}")
+    nperseg = min(int(nperseg), n)
+    f, p = signal.welch(x, fs=1.0 / float(dt), nperseg=nperseg, detrend="constant")
+    return f, p
+
+
+def _peak(f: np.ndarray, p: np.ndarray) -> float:
+    """Frequency of the largest PSD value above DC."""
+    return float(f[1:][np.argmax(p[1:])]) if f.size > 1 else float(f[0])
+
+
+# ============================================================================ stability
+@dataclass
+class StabilityReport:
+    """Poles and zeros of a discrete-time model, with their continuous-time reading.
+
+    Each pole ``z`` is mapped to ``s = log(z) / dt`` (``z = exp(s dt)``); the natural
+    frequency is ``|s| / (2 pi)`` in Hz and the damping ratio ``-Re(s) / |s|``.  A pole at
+    the origin has no continuous counterpart: frequency ``inf`` and damping 1.
+
+    Attributes
+    ----------
+    dt : float
+        Sample time in seconds.
+    poles : ndarray of complex, shape (na,)
+    radius : ndarray, shape (na,)
+        ``|z|`` of each pole.
+    damping : ndarray, shape (na,)
+        Damping ratio of each pole.
+    natural_frequency : ndarray, shape (na,)
+        Natural frequency of each pole in Hz.
+    stable : bool
+        All poles strictly inside the unit circle.
+    max_pole_radius : float
+    zeros : list of ndarray of complex
+        Zeros of each input's transfer function.
+    non_minimum_phase : bool
+        Some zero lies outside the unit circle.
+    """
+
+    dt: float
+    poles: np.ndarray
+    radius: np.ndarray
+    damping: np.ndarray
+    natural_frequency: np.ndarray
+    stable: bool
+    max_pole_radius: float
+    zeros: list = field(default_factory=list)
+    non_minimum_phase: bool = False
+
+    @property
+    def max_zero_radius(self) -> float:
+        """Largest ``|z|`` over all zeros (0 without zeros)."""
+        radii = [np.abs(z).max() for z in self.zeros if np.size(z)]
+        return float(max(radii)) if radii else 0.0
+
+    def table(self) -> str:
+        """Pole table: value, radius, damping and frequency, sorted by frequency."""
+        order = np.argsort(self.natural_frequency, kind="stable")
+        lines = [f"{'pole':>26}  {'|z|':>8}  {'damping':>8}  {'f_n [Hz]':>10}"]
+        for i in order:
+            z = self.poles[i]
+            lines.append(
+                f"{z.real:>12.6f}{z.imag:+12.6f}j  {self.radius[i]:8.5f}  "
+                f"{self.damping[i]:8.4f}  {self.natural_frequency[i]:10.4g}"
+            )
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe plain types (complex numbers as ``[re, im]``, inf as ``None``)."""
+        return {
+            "dt": float(self.dt),
+            "stable": bool(self.stable),
+            "max_pole_radius": float(self.max_pole_radius),
+            "non_minimum_phase": bool(self.non_minimum_phase),
+            "max_zero_radius": self.max_zero_radius,
+            "poles": [[float(z.real), float(z.imag)] for z in self.poles],
+            "radius": [float(v) for v in self.radius],
+            "damping": [_num(v) for v in self.damping],
+            "natural_frequency": [_num(v) for v in self.natural_frequency],
+            "zeros": [[[float(z.real), float(z.imag)] for z in zs] for zs in self.zeros],
+        }
+
+
+def _num(v: float) -> float | None:
+    """A float, or ``None`` for NaN/inf (strict JSON has neither)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _plain(a: Any) -> list:
+    """Nested lists of floats, with ``None`` for NaN/inf."""
+    a = np.asarray(a, dtype=float)
+    obj = a.astype(object)
+    obj[~np.isfinite(a)] = None
+    return obj.tolist()
+
+
+def stability_report(poles: Any, zeros: Any = (), dt: float = 1.0) -> StabilityReport:
+    """Stability and modal reading of discrete-time poles and zeros.
+
+    Parameters
+    ----------
+    poles : array_like of complex, shape (na,)
+        Poles in the z-plane.
+    zeros : array_like of complex, or sequence of such arrays
+        Zeros (one array, or one array per input).
+    dt : float
+        Sample time in seconds.
+
+    Returns
+    -------
+    StabilityReport
+    """
+    if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
+        raise DataError(f"sample time dt must be a positive finite number, got {dt!r}")
+    p = np.atleast_1d(np.asarray(poles, dtype=complex))
+    check_finite(p, "poles")
+    if len(zeros) and np.ndim(zeros[0]) == 0:
+        zero_list = [np.asarray(zeros, dtype=complex)]
+    else:
+        zero_list = [np.atleast_1d(np.asarray(z, dtype=complex)) for z in zeros]
+    radius = np.abs(p)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.log(np.where(radius > 0, p, 1.0)) / dt
+        wn = np.abs(s)
+        damping = np.where(wn > 0, -s.real / np.where(wn > 0, wn, 1.0), 1.0)
+    wn = np.where(radius > 0, wn, np.inf)
+    damping = np.where(radius > 0, damping, 1.0)
+    max_r = float(radius.max()) if radius.size else 0.0
+    nmp = any(bool(np.any(np.abs(z) > 1.0)) for z in zero_list)
+    return StabilityReport(
+        dt=float(dt),
+        poles=p,
+        radius=radius,
+        damping=damping,
+        natural_frequency=wn / (2.0 * np.pi),
+        stable=bool(max_r < 1.0),
+        max_pole_radius=max_r,
+        zeros=zero_list,
+        non_minimum_phase=nmp,
+    )
+
+
+# ============================================================================ report
+@dataclass
+class ValidationReport:
+    """Everything :func:`validate` measured on one record (single output).
+
+    Fits, RMSEs and error ranges are over the samples ``t >= start``; ``initial`` states
+    how the simulation was started.  The correlation tests use the one-step residual over
+    the same samples.
+
+    Attributes
+    ----------
+    n_samples : int
+        Samples in the record.
+    start : int
+        First evaluated sample (``model.structure.start``).
+    dt : float
+        Sample time in seconds.
+    initial : str
+        ``"measured"`` or ``"zero"``; see :data:`INITIAL_RULES`.
+    fit_one_step, fit_simulation : float
+        NRMSE fit in % of the one-step and simulation predictors.
+    rmse_one_step, rmse_simulation : float
+    error_range_one_step, error_range_simulation : tuple of float
+        ``(min, max)`` of ``y - yhat``.
+    max_lag : int
+    correlation_tests : list of CorrelationTest
+        ``auto e`` and one ``cross`` test per input.
+    nonlinear_tests : list of CorrelationTest
+        Billings-Voon tests, three per input.
+    psd_frequency : ndarray, shape (F,)
+        Frequencies in Hz.
+    psd_measured, psd_model : ndarray, shape (F,)
+        Welch PSD of the measured and simulated output over ``t >= start``.
+    peak_measured, peak_model : float
+        Frequency in Hz of the largest PSD peak above DC.
+    stability : StabilityReport
+    time, u, y, y_one_step, y_simulation : ndarray
+        Signals over ``t >= start`` (``u`` is (N - start, n_u)).
+    input_names : tuple of str
+    output_name : str
+    simulation_diverged : bool
+        The free run of an unstable model overflowed (non-finite output or energy); then
+        ``fit_simulation = -inf``, ``rmse_simulation = inf``, the simulation error range is
+        ``(-inf, inf)`` and the model PSD is NaN.  This is reported, not raised, so that a
+        comparison keeps the run.
+    """
+
+    n_samples: int
+    start: int
+    dt: float
+    initial: str
+    fit_one_step: float
+    fit_simulation: float
+    rmse_one_step: float
+    rmse_simulation: float
+    error_range_one_step: tuple[float, float]
+    error_range_simulation: tuple[float, float]
+    max_lag: int
+    correlation_tests: list[CorrelationTest]
+    nonlinear_tests: list[CorrelationTest]
+    psd_frequency: np.ndarray
+    psd_measured: np.ndarray
+    psd_model: np.ndarray
+    peak_measured: float
+    peak_model: float
+    stability: StabilityReport
+    time: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    y_one_step: np.ndarray
+    y_simulation: np.ndarray
+    input_names: tuple = ()
+    output_name: str = "y"
+    simulation_diverged: bool = False
+
+    @property
+    def initial_rule(self) -> str:
+        """How the simulation was started, in words."""
+        return INITIAL_RULES.get(self.initial, self.initial).format(start=self.start)
+
+    @property
+    def all_tests(self) -> list[CorrelationTest]:
+        """Linear then nonlinear correlation tests."""
+        return list(self.correlation_tests) + list(self.nonlinear_tests)
+
+    @property
+    def linear_passed(self) -> bool:
+        """Autocorrelation and input cross-correlation tests all pass."""
+        return all(t.passed for t in self.correlation_tests)
+
+    @property
+    def nonlinear_passed(self) -> bool:
+        """All Billings-Voon tests pass."""
+        return all(t.passed for t in self.nonlinear_tests)
+
+    @property
+    def passed(self) -> bool:
+        """All correlation tests (linear and Billings-Voon) pass (see the module pass rule)."""
+        return self.linear_passed and self.nonlinear_passed
+
+    def test(self, name: str) -> CorrelationTest:
+        """The correlation test called ``name``."""
+        for t in self.all_tests:
+            if t.name == name:
+                return t
+        known = ", ".join(t.name for t in self.all_tests)
+        raise KeyError(f"no correlation test {name!r}; known: {known}")
+
+    @property
+    def residual(self) -> np.ndarray:
+        """One-step residual ``y - y_one_step`` over ``t >= start``."""
+        return self.y - self.y_one_step
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Signals and spectra for plots (all over ``t >= start``)."""
+        return {
+            "time": self.time,
+            "u": self.u,
+            "y": self.y,
+            "y_one_step": self.y_one_step,
+            "y_simulation": self.y_simulation,
+            "residual_one_step": self.y - self.y_one_step,
+            "error_simulation": self.y - self.y_simulation,
+            "psd_frequency": self.psd_frequency,
+            "psd_measured": self.psd_measured,
+            "psd_model": self.psd_model,
+        }
+
+    def correlation_panels(self, nonlinear: bool = False) -> list[tuple]:
+        """``(title, lags, values, bound)`` per test, for :func:`flexid.plots.plot_correlations`."""
+        tests = self.all_tests if nonlinear else self.correlation_tests
+        return [(f"{t.name}: {t.description}", t.lags, t.values, t.bound) for t in tests]
+
+    def summary(self) -> str:
+        """A readable multi-line report for a terminal."""
+        rule = self.initial_rule
+        n_eval = self.n_samples - self.start
+        lines = [
+            f"Validation on {self.n_samples} samples (dt = {self.dt:g} s); fit, RMSE and errors "
+            f"over t >= {self.start} ({n_eval} samples)",
+            "",
+            "Fit (NRMSE %)",
+            f"  one-step prediction    {self.fit_one_step:9.2f} %",
+            f"  simulation (free run)  {self.fit_simulation:9.2f} %   ({rule})"
+            + ("  DIVERGED: the unstable free run overflowed" if self.simulation_diverged else ""),
+            "",
+            "Errors y - yhat",
+            f"  {'':22} {'RMSE':>11} {'min':>11} {'max':>11}",
+        ]
+        for label, r, (lo, hi) in (
+            ("one-step prediction", self.rmse_one_step, self.error_range_one_step),
+            ("simulation", self.rmse_simulation, self.error_range_simulation),
+        ):
+            lines.append(f"  {label:22} {r:11.4g} {lo:11.4g} {hi:11.4g}")
+        lines += [
+            "",
+            f"Correlation tests on the one-step residual (max lag {self.max_lag}, "
+            f"95 % band +-{self.correlation_tests[0].bound:.4f})",
+        ]
+        width = max(len(t.name) for t in self.all_tests)
+        for t in self.all_tests:
+            lines.append(f"  {t.name:{width}}  {t.verdict()}")
+        overall = "PASS" if self.passed else "FAIL"
+        lines.append(f"  {'overall':{width}}  {overall}")
+        st = self.stability
+        lines += [
+            "",
+            "Stability",
+            f"  {'stable' if st.stable else 'UNSTABLE'}: largest pole radius "
+            f"{st.max_pole_radius:.5f}",
+            f"  zeros: largest radius {st.max_zero_radius:.5f}, "
+            f"{'non-minimum phase' if st.non_minimum_phase else 'minimum phase'}",
+        ]
+        lines += ["  " + row for row in st.table().splitlines()]
+        lines += [
+            "",
+            "Spectral peaks (Welch PSD, largest above DC)",
+            f"  measured               {self.peak_measured:10.4g} Hz",
+            f"  model (simulation)     {self.peak_model:10.4g} Hz",
+        ]
+        return "\n".join(lines)
+
+    def to_dict(self, arrays: bool = False) -> dict[str, Any]:
+        """JSON-safe plain types; signals, spectra and correlations only if ``arrays``."""
+        out: dict[str, Any] = {
+            "n_samples": int(self.n_samples),
+            "start": int(self.start),
+            "dt": float(self.dt),
+            "initial": self.initial,
+            "initial_rule": self.initial_rule,
+            "fit_one_step": float(self.fit_one_step),
+            "fit_simulation": _num(self.fit_simulation),
+            "rmse_one_step": float(self.rmse_one_step),
+            "rmse_simulation": _num(self.rmse_simulation),
+            "error_range_one_step": [float(v) for v in self.error_range_one_step],
+            "error_range_simulation": [_num(v) for v in self.error_range_simulation],
+            "simulation_diverged": bool(self.simulation_diverged),
+            "max_lag": int(self.max_lag),
+            "passed": bool(self.passed),
+            "linear_passed": bool(self.linear_passed),
+            "nonlinear_passed": bool(self.nonlinear_passed),
+            "correlation_tests": [t.to_dict(arrays) for t in self.correlation_tests],
+            "nonlinear_tests": [t.to_dict(arrays) for t in self.nonlinear_tests],
+            "peak_measured": float(self.peak_measured),
+            "peak_model": _num(self.peak_model),
+            "stability": self.stability.to_dict(),
+            "input_names": [str(n) for n in self.input_names],
+            "output_name": str(self.output_name),
+        }
+        if arrays:
+            out["arrays"] = {k: _plain(v) for k, v in self.arrays().items()}
+        return out
+
+
+# ============================================================================ entry point
+def _as_record(data: Any, dt: float | None) -> IOData:
+    if isinstance(data, IOData):
+        return data
+    if isinstance(data, (tuple, list)) and len(data) == 2:
+        u, y = data
+        return IOData(u, y, dt=1.0 if dt is None else dt)
+    raise DataError(
+        f"data must be an IOData or a (u, y) pair of arrays, got {type(data).__name__}"
+    )
+
+
+def _model_dt(model: Any) -> float | None:
+    dt = getattr(model, "dt", None)
+    try:
+        dt = float(dt)
+    except (TypeError, ValueError):
+        return None
+    return dt if math.isfinite(dt) and dt > 0 else None
+
+
+def validate(
+    model: Any,
+    data: Any,
+    *,
+    max_lag: int = 25,
+    initial: str = "measured",
+    split: float | int | None = None,
+    dt: float | None = None,
+) -> ValidationReport:
+    """Validate a linear model on a record: fits, errors, correlation tests, PSD, stability.
+
+    Parameters
+    ----------
+    model : ARX-like
+        Needs ``structure.start``, ``predict(u, y)``, ``simulate(u, y_init=None)``,
+        ``poles()``, ``zeros(input=i)`` and optionally ``dt`` (see :class:`flexid.arx.ARX`).
+    data : IOData or (u, y)
+        Single-output record; ``u`` shape (N,) or (N, n_u), ``y`` shape (N,) or (N, 1).
+    max_lag : int
+        Largest lag ``L`` of the correlation tests; the evaluated part (``t >= start``)
+        needs at least ``2 L + 2`` samples.
+    initial : {"measured", "zero"}
+        Initial conditions of the simulation: the first ``start`` measured outputs, or zeros.
+    split : float or int, optional
+        Validate on the *second* part of ``data.split(split)`` only (a fraction in (0, 1) or
+        a sample index); default: the whole record.
+    dt : float, optional
+        Sample time in seconds for a ``(u, y)`` pair; default ``model.dt``, else 1.
+
+    Returns
+    -------
+    ValidationReport
+
+    Raises
+    ------
+    DataError
+        NaN/inf, length mismatch, several outputs, a record too short for ``max_lag``, an
+        unknown ``initial`` rule, or a model output that is not finite (an unstable
+        simulation that overflowed).
+    ModelOrderError
+        If the record does not reach past the model's ``start`` sample, or the model's
+        input count does not match the data.
+    """
+    if initial not in INITIAL_RULES:
+        raise DataError(f"initial must be one of {sorted(INITIAL_RULES)}, got {initial!r}")
+    record = _as_record(data, dt if dt is not None else _model_dt(model))
+    if split is not None:
+        if isinstance(split, float):
+            record = record.split(split)[1]
+        else:
+            record = record.split(index=split)[1]
+    if record.n_outputs != 1:
+        raise DataError(
+            f"validate() takes a single-output record, got {record.n_outputs} outputs "
+            f"{list(record.output_names)}; use data.select(outputs=...) first"
+        )
+    check_finite(record.u, "input u")
+    check_finite(record.y, "output y")
+    sample_time = float(record.dt)
+    u_full = record.u
+    y_full = record.y[:, 0]
+    n = y_full.size
+    structure = getattr(model, "structure", None)
+    start = int(getattr(structure, "start", 0))
+    nb = getattr(structure, "nb", None)
+    if nb is not None and len(tuple(np.atleast_1d(nb))) != u_full.shape[1]:
+        raise ModelOrderError(
+            f"the model has {len(tuple(np.atleast_1d(nb)))} input(s), the record "
+            f"{u_full.shape[1]}"
+        )
+    if n <= start:
+        raise ModelOrderError(
+            f"a record of {n} samples does not reach past the model's first full regressor "
+            f"(start = {start})"
+        )
+    n_eval = n - start
+    max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
+
+    u_model = u_full[:, 0] if u_full.shape[1] == 1 else u_full
+    y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
+    if initial == "measured":
+        ysim = model.simulate(u_model, y_init=y_full[:start])
+    else:
+        ysim = model.simulate(u_model)
+    ysim = np.asarray(ysim, dtype=float).reshape(-1)
+    for arr, what in ((y1, "one-step prediction"), (ysim, "simulated output")):
+        if arr.size != n:
+            raise DataError(f"the model's {what} has {arr.size} samples, the record {n}")
+    check_finite(y1, "the model's one-step prediction")
+
+    seg = slice(start, n)
+    y, y1, ysim, u = y_full[seg], y1[seg], ysim[seg], u_full[seg]
+    e = y - y1
+    names = list(record.input_names)
+    tests = residual_tests(e, u, max_lag, names)
+    nonlinear = billings_voon_tests(e, u, max_lag, names)
+    f, p_meas = psd(y, sample_time)
+    with np.errstate(over="ignore", invalid="ignore"):
+        diverged = not bool(np.all(np.isfinite(ysim)) and np.isfinite(np.sum(ysim * ysim)))
+    if diverged:  # an unstable model's free run overflowed: a result to report, not an error
+        p_model = np.full_like(p_meas, np.nan)
+        sim_numbers = (-np.inf, np.inf, (-np.inf, np.inf))
+    else:
+        p_model = psd(ysim, sample_time)[1]
+        sim_numbers = (fit_percent(y, ysim), rmse(y, ysim), error_range(y, ysim))
+
+    n_u = u_full.shape[1]
+    zeros = [np.asarray(model.zeros(input=i)) for i in range(n_u)]
+    stability = stability_report(np.asarray(model.poles()), zeros, sample_time)
+
+    return ValidationReport(
+        n_samples=n,
+        start=start,
+        dt=sample_time,
+        initial=initial,
+        fit_one_step=fit_percent(y, y1),
+        fit_simulation=sim_numbers[0],
+        rmse_one_step=rmse(y, y1),
+        rmse_simulation=sim_numbers[1],
+        error_range_one_step=error_range(y, y1),
+        error_range_simulation=sim_numbers[2],
+        max_lag=max_lag,
+        correlation_tests=tests,
+        nonlinear_tests=nonlinear,
+        psd_frequency=f,
+        psd_measured=p_meas,
+        psd_model=p_model,
+        peak_measured=_peak(f, p_meas),
+        peak_model=float("nan") if diverged else _peak(f, p_model),
+        stability=stability,
+        time=np.arange(start, n) * sample_time,
+        u=u,
+        y=y,
+        y_one_step=y1,
+        y_simulation=ysim,
+        input_names=tuple(names),
+        output_name=str(record.output_names[0]),
+        simulation_diverged=diverged,
+    )
