@@ -42,7 +42,7 @@ def test_least_squares_recovers_the_system_and_validates_on_held_out_data():
     assert ident.validation.fit_simulation > 99.999
     assert ident.model.is_stable
     # the held-out record is the last third of the samples
-    assert ident.data_info["validation_samples"] == 200
+    assert ident.data_info["n_validation"] == 200
     text = ident.summary()
     assert "fit" in text.lower() and "ls" in text
 
