@@ -29,9 +29,9 @@ def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
     out = []
     for v in items:
         if isinstance(v, bool) or not float(v).is_integer():
-            raise ModelOrderError(f"{what} must be an integer, got {v!r}")
+            raise ModelOrderError(f"model order {what} must be an integer, got {v!r}")
         if int(v) < low:
-            raise ModelOrderError(f"{what} must be >= {low}, got {int(v)}")
+            raise ModelOrderError(f"model order {what} must be >= {low}, got {int(v)}")
         out.append(int(v))
     return tuple(out)
 

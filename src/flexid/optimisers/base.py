@@ -338,6 +338,8 @@ class Param:
     def validate(self, value: Any) -> Any:
         """Return ``value`` converted to the parameter's type, or raise HyperParameterError."""
         where = f"{self.owner}: hyper-parameter {self.name!r}"
+        if self.none_ok and isinstance(value, str) and value.strip().lower() in ("none", "null"):
+            value = None  # TOML has no null: "none" stands for None in configuration files
         if value is None:
             if self.none_ok:
                 return None
