@@ -399,7 +399,8 @@ class ARX:
         from scipy import signal
 
         num, den = self._tf_num_den(input)
-        return signal.dlti(num, den, dt=self.dt)
+        num = np.trim_zeros(num, "f")  # leading zeros are the delay; scipy warns about them
+        return signal.dlti(num if num.size else [0.0], den, dt=self.dt)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe dictionary; :meth:`from_dict` restores the model exactly."""

@@ -6,8 +6,9 @@ Two predictors:
   least-squares solution ``theta*``, ``SSE(theta) = SSE* + ||R (theta - theta*)||^2`` exactly,
   so a population costs ``O(P n^2)`` whatever the record length.
 * **simulation** (output error): ``e(t) = y(t) - y_sim(t)`` where ``y_sim`` is the free-run
-  output.  The whole population runs in one blocked recursion (see
-  :func:`simulate_population`); unstable candidates are never simulated.
+  output.  The input part of the whole population is one GEMM, the autoregressive part one
+  compiled filter per candidate (see :func:`simulate_population`); unstable candidates are
+  never simulated.
 
 Metrics: the paper's cost (eq. 5-6, ``w sqrt(SSE) / K`` plus a penalty when a pole has
 ``|p| >= 1``), RMSE, NRMSE, SSE and MSE.
@@ -18,8 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
-from scipy import linalg
+from scipy import linalg, signal
 
 from .arx import ARXStructure, _io_arrays
 from .errors import DataError, UnknownNameError
@@ -32,75 +32,48 @@ PREDICTORS = ("one-step", "simulation")
 INITIAL = ("measured", "zero")
 
 
-def simulate_population(
-    a: np.ndarray, forced: np.ndarray, state: np.ndarray, block: int = 32
-) -> np.ndarray:
-    """Run ``y(t) = f(t) - sum_i a_i y(t - i)`` for a whole population at once.
+def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """Run ``y(t) = f(t) - sum_i a_i y(t - i)`` for every candidate of a population.
 
-    Exact blocked recursion (no truncation).  With the companion matrix ``C`` of each
-    candidate, the rows ``e1' C^t`` (t = 0..L) come from ``log2 L`` doublings; they give the
-    impulse response ``h`` and the free response ``G`` over a block of length ``L``.  The
-    zero-state responses of all blocks of all candidates are one batched matmul with the
-    Toeplitz matrix of ``h``; the ``na``-state at each block start follows from the linear
-    recurrence ``x_(b+1) = C^L x_b + c_b``, solved by a parallel prefix scan in
-    ``log2(K / L)`` batched matmuls; one more matmul adds the free responses.  Equal to a
-    per-candidate ``scipy.signal.lfilter`` to rounding.
+    The input part ``f = B(q) u`` of the whole population is one GEMM (done by the caller);
+    this function runs the autoregressive part with one compiled ``scipy.signal.lfilter``
+    call per candidate, initial state from ``lfiltic``.  That is the fastest *exact* method
+    measured here: a time-step loop vectorised over the population is 5x slower, and a
+    blocked recursion with companion-matrix powers and batched Toeplitz products was no
+    faster on this machine and lost up to 8 digits for clustered poles (see
+    ``benchmarks/bench_costs.py``).
 
     Parameters
     ----------
     a : ndarray, shape (P, na)
-        ``a_1 .. a_na`` of each candidate (must be stable: unstable ones overflow).
+        ``a_1 .. a_na`` of each candidate (should be stable; the cost never simulates an
+        unstable one).
     forced : ndarray, shape (P, K)
         ``f(t) = B(q) u(t)`` of each candidate.
     state : ndarray, shape (P, na) or (na,)
         ``[y(-1), ..., y(-na)]`` before the first sample.
-    block : int
-        Block length ``L`` (rounded up to a power of two >= na).
 
     Returns
     -------
     ndarray, shape (P, K)
     """
-    L = block
     p, na = a.shape
-    k = forced.shape[1]
+    out = np.array(forced, dtype=float)
     if na == 0:
-        return np.array(forced, dtype=float)
+        return out
     state = np.broadcast_to(np.asarray(state, float), (p, na))
-    while L < na:
-        L *= 2
-    nblk = -(-k // L)
-    c = np.zeros((p, na, na))
-    c[:, 0, :] = -a
-    idx = np.arange(1, na)
-    c[:, idx, idx - 1] = 1.0
-    rows = np.zeros((p, 1, na))
-    rows[:, 0, 0] = 1.0
-    pw = c
-    m = 1
-    while m < L:
-        rows = np.concatenate([rows, np.matmul(rows, pw)], axis=1)
-        pw = np.matmul(pw, pw)
-        m *= 2
-    g = np.concatenate([rows[:, 1:, :], pw[:, :1, :]], axis=1)  # (P, L, na): e1' C^(t+1)
-    hp = np.zeros((p, 2 * L - 1))
-    hp[:, L - 1 :] = rows[:, :, 0]
-    tt = np.ascontiguousarray(sliding_window_view(hp, L, axis=1)[:, ::-1, :])  # h[i - j]
-    f = np.zeros((p, nblk * L))
-    f[:, :k] = forced
-    zs = np.matmul(f.reshape(p, nblk, L), tt)
-    v = np.empty((p, nblk, na))
-    v[:, 0] = state
-    v[:, 1:] = zs[:, :-1, L - 1 : L - na - 1 if L > na else None : -1]
-    md = pw.transpose(0, 2, 1).copy()
-    d = 1
-    while d < nblk:
-        v[:, d:] += np.matmul(v[:, :-d], md)
-        d *= 2
-        if d < nblk:
-            md = np.matmul(md, md)
-    y = zs + np.matmul(v, g.transpose(0, 2, 1).copy())
-    return y.reshape(p, nblk * L)[:, :k]
+    den = np.hstack([np.ones((p, 1)), a])
+    # lfilter's (transposed direct form II) initial state for b = [1] and past outputs s:
+    # zi[i] = -sum_{j >= 1} a_{i+j} s_j  (what scipy.signal.lfiltic computes, for all rows)
+    zi = np.zeros((p, na))
+    for i in range(na):
+        zi[:, i] = -np.einsum("pj,pj->p", a[:, i:], state[:, : na - i])
+    for i in range(p):
+        out[i] = signal.lfilter(_ONE, den[i], out[i], zi=zi[i])[0]
+    return out
+
+
+_ONE = np.ones(1)
 
 
 class ARXCost:

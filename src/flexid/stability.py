@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import DataError
+
 __all__ = ["is_stable", "max_pole_radius", "reflection_coefficients"]
 
 
@@ -18,7 +20,7 @@ def _as_population(a) -> np.ndarray:
     if a.ndim == 1:
         a = a[None, :]
     if a.ndim != 2:
-        raise ValueError(f"denominator coefficients must have shape (P, na), got {a.shape}")
+        raise DataError(f"denominator coefficients must have shape (P, na), got {a.shape}")
     return a
 
 
@@ -81,14 +83,14 @@ def is_stable(a) -> np.ndarray:
         return np.ones(p, dtype=bool)
     ok = np.isfinite(a).all(axis=1)
     cur = np.where(ok[:, None], a, 0.0)
-    for m in range(n, 0, -1):
-        k = cur[:, m - 1]
-        ok &= np.abs(k) < 1.0
-        if m == 1:
-            break
-        k = np.where(ok, k, 0.0)[:, None]
-        head = cur[:, : m - 1]
-        cur = (head - k * head[:, ::-1]) / (1.0 - k * k)
+    with np.errstate(all="ignore"):  # rows already failed may overflow; they stay False
+        for m in range(n, 0, -1):
+            k = cur[:, m - 1 : m]
+            ok &= np.abs(k[:, 0]) < 1.0
+            if m == 1:
+                break
+            head = cur[:, : m - 1]
+            cur = (head - k * head[:, ::-1]) / (1.0 - k * k)
     return ok
 
 
