@@ -335,9 +335,12 @@ class Param:
             left = "(-inf"
         return f"{left}, {right}"
 
-    def validate(self, value: Any) -> Any:
-        """Return ``value`` converted to the parameter's type, or raise HyperParameterError."""
-        where = f"{self.owner}: hyper-parameter {self.name!r}"
+    def validate(self, value: Any, owner: str | None = None) -> Any:
+        """Return ``value`` converted to the parameter's type, or raise HyperParameterError.
+
+        ``owner`` is the optimiser name used in the message (default: the declaring class).
+        """
+        where = f"{owner or self.owner}: hyper-parameter {self.name!r}"
         if self.none_ok and isinstance(value, str) and value.strip().lower() in ("none", "null"):
             value = None  # TOML has no null: "none" stands for None in configuration files
         if value is None:
@@ -427,7 +430,11 @@ class Optimiser:
             )
         values = {}
         for key, param in spec.items():
-            values[key] = param.validate(params[key]) if key in params else param.default
+            values[key] = (
+                param.validate(params[key], owner=self.name or None)
+                if key in params
+                else param.default
+            )
         self._params = values
         self.check()
 

@@ -118,6 +118,8 @@ def register_variant(
         raise HyperParameterError(
             f"variant {name!r}: unknown hyper-parameter(s) {unknown} of {base_cls.name!r}"
         )
+    for key, value in defaults.items():  # clear errors before the class is built
+        spec[key].validate(value, owner=name)
     namespace: dict[str, Any] = {
         "name": name,
         "__module__": base_cls.__module__,
