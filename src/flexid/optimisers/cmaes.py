@@ -14,13 +14,36 @@ __all__ = ["CMAES"]
 class CMAES(Optimiser):
     """(mu/mu_w, lambda)-CMA-ES with rank-one and rank-mu updates (Hansen's tutorial, 2016).
 
-    Works in coordinates normalised to the box (``[0, 1]^n``), starting at the centre of the
-    shared initial population's best point with step ``sigma0`` (fraction of the box width).
-    Samples outside the box are evaluated at their projection onto the box and ranked with a
-    quadratic penalty on the distance (``penalty`` times the squared normalised distance
-    times the median |cost|), a standard boundary handling.  The first batch is the shared
-    initial population (so every optimiser starts from the same points); the mean starts at
-    its best member.  One generation is one iteration (``lambda`` FE).
+    Plain numpy implementation of the tutorial's algorithm (arXiv:1604.00772, Table 1 and
+    Fig. 7): positive recombination weights ``w_i ∝ ln(mu + 1/2) - ln i`` (sum 1),
+    ``mu = lambda // 2``, cumulation paths ``p_sigma`` and ``p_c`` with the ``h_sigma``
+    stall, rank-one (``c1``) and rank-mu (``c_mu``) covariance updates and cumulative
+    step-size adaptation (``c_sigma``, ``d_sigma``), all with the tutorial's default
+    constants.  ``C`` is symmetrised and eigendecomposed every generation (cheap for the
+    n <= 30 of ARX problems).
+
+    Parameters
+    ----------
+    population : int or None
+        ``lambda`` (FE per generation); None means ``4 + floor(3 ln n)``.
+    sigma0 : float
+        Initial step size as a fraction of the box width (default 0.3); the search runs in
+        coordinates normalised to ``[0, 1]^n``, so the initial distribution is isotropic
+        relative to the box.
+    initial_points : int
+        Size of the shared initial population evaluated as the first batch (default 50).
+    penalty : float
+        Weight of the boundary penalty used for ranking (default 1; 0 disables it).
+
+    Notes
+    -----
+    Initial mean: the best point of the shared initial population (so CMA-ES starts from
+    the same evaluated points as every other optimiser for a seed; ``space.x0`` is not
+    used).  Bounds: a sample outside the box is evaluated at its projection onto the box
+    (no FE outside the box) and, for ranking only, its cost gets a penalty ``penalty *
+    median|f| * ||x - clip(x)||^2`` (normalised coordinates); the update uses the
+    unclipped sample.  Costs of +inf (NaN/inf from the objective) rank last.  One
+    generation is one iteration (``lambda`` FE).
     """
 
     name = "cmaes"

@@ -12,13 +12,31 @@ __all__ = ["DifferentialEvolution"]
 
 @register
 class DifferentialEvolution(Optimiser):
-    """DE/rand/1/bin with greedy one-to-one selection.
+    """DE/rand/1/bin with greedy one-to-one selection (Storn & Price 1997).
 
-    Mutant ``v_i = x_r1 + F (x_r2 - x_r3)`` with ``r1, r2, r3`` distinct and different
-    from ``i``; binomial crossover with rate ``CR`` and one forced component; a trial that
-    leaves the box is reset half-way between its parent and the violated bound
-    (bounce-back); the trial replaces its parent if it is not worse.  One generation is one
-    iteration (``population`` FE).
+    For every member ``x_i`` (all at once, vectorised): mutant
+    ``v_i = x_r1 + F (x_r2 - x_r3)`` with ``r1, r2, r3`` distinct and different from ``i``;
+    binomial crossover ``u_ij = v_ij`` with probability ``CR`` (and for one random ``j``
+    always), else ``x_ij``; ``u_i`` replaces ``x_i`` when its cost is not worse.
+
+    Parameters
+    ----------
+    population : int
+        ``NP`` (FE per generation), default 50 (Storn & Price suggest 5n-10n; 50 covers
+        the ARX sizes of flexid, n <= 10).
+    weight : float
+        Differential weight ``F`` in (0, 2], default 0.5.
+    crossover : float
+        Crossover rate ``CR`` in [0, 1], default 0.9.
+    dither : bool
+        If True, ``F`` is drawn per member and generation uniformly in ``[weight, 1]``
+        (dither, Das et al. 2005), which helps on multimodal functions.  Default False.
+
+    Notes
+    -----
+    Bounds: a trial coordinate that leaves the box is reset half-way between its parent's
+    coordinate and the violated bound (bounce-back), so it stays in the box and keeps
+    the search direction.  One generation is one iteration (``population`` FE).
     """
 
     name = "de"
@@ -26,6 +44,7 @@ class DifferentialEvolution(Optimiser):
     population = Param(int, 50, "population size NP", low=4)
     weight = Param(float, 0.5, "differential weight F", low=0.0, high=2.0, low_open=True)
     crossover = Param(float, 0.9, "crossover rate CR", low=0.0, high=1.0)
+    dither = Param(bool, False, "draw F per member in [weight, 1]")
 
     def search(self, space: SearchSpace, rng: np.random.Generator):
         NP, n = self.population, space.dim
@@ -38,7 +57,11 @@ class DifferentialEvolution(Optimiser):
             picks = np.argsort(rng.random((NP, NP - 1)), axis=1)[:, :3]
             pool = picks + (picks >= idx[:, None])  # skip i itself
             r1, r2, r3 = pool[:, 0], pool[:, 1], pool[:, 2]
-            V = X[r1] + self.weight * (X[r2] - X[r3])
+            if self.dither:
+                Fw = rng.uniform(min(self.weight, 1.0), 1.0, (NP, 1))
+            else:
+                Fw = self.weight
+            V = X[r1] + Fw * (X[r2] - X[r3])
             cross = rng.random((NP, n)) < self.crossover
             cross[idx, rng.integers(0, n, NP)] = True
             U = np.where(cross, V, X)

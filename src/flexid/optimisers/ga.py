@@ -12,13 +12,37 @@ __all__ = ["GeneticAlgorithm"]
 
 @register
 class GeneticAlgorithm(Optimiser):
-    """Generational real-coded GA with elitism (Deb & Agrawal's operators).
+    """Generational real-coded GA with elitism (Deb & Agrawal's SBX and polynomial mutation).
 
-    Binary tournament selection; simulated binary crossover (SBX, index ``eta_c``) with
-    probability ``p_crossover`` per pair; polynomial mutation (index ``eta_m``) with
-    probability ``p_mutation`` per gene (default ``1/n``); children are clipped to the box;
-    the ``elites`` best parents survive unchanged.  One generation is one iteration
-    (``population - elites`` FE).
+    Each generation (vectorised over the population): binary tournaments pick parents;
+    pairs are recombined by simulated binary crossover (SBX, spread factor ``beta`` from
+    ``u ~ U(0, 1)``: ``(2u)^(1/(eta_c+1))`` or ``(1/(2(1-u)))^(1/(eta_c+1))``, children
+    ``0.5((1 +/- beta) p1 + (1 -/+ beta) p2)``, each coordinate swapped with probability
+    1/2); genes are mutated by polynomial mutation (``delta = (2u)^(1/(eta_m+1)) - 1`` or
+    ``1 - (2(1-u))^(1/(eta_m+1))`` times the box width); the ``elites`` best parents survive
+    unchanged into the next population.
+
+    Parameters
+    ----------
+    population : int
+        Population size, default 50; a generation evaluates ``population - elites``
+        children.
+    p_crossover : float
+        Probability that a pair is recombined (default 0.9; else children copy parents).
+    eta_c : float
+        SBX distribution index (default 15; larger keeps children closer to parents).
+    p_mutation : float or None
+        Mutation probability per gene; None means ``1/n``.
+    eta_m : float
+        Polynomial mutation index (default 20).
+    elites : int
+        Best parents copied unchanged (default 2; must be < population).
+
+    Notes
+    -----
+    Bounds: children are clipped to the box after crossover and mutation.  This is the
+    simple bounded form; Deb's bounded SBX variant that rescales the spread near the
+    bounds is not used.  One generation is one iteration.
     """
 
     name = "ga"

@@ -14,11 +14,33 @@ __all__ = ["ParticleSwarm"]
 class ParticleSwarm(Optimiser):
     """Global-best particle swarm with Clerc-Kennedy constriction.
 
-    ``v <- w v + c1 r1 (p_i - x) + c2 r2 (g - x)``, ``x <- x + v``, with ``w = 0.7298`` and
-    ``c1 = c2 = 1.49618`` (constriction factor of Clerc & Kennedy 2002).  Velocities are
-    clamped to ``v_max`` times the box width; positions leaving the box are put back on
-    its face with their velocity component zeroed (absorbing walls).  One iteration is one
-    swarm update (``particles`` FE).
+    Update of particle ``i`` (all particles at once, vectorised)::
+
+        v <- w v + c1 r1 (p_i - x) + c2 r2 (g - x),   x <- x + v
+
+    with ``r1, r2 ~ U(0, 1)^n`` per particle and coordinate, ``p_i`` the particle's best
+    point and ``g`` the swarm's best.  The defaults ``w = 0.7298``, ``c1 = c2 = 1.49618`` are
+    the constriction coefficients of Clerc & Kennedy (2002) (``chi = 0.7298`` multiplying
+    the whole update with ``phi = 4.1``), written as an inertia-weight PSO; set ``inertia``,
+    ``cognitive`` and ``social`` for the inertia-weight variant (e.g. ``w = 0.72``,
+    ``c = 1.49``, Shi & Eberhart 1998).
+
+    Parameters
+    ----------
+    particles : int
+        Swarm size (FE per iteration), default 50.  The initial positions are the shared
+        initial population; initial velocities are uniform in ``[-v_max, v_max]`` times
+        the box width.
+    inertia, cognitive, social : float
+        ``w``, ``c1`` and ``c2``.
+    v_max : float
+        Velocity clamp per coordinate as a fraction of the box width (default 0.2).
+
+    Notes
+    -----
+    Boundary handling: absorbing walls.  A position that leaves the box is put back on the
+    violated face and that velocity component is set to zero, so no FE is spent outside
+    the box.  One iteration is one swarm update (``particles`` FE).
     """
 
     name = "pso"

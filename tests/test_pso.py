@@ -1,0 +1,109 @@
+"""Tests of flexid.optimisers.pso (global-best PSO with constriction)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flexid.errors import HyperParameterError
+from flexid.optimisers import Problem, create, minimize
+from flexid.optimisers.pso import ParticleSwarm
+
+N = 10
+SHIFT = np.linspace(-1.4, 1.4, N)
+
+
+def sphere(X):
+    return ((X - SHIFT) ** 2).sum(axis=1)
+
+
+def rastrigin(X):
+    Z = X - SHIFT
+    return 10 * Z.shape[1] + (Z**2 - 10 * np.cos(2 * np.pi * Z)).sum(axis=1)
+
+
+def rosenbrock(X):
+    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
+
+
+def counted(f):
+    calls = {"fe": 0}
+
+    def wrapped(X):
+        calls["fe"] += X.shape[0]
+        return f(X)
+
+    return wrapped, calls
+
+
+def test_registered_with_clerc_kennedy_defaults():
+    opt = create("pso")
+    assert isinstance(opt, ParticleSwarm)
+    assert opt.inertia == pytest.approx(0.7298)
+    assert opt.cognitive == pytest.approx(1.49618) and opt.social == pytest.approx(1.49618)
+
+
+def test_deterministic_and_fe_exact():
+    f, calls = counted(sphere)
+    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
+    a = minimize("pso", p, budget=1234, seed=3)
+    assert calls["fe"] == 1234 == a.nfev
+    b = minimize("pso", p, budget=1234, seed=3)
+    np.testing.assert_array_equal(a.x, b.x)
+    assert a.fun == b.fun
+    np.testing.assert_array_equal(a.history.best, b.history.best)
+    c = minimize("pso", p, budget=1234, seed=4)
+    assert c.fun != a.fun
+
+
+def test_shifted_sphere_10d_reaches_1e_6_in_10000_fe():
+    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    for seed in (0, 1):
+        r = minimize("pso", p, budget=10_000, seed=seed)
+        assert r.fun < 1e-6
+        np.testing.assert_allclose(r.x, SHIFT, atol=1e-2)
+
+
+@pytest.mark.parametrize("f, width", [(rastrigin, 5.12), (rosenbrock, 2.0)])
+def test_beats_random_search(f, width):
+    p = Problem(f, -width * np.ones(N), width * np.ones(N))
+    for seed in (0, 1):
+        ours = minimize("pso", p, budget=5000, seed=seed).fun
+        rs = minimize("random-search", p, budget=5000, seed=seed).fun
+        assert ours < 0.5 * rs
+
+
+def test_points_stay_in_box_with_optimum_on_a_face():
+    seen = []
+
+    def f(X):
+        seen.append(X.copy())
+        return ((X - 3.0) ** 2).sum(axis=1)  # optimum outside the box [-1, 1]^n
+
+    p = Problem(f, -np.ones(4), np.ones(4))
+    r = minimize("pso", p, budget=2000, seed=0)
+    X = np.concatenate(seen)
+    assert X.min() >= -1 and X.max() <= 1
+    np.testing.assert_allclose(r.x, np.ones(4), atol=1e-9)  # absorbed on the face
+
+
+def test_velocity_is_clamped():
+    seen = []
+
+    def f(X):
+        seen.append(X.copy())
+        return np.zeros(X.shape[0])  # flat: only the swarm dynamics move points
+
+    p = Problem(f, -np.ones(3), np.ones(3))
+    minimize("pso", p, budget=20 * 10, seed=0, params={"particles": 10, "v_max": 0.05})
+    steps = np.abs(np.diff(np.stack(seen), axis=0))
+    assert steps.max() <= 0.05 * 2 + 1e-12
+
+
+@pytest.mark.parametrize(
+    "params",
+    [{"particles": 1}, {"inertia": -0.1}, {"v_max": 0.0}, {"particles": 2.5}, {"swarm": 3}],
+)
+def test_invalid_hyper_parameters(params):
+    with pytest.raises(HyperParameterError, match="pso"):
+        create("pso", **params)

@@ -1,0 +1,191 @@
+"""Tests of flexid.optimisers.scipy_methods (scipy.optimize.minimize adapters)."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from scipy import optimize
+
+from flexid.errors import HyperParameterError
+from flexid.optimisers import AskTell, Problem, create, describe, minimize
+
+N = 5
+SHIFT = np.linspace(-1.4, 1.4, N)
+METHODS = ["nelder-mead", "powell", "l-bfgs-b"]
+
+
+def sphere(X):
+    return ((X - SHIFT) ** 2).sum(axis=1)
+
+
+def rosenbrock(X):
+    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
+
+
+@pytest.mark.parametrize("name, method", list(zip(METHODS, ["Nelder-Mead", "Powell", "L-BFGS-B"])))
+def test_variants_registered(name, method):
+    assert create(name).method == method
+    assert describe(name)["variant_of"] == "scipy"
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_fe_exact_deterministic_and_threads_cleaned_up(name):
+    calls = {"fe": 0}
+
+    def f(X):
+        calls["fe"] += len(X)
+        return sphere(X)
+
+    before = threading.active_count()
+    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
+    a = minimize(name, p, budget=400, seed=2)
+    assert calls["fe"] == a.nfev == 400
+    b = minimize(name, p, budget=400, seed=2)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.history.best, b.history.best)
+    assert threading.active_count() == before
+
+
+@pytest.mark.parametrize("name, tol", [("nelder-mead", 1e-6), ("powell", 1e-10),
+                                       ("l-bfgs-b", 1e-10)])
+def test_shifted_sphere_5d(name, tol):
+    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    assert minimize(name, p, budget=1500, seed=0).fun < tol
+
+
+@pytest.mark.parametrize("method", ["Nelder-Mead", "Powell"])
+@pytest.mark.parametrize("start", ["x0", "best-initial"])
+def test_first_run_matches_plain_scipy(method, start):
+    """The first local run evaluates exactly the points plain scipy evaluates."""
+    seen = []
+
+    def f(X):
+        seen.append(X.copy())
+        return rosenbrock(X)
+
+    x0 = np.array([0.5, -0.3, 1.2, 0.1, -1.0])
+    p = Problem(f, -2 * np.ones(N), 2 * np.ones(N), x0=x0)
+    r = minimize("scipy", p, budget=300, seed=0,
+                 params={"method": method, "start": start, "restarts": False})
+    if start == "best-initial":
+        X0 = seen.pop(0)
+        assert len(X0) == 50
+        x0 = X0[np.argmin(rosenbrock(X0))]
+    ref = []
+
+    def g(x):
+        ref.append(np.clip(x, -2, 2))
+        return float(rosenbrock(np.clip(x, -2, 2)[None])[0])
+
+    bounds = optimize.Bounds(-2 * np.ones(N), 2 * np.ones(N))
+    res = optimize.minimize(g, x0, method=method, bounds=bounds)
+    ours = np.concatenate(seen)
+    assert all(len(X) == 1 for X in seen)
+    k = min(len(ours), len(ref))
+    np.testing.assert_array_equal(ours[:k], np.array(ref[:k]))
+    if res.nfev < 300 - (50 if start == "best-initial" else 0):
+        # scipy stopped first: without restarts the run ends with scipy
+        assert r.stop == "converged" and len(ours) == len(ref)
+        assert r.fun == pytest.approx(res.fun)
+
+
+def test_lbfgsb_matches_scipy_with_same_gradient():
+    """L-BFGS-B path equals scipy driven by the same forward-difference gradient."""
+    seen = []
+
+    def f(X):
+        seen.append(X.copy())
+        return rosenbrock(X)
+
+    lo, hi = -2 * np.ones(N), 2 * np.ones(N)
+    p = Problem(f, lo, hi)
+    r = minimize("l-bfgs-b", p, budget=50_000, seed=0, params={"restarts": False})
+    x0 = Problem(f, lo, hi).initial_population(1, np.random.SeedSequence(0).spawn(2)[0])[0]
+
+    def fg(x):
+        x = np.clip(x, lo, hi)
+        h = 1e-7 * np.maximum(np.abs(x), 4e-3)
+        h = np.where(x + h > hi, -h, h)
+        F = rosenbrock(np.vstack([x, x + np.diag(h)]))
+        return F[0], (F[1:] - F[0]) / h
+
+    res = optimize.minimize(fg, x0, jac=True, method="L-BFGS-B",
+                            bounds=optimize.Bounds(lo, hi))
+    assert r.stop == "converged" and r.nfev == res.nfev * (N + 1)
+    # flexid's best also counts the difference points, so it may be slightly lower
+    assert r.fun <= res.fun and r.fun == pytest.approx(res.fun, rel=1e-2)
+    assert res.fun < 1e-8
+
+
+def test_lbfgsb_gradient_is_one_batch_of_n_plus_1():
+    sizes = []
+
+    def f(X):
+        sizes.append(len(X))
+        return sphere(X)
+
+    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
+    minimize("l-bfgs-b", p, budget=6 * 10, seed=0)
+    assert sizes == [N + 1] * 10
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_restarts_use_the_budget(name):
+    """On a sphere scipy converges quickly; restarts keep spending the budget."""
+    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    r = minimize(name, p, budget=1500, seed=1)
+    assert r.nfev == 1500 and r.stop == "budget"
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_points_stay_in_box(name):
+    seen = []
+
+    def f(X):
+        seen.append(X.copy())
+        return ((X - 3.0) ** 2).sum(axis=1)
+
+    p = Problem(f, -np.ones(3), np.ones(3))
+    r = minimize(name, p, budget=600, seed=0)
+    X = np.concatenate(seen)
+    assert X.min() >= -1 and X.max() <= 1
+    np.testing.assert_allclose(r.x, np.ones(3), atol=1e-3)
+
+
+def test_ask_tell_matches_minimize_and_abandoned_run_ends_its_thread():
+    p = Problem(rosenbrock, -2 * np.ones(N), 2 * np.ones(N))
+    ref = minimize("powell", p, budget=500, seed=4)
+    before = threading.active_count()
+    at = AskTell("powell", p, budget=500, seed=4)
+    while not at.done:
+        at.tell(rosenbrock(at.ask()))
+    r = at.result()
+    assert r.fun == ref.fun and r.nfev == ref.nfev
+    np.testing.assert_array_equal(r.history.best, ref.history.best)
+    at = AskTell("nelder-mead", p, seed=4)
+    for _ in range(5):
+        at.tell(rosenbrock(at.ask()))
+    at.result()  # closes the generator mid-run
+    assert threading.active_count() == before
+
+
+def test_objective_error_propagates():
+    def f(X):
+        if len(X) == 1:
+            raise RuntimeError("plant exploded")
+        return sphere(X)
+
+    p = Problem(f, -np.ones(N), np.ones(N))
+    before = threading.active_count()
+    with pytest.raises(RuntimeError, match="plant exploded"):
+        minimize("nelder-mead", p, budget=500, seed=0)
+    assert threading.active_count() == before
+
+
+@pytest.mark.parametrize("params", [{"method": "BFGS"}, {"fd_step": 0.0},
+                                    {"initial_points": 0}])
+def test_invalid_hyper_parameters(params):
+    with pytest.raises(HyperParameterError, match=r"scipy|nelder-mead"):
+        create("nelder-mead", **params)
