@@ -7,11 +7,11 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from flexid.compare import compare  # noqa: E402
-from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec  # noqa: E402
-from flexid.data import IOData  # noqa: E402
-from flexid.identify import identify  # noqa: E402
-from flexid.plots import (  # noqa: E402
+from flexid.compare import compare
+from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
+from flexid.data import IOData
+from flexid.identify import identify
+from flexid.plots import (
     comparison_figures,
     identification_figures,
     plot_correlations,
