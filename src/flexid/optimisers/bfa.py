@@ -1,4 +1,4 @@
-"""Bacterial foraging algorithm (BFA) of Passino (2002)."""
+"""Bacterial foraging algorithm (BFA) of Passino (2002), registered as ``"bfa"``."""
 
 from __future__ import annotations
 
@@ -34,21 +34,67 @@ def swarming_cost(X: np.ndarray, d_attract: float, w_attract: float, h_repellant
 
 @register
 class BacterialForaging(Optimiser):
-    """Bacterial foraging optimisation as Passino published it.
+    """Bacterial foraging algorithm (BFA) of Passino (2002).
 
-    Elimination-dispersal ⊃ reproduction ⊃ chemotaxis loops.  Chemotaxis: a tumble of step
-    ``C`` in a random unit direction (always taken), then up to ``N_s`` swims in the same
-    direction while the cost improves; no revert.  Reproduction after ``N_c`` steps: the
-    healthier half (lowest summed cost) splits, the other half dies.  Elimination-dispersal
-    after each reproduction block: each bacterium moves to a random point with probability
-    ``p_ed`` (evaluated at once).  The optional cell-to-cell term ``J_cc`` is off by default.
+    ``S`` bacteria climb the cost surface by chemotaxis (tumble and swim); every ``N_c``
+    chemotactic steps the healthier half reproduces; every ``N_re`` reproductions each
+    bacterium is dispersed to a random point with probability ``p_ed``.  Loops, outermost
+    first: elimination-dispersal ``l = 1..N_ed`` > reproduction ``k = 1..N_re`` > chemotaxis
+    ``j = 1..N_c`` > bacteria.
 
-    flexid deviations, all documented in ``algorithms.md``: the start-of-step cost is cached
-    (Passino re-evaluates it), so a chemotactic step costs ``S`` to ``S (N_s + 1)`` FE; the
-    bacteria move all at once (identical in distribution without ``J_cc``, a Jacobi update
-    with it); no dispersal after the last block (it cannot change the result);
-    ``n_elim_disp=None`` keeps cycling until the FE budget; ``clip=True`` clips to the box.
-    One iteration is one chemotactic step of the whole population.
+    Hyper-parameters (defaults: Passino's paper and program)
+    ---------------------------------------------------------
+    bacteria : int
+        Population ``S`` (even), 50.
+    n_chemotactic, n_swim, n_reproduction : int
+        ``N_c`` = 100, ``N_s`` = 4, ``N_re`` = 4.
+    n_elim_disp : int or None
+        ``N_ed`` = 2.  ``None`` keeps cycling (reproduction blocks and dispersals) until the
+        FE budget; with an int the run ends after Passino's finite schedule even if FE are
+        left (``result.stop == "converged"``).
+    p_ed : float
+        Elimination-dispersal probability, 0.25.
+    step_size : float
+        Chemotactic step ``C`` (box units), 0.1.
+    swarming : bool
+        Add the cell-to-cell term ``J_cc`` (off, as in Passino's program, ``flag = 2``).
+    d_attract, w_attract, h_repellant, w_repellant : float
+        ``J_cc`` constants 0.1, 0.2, 0.1, 10.
+    clip : bool
+        Clip moved bacteria to the box (deviation), False.
+
+    Notes
+    -----
+    Chemotaxis of bacterium ``i``: draw ``Delta_i`` uniform in ``[-1, 1]^n`` and move
+    ``theta_i <- theta_i + C Delta_i / sqrt(Delta_i' Delta_i)`` (always taken); then, up to
+    ``N_s`` times, while the new cost is lower than ``J_last`` (which starts at the cost
+    before the tumble and follows every improvement) take another step ``C phi_i`` in the
+    same direction.  No revert.  With ``swarming`` every decision uses ``J + J_cc``, where
+    ``J_cc(theta) = sum_j -d exp(-w_a |theta - theta_j|^2) + h exp(-w_r |theta - theta_j|^2)``.
+
+    Reproduction: ``health_i = sum_{j=1}^{N_c + 1} J(i, j)`` (cost at the start of every
+    chemotactic step plus the cost at the end); the ``S / 2`` healthiest bacteria (lowest
+    health, stable order) split into two at their current position; costs are copied.
+
+    FE: ``S`` initially; each chemotactic step (one iteration, phase ``"chemotaxis"``) costs
+    ``S`` (tumble) plus one per swim step, ``S`` to ``S (N_s + 1)``; reproduction costs
+    none; each dispersal costs the number of dispersed bacteria.  Paper-style iteration
+    count: ``N_c N_re N_ed``.
+
+    Deviations
+    ----------
+    * The start-of-step cost is cached (Passino's program re-evaluates it, ``S`` more FE
+      per step); the result is the same.
+    * All bacteria move at once (vectorised).  Without ``J_cc`` this has exactly Passino's
+      distribution; with ``J_cc`` it is a Jacobi instead of a Gauss-Seidel update.
+    * No dispersal after the last reproduction block (it cannot change the result).
+    * ``n_elim_disp=None`` (until the budget) and ``clip=True`` are extensions.
+    * The best point ever evaluated is reported (Passino's program only plotted paths).
+
+    References
+    ----------
+    K. M. Passino, "Biomimicry of bacterial foraging for distributed optimization and
+    control", IEEE Control Systems Magazine 22(3):52-67, 2002, doi:10.1109/MCS.2002.1004010.
     """
 
     name = "bfa"

@@ -1,4 +1,8 @@
-"""Hybrid bacteria-chemotaxis spiral-dynamic algorithm (HBCSD) of Nasir & Tokhi (2014)."""
+"""Hybrid bacteria-chemotaxis spiral-dynamic algorithm (HBCSD) of Nasir & Tokhi (2014).
+
+Registered as ``"hbcsd"`` with the paper's settings as ``hbcsd-paper-manipulator`` and
+``hbcsd-paper-trs``.
+"""
 
 from __future__ import annotations
 
@@ -28,20 +32,64 @@ def adaptive_weight(F: np.ndarray, c1: float, c2: float) -> np.ndarray:
 
 @register
 class HBCSD(Optimiser):
-    """Hybrid bacteria-chemotaxis spiral-dynamic algorithm.
+    """Hybrid bacteria-chemotaxis spiral-dynamic algorithm (HBCSD) of Nasir & Tokhi (2014).
 
-    Phase 1 (exploration, ``N_c`` iterations): Passino's chemotaxis only (tumble of step
-    ``C``, up to ``N_s`` swims; no reproduction, elimination or ``J_cc``), each bacterium
-    keeping its personal best.  Phase 2 (exploitation, ``k_max`` iterations): SDA from the
-    personal bests (no FE to start), centre = best, with the linearly adaptive radius and
-    angle of eq. 1 per point from the cost of its current position:
-    ``r_i = r_u + (r_l - r_u) g(f_i; c1_r, c2_r)`` and likewise ``theta_i``; a fixed
-    ``angle`` replaces the adaptive angle (manipulator setting), giving one GEMM per
-    iteration, otherwise a per-row Givens sweep.
+    Phase 1, exploration: ``N_c`` steps of Passino's bacterial chemotaxis (tumble and swim,
+    no reproduction, elimination-dispersal or ``J_cc``); every bacterium keeps its personal
+    best.  Phase 2, exploitation: an adaptive spiral dynamics search started from the
+    personal bests, with a radius and an angle per point that depend linearly (through a
+    saturating weight) on the point's cost.
 
-    Decisions (``algorithms.md`` 3.4): unguided tumble; cached start-of-step cost (``m`` to
-    ``m (N_s + 1)`` FE per chemotactic step); ``theta_l = theta_1``, ``theta_u = theta_2``;
-    ``k_max=None`` runs the spiral phase until the budget; ``clip`` off by default.
+    Hyper-parameters
+    ----------------
+    points : int
+        Bacteria / spiral points ``m``, 50.
+    n_chemotactic, n_swim, step_size :
+        ``N_c`` = 100 (0 skips phase 1), ``N_s`` = 4, ``C`` = 0.05.
+    k_max : int or None
+        Spiral iterations; ``None`` (default) continues phase 2 until the FE budget.
+    r_lower, r_upper, c1_r, c2_r : float
+        Radius law: ``r_l`` (large costs), ``r_u`` (small costs), ``c1``, ``c2``.
+    angle : float or None
+        Fixed angle (rad), shared by all points (manipulator setting); ``None`` uses the
+        adaptive angle law with ``theta_lower``, ``theta_upper``, ``c1_theta``, ``c2_theta``.
+    clip : bool
+        Clip moved points to the box (deviation), False.
+
+    Notes
+    -----
+    Phase 1 per bacterium and step: ``x_i <- x_i + C Delta_i / |Delta_i|`` with
+    ``Delta_i ~ U[-1, 1]^n``, then up to ``N_s`` further steps along the same direction while
+    the cost keeps falling; ``P_i, J_i`` <- the position and cost if it beats the personal
+    best.  Phase 2 starts at ``Y = P``, ``x* = argmin J`` (no FE) and iterates::
+
+        r_i(k)     = (r_l - r_u) / (1 + c1_r / (c2_r |f(y_i(k))|)) + r_u           (eq. 1)
+        theta_i(k) = (theta_l - theta_u) / (1 + c1_t / (c2_t |f(y_i(k))|)) + theta_u
+        y_i(k+1)   = x* + r_i(k) R^(n)(theta_i(k)) (y_i(k) - x*)
+
+    computed as ``r = r_u + (r_l - r_u) g`` with ``g = c2 |f| / (c2 |f| + c1)``
+    (:func:`adaptive_weight`), defined at ``f = 0``.  A fixed angle is one GEMM per
+    iteration; per-point angles use the per-row Givens sweep
+    (:func:`~flexid.optimisers.rotation.givens_sweep`), never ``m`` separate matrices.
+    ``x*`` changes only when a point beats it.  The result is the best point of both phases.
+
+    FE: ``m`` initially; ``m`` to ``m (N_s + 1)`` per chemotactic step; ``m`` per spiral
+    iteration.  Iterations (history phases ``"chemotaxis"`` then ``"spiral"``):
+    ``N_c + k_max``.
+
+    Deviations and decisions (``algorithms.md`` 3.4)
+    ------------------------------------------------
+    * Unguided tumble (plain Passino chemotaxis); the start-of-step cost is cached.
+    * ``theta_l = theta_1``, ``theta_u = theta_2`` of the paper (unverified, could be
+      swapped); the adaptive laws use the cost of the current position, unnormalised, so
+      ``c1 / c2`` is in cost units; a non-finite cost gives ``g = 1``.
+    * ``k_max=None`` (until the budget) and ``clip=True`` are extensions.
+
+    References
+    ----------
+    A. N. K. Nasir and M. O. Tokhi, "A novel hybrid bacteria-chemotaxis spiral-dynamic
+    algorithm with application to modelling of flexible systems", Engineering Applications
+    of Artificial Intelligence 33:31-46, 2014.
     """
 
     name = "hbcsd"
@@ -141,7 +189,8 @@ register_variant(
 register_variant(
     "hbcsd-paper-trs", "hbcsd",
     "Nasir & Tokhi 2014 section 5, twin rotor: m=10, N_s=4, C=0.04, N_c=50, k_max=150, "
-    "r_l=0.65, r_u=0.99, c1_r=996, c2_r=0.97, theta_1=1.03, theta_2=1.8, c1=110, c2=0.98",
+    "r_l=0.65, r_u=0.99, c1_r=996, c2_r=0.97, theta_1=1.03, theta_2=1.8, c1=110, c2=0.98; "
+    "theta_l=theta_1 and theta_u=theta_2 assumed",
     points=10, n_swim=4, step_size=0.04, n_chemotactic=50, k_max=150, r_lower=0.65,
     r_upper=0.99, c1_r=996.0, c2_r=0.97, angle=None, theta_lower=1.03, theta_upper=1.8,
     c1_theta=110.0, c2_theta=0.98,

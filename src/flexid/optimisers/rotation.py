@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import OptimiserError
+
 __all__ = ["givens_sweep", "plane_rotation", "rotate_rows", "rotation_matrix"]
 
 
@@ -40,17 +42,28 @@ def givens_sweep(D: np.ndarray, cos, sin) -> np.ndarray:
         Row ``i`` is ``R^(n)(theta_i) D[i]``.  ``n (n - 1) / 2`` vectorised plane updates,
         no per-row matrices.
     """
-    out = np.array(D, dtype=float, copy=True)
-    n = out.shape[1]
+    D = np.asarray(D, dtype=float)
+    if D.ndim != 2:
+        raise OptimiserError(f"givens_sweep: D must have shape (P, n), got {D.shape}")
+    # work on the transpose so that every coordinate is a contiguous row of length P, and
+    # update in place with two scratch rows: six ufunc calls per plane, no allocation
+    out = D.T.copy()
+    n, P = out.shape
     c = np.asarray(cos, dtype=float)
     s = np.asarray(sin, dtype=float)
+    t1 = np.empty(P)
+    t2 = np.empty(P)
     for p in range(n - 1):
+        a = out[p]
         for q in range(p + 1, n):
-            a = out[:, p].copy()
-            b = out[:, q]
-            out[:, p] = c * a - s * b
-            out[:, q] = s * a + c * b
-    return out
+            b = out[q]
+            np.multiply(s, a, out=t1)  # s a
+            np.multiply(c, a, out=a)  # a <- c a - s b
+            np.multiply(s, b, out=t2)
+            a -= t2
+            b *= c  # b <- s a_old + c b
+            b += t1
+    return out.T.copy()
 
 
 def rotation_matrix(n: int, theta: float) -> np.ndarray:

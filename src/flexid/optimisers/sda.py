@@ -1,4 +1,4 @@
-"""Spiral dynamics algorithm (SDA) of Tamura and Yasuda (2011)."""
+"""Spiral dynamics algorithm (SDA) of Tamura and Yasuda (2011), registered as ``"sda"``."""
 
 from __future__ import annotations
 
@@ -13,17 +13,53 @@ __all__ = ["SpiralDynamics"]
 
 @register
 class SpiralDynamics(Optimiser):
-    """Spiral dynamics optimisation: ``x_i <- x* + r R(theta) (x_i - x*)``.
+    """Spiral dynamics algorithm (SDA) of Tamura and Yasuda (2011).
 
-    Every point follows a logarithmic spiral about the best point found so far ``x*``,
-    rotating by ``theta`` in the Tamura-Yasuda composite rotation and shrinking by ``r`` per
-    iteration.  The rotation matrix is built once; an iteration is one GEMM.  The centre
-    changes only when a point beats it (elitist form; equal to the 2011 wording while the
-    centre is in the population).  The centre row is re-evaluated each iteration and
-    counted (``m`` FE per iteration), as in the papers.
+    ``m`` search points follow logarithmic spirals about the best point found so far,
+    rotating by ``theta`` and shrinking by ``r`` at every iteration; the same spiral map is
+    applied to every point.
 
-    Deviation: ``clip=True`` (default False) clips moved points to the box.
-    ``k_max=None`` iterates until the budget.
+    Hyper-parameters
+    ----------------
+    points : int
+        Number of search points ``m`` (>= 2), default 50.
+    radius : float
+        Convergence rate ``r`` in (0, 1], default 0.95.
+    angle : float
+        Rotation angle ``theta`` in [0, 2 pi) (rad), default pi / 4.
+    k_max : int or None
+        Number of spiral iterations; ``None`` (default) iterates until the FE budget.
+    clip : bool
+        Clip moved points to the box (deviation, default False).
+
+    Notes
+    -----
+    Update of point ``i`` at iteration ``k`` (Tamura & Yasuda 2011, eq. of the n-D model)::
+
+        x_i(k+1) = S_n(r, theta) x_i(k) - (S_n(r, theta) - I_n) x*
+                 = x* + r R^(n)(theta) (x_i(k) - x*)
+
+    with the composite rotation ``R^(n)(theta) = prod_{i=1}^{n-1} prod_{j=1}^{i}
+    R_{n-i, n+1-j}(theta)`` (:func:`~flexid.optimisers.rotation.rotation_matrix`).  The
+    centre ``x*`` is replaced when a point beats it (elitist form).  ``R`` is built once per
+    run; an iteration is one ``(m, n) @ (n, n)`` product.
+
+    FE: ``m`` for the initial population, then ``m`` per iteration (the centre point is
+    re-evaluated and counted, as in the papers); ``m (1 + k_max)`` in all.  The history has
+    one row per iteration (phase ``"sda"``).
+
+    Deviations
+    ----------
+    * Elitist centre: equal to the 2011 wording ("best of the current population") while the
+      centre is a member of the population, which it is because it is a fixed point of the
+      map; it also holds with ``clip=True``.
+    * ``clip=True`` is not in the paper (the paper's search is unconstrained).
+    * ``k_max=None`` runs until the FE budget.
+
+    References
+    ----------
+    K. Tamura and K. Yasuda, "Spiral dynamics inspired optimization", Journal of Advanced
+    Computational Intelligence and Intelligent Informatics 15(8):1116-1122, 2011.
     """
 
     name = "sda"

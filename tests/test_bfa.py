@@ -1,0 +1,334 @@
+"""Tests of the bacterial foraging algorithm (algorithms.md section 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flexid.errors import HyperParameterError
+from flexid.optimisers import Problem, create, get, minimize
+from flexid.optimisers.bfa import swarming_cost, tumble_directions
+
+N = 10
+SHIFT = np.linspace(-0.5, 0.5, N)
+
+
+def sphere(X):
+    return ((X - SHIFT) ** 2).sum(axis=1)
+
+
+def rastrigin(X):
+    Z = X - SHIFT
+    return 10 * Z.shape[1] + (Z**2 - 10 * np.cos(2 * np.pi * Z)).sum(axis=1)
+
+
+def rosenbrock(X):
+    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
+
+
+class Recorder:
+    """Objective wrapper that counts rows and keeps every batch."""
+
+    def __init__(self, f):
+        self.f, self.rows, self.batches = f, 0, []
+
+    def __call__(self, X):
+        self.rows += X.shape[0]
+        self.batches.append(np.array(X, copy=True))
+        return self.f(X)
+
+
+def box(f, n=N, half=2.0):
+    return Problem(f, -half * np.ones(n), half * np.ones(n))
+
+
+class FakeSpace:
+    """Minimal stand-in for SearchSpace so a test can drive ``search`` with its own rng."""
+
+    def __init__(self, X0, lower, upper):
+        self.X0, self.lower, self.upper, self.dim = X0, lower, upper, X0.shape[1]
+        self.phases = []
+
+    def initial_population(self, m):
+        return self.X0[:m].copy()
+
+    def uniform(self, k, rng):
+        return self.lower + (self.upper - self.lower) * rng.random((int(k), self.dim))
+
+    def clip(self, X):
+        return np.clip(X, self.lower, self.upper)
+
+    def end_iteration(self, phase):
+        self.phases.append(phase)
+
+
+def drive(opt, space, f, rng):
+    """Run ``opt.search`` to the end of its own schedule; return every batch and cost."""
+    gen = opt.search(space, rng)
+    X, out = next(gen), []
+    try:
+        while True:
+            F = f(X)
+            out.append((np.array(X, copy=True), F))
+            X = gen.send(F)
+    except StopIteration:
+        pass
+    return out
+
+
+def reference_bfa(X, f, S, Nc, Ns, Nre, Ned, ped, C, rng, lower, upper):
+    """Passino's loops, one bacterium at a time (no J_cc), cached start-of-step cost."""
+    X = X.copy()
+    n = X.shape[1]
+    J = f(X)
+    rows = S
+    best = J.min()
+    for ell in range(Ned):
+        for _ in range(Nre):
+            health = np.zeros(S)
+            for _ in range(Nc):
+                delta = rng.uniform(-1.0, 1.0, (S, n))
+                for i in range(S):
+                    health[i] += J[i]
+                    j_last = J[i]
+                    u = delta[i] / np.sqrt(delta[i] @ delta[i])
+                    X[i] = X[i] + C * u
+                    J[i] = f(X[i][None])[0]
+                    rows += 1
+                    best = min(best, J[i])
+                    m = 0
+                    while m < Ns:
+                        m += 1
+                        if J[i] < j_last:
+                            j_last = J[i]
+                            X[i] = X[i] + C * u
+                            J[i] = f(X[i][None])[0]
+                            rows += 1
+                            best = min(best, J[i])
+                        else:
+                            m = Ns
+            health += J
+            order = np.argsort(health, kind="stable")[: S // 2]
+            X = np.concatenate([X[order], X[order]])
+            J = np.concatenate([J[order], J[order]])
+        if ell < Ned - 1:
+            mv = rng.random(S) < ped
+            X[mv] = lower + (upper - lower) * rng.random((int(mv.sum()), n))
+            for i in np.flatnonzero(mv):
+                J[i] = f(X[i][None])[0]
+                rows += 1
+                best = min(best, J[i])
+    return X, J, rows, best
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_matches_passino_loops(seed):
+    S, n = 8, 3
+    lower, upper = -2 * np.ones(n), 2 * np.ones(n)
+    X0 = np.random.default_rng(100 + seed).uniform(-2, 2, (S, n))
+
+    def f(X):
+        return ((X - 0.3) ** 2).sum(axis=1)
+
+    kw = dict(bacteria=S, n_chemotactic=5, n_swim=3, n_reproduction=3, n_elim_disp=3,
+              p_ed=0.4, step_size=0.2)
+    opt = create("bfa", **kw)
+    space = FakeSpace(X0, lower, upper)
+    out = drive(opt, space, f, np.random.default_rng(seed))
+    Xr, _, rows, best = reference_bfa(X0, f, S, 5, 3, 3, 3, 0.4, 0.2,
+                                       np.random.default_rng(seed), lower, upper)
+    assert sum(X.shape[0] for X, _ in out) == rows
+    assert min(F.min() for _, F in out) == pytest.approx(best, rel=1e-12)
+    assert space.phases == ["chemotaxis"] * (5 * 3 * 3)
+    # every final reference position was evaluated by flexid's BFA at some point
+    last_rows = np.concatenate([X for X, _ in out])
+    for x in Xr:
+        assert np.min(np.abs(last_rows - x).max(axis=1)) < 1e-12
+
+
+def test_tumble_directions_are_unit_and_passino_shaped():
+    rng = np.random.default_rng(0)
+    U = tumble_directions(rng, 20_000, 2)
+    np.testing.assert_allclose(np.linalg.norm(U, axis=1), 1.0)
+    # normalised U[-1, 1]^2 leans to the diagonals: |cos| near 1/sqrt(2) more than isotropic
+    ang = np.arctan2(U[:, 1], U[:, 0]) % (np.pi / 2)
+    near_diag = np.mean(np.abs(ang - np.pi / 4) < np.pi / 16)
+    assert near_diag > 0.25 + 0.03  # isotropic would give 0.25
+
+
+def test_swarming_cost_matches_double_loop():
+    rng = np.random.default_rng(1)
+    X = rng.normal(size=(6, 3))
+    want = np.zeros(6)
+    for i in range(6):
+        for j in range(6):
+            d2 = np.sum((X[i] - X[j]) ** 2)
+            want[i] += -0.1 * np.exp(-0.2 * d2) + 0.1 * np.exp(-10.0 * d2)
+    np.testing.assert_allclose(swarming_cost(X, 0.1, 0.2, 0.1, 10.0), want, rtol=1e-13)
+
+
+def test_swarming_changes_the_run_but_costs_no_fe():
+    rec_off, rec_on = Recorder(sphere), Recorder(sphere)
+    p = dict(bacteria=10, n_chemotactic=10, n_reproduction=2, n_elim_disp=1, step_size=0.3)
+    a = minimize("bfa", box(rec_off), 10**6, seed=2, params=p)
+    b = minimize("bfa", box(rec_on), 10**6, seed=2, params={**p, "swarming": True,
+                                                              "d_attract": 5.0})
+    assert a.nfev == rec_off.rows and b.nfev == rec_on.rows
+    assert a.fun != b.fun
+
+
+def test_reproduction_keeps_the_healthiest_half():
+    # N_c = 1, N_s = 0: health_i = J_before + J_after of the single tumble; after
+    # reproduction the next tumble starts from two copies of each of the best S/2
+    S, n = 6, 2
+    X0 = np.random.default_rng(5).uniform(-1, 1, (S, n))
+
+    def f(X):
+        return (X**2).sum(axis=1)
+
+    opt = create("bfa", bacteria=S, n_chemotactic=1, n_swim=0, n_reproduction=2,
+                 n_elim_disp=1, step_size=0.5)
+    rng = np.random.default_rng(0)
+    out = drive(opt, FakeSpace(X0, -np.ones(n), np.ones(n)), f, rng)
+    (_, J_init), (X1, J1), (X2, _) = out
+    health = J_init + J1
+    keep = np.argsort(health, kind="stable")[: S // 2]
+    start = np.concatenate([X1[keep], X1[keep]])
+    rng2 = np.random.default_rng(0)
+    tumble_directions(rng2, S, n)
+    U2 = tumble_directions(rng2, S, n)
+    np.testing.assert_allclose(X2, start + 0.5 * U2, rtol=1e-13)
+
+
+@pytest.mark.slow
+def test_elimination_dispersal_probability():
+    # N_c = N_re = 1, N_s = 0: one tumble batch of S rows per block, then a dispersal batch
+    S, events, p_ed = 40, 400, 0.25
+    rec = Recorder(sphere)
+    res = minimize("bfa", box(rec), 10**7, seed=3, params=dict(
+        bacteria=S, n_chemotactic=1, n_swim=0, n_reproduction=1, n_elim_disp=events,
+        p_ed=p_ed))
+    assert res.stop == "converged"
+    sizes = np.array([b.shape[0] for b in rec.batches])
+    tumbles = int(np.sum(sizes == S)) - 1  # minus the initial population
+    assert tumbles == events
+    dispersed = rec.rows - S * (events + 1)
+    trials = S * (events - 1)  # no dispersal after the last block
+    mean, sd = p_ed * trials, np.sqrt(trials * p_ed * (1 - p_ed))
+    assert abs(dispersed - mean) < 5 * sd
+    # dispersed points are uniform in the box: their mean is near the box centre
+    disp = np.concatenate([b for b in rec.batches if b.shape[0] < S])
+    assert np.abs(disp.mean(axis=0)).max() < 0.1
+    assert disp.min() >= -2.0 and disp.max() <= 2.0
+
+
+def test_p_ed_zero_never_disperses():
+    rec = Recorder(sphere)
+    minimize("bfa", box(rec), 10**6, seed=3, params=dict(
+        bacteria=10, n_chemotactic=1, n_swim=0, n_reproduction=1, n_elim_disp=20, p_ed=0.0))
+    assert rec.rows == 10 * 21
+
+
+def test_deterministic_and_seed_dependent_and_global_state_untouched():
+    state = np.random.get_state()[1].copy()  # noqa: NPY002 (checked, not used)
+    a = minimize("bfa", box(sphere), 5_000, seed=7)
+    b = minimize("bfa", box(sphere), 5_000, seed=7)
+    c = minimize("bfa", box(sphere), 5_000, seed=8)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.history.fe, b.history.fe)
+    assert a.fun != c.fun
+    np.testing.assert_array_equal(np.random.get_state()[1], state)  # noqa: NPY002
+
+
+def test_fe_accounting_is_exact_including_a_cut_swim_batch():
+    S = 50
+    full = Recorder(sphere)
+    minimize("bfa", box(full), 3_000, seed=1)
+    sizes = np.array([b.shape[0] for b in full.batches])
+    k = int(np.flatnonzero((sizes > 2) & (sizes < S))[0])  # first swim batch of >2 rows
+    cut = int(sizes[:k].sum() + sizes[k] // 2)
+    for budget in [1, 49, 50, 51, 777, cut, 2_999]:
+        rec = Recorder(sphere)
+        res = minimize("bfa", box(rec), budget, seed=1)
+        assert res.nfev == rec.rows == budget
+        assert res.history.fe[-1] == budget
+        assert np.all(np.diff(res.history.fe) > 0)
+        if budget == cut:
+            last = rec.batches[-1]
+            assert last.shape[0] == sizes[k] // 2
+            np.testing.assert_array_equal(last, full.batches[k][: last.shape[0]])
+
+
+def test_schedule_and_history_phases():
+    p = dict(bacteria=10, n_chemotactic=5, n_reproduction=2, n_elim_disp=3)
+    res = minimize("bfa", box(sphere), 10**6, seed=0, params=p)
+    assert res.stop == "converged"
+    assert res.nit == 5 * 2 * 3
+    assert res.history.phase[0] == "init"
+    assert set(res.history.phase[1:]) <= {"chemotaxis", "final"}
+    assert np.all(np.diff(res.history.best) <= 0)
+    # chemotactic step costs S to S (N_s + 1) FE
+    steps = np.diff(res.history.fe[: 1 + 5 * 2])
+    assert steps.min() >= 10 and steps.max() <= 50
+
+
+def test_until_budget_mode_keeps_cycling():
+    p = dict(bacteria=10, n_chemotactic=5, n_reproduction=2, n_elim_disp=None)
+    res = minimize("bfa", box(sphere), 20_000, seed=0, params=p)
+    assert res.nfev == 20_000 and res.stop == "budget"
+    finite = minimize("bfa", box(sphere), 20_000, seed=0, params={**p, "n_elim_disp": 2})
+    assert finite.nfev < 20_000 and finite.stop == "converged"
+
+
+def test_clip_keeps_points_in_box():
+    rec = Recorder(sphere)
+    minimize("bfa", box(rec, half=0.2), 3_000, seed=0, params=dict(step_size=0.3, clip=True))
+    allx = np.concatenate(rec.batches)
+    assert allx.min() >= -0.2 and allx.max() <= 0.2
+
+
+def test_reaches_tolerance_on_shifted_sphere():
+    # 10-D shifted sphere, box [-2, 2]^10, Passino's defaults: cost < 0.1 within 20,000 FE
+    for seed in range(3):
+        assert minimize("bfa", box(sphere), 20_000, seed=seed).fun < 0.1
+
+
+@pytest.mark.parametrize(
+    "f, half", [(rastrigin, 5.12), (rosenbrock, 2.0)], ids=["rastrigin", "rosenbrock"]
+)
+def test_clearly_better_than_random_search(f, half):
+    seeds = range(5)
+    ours = np.median([minimize("bfa", box(f, half=half), 20_000, seed=s).fun for s in seeds])
+    rand = np.median(
+        [minimize("random-search", box(f, half=half), 20_000, seed=s).fun for s in seeds]
+    )
+    assert ours < 0.9 * rand
+
+
+def test_hyperparameter_validation():
+    with pytest.raises(HyperParameterError, match="even"):
+        create("bfa", bacteria=7)
+    with pytest.raises(HyperParameterError):
+        create("bfa", p_ed=1.5)
+    with pytest.raises(HyperParameterError):
+        create("bfa", step_size=0.0)
+
+
+def test_defaults_are_passinos():
+    o = create("bfa")
+    assert (o.bacteria, o.n_chemotactic, o.n_swim, o.n_reproduction, o.n_elim_disp) == (
+        50, 100, 4, 4, 2)
+    assert (o.p_ed, o.step_size, o.swarming) == (0.25, 0.1, False)
+    assert (o.d_attract, o.w_attract, o.h_repellant, o.w_repellant) == (0.1, 0.2, 0.1, 10.0)
+
+
+def test_paper_variants():
+    man = create("bfa-paper-manipulator")
+    assert (man.n_swim, man.n_chemotactic, man.n_reproduction, man.n_elim_disp,
+            man.step_size, man.bacteria, man.p_ed) == (4, 30, 6, 6, 0.01, 50, 0.25)
+    trs = create("bfa-paper-trs")
+    assert (trs.n_swim, trs.n_chemotactic, trs.n_reproduction, trs.n_elim_disp,
+            trs.step_size, trs.bacteria, trs.p_ed) == (4, 30, 4, 4, 0.0175, 10, 0.25)
+    assert issubclass(get("bfa-paper-trs"), get("bfa"))
+    res = minimize("bfa-paper-trs", box(sphere), 10**6, seed=0)
+    assert res.nit == 480 and 4_800 <= res.nfev <= 24_000 + 10 * 3

@@ -1,0 +1,304 @@
+"""Tests of the hybrid bacteria-chemotaxis spiral-dynamic algorithm (algorithms.md section 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flexid.errors import HyperParameterError
+from flexid.optimisers import Problem, create, get, minimize
+from flexid.optimisers.hbcsd import adaptive_weight
+from flexid.optimisers.rotation import plane_rotation
+
+N = 10
+SHIFT = np.linspace(-0.5, 0.5, N)
+
+
+def sphere(X):
+    return ((X - SHIFT) ** 2).sum(axis=1)
+
+
+def rastrigin(X):
+    Z = X - SHIFT
+    return 10 * Z.shape[1] + (Z**2 - 10 * np.cos(2 * np.pi * Z)).sum(axis=1)
+
+
+def rosenbrock(X):
+    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
+
+
+class Recorder:
+    """Objective wrapper that counts rows and keeps every batch."""
+
+    def __init__(self, f):
+        self.f, self.rows, self.batches = f, 0, []
+
+    def __call__(self, X):
+        self.rows += X.shape[0]
+        self.batches.append(np.array(X, copy=True))
+        return self.f(X)
+
+
+def box(f, n=N, half=2.0):
+    return Problem(f, -half * np.ones(n), half * np.ones(n))
+
+
+class FakeSpace:
+    """Minimal stand-in for SearchSpace so a test can drive ``search`` with its own rng."""
+
+    def __init__(self, X0, lower, upper):
+        self.X0, self.lower, self.upper, self.dim = X0, lower, upper, X0.shape[1]
+        self.phases = []
+
+    def initial_population(self, m):
+        return self.X0[:m].copy()
+
+    def uniform(self, k, rng):
+        return self.lower + (self.upper - self.lower) * rng.random((int(k), self.dim))
+
+    def clip(self, X):
+        return np.clip(X, self.lower, self.upper)
+
+    def end_iteration(self, phase):
+        self.phases.append(phase)
+
+
+def drive(opt, space, f, rng):
+    gen = opt.search(space, rng)
+    X, out = next(gen), []
+    try:
+        while True:
+            F = f(X)
+            out.append(np.array(X, copy=True))
+            X = gen.send(F)
+    except StopIteration:
+        pass
+    return out
+
+
+def dense_rotation(n, theta):
+    R = np.eye(n)
+    for i in range(1, n):
+        for j in range(1, i + 1):
+            R = R @ plane_rotation(n, n - i, n + 1 - j, theta)
+    return R
+
+
+def law(f, low, up, c1, c2):
+    """Eq. 1 of the paper as printed: (low - up) / (1 + c1 / (c2 |f|)) + up."""
+    return (low - up) / (1.0 + c1 / (c2 * abs(f))) + up
+
+
+def reference_spiral(Y, F, f, k_max, r_l, r_u, c1r, c2r, theta=None, th=None):
+    """Adaptive SDA, one point at a time with its own dense rotation matrix."""
+    Y, F = Y.copy(), F.copy()
+    n = Y.shape[1]
+    b = int(np.argmin(F))
+    xs, fs = Y[b].copy(), F[b]
+    out = []
+    for _ in range(k_max):
+        new = np.empty_like(Y)
+        for i in range(Y.shape[0]):
+            r = law(F[i], r_l, r_u, c1r, c2r)
+            t = theta if theta is not None else law(F[i], *th)
+            new[i] = xs + r * dense_rotation(n, t) @ (Y[i] - xs)
+        Y = new
+        out.append(Y.copy())
+        F = f(Y)
+        b = int(np.argmin(F))
+        if F[b] < fs:
+            xs, fs = Y[b].copy(), F[b]
+    return out, xs, fs
+
+
+def reference_hbcsd(X, f, Nc, Ns, C, rng):
+    """Phase 1 with Passino's loops, one bacterium at a time; returns personal bests."""
+    X = X.copy()
+    m, n = X.shape
+    J = f(X)
+    Pb, Jb = X.copy(), J.copy()
+    rows = m
+    for _ in range(Nc):
+        delta = rng.uniform(-1.0, 1.0, (m, n))
+        for i in range(m):
+            j_last = J[i]
+            u = delta[i] / np.sqrt(delta[i] @ delta[i])
+            for step in range(Ns + 1):
+                if step > 0:
+                    if not J[i] < j_last:
+                        break
+                    j_last = J[i]
+                X[i] = X[i] + C * u
+                J[i] = f(X[i][None])[0]
+                rows += 1
+                if J[i] < Jb[i]:
+                    Pb[i], Jb[i] = X[i].copy(), J[i]
+    return Pb, Jb, rows
+
+
+@pytest.mark.parametrize("mode", ["adaptive-angle", "fixed-angle"])
+def test_no_chemotaxis_equals_independent_adaptive_spiral(mode):
+    # costs of order 1-100 so the adaptive laws really vary between points
+    rec = Recorder(lambda X: 30 * sphere(X))
+    p = dict(points=7, n_chemotactic=0, k_max=15, r_lower=0.6, r_upper=0.97, c1_r=400.0,
+             c2_r=1.0, theta_lower=0.4, theta_upper=1.6, c1_theta=200.0, c2_theta=0.5)
+    if mode == "fixed-angle":
+        p["angle"] = 0.34
+    res = minimize("hbcsd", box(rec), 10**6, seed=11, params=p)
+    X0 = rec.batches[0]
+    out, _, fs = reference_spiral(
+        X0, 30 * sphere(X0), lambda X: 30 * sphere(X), 15, 0.6, 0.97, 400.0, 1.0,
+        theta=p.get("angle"), th=(0.4, 1.6, 200.0, 0.5),
+    )
+    assert len(rec.batches) == 16 and rec.rows == res.nfev == 7 * 16
+    for got, want in zip(rec.batches[1:], out, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    assert res.fun == pytest.approx(fs, rel=1e-9)
+    # the radii really differ between points (the test would not see a constant law)
+    r = law(30 * sphere(X0), 0.6, 0.97, 400.0, 1.0)
+    th = law(30 * sphere(X0), 0.4, 1.6, 200.0, 0.5)
+    assert r.max() - r.min() > 0.03 and th.max() - th.min() > 0.1
+
+
+def test_chemotaxis_then_spiral_from_personal_bests():
+    m, n = 6, 3
+    lower, upper = -2 * np.ones(n), 2 * np.ones(n)
+    X0 = np.random.default_rng(9).uniform(-2, 2, (m, n))
+
+    def f(X):
+        return 10 * ((X - 0.3) ** 2).sum(axis=1)
+
+    opt = create("hbcsd", points=m, n_chemotactic=8, n_swim=3, step_size=0.3, k_max=5,
+                 r_lower=0.7, r_upper=0.95, c1_r=3.0, c2_r=1.0, theta_lower=0.5,
+                 theta_upper=1.2, c1_theta=2.0, c2_theta=1.0)
+    space = FakeSpace(X0, lower, upper)
+    out = drive(opt, space, f, np.random.default_rng(4))
+    Pb, Jb, rows = reference_hbcsd(X0, f, 8, 3, 0.3, np.random.default_rng(4))
+    spiral, _, _ = reference_spiral(Pb, Jb, f, 5, 0.7, 0.95, 3.0, 1.0,
+                                     th=(0.5, 1.2, 2.0, 1.0))
+    assert sum(X.shape[0] for X in out) == rows + 5 * m
+    assert space.phases == ["chemotaxis"] * 8 + ["spiral"] * 5
+    for got, want in zip(out[-5:], spiral, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
+def test_huge_c1_equals_sda_with_upper_radius_and_angle():
+    rec_h, rec_s = Recorder(sphere), Recorder(sphere)
+    minimize("hbcsd", box(rec_h), 2_000, seed=5, params=dict(
+        points=20, n_chemotactic=0, r_lower=0.5, r_upper=0.93, c1_r=1e300,
+        theta_lower=0.1, theta_upper=0.9, c1_theta=1e300))
+    minimize("sda", box(rec_s), 2_000, seed=5, params=dict(points=20, radius=0.93, angle=0.9))
+    assert len(rec_h.batches) == len(rec_s.batches) == 100
+    for a, b in zip(rec_h.batches, rec_s.batches, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+
+
+def test_adaptive_weight():
+    F = np.array([0.0, 1.0, -3.0, np.inf, np.nan, 1e6])
+    g = adaptive_weight(F, 2.0, 0.5)
+    np.testing.assert_allclose(g[:3], [0.0, 0.5 / 2.5, 1.5 / 3.5])
+    assert g[3] == 1.0 and g[4] == 1.0 and 0.99 < g[5] < 1.0
+    # r = r_u + (r_l - r_u) g equals eq. 1 of the paper where the latter is defined
+    f = np.array([0.5, 7.0, 300.0])
+    r = 0.99 + (0.65 - 0.99) * adaptive_weight(f, 996.0, 0.97)
+    np.testing.assert_allclose(r, law(f, 0.65, 0.99, 996.0, 0.97))
+    np.testing.assert_allclose(law(1000.0, 0.65, 0.99, 996.0, 0.97), 0.822, atol=1e-3)
+
+
+def test_best_non_increasing_and_phases_recorded():
+    res = minimize("hbcsd", box(rastrigin, half=5.12), 10**6, seed=0,
+                   params=dict(points=10, n_chemotactic=20, k_max=30))
+    h = res.history
+    assert np.all(np.diff(h.best) <= 0)
+    assert h.phase[0] == "init"
+    assert h.phase[1:21] == ["chemotaxis"] * 20 and h.phase[21:51] == ["spiral"] * 30
+    assert res.nit == 50 and res.stop == "converged"
+    # the spiral phase costs exactly m FE per iteration
+    np.testing.assert_array_equal(np.diff(h.fe[20:51]), 10)
+
+
+def test_deterministic_and_seed_dependent_and_global_state_untouched():
+    state = np.random.get_state()[1].copy()  # noqa: NPY002 (checked, not used)
+    a = minimize("hbcsd", box(sphere), 5_000, seed=7)
+    b = minimize("hbcsd", box(sphere), 5_000, seed=7)
+    c = minimize("hbcsd", box(sphere), 5_000, seed=8)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.history.fe, b.history.fe)
+    assert a.fun != c.fun
+    np.testing.assert_array_equal(np.random.get_state()[1], state)  # noqa: NPY002
+
+
+def test_fe_accounting_is_exact_including_a_cut_swim_batch():
+    m = 50
+    full = Recorder(sphere)
+    minimize("hbcsd", box(full), 3_000, seed=1)
+    sizes = np.array([b.shape[0] for b in full.batches])
+    k = int(np.flatnonzero((sizes > 2) & (sizes < m))[0])
+    cut = int(sizes[:k].sum() + sizes[k] // 2)
+    for budget in [1, 50, 51, 777, cut, 2_999]:
+        rec = Recorder(sphere)
+        res = minimize("hbcsd", box(rec), budget, seed=1)
+        assert res.nfev == rec.rows == budget
+        assert res.history.fe[-1] == budget
+        if budget == cut:
+            assert rec.batches[-1].shape[0] == sizes[k] // 2
+            np.testing.assert_array_equal(rec.batches[-1], full.batches[k][: sizes[k] // 2])
+    # spiral-phase budgets (N_c = 5 then spiral until the budget)
+    for budget in [1_234, 4_321]:
+        rec = Recorder(sphere)
+        res = minimize("hbcsd", box(rec), budget, seed=2, params=dict(n_chemotactic=5))
+        assert res.nfev == rec.rows == budget and res.stop == "budget"
+        assert "spiral" in res.history.phase
+
+
+def test_clip_keeps_points_in_box():
+    rec = Recorder(sphere)
+    minimize("hbcsd", box(rec, half=0.3), 3_000, seed=0,
+             params=dict(step_size=0.2, n_chemotactic=10, r_upper=1.0, clip=True))
+    allx = np.concatenate(rec.batches)
+    assert allx.min() >= -0.3 and allx.max() <= 0.3
+
+
+def test_reaches_tolerance_on_shifted_sphere():
+    # 10-D shifted sphere, box [-2, 2]^10, defaults with N_c = 20: cost < 1e-3 in 20,000 FE
+    for seed in range(3):
+        res = minimize("hbcsd", box(sphere), 20_000, seed=seed, params=dict(n_chemotactic=20))
+        assert res.fun < 1e-3
+
+
+@pytest.mark.parametrize(
+    "f, half", [(rastrigin, 5.12), (rosenbrock, 2.0)], ids=["rastrigin", "rosenbrock"]
+)
+def test_clearly_better_than_random_search(f, half):
+    seeds = range(5)
+    ours = np.median([minimize("hbcsd", box(f, half=half), 20_000, seed=s).fun for s in seeds])
+    rand = np.median(
+        [minimize("random-search", box(f, half=half), 20_000, seed=s).fun for s in seeds]
+    )
+    assert ours < 0.8 * rand
+
+
+def test_hyperparameter_validation():
+    with pytest.raises(HyperParameterError):
+        create("hbcsd", r_upper=1.2)
+    with pytest.raises(HyperParameterError):
+        create("hbcsd", step_size=-0.1)
+    with pytest.raises(HyperParameterError):
+        create("hbcsd", c2_r=0.0)
+
+
+def test_paper_variants():
+    man = create("hbcsd-paper-manipulator")
+    assert (man.points, man.n_swim, man.step_size, man.n_chemotactic, man.k_max,
+            man.angle, man.r_lower, man.r_upper, man.c1_r, man.c2_r) == (
+        50, 4, 0.01, 500, 500, 0.34, 0.99, 1.0, 0.1, 0.3)
+    trs = create("hbcsd-paper-trs")
+    assert (trs.points, trs.n_swim, trs.step_size, trs.n_chemotactic, trs.k_max,
+            trs.r_lower, trs.r_upper, trs.c1_r, trs.c2_r) == (
+        10, 4, 0.04, 50, 150, 0.65, 0.99, 996.0, 0.97)
+    assert trs.angle is None
+    assert (trs.theta_lower, trs.theta_upper, trs.c1_theta, trs.c2_theta) == (
+        1.03, 1.8, 110.0, 0.98)
+    assert issubclass(get("hbcsd-paper-trs"), get("hbcsd"))
+    res = minimize("hbcsd-paper-trs", box(sphere), 10**6, seed=0)
+    assert 2_010 <= res.nfev <= 4_010 and res.nit == 200

@@ -1,0 +1,180 @@
+"""Tests of the spiral dynamics algorithm (algorithms.md section 1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flexid.errors import HyperParameterError
+from flexid.optimisers import Problem, create, get, minimize
+from flexid.optimisers.rotation import plane_rotation
+
+N = 10
+SHIFT = np.linspace(-0.5, 0.5, N)
+
+
+def sphere(X):
+    return ((X - SHIFT) ** 2).sum(axis=1)
+
+
+def rastrigin(X):
+    Z = X - SHIFT
+    return 10 * Z.shape[1] + (Z**2 - 10 * np.cos(2 * np.pi * Z)).sum(axis=1)
+
+
+def rosenbrock(X):
+    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
+
+
+class Recorder:
+    """Objective wrapper that counts rows and keeps every batch."""
+
+    def __init__(self, f):
+        self.f, self.rows, self.batches = f, 0, []
+
+    def __call__(self, X):
+        self.rows += X.shape[0]
+        self.batches.append(np.array(X, copy=True))
+        return self.f(X)
+
+
+def box(f, n=N, half=2.0):
+    return Problem(f, -half * np.ones(n), half * np.ones(n))
+
+
+def reference_sda(X, f, r, theta, k_max):
+    """Straightforward SDA with explicit dense plane rotations (no shared code)."""
+    n = X.shape[1]
+    R = np.eye(n)
+    for i in range(1, n):
+        for j in range(1, i + 1):
+            R = R @ plane_rotation(n, n - i, n + 1 - j, theta)
+    F = f(X)
+    b = int(np.argmin(F))
+    xs, fs = X[b].copy(), F[b]
+    batches = [X.copy()]
+    for _ in range(k_max):
+        X = np.array([xs + r * R @ (x - xs) for x in X])
+        batches.append(X.copy())
+        F = f(X)
+        b = int(np.argmin(F))
+        if F[b] < fs:
+            xs, fs = X[b].copy(), F[b]
+    return xs, fs, batches
+
+
+def test_matches_reference_implementation():
+    rec = Recorder(sphere)
+    res = minimize("sda", box(rec), budget=10_000, seed=4,
+                   params=dict(points=8, radius=0.9, angle=0.5, k_max=30))
+    xs, fs, batches = reference_sda(rec.batches[0], sphere, 0.9, 0.5, 30)
+    assert res.nfev == 8 * 31 == rec.rows
+    assert res.stop == "converged"
+    for got, want in zip(rec.batches, batches, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
+    assert res.fun == pytest.approx(fs, rel=1e-10)
+    np.testing.assert_allclose(res.x, xs, rtol=1e-10, atol=1e-12)
+
+
+def test_r1_theta0_moves_nothing():
+    rec = Recorder(sphere)
+    minimize("sda", box(rec), budget=60, seed=0, params=dict(points=6, radius=1.0, angle=0.0))
+    assert len(rec.batches) == 10
+    for batch in rec.batches[1:]:
+        np.testing.assert_allclose(batch, rec.batches[0], rtol=0, atol=1e-15)
+
+
+def test_centre_point_is_fixed_and_reevaluated():
+    rec = Recorder(sphere)
+    minimize("sda", box(rec), budget=5 * 4, seed=2, params=dict(points=5))
+    b = int(np.argmin(sphere(rec.batches[0])))
+    # the best point is the centre: it stays put and is evaluated every iteration
+    for batch in rec.batches[1:]:
+        np.testing.assert_allclose(batch[b], rec.batches[0][b], rtol=0, atol=1e-15)
+
+
+def test_deterministic_and_seed_dependent_and_global_state_untouched():
+    state = np.random.get_state()[1].copy()  # noqa: NPY002 (checked, not used)
+    a = minimize("sda", box(sphere), 3_000, seed=7)
+    b = minimize("sda", box(sphere), 3_000, seed=7)
+    c = minimize("sda", box(sphere), 3_000, seed=8)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.history.best, b.history.best)
+    assert a.fun != c.fun
+    np.testing.assert_array_equal(np.random.get_state()[1], state)  # noqa: NPY002
+
+
+@pytest.mark.parametrize("budget", [1, 49, 50, 51, 777, 5_000])
+def test_fe_accounting_is_exact(budget):
+    rec = Recorder(sphere)
+    res = minimize("sda", box(rec), budget, seed=1)
+    assert res.nfev == rec.rows == budget
+    assert res.history.fe[-1] == budget
+    assert np.all(np.diff(res.history.fe) > 0)
+    # one full iteration = m = 50 FE
+    full = res.history.fe[(res.history.fe % 50) == 0]
+    np.testing.assert_array_equal(full, 50 * np.arange(1, full.size + 1))
+
+
+def test_k_max_limits_iterations():
+    res = minimize("sda", box(sphere), 100_000, seed=1, params=dict(points=10, k_max=25))
+    assert res.nfev == 10 * 26
+    assert res.nit == 25
+    assert res.stop == "converged"
+
+
+def test_best_is_non_increasing_and_matches_recorded_costs():
+    rec = Recorder(rastrigin)
+    res = minimize("sda", box(rec, half=5.12), 4_000, seed=3)
+    assert np.all(np.diff(res.history.best) <= 0)
+    assert res.fun == pytest.approx(min(rastrigin(b).min() for b in rec.batches))
+
+
+def test_clip_keeps_points_in_box():
+    rec = Recorder(sphere)
+    # a large angle with r close to 1 throws points out of the box without clip
+    minimize("sda", box(rec), 2_000, seed=5, params=dict(radius=0.99, angle=2.0, clip=True))
+    allx = np.concatenate(rec.batches)
+    assert allx.min() >= -2.0 and allx.max() <= 2.0
+    rec2 = Recorder(sphere)
+    minimize("sda", box(rec2), 2_000, seed=5, params=dict(radius=0.99, angle=2.0))
+    assert np.abs(np.concatenate(rec2.batches)).max() > 2.0
+
+
+def test_reaches_tolerance_on_shifted_sphere():
+    # 10-D shifted sphere, box [-2, 2]^10: cost < 1e-8 within 20,000 FE for every seed
+    for seed in range(3):
+        assert minimize("sda", box(sphere), 20_000, seed=seed).fun < 1e-8
+
+
+@pytest.mark.parametrize(
+    "f, half", [(rastrigin, 5.12), (rosenbrock, 2.0)], ids=["rastrigin", "rosenbrock"]
+)
+def test_clearly_better_than_random_search(f, half):
+    seeds = range(5)
+    ours = np.median([minimize("sda", box(f, half=half), 20_000, seed=s).fun for s in seeds])
+    rand = np.median(
+        [minimize("random-search", box(f, half=half), 20_000, seed=s).fun for s in seeds]
+    )
+    assert ours < 0.6 * rand
+
+
+def test_hyperparameter_validation():
+    with pytest.raises(HyperParameterError):
+        create("sda", radius=0.0)
+    with pytest.raises(HyperParameterError):
+        create("sda", radius=1.5)
+    with pytest.raises(HyperParameterError):
+        create("sda", points=1)
+    with pytest.raises(HyperParameterError):
+        create("sda", angle=2 * np.pi)
+
+
+def test_paper_variants():
+    man = create("sda-paper-manipulator")
+    assert (man.radius, man.angle, man.points, man.k_max) == (0.99, 0.381, 50, 1000)
+    trs = create("sda-paper-trs")
+    assert (trs.radius, trs.angle, trs.points, trs.k_max) == (0.98, 0.72, 10, 200)
+    assert issubclass(get("sda-paper-trs"), get("sda"))
+    # TRS schedule: m (1 + k_max) = 2,010 FE
+    assert minimize("sda-paper-trs", box(sphere), 10**6, seed=0).nfev == 2_010
