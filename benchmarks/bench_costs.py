@@ -13,6 +13,10 @@ Run:  python benchmarks/bench_costs.py
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only cost
+
 import time
 
 import numpy as np
