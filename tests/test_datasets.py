@@ -1,0 +1,86 @@
+"""Tests of flexid.datasets: presets, reproducibility, metadata, noise, channel selection."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flexid.data import IOData
+from flexid.datasets import PRESETS, generate
+from flexid.envs import beam
+from flexid.errors import DataError, PlantParameterError, UnknownNameError
+
+
+def test_paper_presets():
+    man = generate("manipulator", preset="paper-manipulator", seed=0)
+    assert man.n_samples == 2300 and man.dt == 1e-3
+    assert list(man.output_names) == ["tip_acceleration"] and list(man.input_names) == ["torque"]
+    assert man.u.min() >= -0.3 and man.u.max() <= 0.3
+    assert man.metadata["preset"] == "paper-manipulator" and man.metadata["noise_rule"] == "1%"
+    trs = generate("twin-rotor", preset="paper-twin-rotor", seed=0)
+    assert trs.n_samples == 8000 and trs.dt == 0.1
+    assert list(trs.output_names) == ["pitch"] and list(trs.input_names) == ["main_rotor"]
+    assert trs.metadata["parameters"]["lock_yaw"] is True
+    assert trs.u.min() >= -1 and trs.u.max() <= 1
+    assert set(PRESETS) == {"paper-manipulator", "paper-twin-rotor"}
+
+
+def test_noise_free_output_is_the_plant_response_and_noise_is_separate():
+    clean = generate("manipulator", signal="prbs", n_samples=500, seed=3,
+                     signal_options={"order": 7, "low": -0.2, "high": 0.2})
+    np.testing.assert_allclose(clean.y, beam.simulate(clean.u[:, 0]), rtol=1e-12, atol=1e-15)
+    noisy = generate("manipulator", signal="prbs", n_samples=500, seed=3, noise_std=[0, 0, 0, 1],
+                     signal_options={"order": 7, "low": -0.2, "high": 0.2})
+    np.testing.assert_array_equal(noisy.u, clean.u)  # the input does not change with noise
+    np.testing.assert_array_equal(noisy.y[:, :3], clean.y[:, :3])
+    assert np.std(noisy.y[:, 3] - clean.y[:, 3]) == pytest.approx(1.0, rel=0.15)
+    rel = generate("manipulator", n_samples=400, seed=1, noise_std="5%", outputs=["hub_angle"])
+    base = generate("manipulator", n_samples=400, seed=1, outputs=["hub_angle"])
+    ratio = np.std(rel.y - base.y) / np.std(base.y)
+    assert ratio == pytest.approx(0.05, rel=0.2)
+
+
+def test_same_seed_byte_identical_files(tmp_path):
+    for suffix in (".csv", ".npz"):
+        paths = []
+        for i in range(2):
+            d = generate("manipulator", preset="paper-manipulator", seed=11)
+            path = tmp_path / f"d{i}{suffix}"
+            d.save(path)
+            paths.append(path)
+        assert paths[0].read_bytes() == paths[1].read_bytes()
+        back = IOData.from_csv(paths[0]) if suffix == ".csv" else IOData.from_npz(paths[0])
+        assert back.metadata["seed"] == 11 and back.metadata["plant"] == "manipulator"
+    other = generate("manipulator", preset="paper-manipulator", seed=12)
+    assert not np.array_equal(other.u, d.u)
+
+
+def test_parameters_and_signals_are_applied():
+    a = generate("manipulator", n_samples=800, seed=0, outputs=["hub_angle"])
+    b = generate("manipulator", n_samples=800, seed=0, outputs=["hub_angle"],
+                 plant_params={"payload_mass": 0.05})
+    assert not np.allclose(a.y, b.y)
+    assert b.metadata["parameters"]["payload_mass"] == 0.05
+    c = generate("twin-rotor", signal="multisine", n_samples=300, seed=0,
+                 signal_options={"band": [0.05, 1.0], "amplitude": 1.5})
+    assert c.u.shape == (300, 2) and np.abs(c.u).max() == pytest.approx(1.5)
+    assert list(c.output_names) == ["pitch", "yaw", "pitch_rate", "yaw_rate"]
+
+
+def test_bad_arguments():
+    with pytest.raises(UnknownNameError, match="plant"):
+        generate("moon-lander")
+    with pytest.raises(UnknownNameError, match="signal"):
+        generate("manipulator", signal="jazz")
+    with pytest.raises(UnknownNameError, match="output"):
+        generate("manipulator", outputs=["tip_temperature"])
+    with pytest.raises(UnknownNameError, match="preset"):
+        generate("manipulator", preset="paper-pendulum")
+    with pytest.raises(DataError, match="preset"):
+        generate("twin-rotor", preset="paper-manipulator")
+    with pytest.raises(PlantParameterError, match="colour"):
+        generate("manipulator", plant_params={"colour": 1})
+    with pytest.raises(DataError):
+        generate("manipulator", n_samples=-5)
+    with pytest.raises(DataError):
+        generate("manipulator", noise_std="lots")
