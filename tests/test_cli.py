@@ -84,7 +84,7 @@ def test_compare_small_builtin_and_report(tmp_path, capsys):
     ]
     status, out, err = _run(argv, capsys)
     assert status == 0, err
-    assert "sda" in out and "ls" in out
+    assert "sda" in out and "least squares" in out
     status, out2, err = _run(argv, capsys)  # rerun: nothing new to do, same table
     assert status == 0, err
     assert out2.split("\n")[:8] == out.split("\n")[:8]

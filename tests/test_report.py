@@ -34,7 +34,7 @@ def test_markdown_report_has_tables_and_figures(store, tmp_path):
     path = write_report(store, tmp_path / "out")
     text = path.read_text()
     assert path.name == "report.md"
-    assert "report test" in text and "| sda" in text and "| ls" in text
+    assert "report test" in text and "| sda" in text and "| least squares" in text
     images = [line for line in text.splitlines() if line.startswith("![")]
     assert images
     for line in images:

@@ -25,7 +25,7 @@ def test_write_and_read_back(tmp_path):
     path = tmp_path / "sub" / "r.sqlite"
     with ResultStore(path) as store:
         store.add_comparison("k1", "demo", {"a": 1})
-        store.add_comparison("k1", "renamed", {"a": 2})  # first write wins
+        store.add_comparison("k1", "renamed", {"a": 2})  # the latest specification wins
         store.write_run("k1", _record("sda", 0))
         store.write_run(
             "k1", _record("sda", 1, history={"fe": [1, 2], "best": [3.0, float("inf")]})
@@ -38,7 +38,7 @@ def test_write_and_read_back(tmp_path):
         assert [(r["label"], r["run"]) for r in runs] == [("bfa", 0), ("sda", 0), ("sda", 1)]
         assert runs[2]["history"]["best"][1] == float("inf")
         assert list(store.iter_runs("k1")) == runs
-        assert store.comparison("k")["name"] == "demo"
+        assert store.comparison("k")["name"] == "renamed"
         assert store.comparisons()[0]["n_runs"] == 3
     with ResultStore(path, readonly=True) as store:
         assert store.count("k1")["ok"] == 2

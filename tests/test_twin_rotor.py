@@ -100,13 +100,13 @@ def test_environment_passes_the_checker_and_is_reproducible():
         check_env(env.unwrapped)
         check_env(TwinRotorEnv(noise_std=0.01), skip_render_check=True)
     assert env.observation_space.dtype == np.float64 and env.spec.max_episode_steps == 600
-    obs, _ = env.reset(seed=3)
+    _obs, _ = env.reset(seed=3)
     frame = env.render()
     assert frame.shape == (400, 800, 3) and frame.dtype == np.uint8
     a = TwinRotorEnv(noise_std=0.01)
     b = TwinRotorEnv(noise_std=0.01)
-    oa, _ = a.reset(seed=5)
-    ob, _ = b.reset(seed=5)
+    _oa, _ = a.reset(seed=5)
+    _ob, _ = b.reset(seed=5)
     for _ in range(20):
         ra = a.step(np.array([0.5, -0.2]))
         rb = b.step(np.array([0.5, -0.2]))

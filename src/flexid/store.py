@@ -110,9 +110,11 @@ class ResultStore:
 
     # ----------------------------------------------------------------- comparisons
     def add_comparison(self, key: str, name: str, spec: Mapping[str, Any]) -> None:
-        """Record a comparison (no-op if ``key`` is already there)."""
+        """Record a comparison; a rerun with the same key (more runs, other optimisers)
+        replaces the stored name and specification, the runs already finished stay."""
         self._execute(
-            "INSERT OR IGNORE INTO comparisons(key, name, spec, created) VALUES (?, ?, ?, ?)",
+            "INSERT INTO comparisons(key, name, spec, created) VALUES (?, ?, ?, ?) "
+            "ON CONFLICT(key) DO UPDATE SET name = excluded.name, spec = excluded.spec",
             (key, name, json.dumps(spec, sort_keys=True), time.time()),
         )
 
