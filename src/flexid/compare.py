@@ -374,8 +374,8 @@ class ComparisonResult:
         rows.append(
             [
                 "least squares",
-                f"{v['fit_one_step']:.2f}",
-                f"{v['fit_simulation']:.2f}",
+                _fit(v["fit_one_step"]),
+                _fit(v["fit_simulation"]),
                 f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
                 "yes" if v["correlation_passed"] else "no",
                 "yes" if self.reference.get("stable") else "NO",
@@ -388,8 +388,8 @@ class ComparisonResult:
             rows.append(
                 [
                     label,
-                    f"{s['fit_one_step']:.2f}",
-                    f"{s['fit_simulation']:.2f}",
+                    _fit(s["fit_one_step"]),
+                    _fit(s["fit_simulation"]),
                     f"[{s['error_min']:.4g}, {s['error_max']:.4g}]",
                     f"{s['correlation_pass_rate'] * 100:.0f}%",
                     f"{s['stable_rate'] * 100:.0f}%",
@@ -455,6 +455,13 @@ def _f(value: float) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "-"
     return f"{value:.5g}"
+
+
+def _fit(value: float | None) -> str:
+    """A fit % for a table: diverged (unstable) simulations show as '< -999'."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    return "< -999" if value < -999 else f"{value:.2f}"
 
 
 def _p(value: float | None) -> str:
