@@ -52,11 +52,7 @@ class DifferentialEvolution(Optimiser):
         F = yield X
         idx = np.arange(NP)
         while True:
-            # three distinct indices, none equal to i: a random ordering of the
-            # other NP - 1 members, first three
-            picks = np.argsort(rng.random((NP, NP - 1)), axis=1)[:, :3]
-            pool = picks + (picks >= idx[:, None])  # skip i itself
-            r1, r2, r3 = pool[:, 0], pool[:, 1], pool[:, 2]
+            r1, r2, r3 = _distinct_others(rng, NP, idx)
             if self.dither:
                 Fw = rng.uniform(min(self.weight, 1.0), 1.0, (NP, 1))
             else:
@@ -71,3 +67,21 @@ class DifferentialEvolution(Optimiser):
             FU = yield U
             better = FU <= F
             X[better], F[better] = U[better], FU[better]
+
+
+def _distinct_others(
+    rng: np.random.Generator, size: int, idx: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For every member i, three indices distinct from each other and from i (uniform).
+
+    Draws from the other ``size - 1`` members and redraws the (few) rows that collide,
+    instead of shuffling a (size, size - 1) matrix each generation.
+    """
+    r = rng.integers(0, size - 1, (size, 3))
+    r += r >= idx[:, None]  # skip i itself
+    while True:
+        clash = (r[:, 0] == r[:, 1]) | (r[:, 0] == r[:, 2]) | (r[:, 1] == r[:, 2])
+        if not clash.any():
+            return r[:, 0], r[:, 1], r[:, 2]
+        redo = rng.integers(0, size - 1, (int(clash.sum()), 3))
+        r[clash] = redo + (redo >= idx[clash, None])
