@@ -62,8 +62,10 @@ class DifferentialEvolution(Optimiser):
             cross[idx, rng.integers(0, n, NP)] = True
             U = np.where(cross, V, X)
             low, high = U < space.lower, U > space.upper
-            U = np.where(low, (X + space.lower) / 2, U)
-            U = np.where(high, (X + space.upper) / 2, U)
+            if low.any():
+                U = np.where(low, (X + space.lower) / 2, U)
+            if high.any():
+                U = np.where(high, (X + space.upper) / 2, U)
             FU = yield U
             better = FU <= F
             X[better], F[better] = U[better], FU[better]
