@@ -77,3 +77,16 @@ def test_comparison_figures(tmp_path):
     paths = comparison_figures(result, tmp_path, prefix="c-")
     assert [p.name for p in paths] == ["c-convergence.png", "c-fe_to_target_1.png"]
     assert all(_is_png(p) for p in paths)
+
+
+def test_diverged_simulation_is_drawn_not_raised(tmp_path):
+    from flexid.plots import plot_spectra, plot_time_response
+
+    t = np.arange(100) * 0.1
+    y = np.sin(t)
+    yhat = np.r_[np.sin(t[:50]), np.geomspace(1.0, 1e300, 49), np.inf]
+    fig = plot_time_response(t, y, yhat, title="unstable")
+    assert "diverges from t = 5" in fig.axes[0].get_title()
+    fig.savefig(tmp_path / "a.png")
+    fig = plot_spectra(np.arange(5.0), {"model": np.array([1.0, np.inf, np.nan, 2.0, 3.0])})
+    fig.savefig(tmp_path / "b.png")

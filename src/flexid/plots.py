@@ -108,6 +108,14 @@ def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axe
         fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.0, 4.8), height_ratios=[2, 1])
     else:
         fig = axes[0].figure
+    y = np.asarray(y, dtype=float)
+    yhat = np.asarray(yhat, dtype=float)
+    limit = 1e3 * max(float(np.nanmax(np.abs(y))) if y.size else 1.0, 1e-300)
+    diverged = ~np.isfinite(yhat) | (np.abs(np.nan_to_num(yhat, nan=np.inf)) > limit)
+    if diverged.any():  # an unstable model's free run: show where it leaves the plot
+        yhat = np.where(diverged, np.nan, yhat)
+        first = float(np.asarray(t)[np.argmax(diverged)])
+        title = f"{title} (model output diverges from t = {first:.3g} s)"
     axes[0].plot(t, y, lw=1, label="measured")
     axes[0].plot(t, yhat, lw=1, ls="--", label=label)
     axes[0].set_ylabel("output")
@@ -128,6 +136,7 @@ def plot_spectra(
     fig, ax = _axes(ax, figsize=(6.4, 4.0))
     for label, p in spectra.items():
         p = np.asarray(p, float)
+        p = np.where(np.isfinite(p), p, np.nan)  # a diverged simulation has no spectrum
         ax.plot(freq, 10 * np.log10(np.maximum(p, 1e-300)), lw=1, label=label)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("PSD [dB]")
