@@ -22,19 +22,33 @@ import time
 import numpy as np
 from scipy import signal
 
+from flexid import kernels
 from flexid.arx import ARXStructure
 from flexid.objective import ARXCost
 from flexid.stability import is_stable
 
 
-def median_time(fn, repeat=30, number=5):
-    times = []
-    for _ in range(repeat):
+def interleaved_medians(fns: dict, rounds: int = 15, budget: float = 0.02) -> dict:
+    """Median time per call of each function, the functions timed in turn in every round.
+
+    Timing them in turn (rather than one after the other) keeps the ratios honest on a
+    shared machine whose speed drifts during the run.  Each function is called often
+    enough per round to take about ``budget`` seconds.
+    """
+    numbers = {}
+    for name, fn in fns.items():
         t = time.perf_counter()
-        for _ in range(number):
-            fn()
-        times.append((time.perf_counter() - t) / number)
-    return float(np.median(times))
+        fn()
+        numbers[name] = max(1, int(budget / max(time.perf_counter() - t, 1e-7)))
+    times = {name: [] for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            n = numbers[name]
+            t = time.perf_counter()
+            for _ in range(n):
+                fn()
+            times[name].append((time.perf_counter() - t) / n)
+    return {name: float(np.median(v)) for name, v in times.items()}
 
 
 def main() -> None:
@@ -84,12 +98,18 @@ def main() -> None:
     np.testing.assert_allclose(one(X), loop_one_step(), rtol=1e-10)
     np.testing.assert_allclose(sim(X), loop_simulation(), rtol=1e-9)
 
-    t_one = median_time(lambda: one(X))
-    t_one_loop = median_time(loop_one_step, repeat=10, number=1)
-    t_stab = median_time(lambda: is_stable(X[:, :8]))
-    t_sim = median_time(lambda: sim(X), repeat=10)
-    t_sim_loop = median_time(loop_simulation, repeat=10, number=1)
-    t_lf = median_time(loop_lfilter_only, repeat=10, number=1)
+    t = interleaved_medians(
+        {
+            "one": lambda: one(X),
+            "one_loop": loop_one_step,
+            "stab": lambda: is_stable(X[:, :8]),
+            "sim": lambda: sim(X),
+            "sim_loop": loop_simulation,
+            "lf": loop_lfilter_only,
+        }
+    )
+    t_one, t_one_loop, t_stab = t["one"], t["one_loop"], t["stab"]
+    t_sim, t_sim_loop, t_lf = t["sim"], t["sim_loop"], t["lf"]
     rows = [
         ("one-step paper cost, batched (P=50)", t_one, P / t_one),
         ("  of which: Schur-Cohn stability test", t_stab, P / t_stab),
@@ -100,6 +120,7 @@ def main() -> None:
     ]
     n_stable = int(is_stable(X[:, :8]).sum())
     print(f"ARX(8,8,1), N = {n} samples (K = {k}), population {P} ({n_stable} stable)")
+    print(f"kernels: {kernels.BACKEND} (set FLEXID_KERNELS=numpy for the reference path)")
     print(f"{'method':45s} {'time/call':>12s} {'candidates/s':>14s}")
     for name, t, rate in rows:
         print(f"{name:45s} {t * 1e3:9.3f} ms {rate:14,.0f}")

@@ -6,9 +6,9 @@ Two predictors:
   least-squares solution ``theta*``, ``SSE(theta) = SSE* + ||R (theta - theta*)||^2`` exactly,
   so a population costs ``O(P n^2)`` whatever the record length.
 * **simulation** (output error): ``e(t) = y(t) - y_sim(t)`` where ``y_sim`` is the free-run
-  output.  The input part of the whole population is one GEMM, the autoregressive part one
-  compiled filter per candidate (see :func:`simulate_population`); unstable candidates are
-  never simulated.
+  output.  The input part of the whole population is one GEMM, the autoregressive part the
+  compiled batched recursion of :mod:`flexid.kernels` (or one ``lfilter`` per candidate
+  without it; see :func:`simulate_population`); unstable candidates are never simulated.
 
 Metrics: the paper's cost (eq. 5-6, ``w sqrt(SSE) / K`` plus a penalty when a pole has
 ``|p| >= 1``), RMSE, NRMSE, SSE and MSE.
@@ -19,10 +19,11 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy import linalg, signal
+from scipy import linalg
 
 from .arx import ARXStructure, _io_arrays
 from .errors import DataError, UnknownNameError
+from .kernels import ar_recursion
 from .stability import is_stable
 
 __all__ = ["METRICS", "PREDICTORS", "ARXCost", "make_cost", "simulate_population"]
@@ -36,12 +37,12 @@ def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) ->
     """Run ``y(t) = f(t) - sum_i a_i y(t - i)`` for every candidate of a population.
 
     The input part ``f = B(q) u`` of the whole population is one GEMM (done by the caller);
-    this function runs the autoregressive part with one compiled ``scipy.signal.lfilter``
-    call per candidate, initial state from ``lfiltic``.  That is the fastest *exact* method
-    measured here: a time-step loop vectorised over the population is 5x slower, and a
-    blocked recursion with companion-matrix powers and batched Toeplitz products was no
-    faster on this machine and lost up to 8 digits for clustered poles (see
-    ``benchmarks/bench_costs.py``).
+    this function runs the autoregressive part: in the compiled kernel of
+    :mod:`flexid.kernels` when it was built (the population in blocks of 16 candidates,
+    four per SIMD register), otherwise one ``scipy.signal.lfilter`` per candidate.  Both
+    are the exact recursion.  A blocked recursion with companion-matrix powers and batched
+    Toeplitz products was tried too: no faster, and it lost up to 8 digits for clustered
+    poles.
 
     Parameters
     ----------
@@ -57,26 +58,8 @@ def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) ->
     -------
     ndarray, shape (P, K)
     """
-    p, na = a.shape
-    out = np.array(forced, dtype=float)
-    if na == 0:
-        return out
-    state = np.broadcast_to(np.asarray(state, float), (p, na))
-    den = np.hstack([np.ones((p, 1)), a])
-    # lfilter's (transposed direct form II) initial state for b = [1] and past outputs s:
-    # zi[i] = -sum_{j >= 1} a_{i+j} s_j  (what scipy.signal.lfiltic computes, for all rows)
-    zi = np.zeros((p, na))
-    for i in range(na):
-        zi[:, i] = -np.einsum("pj,pj->p", a[:, i:], state[:, : na - i])
-    # the initial state acts like an extra input on the first na samples (cheaper than
-    # passing zi, which makes lfilter about twice as slow)
-    out[:, : min(na, out.shape[1])] += zi[:, : out.shape[1]]
-    for i in range(p):
-        out[i] = signal.lfilter(_ONE, den[i], out[i])
-    return out
-
-
-_ONE = np.ones(1)
+    y, _ = ar_recursion(a, forced, state)
+    return y
 
 
 class ARXCost:
@@ -164,6 +147,7 @@ class ARXCost:
         resid = target - phi @ self.theta_ls
         self.sse_ls = float(resid @ resid)
         self._r = r * scale[None, :]  # R (theta - theta*) in original units
+        self._r_t = np.ascontiguousarray(self._r.T)
         self._std_y = float(np.std(target))
         if predictor == "simulation":
             na = structure.na
@@ -181,7 +165,7 @@ class ARXCost:
     def _from_sse(self, sse: np.ndarray) -> np.ndarray:
         k = self.K
         if self.metric == "paper":
-            return self.weight * np.sqrt(sse) / k
+            return np.sqrt(sse) * (self.weight / k)
         if self.metric == "rmse":
             return np.sqrt(sse / k)
         if self.metric == "nrmse":
@@ -210,34 +194,40 @@ class ARXCost:
             raise DataError(
                 f"the population must have shape (P, {self.n_params}), got {X.shape}"
             )
+        if np.isfinite(X.sum()):  # the common case: every row finite, no masking needed
+            return self._costs(X)
         out = np.full(X.shape[0], np.inf)
         finite = np.isfinite(X).all(axis=1)
-        if not finite.any():
-            return out
-        Xf = X[finite]
-        stable = is_stable(Xf[:, : self.structure.na])
-        if self.predictor == "one-step":
-            d = (Xf - self.theta_ls) @ self._r.T
-            sse = self.sse_ls + np.einsum("ij,ij->i", d, d)
-            cost = self._from_sse(sse)
-            if self.penalty > 0:
-                cost = cost + np.where(stable, 0.0, self.penalty)
-        else:
-            cost = np.full(Xf.shape[0], self.penalty + self._from_sse(np.array(self._sse_zero)))
-            if stable.any():
-                cost[stable] = self._from_sse(self._simulated_sse(Xf[stable]))
-        out[finite] = cost
+        if finite.any():
+            out[finite] = self._costs(X[finite])
         return out
+
+    def _costs(self, X: np.ndarray) -> np.ndarray:
+        """Costs of finite rows ``X`` (P, n_params)."""
+        stable = is_stable(X[:, : self.structure.na])
+        if self.predictor == "one-step":
+            d = (X - self.theta_ls) @ self._r_t
+            sse = np.einsum("ij,ij->i", d, d)
+            sse += self.sse_ls
+            cost = self._from_sse(sse)
+            if self.penalty > 0 and not stable.all():
+                cost[~stable] += self.penalty
+            return cost
+        cost = np.full(X.shape[0], self.penalty + self._from_sse(np.array(self._sse_zero)))
+        if stable.all():
+            return self._from_sse(self._simulated_sse(X))
+        if stable.any():
+            cost[stable] = self._from_sse(self._simulated_sse(X[stable]))
+        return cost
 
     def _simulated_sse(self, X: np.ndarray) -> np.ndarray:
         na = self.structure.na
         forced = X[:, na:] @ self._phi_u_t  # (P, K) one GEMM
         if self.initial == "measured":
-            y = simulate_population(X[:, :na], forced, self._state)
-            e = self._target - y
-        else:
-            y = simulate_population(X[:, :na], forced, np.zeros(na))
-            e = self._target - y[:, self.structure.start :]
+            _, sse = ar_recursion(X[:, :na], forced, self._state, self._target, want_output=False)
+            return sse
+        y, _ = ar_recursion(X[:, :na], forced, np.zeros(na))
+        e = self._target - y[:, self.structure.start :]
         return np.einsum("ij,ij->i", e, e)
 
     def residuals(self, theta: Any) -> np.ndarray:

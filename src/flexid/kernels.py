@@ -1,0 +1,148 @@
+"""Inner loops of the batched ARX costs: compiled when available, NumPy/SciPy otherwise.
+
+flexid ships a small optional C extension, ``flexid._kernels``, built when the package is
+installed on a machine with a C compiler.  It runs the Schur-Cohn stability test and the
+autoregressive recursion of a whole population in compiled loops, several candidates per
+SIMD register.  Without it (or with ``FLEXID_KERNELS=numpy`` in the environment) the same
+functions run the NumPy/SciPy reference path, which the tests compare against the compiled
+one.
+
+Environment variable ``FLEXID_KERNELS``:
+
+``auto`` (default)
+    the compiled kernels when they were built, the reference path otherwise;
+``numpy``
+    always the reference path;
+``c``
+    the compiled kernels, and :class:`~flexid.errors.FlexidError` at import if they were
+    not built (for CI and benchmarks that must not fall back silently).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from scipy import signal
+
+from .errors import FlexidError
+
+__all__ = ["BACKEND", "ar_recursion", "ar_recursion_reference", "compiled_available"]
+
+try:  # pragma: no cover - depends on the build
+    from . import _kernels as _c
+except ImportError:  # pragma: no cover - depends on the build
+    _c = None
+
+_CHOICE = os.environ.get("FLEXID_KERNELS", "auto").strip().lower() or "auto"
+if _CHOICE not in ("auto", "numpy", "c"):
+    raise FlexidError(
+        f"FLEXID_KERNELS must be 'auto', 'numpy' or 'c', got {os.environ['FLEXID_KERNELS']!r}"
+    )
+if _CHOICE == "c" and _c is None:
+    raise FlexidError(
+        "FLEXID_KERNELS=c but the compiled kernels flexid._kernels were not built "
+        "(reinstall flexid on a machine with a C compiler)"
+    )
+
+#: ``"c"`` when the compiled kernels run, ``"numpy"`` for the reference path.
+BACKEND: str = "c" if (_c is not None and _CHOICE != "numpy") else "numpy"
+
+
+def compiled_available() -> bool:
+    """True when the optional compiled kernels were built (whatever ``BACKEND`` says)."""
+    return _c is not None
+
+
+def schur_cohn_compiled(a: np.ndarray) -> np.ndarray:
+    """Compiled Schur-Cohn stability test (no checks; see :func:`flexid.stability.is_stable`).
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, n), float64
+        ``a_1 .. a_n`` of monic denominators.
+
+    Returns
+    -------
+    ndarray of bool, shape (P,)
+    """
+    a = np.ascontiguousarray(a, dtype=float)
+    out = np.empty(a.shape[0], dtype=np.uint8)
+    _c.schur_cohn(a, out)
+    return out.view(bool)
+
+
+def ar_recursion_reference(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """Reference path of :func:`ar_recursion`: one ``scipy.signal.lfilter`` per candidate.
+
+    The initial state enters as an extra input on the first ``na`` samples (what
+    ``scipy.signal.lfiltic`` would compute, for every row at once), which is cheaper than
+    passing ``zi``.
+    """
+    p, na = a.shape
+    out = np.array(forced, dtype=float)
+    if na == 0:
+        return out
+    state = np.broadcast_to(np.asarray(state, float), (p, na))
+    den = np.hstack([np.ones((p, 1)), a])
+    # transposed direct form II state for b = [1] and past outputs s:
+    # zi[i] = -sum_{j >= 1} a_{i+j} s_j
+    zi = np.zeros((p, na))
+    for i in range(na):
+        zi[:, i] = -np.einsum("pj,pj->p", a[:, i:], state[:, : na - i])
+    out[:, : min(na, out.shape[1])] += zi[:, : out.shape[1]]
+    one = np.ones(1)
+    for i in range(p):
+        out[i] = signal.lfilter(one, den[i], out[i])
+    return out
+
+
+def ar_recursion(
+    a: np.ndarray,
+    forced: np.ndarray,
+    state: np.ndarray,
+    target: np.ndarray | None = None,
+    *,
+    want_output: bool = True,
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Run ``y(t) = f(t) - sum_i a_i y(t - i)`` for every candidate of a population.
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, na)
+        ``a_1 .. a_na`` of each candidate.  Callers pass stable candidates only: an
+        unstable recursion overflows.
+    forced : ndarray, shape (P, K)
+        The input part ``f(t) = B(q) u(t)`` of each candidate.
+    state : ndarray, shape (na,) or (P, na)
+        ``[y(-1), ..., y(-na)]`` before the first sample (shared or per candidate).
+    target : ndarray, shape (K,), optional
+        When given, the sum over ``t`` of ``(target(t) - y(t))^2`` is returned too.
+    want_output : bool
+        Return the simulated outputs (``False`` saves the ``(P, K)`` array when only the
+        sums of squares are needed).
+
+    Returns
+    -------
+    y : ndarray, shape (P, K), or None
+        Simulated outputs (None when ``want_output`` is False).
+    sse : ndarray, shape (P,), or None
+        Sums of squared errors against ``target`` (None without ``target``).
+    """
+    a = np.ascontiguousarray(a, dtype=float)
+    forced = np.ascontiguousarray(forced, dtype=float)
+    p = a.shape[0]
+    k = forced.shape[1]
+    state = np.ascontiguousarray(state, dtype=float)
+    if BACKEND == "c":
+        y = np.empty((p, k)) if want_output else None
+        sse = np.empty(p) if target is not None else None
+        tgt = None if target is None else np.ascontiguousarray(target, dtype=float)
+        _c.ar_run(a, forced, state, tgt, y, sse)
+        return y, sse
+    y = ar_recursion_reference(a, forced, state)
+    sse = None
+    if target is not None:
+        e = np.asarray(target, dtype=float) - y
+        sse = np.einsum("ij,ij->i", e, e)
+    return (y if want_output else None), sse
