@@ -6,60 +6,18 @@ import numpy as np
 import pytest
 
 from flexid.errors import HyperParameterError
-from flexid.optimisers import Problem, create, get, minimize
+from flexid.optimisers import create, get, minimize
 from flexid.optimisers.bfa import swarming_cost, tumble_directions
+from objectives import FakeSpace, Recorder, cube, rosenbrock, shifted_rastrigin, shifted_sphere
 
 N = 10
 SHIFT = np.linspace(-0.5, 0.5, N)
-
-
-def sphere(X):
-    return ((X - SHIFT) ** 2).sum(axis=1)
-
-
-def rastrigin(X):
-    Z = X - SHIFT
-    return 10 * Z.shape[1] + (Z**2 - 10 * np.cos(2 * np.pi * Z)).sum(axis=1)
-
-
-def rosenbrock(X):
-    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
-
-
-class Recorder:
-    """Objective wrapper that counts rows and keeps every batch."""
-
-    def __init__(self, f):
-        self.f, self.rows, self.batches = f, 0, []
-
-    def __call__(self, X):
-        self.rows += X.shape[0]
-        self.batches.append(np.array(X, copy=True))
-        return self.f(X)
+sphere = shifted_sphere(SHIFT)
+rastrigin = shifted_rastrigin(SHIFT)
 
 
 def box(f, n=N, half=2.0):
-    return Problem(f, -half * np.ones(n), half * np.ones(n))
-
-
-class FakeSpace:
-    """Minimal stand-in for SearchSpace so a test can drive ``search`` with its own rng."""
-
-    def __init__(self, X0, lower, upper):
-        self.X0, self.lower, self.upper, self.dim = X0, lower, upper, X0.shape[1]
-        self.phases = []
-
-    def initial_population(self, m):
-        return self.X0[:m].copy()
-
-    def uniform(self, k, rng):
-        return self.lower + (self.upper - self.lower) * rng.random((int(k), self.dim))
-
-    def clip(self, X):
-        return np.clip(X, self.lower, self.upper)
-
-    def end_iteration(self, phase):
-        self.phases.append(phase)
+    return cube(f, n, half)
 
 
 def drive(opt, space, f, rng):

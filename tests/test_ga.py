@@ -8,32 +8,12 @@ import pytest
 from flexid.errors import HyperParameterError
 from flexid.optimisers import Problem, create, minimize
 from flexid.optimisers.ga import GeneticAlgorithm
+from objectives import counted, rosenbrock, shifted_rastrigin, shifted_sphere
 
 N = 10
 SHIFT = np.linspace(-1.4, 1.4, N)
-
-
-def sphere(X):
-    return ((X - SHIFT) ** 2).sum(axis=1)
-
-
-def rastrigin(X):
-    Z = X - SHIFT
-    return 10 * Z.shape[1] + (Z**2 - 10 * np.cos(2 * np.pi * Z)).sum(axis=1)
-
-
-def rosenbrock(X):
-    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
-
-
-def counted(f):
-    calls = {"fe": 0}
-
-    def wrapped(X):
-        calls["fe"] += X.shape[0]
-        return f(X)
-
-    return wrapped, calls
+sphere = shifted_sphere(SHIFT)
+rastrigin = shifted_rastrigin(SHIFT)
 
 
 def test_registered_defaults():

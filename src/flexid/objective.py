@@ -213,9 +213,9 @@ class ARXCost:
             if self.penalty > 0 and not stable.all():
                 cost[~stable] += self.penalty
             return cost
-        cost = np.full(X.shape[0], self.penalty + self._from_sse(np.array(self._sse_zero)))
         if stable.all():
             return self._from_sse(self._simulated_sse(X))
+        cost = np.full(X.shape[0], self.penalty + self._from_sse(np.array(self._sse_zero)))
         if stable.any():
             cost[stable] = self._from_sse(self._simulated_sse(X[stable]))
         return cost
