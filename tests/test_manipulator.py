@@ -16,6 +16,7 @@ from flexid.envs import beam
 from flexid.envs._render import Canvas
 from flexid.envs.manipulator import FlexibleManipulatorEnv, FlexibleManipulatorVectorEnv
 from flexid.errors import ActionError, PlantParameterError
+from numerics import EPS, assert_close_to_terms, route_tolerance
 
 ENV_ID = "flexid/FlexibleManipulator-v0"
 SMALL = {"n_sections": 10}  # fast physics for rollout tests
@@ -218,12 +219,21 @@ def test_canvas_primitives():
 
 # ---- vector env ---------------------------------------------------------------------------------
 def _single_rollouts(n_envs, seed, actions, max_steps, options, **kw):
-    """Reference: n single envs seeded seed + i, next-step autoreset done by hand."""
-    obs_all, rew_all, term_all, trunc_all = [], [], [], []
+    """Reference: n single envs seeded seed + i, next-step autoreset done by hand.
+
+    Also returns, per observation, the largest terms ``|C| |x|`` and ``|C| |A| |x|`` its
+    outputs sum in the episode so far, and the outputs themselves (for the rounding bounds of
+    the comparison).
+    """
+    obs_all, rew_all, term_all, trunc_all, terms_all, y_all = [], [], [], [], [], []
     for i in range(n_envs):
         env = FlexibleManipulatorEnv(**kw)
+        model = env._cfg.stepper.model
+        # |C| |x| and |C| |A| |x|: the terms of an output and of its one-step update
+        c_abs = np.vstack([np.abs(model.C), np.abs(model.C) @ np.abs(model.A)])
         obs, _ = env.reset(seed=seed + i, options=options)
         os_, rs, ts, us = [obs], [], [], []
+        terms, ys = [np.abs(env.state) @ c_abs.T], [env._cfg.outputs(env.state)]
         steps, done = 0, False
         for a in actions[:, i]:
             if done:
@@ -238,14 +248,21 @@ def _single_rollouts(n_envs, seed, actions, max_steps, options, **kw):
             rs.append(r)
             ts.append(te)
             us.append(tr)
+            terms.append(np.abs(env.state) @ c_abs.T)
+            ys.append(env._cfg.outputs(env.state))
         obs_all.append(os_)
         rew_all.append(rs)
         term_all.append(ts)
         trunc_all.append(us)
+        terms_all.append(terms)
+        y_all.append(ys)
     t = lambda v: np.swapaxes(np.array(v), 0, 1)  # noqa: E731
-    return t(obs_all), t(rew_all), t(term_all), t(trunc_all)
+    terms = t(terms_all)
+    terms = np.maximum.accumulate(np.maximum(terms[..., :4], terms[..., 4:]), axis=0)
+    return t(obs_all), t(rew_all), t(term_all), t(trunc_all), terms, t(y_all)
 
 
+@pytest.mark.numerics
 def test_vector_env_equals_single_envs_with_autoreset():
     n, seed, steps, max_steps = 4, 11, 220, 100
     kw = {"noise_std": [1e-3, 1e-2, 1e-4, 0.1], "angle_limit": 0.02, "target_range": 0.015,
@@ -269,12 +286,29 @@ def test_vector_env_equals_single_envs_with_autoreset():
         vr.append(r)
         vt.append(te)
         vu.append(tr)
-    ro, rr, rt, ru = _single_rollouts(n, seed, actions, max_steps, options, **kw)
+    ro, rr, rt, ru, terms, y = _single_rollouts(n, seed, actions, max_steps, options, **kw)
     assert np.any(rt) and np.any(ru)  # the episode includes terminations and truncations
     np.testing.assert_array_equal(np.array(vt), rt)
     np.testing.assert_array_equal(np.array(vu), ru)
-    np.testing.assert_allclose(np.array(vo), ro, rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(np.array(vr), rr, rtol=1e-10, atol=1e-14)
+    vo = np.array(vo)
+    # targets and noise draws are the same numbers from the same generators: exact
+    np.testing.assert_array_equal(vo[..., 4], ro[..., 4])
+    # Outputs: the batched and single state updates are two routes through at most max_steps
+    # steps of an n_x-state recursion (an episode restarts from rest), so they differ by at
+    # most max_steps n_x eps times the largest terms so far (tests/numerics.py); adding the same
+    # noise draw rounds each to within eps/2 of the observation.
+    n_x = beam.discrete_model(beam.BeamParameters(payload_mass=0.01, **SMALL)).n_states
+    tol = route_tolerance(n_x, max_steps)
+    delta = tol * terms + EPS * np.abs(ro[..., :4])
+    assert_close_to_terms(vo[..., :4], ro[..., :4], delta, 1.0)
+    # Reward -(w_a e^2 + w_t y_tip^2 + w_u u^2): first order in the output errors above, plus
+    # the rounding of its own three terms.
+    env = FlexibleManipulatorEnv(**kw)
+    w_a, w_t = env._cfg.angle_weight, env._cfg.tip_weight
+    err = np.abs(y[1:, :, 0]) + np.abs(ro[1:, :, 4])
+    bound = 2 * w_a * err * delta[1:, :, 0] + 2 * w_t * np.abs(y[1:, :, 2]) * delta[1:, :, 2]
+    bound += 4 * route_tolerance(3) * np.abs(rr)
+    assert np.all(np.abs(np.array(vr) - rr) <= bound + 1e-300)
 
 
 def test_vector_env_actions_and_errors():

@@ -77,11 +77,15 @@ class CMAES(Optimiser):
         pc = np.zeros(n)
         ps = np.zeros(n)
         B, D = np.eye(n), np.ones(n)
+        sqrt_c = np.eye(n)
         g = 0
         while True:
             g += 1
             Z = rng.standard_normal((lam, n))
-            Y = (Z * D) @ B.T
+            # C^(1/2) = B D B' is unique, unlike B (LAPACK picks the signs and, for repeated
+            # eigenvalues, the basis of eigenvectors), so the samples do not depend on the LAPACK
+            # build; the distribution is the same as that of B D z.
+            Y = Z @ sqrt_c
             Xn = mean + sigma * Y
             Xc = np.clip(Xn, 0.0, 1.0)
             F = yield lo + Xc * width
@@ -104,3 +108,5 @@ class CMAES(Optimiser):
             C = (C + C.T) / 2
             evals, B = np.linalg.eigh(C)
             D = np.sqrt(np.maximum(evals, 1e-300))
+            sqrt_c = (B * D) @ B.T
+            sqrt_c = (sqrt_c + sqrt_c.T) / 2
