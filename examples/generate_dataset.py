@@ -41,6 +41,8 @@ def main(outdir: str = "flexid-data") -> None:
         out / "manipulator_paper_again.csv"
     ).read_bytes()
     print(f"same seed, byte-identical file: {same}")
+    if not same:
+        raise SystemExit("the same seed gave a different file")
 
 
 if __name__ == "__main__":

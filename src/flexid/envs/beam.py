@@ -34,6 +34,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -521,7 +522,30 @@ class BeamModel:
         self.n_states = nx
         for arr in (self.A, self.B):
             arr.setflags(write=False)
-        self._markov = np.zeros((0, 4))
+        self._reset_markov()
+
+    def __getstate__(self) -> dict:
+        # the lock cannot be pickled, and the impulse-response cache is left behind (it can
+        # be large, and the copy recomputes the same values on demand)
+        state = self.__dict__.copy()
+        for key in ("_markov", "_markov_len", "_chunk", "_chunk_step_t", "_markov_lock"):
+            del state[key]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._reset_markov()
+
+    def _reset_markov(self) -> None:
+        # Rows 0.._markov_len-1 of _markov are final; _chunk holds the states of the last
+        # computed chunk, from which the next one is computed (see markov_parameters).  The
+        # lock keeps a model shared between threads consistent.
+        self._markov = np.empty((1, 4))
+        self._markov[0] = self.D[:, 0]
+        self._markov_len = 1
+        self._chunk: np.ndarray | None = None
+        self._chunk_step_t: np.ndarray | None = None
+        self._markov_lock = threading.Lock()
 
     def state_powers(self, x0: np.ndarray, n: int) -> np.ndarray:
         """Return ``A^k x0`` for k = 0..n-1 by repeated doubling (no per-sample loop).
@@ -580,18 +604,71 @@ class BeamModel:
         return out
 
     def markov_parameters(self, n: int) -> np.ndarray:
-        """Impulse response ``h[0] = D``, ``h[k] = C A^(k-1) B`` (k >= 1), shape (n, 4)."""
-        if self._markov.shape[0] < n:
-            size = max(n, 2 * self._markov.shape[0])
-            h = np.empty((size, 4))
-            h[0] = self.D[:, 0]
-            if size > 1:  # C A^j B, j = 0..size-2
-                h[1:] = self.projected_powers(self.B[:, 0], size - 1, self.C)
-            h.setflags(write=False)
-            self._markov = h
-        return self._markov[:n]
+        """Impulse response ``h[0] = D``, ``h[k] = C A^(k-1) B`` (k >= 1), shape (n, 4).
+
+        The result is cached and extended on demand, and every entry is computed by one fixed
+        route whatever ``n`` and whatever was asked before, so the returned values are
+        bit-identical across calls, call orders and processes (on one machine and library
+        set).  ``h[1 + j]`` for ``j`` in chunk ``c``, ``[c L, (c + 1) L)`` with
+        ``L = _MARKOV_CHUNK``, is ``C X_c[j - c L]``, where ``X_0 = [A^i B]`` (i < L) by
+        doubling and ``X_(c+1) = X_c (A^L)^T``: every product has the same shapes for every
+        chunk, since a BLAS product's rounding can depend on its shapes.
+
+        Parameters
+        ----------
+        n : int
+            Number of samples, >= 0.
+
+        Returns
+        -------
+        ndarray, shape (n, 4)
+            Read-only.
+        """
+        with self._markov_lock:
+            if self._markov_len < n:
+                self._extend_markov(n)
+            h = self._markov[:n]
+        h.setflags(write=False)
+        return h
+
+    def _extend_markov(self, n: int) -> None:
+        """Compute the chunks of the impulse response up to sample ``n`` (caller holds lock)."""
+        size = _MARKOV_CHUNK
+        have = (self._markov_len - 1) // size
+        need = -(-(n - 1) // size)
+        rows = 1 + need * size
+        if rows > self._markov.shape[0]:
+            # room for twice the chunks held so far: a record growing a chunk at a time does
+            # not copy the cache each time (the extra rows are filled only when asked for)
+            capacity = 1 + max(need, 2 * have) * size
+            grown = np.empty((capacity, 4))
+            grown[: self._markov_len] = self._markov[: self._markov_len]
+            self._markov = grown
+        c_t = np.asarray(self.C).T
+        for chunk in range(have, need):
+            if chunk == 0:
+                states, step = self._first_chunk(size)
+                self._chunk_step_t = np.ascontiguousarray(step.T)
+            else:
+                states = self._chunk @ self._chunk_step_t
+            self._chunk = states
+            self._markov[1 + chunk * size : 1 + (chunk + 1) * size] = states @ c_t
+        self._markov_len = rows
+
+    def _first_chunk(self, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """``A^i B`` for i < ``size`` (a power of two) by doubling, and ``A^size``."""
+        out = np.empty((size, self.n_states))
+        out[0] = self.B[:, 0]
+        power = np.asarray(self.A)  # A^filled
+        filled = 1
+        while filled < size:
+            out[filled : 2 * filled] = out[:filled] @ power.T
+            power = power @ power
+            filled *= 2
+        return out, power
 
 
+_MARKOV_CHUNK = 512  # impulse-response samples per chunk: a power of two (BeamModel._first_chunk)
 _BLOCK_ELEMENTS = 1 << 21  # states held at once by BeamModel.projected_powers (16 MB)
 
 
