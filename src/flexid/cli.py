@@ -89,6 +89,12 @@ def _columns(text: str | None) -> Any:
     return items
 
 
+def _check_positive(value: int | None, option: str) -> None:
+    """An integer option that must be >= 1, named as the user typed it."""
+    if value is not None and value < 1:
+        raise ConfigError(f"{option} must be a positive integer, got {value}")
+
+
 def _bounds(text: str) -> Any:
     if text == "auto":
         return "auto"
@@ -109,6 +115,11 @@ def _bounds(text: str) -> Any:
 def _cmd_generate(args: argparse.Namespace) -> int:
     from .datasets import generate
 
+    path = Path(args.output)  # checked before the (possibly long) simulation
+    if path.suffix.lower() not in (".csv", ".npz"):
+        raise ConfigError(f"--output must end in .csv or .npz, got {args.output!r}")
+    if path.is_dir():
+        raise ConfigError(f"--output {args.output!r} is a folder; give a .csv or .npz file name")
     options: dict[str, Any] = {"seed": args.seed}
     if args.preset:
         options["preset"] = args.preset
@@ -129,9 +140,6 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     if plant_params:
         options["plant_params"] = plant_params
     data = generate(args.plant, **options)
-    path = Path(args.output)
-    if path.suffix.lower() not in (".csv", ".npz"):
-        raise ConfigError(f"--output must end in .csv or .npz, got {args.output!r}")
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
     data.save(path)
@@ -142,6 +150,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 def _cmd_identify(args: argparse.Namespace) -> int:
     from .identify import identify
 
+    _check_positive(args.budget, "--budget")
+    _check_positive(args.iterations, "--iterations")
     load_options: dict[str, Any] = {}
     if args.inputs is not None:
         load_options["inputs"] = _columns(args.inputs)
@@ -217,9 +227,12 @@ def _identify_progress(args: argparse.Namespace):
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import compare
+    from .compare import check_spec, compare
     from .config import default_spec, load_config
 
+    _check_positive(args.budget, "--budget")
+    _check_positive(args.runs, "--runs")
+    _check_positive(args.workers, "--workers")
     overrides = {
         "runs": args.runs,
         "budget": args.budget,
@@ -253,6 +266,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 predictor=args.predictor,
             )
         ]
+    if len(specs) > 1:  # compare() checks its own spec before it opens the store; check the
+        for spec in specs:  # others too before the first comparison writes anything
+            check_spec(spec)
     store = Path(args.store) if args.store else DEFAULT_OUT / "results.sqlite"
     outputs = []
     for spec in specs:
@@ -267,8 +283,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         outputs.append(result)
         if not args.json:
             print(result.summary())
+            n_runs = sum(len(runs) for runs in result.records.values())
             print(
-                f"\n{result.spec.runs * len(result.spec.optimisers)} runs in store {store} "
+                f"\n{n_runs} optimiser run{'' if n_runs == 1 else 's'} "
+                f"(+ 1 least-squares reference) in store {store} "
                 f"({result.elapsed:.1f} s this time)"
             )
         if not args.no_figures:

@@ -33,9 +33,10 @@ from .objective import ARXCost
 from .optimisers import Budget, Problem, get, minimize
 from .statistics import rank_sum_against_best, summarise
 from .store import ResultStore
+from .validation import format_fit as _fit
 from .validation import validate
 
-__all__ = ["ComparisonResult", "build_data", "compare", "run_seed"]
+__all__ = ["ComparisonResult", "build_data", "check_spec", "compare", "run_seed"]
 
 LS_LABEL = "ls"
 
@@ -457,13 +458,6 @@ def _f(value: float) -> str:
     return f"{value:.5g}"
 
 
-def _fit(value: float | None) -> str:
-    """A fit % for a table: diverged (unstable) simulations show as '< -999'."""
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "-"
-    return "< -999" if value < -999 else f"{value:.2f}"
-
-
 def _p(value: float | None) -> str:
     if value is None or math.isnan(value):
         return "-"
@@ -498,10 +492,14 @@ def _json_safe(value: Any) -> Any:
 
 
 # ================================================================================ compare
-def _check_optimisers(spec: ComparisonSpec, store: ResultStore | None, key: str) -> None:
-    """Fail early on unknown optimisers or hyper-parameters, and on reused labels."""
+def _check_optimisers(spec: ComparisonSpec) -> None:
+    """Fail early on unknown optimisers or hyper-parameters."""
     for opt in spec.optimisers:
         get(opt.name)(**opt.params)
+
+
+def _check_labels(spec: ComparisonSpec, store: ResultStore | None, key: str) -> None:
+    """Fail early on a label stored for this comparison with other settings."""
     if store is None:
         return
     stored = {}
@@ -514,6 +512,24 @@ def _check_optimisers(spec: ComparisonSpec, store: ResultStore | None, key: str)
                 f"label {opt.display!r} is stored for this comparison with other settings; "
                 "give the new settings another label or use another store"
             )
+
+
+def _checked_context(spec: ComparisonSpec) -> _Context:
+    """The shared context of a valid specification; raises before anything is written."""
+    _check_optimisers(spec)
+    return _Context.from_spec(spec)
+
+
+def check_spec(spec: ComparisonSpec) -> None:
+    """Raise if ``spec`` cannot run: unknown optimisers or hyper-parameters, a bad plant,
+    data file, orders, cost or bounds.  Nothing is run or written (the record is built, then
+    dropped); :func:`compare` does the same check before it opens the store.
+
+    Raises
+    ------
+    ConfigError, UnknownOptimiserError, HyperParameterError, DataError, ModelOrderError
+    """
+    _checked_context(spec)
 
 
 def compare(
@@ -550,17 +566,18 @@ def compare(
     Raises
     ------
     ConfigError, UnknownOptimiserError, HyperParameterError, DataError, StoreError
-        Before any run starts, for an invalid specification.
+        Before any run starts, for an invalid specification (and before the store is
+        opened, so an invalid specification leaves no file behind).
     """
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ConfigError(f"workers must be a positive integer, got {workers!r}")
     t0 = time.perf_counter()
+    ctx = _checked_context(spec)  # the whole specification, before the store is opened
     owns_store = store is not None and not isinstance(store, ResultStore)
     db = ResultStore(store) if owns_store else store
     key = spec.key
     try:
-        _check_optimisers(spec, db, key)
-        ctx = _Context.from_spec(spec)
+        _check_labels(spec, db, key)
         records: list[dict[str, Any]] = []
         done: set[tuple[str, int]] = set()
         if db is not None:

@@ -765,9 +765,11 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
     Raises
     ------
     DataFileError
-        For an unknown suffix, a missing or malformed file.
+        For a folder, an unknown suffix, a missing or malformed file.
     """
     path = Path(path)
+    if path.is_dir():
+        raise DataFileError(f"{path}: is a folder, not a data file (.csv, .npz or .dat)")
     suffix = path.suffix.lower()
     if suffix == ".csv":
         return IOData.from_csv(path, **options)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .arx import ARX, ARXStructure
 from .data import IOData, load
-from .errors import ConfigError, DataError, ModelOrderError
+from .errors import BudgetError, ConfigError, DataError, ModelOrderError
 from .objective import ARXCost
 from .optimisers import Budget, History, Problem, minimize
 from .validation import ValidationReport, validate
@@ -432,6 +432,8 @@ def identify(
         For bad data, files, orders, names, hyper-parameters, budgets or bounds.
     """
     t_start = time.perf_counter()
+    if optimiser != LEAST_SQUARES:
+        budget = _budget(budget)
     est, val = prepare_data(
         data,
         output=output,
@@ -511,6 +513,20 @@ def identify(
         },
         data_info=info,
     )
+
+
+def _budget(budget: Budget | int | Mapping[str, Any]) -> Budget:
+    """The budget, checked before any work; errors name the ``budget`` argument."""
+    try:
+        return Budget.coerce(budget)
+    except BudgetError as exc:
+        if isinstance(budget, Mapping):
+            raise BudgetError(f"budget: {exc}") from None
+        if "budget" in str(exc):
+            raise
+        raise BudgetError(
+            f"budget must be a positive integer (function evaluations), got {budget!r}"
+        ) from None
 
 
 def _name_model(model: ARX, data: IOData) -> None:

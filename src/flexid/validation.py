@@ -100,6 +100,7 @@ __all__ = [
     "correlation_test",
     "error_range",
     "fit_percent",
+    "format_fit",
     "max_outside_allowed",
     "psd",
     "residual_tests",
@@ -185,6 +186,17 @@ def fit_percent(y: Any, yhat: Any) -> float:
     if scale == 0.0:
         raise DataError("fit % is undefined for a constant measured output (||y - mean|| = 0)")
     return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / scale))
+
+
+def format_fit(value: float | None) -> str:
+    """A fit % for display: two decimals; ``"< -999"`` below -999 % (an unstable model's free
+    run gives -inf or a number with a hundred digits); ``"-"`` when missing (None or NaN).
+
+    The one fit formatter of the summaries, the comparison tables and the command line.
+    """
+    if value is None or math.isnan(value):
+        return "-"
+    return "< -999" if value < -999 else f"{value:.2f}"
 
 
 def rmse(y: Any, yhat: Any) -> float:
@@ -867,8 +879,8 @@ class ValidationReport:
             f"over t >= {self.start} ({n_eval} samples)",
             "",
             "Fit (NRMSE %)",
-            f"  one-step prediction    {self.fit_one_step:9.2f} %",
-            f"  simulation (free run)  {self.fit_simulation:9.2f} %   ({rule})"
+            f"  one-step prediction    {format_fit(self.fit_one_step):>9} %",
+            f"  simulation (free run)  {format_fit(self.fit_simulation):>9} %   ({rule})"
             + ("  DIVERGED: the unstable free run overflowed" if self.simulation_diverged else ""),
             "",
             "Errors y - yhat",
