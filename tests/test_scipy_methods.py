@@ -66,7 +66,8 @@ def test_first_run_matches_plain_scipy(method, start):
         return rosenbrock(X)
 
     x0 = np.array([0.5, -0.3, 1.2, 0.1, -1.0])
-    p = Problem(f, -2 * np.ones(N), 2 * np.ones(N), x0=x0)
+    lo, width = -2 * np.ones(N), 4 * np.ones(N)
+    p = Problem(f, lo, lo + width, x0=x0)
     r = minimize("scipy", p, budget=300, seed=0,
                  params={"method": method, "start": start, "restarts": False})
     if start == "best-initial":
@@ -75,12 +76,15 @@ def test_first_run_matches_plain_scipy(method, start):
         x0 = X0[np.argmin(rosenbrock(X0))]
     ref = []
 
-    def g(x):
-        ref.append(np.clip(x, -2, 2))
-        return float(rosenbrock(np.clip(x, -2, 2)[None])[0])
+    # scipy runs in the unit box the driver hands every optimiser; the points it evaluates
+    # are mapped to the problem's box by the same expression, hence the same bits
+    def g(z):
+        x = lo + np.clip(z, 0, 1) * width
+        ref.append(x)
+        return float(rosenbrock(x[None])[0])
 
-    bounds = optimize.Bounds(-2 * np.ones(N), 2 * np.ones(N))
-    res = optimize.minimize(g, x0, method=method, bounds=bounds)
+    bounds = optimize.Bounds(np.zeros(N), np.ones(N))
+    res = optimize.minimize(g, (x0 - lo) / width, method=method, bounds=bounds)
     ours = np.concatenate(seen)
     assert all(len(X) == 1 for X in seen)
     k = min(len(ours), len(ref))
@@ -102,21 +106,22 @@ def test_lbfgsb_matches_scipy_with_same_gradient():
     lo, hi = -2 * np.ones(N), 2 * np.ones(N)
     p = Problem(f, lo, hi)
     r = minimize("l-bfgs-b", p, budget=50_000, seed=0, params={"restarts": False})
-    x0 = Problem(f, lo, hi).initial_population(1, np.random.SeedSequence(0).spawn(2)[0])[0]
+    z0 = Problem(f, lo, hi).initial_unit(1, np.random.SeedSequence(0).spawn(2)[0])[0]
 
-    def fg(x):
-        x = np.clip(x, lo, hi)
-        h = 1e-7 * np.maximum(np.abs(x), 4e-3)
-        h = np.where(x + h > hi, -h, h)
-        F = rosenbrock(np.vstack([x, x + np.diag(h)]))
+    # in the unit box the driver hands the optimiser (box width 1)
+    def fg(z):
+        z = np.clip(z, 0, 1)
+        h = 1e-7 * np.maximum(np.abs(z), 1e-3)
+        h = np.where(z + h > 1, -h, h)
+        F = rosenbrock(lo + np.vstack([z, z + np.diag(h)]) * (hi - lo))
         return F[0], (F[1:] - F[0]) / h
 
-    res = optimize.minimize(fg, x0, jac=True, method="L-BFGS-B",
-                            bounds=optimize.Bounds(lo, hi))
+    res = optimize.minimize(fg, z0, jac=True, method="L-BFGS-B",
+                            bounds=optimize.Bounds(np.zeros(N), np.ones(N)))
     assert r.stop == "converged" and r.nfev == res.nfev * (N + 1)
     # flexid's best also counts the difference points, so it may be slightly lower
     assert r.fun <= res.fun and r.fun == pytest.approx(res.fun, rel=1e-2)
-    assert res.fun < 1e-8
+    assert res.fun < 1e-7  # scipy's own convergence (FACTR) on this start
 
 
 def test_lbfgsb_gradient_is_one_batch_of_n_plus_1():

@@ -12,7 +12,12 @@ that must be the same for every algorithm:
   callbacks and the stop rules (FE budget, iterations, target cost, wall time);
 * the **initial population**, which depends only on the problem and the seed, so every
   optimiser given the same seed starts from the same points (a smaller population is the
-  first rows of a larger one).
+  first rows of a larger one);
+* the **scale**: an optimiser searches the unit box ``[0, 1]^n`` and the driver maps each
+  point to the problem's box, ``x = lower + z (upper - lower)``, before evaluating it.  A
+  hyper-parameter that is a length (a step size, a radius, a velocity limit, a mutation
+  width) is therefore a fraction of each side of the box, and a run visits the same
+  normalised points on a box of width 0.01 as on one of width 100.
 
 The generator protocol gives an ask/tell interface for free (:class:`AskTell`).
 """
@@ -130,6 +135,10 @@ class Problem:
         Start point for single-point methods; default: the first initial point.
     name : str, optional
         Free label recorded in results.
+    sampler : callable, optional
+        ``sampler(size, rng) -> X`` of shape ``(size, n)`` inside the box: the initial
+        population drawn from a ``numpy.random.Generator`` (default: uniform in the box).  It
+        must draw row by row, so that a smaller population is the first rows of a larger one.
 
     Raises
     ------
@@ -145,6 +154,7 @@ class Problem:
         *,
         x0: Any = None,
         name: str = "",
+        sampler: Callable[[int, np.random.Generator], np.ndarray] | None = None,
     ) -> None:
         if not callable(objective):
             raise OptimiserError("objective must be callable: objective(X[(P, n)]) -> F[(P,)]")
@@ -173,8 +183,13 @@ class Problem:
         self.objective = objective
         self.lower = lower
         self.upper = upper
+        if sampler is not None and not callable(sampler):
+            raise OptimiserError("sampler must be callable: sampler(size, rng) -> X[(size, n)]")
         self.x0 = x0
         self.name = name
+        self.sampler = sampler
+        self.width = upper - lower
+        self.width.setflags(write=False)
 
     @property
     def dim(self) -> int:
@@ -182,57 +197,93 @@ class Problem:
         return self.lower.size
 
     def initial_population(self, size: int, seed: Any = None) -> np.ndarray:
-        """``size`` points uniform in the box, shape ``(size, n)``.
+        """``size`` initial points in the box, shape ``(size, n)``.
 
-        The points depend only on the box and ``seed`` (an int or a
-        ``numpy.random.SeedSequence``), and the first ``k`` rows of a population of size
-        ``m >= k`` equal the population of size ``k``.
+        Uniform in the box unless the problem has a ``sampler``.  The points depend only on
+        the problem and ``seed`` (an int or a ``numpy.random.SeedSequence``), and the first
+        ``k`` rows of a population of size ``m >= k`` equal the population of size ``k``.
         """
+        return self.from_unit(self.initial_unit(size, seed))
+
+    def initial_unit(self, size: int, seed: Any = None) -> np.ndarray:
+        """The initial population in the unit box, shape ``(size, n)``."""
         rng = np.random.default_rng(seed)
-        return self.lower + (self.upper - self.lower) * rng.random((int(size), self.dim))
+        if self.sampler is None:
+            return rng.random((int(size), self.dim))
+        X = np.asarray(self.sampler(int(size), rng), dtype=float)
+        if X.shape != (int(size), self.dim) or not np.all(np.isfinite(X)):
+            raise OptimiserError(
+                f"sampler returned shape {X.shape} (or non-finite points) for {size} points; "
+                f"expected ({size}, {self.dim})"
+            )
+        return np.clip((X - self.lower) / self.width, 0.0, 1.0)
+
+    def from_unit(self, Z: np.ndarray) -> np.ndarray:
+        """Points ``lower + Z (upper - lower)`` of the box for points ``Z`` of the unit box."""
+        return self.lower + Z * self.width
+
+    def to_unit(self, X: np.ndarray) -> np.ndarray:
+        """Points of the unit box for points ``X`` of the box (the inverse of ``from_unit``)."""
+        return (np.asarray(X, dtype=float) - self.lower) / self.width
 
     def __repr__(self) -> str:
         label = f"{self.name!r}, " if self.name else ""
         return f"Problem({label}n={self.dim})"
 
 
+_UNIT_CACHE: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _unit_box(n: int) -> tuple[np.ndarray, np.ndarray]:
+    if n not in _UNIT_CACHE:
+        lower, upper = np.zeros(n), np.ones(n)
+        lower.setflags(write=False)
+        upper.setflags(write=False)
+        _UNIT_CACHE[n] = (lower, upper)
+    return _UNIT_CACHE[n]
+
+
 class SearchSpace:
     """What an optimiser's :meth:`~Optimiser.search` sees of a problem during one run.
 
-    It never exposes the objective: optimisers only *yield* points to evaluate.
+    It never exposes the objective: optimisers only *yield* points to evaluate.  The space
+    is the unit box ``[0, 1]^n``; the driver maps the yielded points to the problem's box.
 
     Attributes
     ----------
     lower, upper : ndarray, shape (n,)
-        The box.
+        The unit box (zeros and ones).
     dim : int
         ``n``.
     x0 : ndarray, shape (n,)
-        The start point for single-point methods.
+        The start point for single-point methods (in the unit box).
     """
 
     def __init__(self, problem: Problem, init_seed: np.random.SeedSequence, run: _Run) -> None:
         self._problem = problem
         self._init_seed = init_seed
         self._run = run
-        self.lower = problem.lower
-        self.upper = problem.upper
+        self.lower, self.upper = _unit_box(problem.dim)
         self.dim = problem.dim
-        self.x0 = problem.x0 if problem.x0 is not None else self.initial_population(1)[0]
+        self.x0 = (
+            np.clip(problem.to_unit(problem.x0), 0.0, 1.0)
+            if problem.x0 is not None
+            else self.initial_population(1)[0]
+        )
 
     def initial_population(self, size: int) -> np.ndarray:
-        """The shared initial population of this run, shape ``(size, n)`` (fresh copy)."""
+        """The shared initial population of this run in the unit box, shape ``(size, n)``."""
         if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
             raise OptimiserError(f"population size must be a positive integer, got {size!r}")
-        return self._problem.initial_population(size, self._init_seed)
+        return self._problem.initial_unit(size, self._init_seed)
 
     def uniform(self, size: int, rng: np.random.Generator) -> np.ndarray:
         """``size`` fresh points uniform in the box drawn from ``rng``, shape ``(size, n)``."""
-        return self.lower + (self.upper - self.lower) * rng.random((int(size), self.dim))
+        return rng.random((int(size), self.dim))
 
     def clip(self, X: np.ndarray) -> np.ndarray:
         """``X`` clipped to the box (a new array)."""
-        return np.clip(X, self.lower, self.upper)
+        return np.clip(X, 0.0, 1.0)
 
     def end_iteration(self, phase: str) -> None:
         """Mark the end of one iteration of the algorithm in phase ``phase``.
@@ -598,7 +649,7 @@ class _Run:
         self.nit = 0
         self.batches = 0
         self.best_f = math.inf
-        self.best_x = self.space.x0.copy()
+        self.best_x = problem.from_unit(self.space.x0)
         self.history = History()
         self.stop_message: str | None = None
         self.stop_reason: str | None = None
@@ -805,7 +856,7 @@ def minimize(
         while True:
             X = run.check_population(X)
             full = X.shape[0]
-            X = run.truncate(X)
+            X = problem.from_unit(run.truncate(X))
             F = run.absorb(X, run.evaluate(X), full)
             if run.stop_reason is not None:
                 break
@@ -827,7 +878,8 @@ class AskTell:
     optimiser : Optimiser or str
         An instance or a registry name.
     problem : Problem
-        Only its box, ``x0`` and initial population are used: the caller evaluates.
+        Only its box, ``x0`` and initial population are used: the caller evaluates the
+        points :meth:`ask` returns, which are in the problem's box.
     budget : Budget, int or mapping, optional
         Stop rules; default: no FE limit (``max_time`` of one year).
     seed : int, optional
@@ -876,7 +928,7 @@ class AskTell:
         self._started = True
         X = self._run.check_population(X)
         self._full = X.shape[0]
-        self._pending = self._run.truncate(X)
+        self._pending = self._run.problem.from_unit(self._run.truncate(X))
         return self._pending.copy()
 
     def tell(self, F: Any) -> None:
