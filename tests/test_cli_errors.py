@@ -231,9 +231,10 @@ def test_validation_summary_prints_a_huge_negative_fit_as_below_floor():
 
 
 def test_identify_summary_and_cli_print_a_diverged_fit_as_below_floor(tmp_path, capsys):
-    """Every candidate in the box [1.6, 1.7] has its pole at about -1.65: unstable."""
+    """In the paper's coefficient box [1.6, 1.7] every pole is at about -1.65: unstable."""
     path = _record(tmp_path / "rec.csv")
-    args = dict(optimiser="random-search", bounds=(1.6, 1.7), budget=50, seed=0)
+    args = dict(optimiser="random-search", bounds=(1.6, 1.7), budget=50, seed=0,
+                parametrisation="coefficients", penalty_kind="flat", init="uniform")
     ident = identify(path, 1, 1, **args)
     assert ident.validation.fit_simulation < -1e20
     text = ident.summary()
@@ -242,6 +243,7 @@ def test_identify_summary_and_cli_print_a_diverged_fit_as_below_floor(tmp_path, 
     argv = [
         "identify", path, "--na", "1", "--nb", "1", "--optimiser", "random-search",
         "--bounds", "1.6,1.7", "--budget", "50", "--no-progress",
+        "--parametrisation", "coefficients", "--penalty", "flat", "--init", "uniform",
     ]  # fmt: skip
     status, out, err = _run(argv, capsys)
     assert status == 0, err

@@ -186,6 +186,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         detrend=args.detrend,
         max_lag=args.max_lag,
         load_options=load_options,
+        parametrisation=args.parametrisation,
+        penalty_kind=args.penalty,
+        init=args.init,
         callback=_identify_progress(args),
     )
     if args.figures:
@@ -210,7 +213,7 @@ def _json_default(value: Any) -> Any:
 
 
 def _identify_progress(args: argparse.Namespace):
-    if args.json or args.no_progress or args.optimiser == "ls" or not sys.stderr.isatty():
+    if args.json or args.no_progress or args.optimiser in ("ls", "oe") or not sys.stderr.isatty():
         return None
     from .progress import ProgressBar
 
@@ -226,9 +229,25 @@ def _identify_progress(args: argparse.Namespace):
     return callback
 
 
+def _search_overrides(args: argparse.Namespace) -> dict[str, str]:
+    given = {"parametrisation": args.parametrisation, "penalty": args.penalty, "init": args.init}
+    return {k: v for k, v in given.items() if v is not None}
+
+
+def _add_search_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--parametrisation",
+        help="search space: poles (default) | reflection | coefficients (the paper's box)",
+    )
+    p.add_argument(
+        "--penalty", help="stability penalty in the coefficient space: graded (default) | flat"
+    )
+    p.add_argument("--init", help="initial population in the coefficient space: stable | uniform")
+
+
 def _cmd_compare(args: argparse.Namespace) -> int:
     from .compare import check_spec, compare
-    from .config import default_spec, load_config
+    from .config import SearchSpec, default_spec, load_config
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.runs, "--runs")
@@ -249,7 +268,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             from .config import OptimiserSpec
 
             changes["optimisers"] = tuple(OptimiserSpec(n) for n in _names(args.optimisers))
-        specs = [replace(s, **changes) for s in specs]
+        search = _search_overrides(args)
+        specs = [
+            replace(s, **{**changes, **({"search": replace(s.search, **search)} if search else {})})
+            for s in specs
+        ]
     else:
         budget: Any = args.budget if args.budget is not None else 10_000
         specs = [
@@ -264,6 +287,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 nk=_int_list(args.nk, "--nk") if args.nk is not None else 1,
                 metric=args.cost,
                 predictor=args.predictor,
+                search=SearchSpec(**_search_overrides(args)),
             )
         ]
     if len(specs) > 1:  # compare() checks its own spec before it opens the store; check the
@@ -406,7 +430,9 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--nb", help="B coefficients per input (default: na)")
     i.add_argument("--nk", help="input delay in samples per input (default 1)")
     i.add_argument(
-        "--optimiser", default="hbcsd", help="registered optimiser or 'ls' (default hbcsd)"
+        "--optimiser",
+        default="hbcsd",
+        help="registered optimiser, 'ls' (least squares) or 'oe' (output-error reference)",
     )
     i.add_argument(
         "--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter"
@@ -414,6 +440,7 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--cost", default="paper", help="paper | rmse | nrmse | sse | mse")
     i.add_argument("--predictor", default="one-step", help="one-step | simulation")
     i.add_argument("--bounds", default="auto", help="auto, a half-width S, or LOW,HIGH")
+    _add_search_options(i)
     i.add_argument(
         "--budget", type=int, default=20_000, help="function evaluations (default 20000)"
     )
@@ -443,6 +470,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--nk", help="input delay (built-in comparison)")
     c.add_argument("--cost", default="paper", help="paper | rmse | nrmse | sse | mse")
     c.add_argument("--predictor", default="one-step", help="one-step | simulation")
+    _add_search_options(c)
     c.add_argument("--store", help=f"SQLite result store (default {DEFAULT_OUT}/results.sqlite)")
     c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
     c.add_argument("--scheduler", help="dask.distributed scheduler address")

@@ -57,11 +57,13 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = [
     "DEFAULT_OPTIMISERS",
+    "PAPER_SEARCH",
     "ComparisonSpec",
     "CostSpec",
     "DataSpec",
     "ModelSpec",
     "OptimiserSpec",
+    "SearchSpec",
     "default_spec",
     "load_config",
 ]
@@ -130,6 +132,42 @@ class CostSpec:
 
 
 @dataclass(frozen=True)
+class SearchSpec:
+    """How the search space is posed (see :func:`flexid.estimation.build_problem`).
+
+    Attributes
+    ----------
+    parametrisation : {"poles", "reflection", "coefficients"}
+        ``"coefficients"`` is the paper's ``a, b`` box; ``"poles"`` (default) searches pole
+        pairs (radius, angle) and ``"reflection"`` lattice coefficients, both stable by
+        construction.
+    penalty : {"graded", "flat"}
+        Stability penalty of an unstable candidate (only the coefficient space has any):
+        ``"flat"`` is the paper's constant, ``"graded"`` grows with the largest pole radius.
+    init : {"stable", "uniform"}
+        Initial population of the coefficient space: stable denominators (drawn in the pole
+        space) or uniform in the box (the paper's).  The other spaces are uniform in their
+        own box, all stable.
+    r_max : float
+        Largest pole radius of the ``"poles"`` space and of stable initial populations.
+    real_pairs : int
+        Pole pairs searched as two real poles instead of a complex pair.
+    k_max : float
+        Bound of the reflection coefficients.
+    """
+
+    parametrisation: str = "poles"
+    penalty: str = "graded"
+    init: str = "stable"
+    r_max: float = 0.9999
+    real_pairs: int = 0
+    k_max: float = 0.9999
+
+
+PAPER_SEARCH = SearchSpec(parametrisation="coefficients", penalty="flat", init="uniform")
+
+
+@dataclass(frozen=True)
 class OptimiserSpec:
     """A registered optimiser, its hyper-parameters and the label it has in tables."""
 
@@ -161,6 +199,7 @@ class ComparisonSpec:
     )
     model: ModelSpec = field(default_factory=ModelSpec)
     cost: CostSpec = field(default_factory=CostSpec)
+    search: SearchSpec = field(default_factory=SearchSpec)
     bounds: Any = "auto"
     optimisers: tuple[OptimiserSpec, ...] = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
     runs: int = 10
@@ -199,6 +238,7 @@ class ComparisonSpec:
             "data": asdict(self.data),
             "model": asdict(self.model),
             "cost": asdict(self.cost),
+            "search": asdict(self.search),
             "bounds": self.bounds,
             "seed": self.seed,
             "budget": self.budget,
@@ -224,6 +264,7 @@ class ComparisonSpec:
         d["data"] = DataSpec(**d["data"])
         d["model"] = ModelSpec(**d["model"])
         d["cost"] = CostSpec(**d["cost"])
+        d["search"] = SearchSpec(**d.get("search", {}))
         d["optimisers"] = tuple(OptimiserSpec(**o) for o in d["optimisers"])
         d["targets"] = tuple(d["targets"])
         return cls(**d)
@@ -252,6 +293,7 @@ def _take(table: Mapping[str, Any], allowed: Sequence[str], section: str) -> dic
 _DATA_KEYS = tuple(DataSpec.__dataclass_fields__)
 _MODEL_KEYS = tuple(ModelSpec.__dataclass_fields__)
 _COST_KEYS = tuple(CostSpec.__dataclass_fields__)
+_SEARCH_KEYS = tuple(SearchSpec.__dataclass_fields__)
 _RUN_KEYS = ("runs", "seed", "budget", "schedule_cap", "targets")
 _TOP_KEYS = (
     "name",
@@ -308,7 +350,11 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         cost = CostSpec(**_take(top.get("cost", {}), _COST_KEYS, "cost"))
     except TypeError as exc:
         raise ConfigError(f"{source}: {exc}") from None
-    search = _take(top.get("search", {}), ("bounds",), "search")
+    search = _take(top.get("search", {}), ("bounds", *_SEARCH_KEYS), "search")
+    try:
+        search_spec = SearchSpec(**{k: v for k, v in search.items() if k != "bounds"})
+    except TypeError as exc:
+        raise ConfigError(f"{source}: {exc}") from None
     run = _take(top.get("run", {}), _RUN_KEYS, "run")
     validation = _take(top.get("validation", {}), ("max_lag",), "validation")
     if "optimisers" in top:
@@ -328,6 +374,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         "data": data,
         "model": model,
         "cost": cost,
+        "search": search_spec,
         "bounds": bounds,
         "max_lag": validation.get("max_lag", 25),
     }
@@ -408,6 +455,7 @@ def default_spec(
     nk: Any = 1,
     metric: str = "paper",
     predictor: str = "one-step",
+    search: SearchSpec | None = None,
 ) -> ComparisonSpec:
     """The built-in comparison: the paper's experiment on a simulated plant, small by default.
 
@@ -425,8 +473,9 @@ def default_spec(
     return ComparisonSpec(
         name=f"{plant}-default",
         data=DataSpec(plant=plant, preset=preset, seed=0),
-        model=ModelSpec(na=na, nb=nb if nb is not None else na, nk=nk),
+        model=ModelSpec(na=na, nb=nb, nk=nk),
         cost=CostSpec(metric=metric, predictor=predictor),
+        search=search or SearchSpec(),
         optimisers=tuple(OptimiserSpec(n) for n in names),
         runs=runs,
         seed=seed,

@@ -13,21 +13,25 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from .arx import ARX, ARXStructure
+from .config import CostSpec, SearchSpec
 from .data import IOData, load
-from .errors import BudgetError, ConfigError, DataError, ModelOrderError
+from .errors import BudgetError, ConfigError, DataError
+from .estimation import build_problem, check_search, model_structure
 from .objective import ARXCost
-from .optimisers import Budget, History, Problem, minimize
+from .optimisers import Budget, History, minimize
+from .output_error import output_error
 from .validation import ValidationReport, validate
 
 __all__ = ["Identification", "SearchBox", "identify", "prepare_data", "search_box"]
 
 LEAST_SQUARES = "ls"
+OUTPUT_ERROR = "oe"
 
 
 # ================================================================================ search box
@@ -255,6 +259,8 @@ class Identification:
     seed: int | None
     timings: dict = field(default_factory=dict)
     data_info: dict = field(default_factory=dict)
+    search: dict = field(default_factory=dict)
+    output_error: Any = None
 
     @property
     def history(self) -> History | None:
@@ -263,7 +269,9 @@ class Identification:
 
     @property
     def nfev(self) -> int:
-        """Function evaluations used (0 for least squares)."""
+        """Function evaluations used (0 for least squares; simulations for ``"oe"``)."""
+        if self.output_error is not None:
+            return int(self.output_error.nfev_equivalent)
         return 0 if self.result is None else int(self.result.nfev)
 
     def summary(self) -> str:
@@ -276,6 +284,14 @@ class Identification:
             f"  cost        : {self.cost.describe()}",
             f"  search box  : {self.box.rule}",
         ]
+        if self.search:
+            lines.append(f"  search space: {self.search.get('description', '')}")
+        if self.output_error is not None:
+            oe = self.output_error
+            lines.append(
+                f"  search      : Levenberg-Marquardt from {len(oe.starts)} starts, "
+                f"{oe.nfev} residual + {oe.njev} Jacobian evaluations"
+            )
         if self.result is not None:
             lines.append(
                 f"  search      : {self.result.nfev} FE, {self.result.nit} iterations, "
@@ -317,6 +333,7 @@ class Identification:
                 "least_squares": _num(self.cost_ls),
             },
             "search": {
+                "space": _plain(self.search),
                 "box": self.box.to_dict(),
                 "nfev": self.nfev,
                 "nit": 0 if self.result is None else int(self.result.nit),
@@ -374,6 +391,10 @@ def identify(
     weight: float = 1e3,
     penalty: float = 1e9,
     initial: str = "measured",
+    parametrisation: str | None = None,
+    penalty_kind: str | None = None,
+    init: str | None = None,
+    search: SearchSpec | None = None,
     callback: Callable | None = None,
     load_options: Mapping[str, Any] | None = None,
 ) -> Identification:
@@ -387,8 +408,10 @@ def identify(
         Orders and delay in MATLAB's convention (``nb`` defaults to ``na``; one ``nb``/``nk``
         per input for several inputs).
     optimiser : str
-        A registered optimiser name (``flexid list optimisers``) or ``"ls"`` for least
-        squares, the exact optimum of the one-step cost.
+        A registered optimiser name (``flexid list optimisers``), ``"ls"`` for least
+        squares (the exact optimum of the one-step cost) or ``"oe"`` for the output-error
+        reference of the simulation cost (Levenberg-Marquardt from least squares and a few
+        stable starts, as MATLAB's ``oe``; see :func:`flexid.output_error.output_error`).
     params : mapping, optional
         The optimiser's hyper-parameters.
     cost : str
@@ -416,6 +439,15 @@ def identify(
         Gain ``w`` and stability penalty of the paper cost.
     initial : str
         Initial conditions of the simulation predictor: ``"measured"`` or ``"zero"``.
+    parametrisation : {"poles", "reflection", "coefficients"}, optional
+        The search space (default ``"poles"``; ``"coefficients"`` is the paper's box).
+    penalty_kind : {"graded", "flat"}, optional
+        Stability penalty in the coefficient space (default ``"graded"``; ``"flat"`` is the
+        paper's constant ``penalty``).
+    init : {"stable", "uniform"}, optional
+        Initial population in the coefficient space (default ``"stable"``).
+    search : SearchSpec, optional
+        All search settings at once (the three above override its fields).
     callback : callable, optional
         Called after each optimiser iteration (progress bars).
     load_options : mapping, optional
@@ -432,7 +464,7 @@ def identify(
         For bad data, files, orders, names, hyper-parameters, budgets or bounds.
     """
     t_start = time.perf_counter()
-    if optimiser != LEAST_SQUARES:
+    if optimiser not in (LEAST_SQUARES, OUTPUT_ERROR):
         budget = _budget(budget)
     est, val = prepare_data(
         data,
@@ -442,38 +474,44 @@ def identify(
         detrend=detrend,
         load_options=load_options,
     )
-    if nb is None:
-        nb = [na] * est.n_inputs if est.n_inputs > 1 else na
-    structure = ARXStructure(na, nb, nk)
-    if structure.n_inputs != est.n_inputs:
-        raise ModelOrderError(
-            f"the record has {est.n_inputs} input(s) but the orders give {structure.n_inputs} "
-            "(one nb and nk per input)"
-        )
+    structure = model_structure(na, nb, nk, est.n_inputs)
     structure.check_samples(est.n_samples)
     structure.check_samples(val.n_samples)
-    objective = ARXCost(
-        structure,
-        est,
-        metric=cost,
-        predictor=predictor,
-        weight=weight,
-        penalty=penalty,
-        initial=initial,
+    given = {"parametrisation": parametrisation, "penalty": penalty_kind, "init": init}
+    overrides = {k: v for k, v in given.items() if v is not None}
+    search = replace(search or SearchSpec(), **overrides)
+    check_search(search)
+    cost_spec = CostSpec(
+        metric=cost, predictor=predictor, weight=weight, penalty=penalty, initial=initial
     )
-    theta_ls = np.asarray(objective.theta_ls, dtype=float)
+    estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
+    objective = estimation.cost
+    theta_ls = estimation.theta_ls
     box = search_box(structure, bounds, theta_ls)
-    cost_ls = float(objective(theta_ls[None, :])[0])
+    cost_ls = estimation.cost_ls
 
     t_opt = time.perf_counter()
+    oe = None
     if optimiser == LEAST_SQUARES:
         model = structure.least_squares(est.u, est.y[:, 0], dt=est.dt)
         result, used_params, used_seed = None, {}, None
         cost_value = cost_ls
+    elif optimiser == OUTPUT_ERROR:
+        if predictor != "simulation":
+            raise ConfigError(
+                "the output-error reference ('oe') minimises the simulation cost: use "
+                "predictor='simulation' (--predictor simulation); least squares ('ls') is "
+                "the optimum of the one-step cost"
+            )
+        oe = output_error(objective, seed=0 if seed is None else seed)
+        model = structure.model(oe.theta, dt=est.dt)
+        result, used_params, used_seed = None, {"starts": len(oe.starts)}, seed
+        cost_value = float(oe.cost)
     else:
-        problem = Problem(objective, box.lower, box.upper, name="arx")
-        result = minimize(optimiser, problem, budget, seed, params=params, callback=callback)
-        model = structure.model(result.x, dt=est.dt)
+        result = minimize(
+            optimiser, estimation.problem, budget, seed, params=params, callback=callback
+        )
+        model = structure.model(estimation.theta(result.x), dt=est.dt)
         used_params, used_seed = dict(result.params), result.seed
         cost_value = float(result.fun)
     t_val = time.perf_counter()
@@ -505,6 +543,8 @@ def identify(
         estimation=report_est,
         validation=report_val,
         seed=used_seed,
+        search={**estimation.to_dict(), "description": estimation.describe()},
+        output_error=oe,
         timings={
             "setup_s": t_opt - t_start,
             "optimise_s": t_val - t_opt,

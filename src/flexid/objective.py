@@ -24,13 +24,14 @@ from scipy import linalg
 from .arx import ARXStructure, _io_arrays
 from .errors import DataError, UnknownNameError
 from .kernels import ar_recursion
-from .stability import is_stable
+from .stability import is_stable, pole_radius_batched
 
-__all__ = ["METRICS", "PREDICTORS", "ARXCost", "make_cost", "simulate_population"]
+__all__ = ["METRICS", "PENALTY_KINDS", "PREDICTORS", "ARXCost", "make_cost", "simulate_population"]
 
 METRICS = ("paper", "rmse", "nrmse", "sse", "mse")
 PREDICTORS = ("one-step", "simulation")
 INITIAL = ("measured", "zero")
+PENALTY_KINDS = ("flat", "graded")
 
 
 def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
@@ -84,6 +85,13 @@ class ARXCost:
         ``penalty`` plus the cost of the zero prediction (finite and worse than any stable
         candidate's).  ``penalty = 0`` switches the stability penalty off for the one-step
         predictor.
+    penalty_kind : {"flat", "graded"}
+        ``"flat"`` (the paper's): an unstable candidate costs as described under
+        ``penalty``, the same whatever its poles.  ``"graded"``: it costs
+        ``(1 + rho) J_0``, where ``rho >= 1`` is its largest pole radius and ``J_0`` the cost
+        of the zero prediction, so among unstable candidates the one nearer the stable region
+        costs less, and every unstable candidate costs more than any stable model that beats
+        predicting zero.  ``penalty`` is unused then.
     initial : {"measured", "zero"}
         Simulation predictor only: the first ``start`` outputs are the measured ones and
         the recursion starts at ``t = start`` (``"measured"``), or every signal is zero
@@ -109,11 +117,14 @@ class ARXCost:
         weight: float = 1e3,
         penalty: float = 1e9,
         initial: str = "measured",
+        penalty_kind: str = "flat",
     ) -> None:
         if metric not in METRICS:
             raise UnknownNameError("cost metric", metric, METRICS)
         if predictor not in PREDICTORS:
             raise UnknownNameError("predictor", predictor, PREDICTORS)
+        if penalty_kind not in PENALTY_KINDS:
+            raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
         if initial not in INITIAL:
             raise UnknownNameError("initial condition rule", initial, INITIAL)
         for name, value in (("weight", weight), ("penalty", penalty)):
@@ -133,6 +144,7 @@ class ARXCost:
         self.weight = float(weight)
         self.penalty = float(penalty)
         self.initial = initial
+        self.penalty_kind = penalty_kind
         self.u, self.y = u, y
         phi, target = structure.regressors(u, y)
         self.K = target.shape[0]
@@ -149,6 +161,7 @@ class ARXCost:
         self._r = r * scale[None, :]  # R (theta - theta*) in original units
         self._r_t = np.ascontiguousarray(self._r.T)
         self._std_y = float(np.std(target))
+        self._sse_zero = float(target @ target)
         if predictor == "simulation":
             na = structure.na
             self._phi_u = phi[:, na:] if initial == "measured" else None
@@ -158,7 +171,6 @@ class ARXCost:
             # state before the first simulated sample: [y(start-1), ..., y(start-na)]
             s = structure.start
             self._state = y[s - na : s][::-1].copy() if na else np.zeros(0)
-            self._sse_zero = float(target @ target)
         self.cost_ls = float(self(self.theta_ls[None, :])[0])
 
     # ----------------------------------------------------------------------- metrics
@@ -191,9 +203,7 @@ class ARXCost:
         if X.ndim == 1:
             X = X[None, :]
         if X.ndim != 2 or X.shape[1] != self.n_params:
-            raise DataError(
-                f"the population must have shape (P, {self.n_params}), got {X.shape}"
-            )
+            raise DataError(f"the population must have shape (P, {self.n_params}), got {X.shape}")
         if np.isfinite(X.sum()):  # the common case: every row finite, no masking needed
             return self._costs(X)
         out = np.full(X.shape[0], np.inf)
@@ -205,6 +215,13 @@ class ARXCost:
     def _costs(self, X: np.ndarray) -> np.ndarray:
         """Costs of finite rows ``X`` (P, n_params)."""
         stable = is_stable(X[:, : self.structure.na])
+        if self.penalty_kind == "graded" and not stable.all():
+            cost = np.empty(X.shape[0])
+            rho = pole_radius_batched(X[~stable, : self.structure.na])
+            cost[~stable] = (1.0 + np.maximum(rho, 1.0)) * self._from_sse(np.array(self._sse_zero))
+            if stable.any():
+                cost[stable] = self._costs(X[stable])
+            return cost
         if self.predictor == "one-step":
             d = (X - self.theta_ls) @ self._r_t
             sse = np.einsum("ij,ij->i", d, d)
@@ -244,10 +261,11 @@ class ARXCost:
         return self.y[self.structure.start :] - ysim[self.structure.start :]
 
     def describe(self) -> str:
+        pen = f"penalty {self.penalty:g}" if self.penalty_kind == "flat" else "graded penalty"
         if self.metric == "paper":
-            name = f"paper cost (eq. 5-6, w={self.weight:g}, penalty {self.penalty:g})"
+            name = f"paper cost (eq. 5-6, w={self.weight:g}, {pen})"
         else:
-            name = f"{self.metric.upper()} (stability penalty {self.penalty:g})"
+            name = f"{self.metric.upper()} (stability {pen})"
         extra = f", initial {self.initial}" if self.predictor == "simulation" else ""
         return f"{name}, {self.predictor} predictor{extra}, K={self.K}"
 

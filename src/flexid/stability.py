@@ -127,3 +127,31 @@ def max_pole_radius(a) -> np.ndarray:
         elif row.size:
             out[i] = np.inf
     return out
+
+
+def pole_radius_batched(a) -> np.ndarray:
+    """Largest pole magnitude of each denominator, batched (eigenvalues of companion matrices).
+
+    One LAPACK call per row inside NumPy's batched ``eigvals`` (no Python loop); used by the
+    graded stability penalty on the unstable rows of a population.
+
+    Parameters
+    ----------
+    a : array_like, shape (P, na) or (na,)
+        ``a_1 .. a_na`` of ``A(z) = 1 + a_1 z^-1 + ... + a_na z^-na``; finite.
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        ``max |p|`` (0 for ``na = 0``).
+    """
+    a = _as_population(a)
+    p, na = a.shape
+    if na == 0 or p == 0:
+        return np.zeros(p)
+    companion = np.zeros((p, na, na))
+    companion[:, 0, :] = -a
+    if na > 1:
+        idx = np.arange(na - 1)
+        companion[:, idx + 1, idx] = 1.0
+    return np.abs(np.linalg.eigvals(companion)).max(axis=1)

@@ -1,0 +1,251 @@
+"""One path from a record to the search problem an optimiser solves.
+
+:func:`build_problem` is used by :func:`flexid.identify` and :func:`flexid.compare` alike:
+model structure (with the same default ``nb`` for every input), the batched cost, the
+search box, the parametrisation of the search space, the stability penalty, the initial
+population and the references (least squares; for the simulation cost, the output-error
+reference too).  Optimisers search the parametrisation's box; results are always reported
+as ARX coefficients, converted by :meth:`EstimationProblem.theta`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .arx import ARXStructure
+from .config import CostSpec, SearchSpec
+from .data import IOData
+from .errors import ConfigError, ModelOrderError, UnknownNameError
+from .objective import ARXCost
+from .optimisers import Problem
+from .parametrisation import PARAMETRISATIONS, Parametrisation, make_parametrisation
+
+__all__ = ["INIT_RULES", "EstimationProblem", "build_problem", "check_search", "model_structure"]
+
+INIT_RULES = ("uniform", "stable")
+
+
+def model_structure(
+    na: int, nb: int | Sequence[int] | None, nk: int | Sequence[int], n_inputs: int
+) -> ARXStructure:
+    """The ARX structure for a record with ``n_inputs`` inputs.
+
+    ``nb = None`` gives ``na`` for every input; a scalar ``nb`` or ``nk`` applies to every
+    input.
+
+    Raises
+    ------
+    ModelOrderError
+        If per-input orders do not match the record's inputs.
+    """
+    if nb is None:
+        nb = na
+    if n_inputs > 1:
+        if isinstance(nb, (int, np.integer)) and not isinstance(nb, bool):
+            nb = [int(nb)] * n_inputs
+        if isinstance(nk, (int, np.integer)) and not isinstance(nk, bool):
+            nk = [int(nk)] * n_inputs
+    structure = ARXStructure(na, nb, nk)
+    if structure.n_inputs != n_inputs:
+        raise ModelOrderError(
+            f"the record has {n_inputs} input(s) but the orders give {structure.n_inputs} "
+            "(one nb and nk per input)"
+        )
+    return structure
+
+
+@dataclass
+class EstimationProblem:
+    """The search problem of one identification, and how to read its results.
+
+    Attributes
+    ----------
+    structure : ARXStructure
+    cost : ARXCost
+        The cost on the estimation record, in ARX coefficients.
+    parametrisation : Parametrisation
+        The map from the search box to ARX coefficients.
+    problem : Problem
+        What the optimisers minimise: ``cost(parametrisation.to_coefficients(z))`` over the
+        parametrisation's box, with the shared initial population.
+    search : SearchSpec
+        The settings it was built from.
+    box_rule : str
+        How the box of the ``b`` coefficients (and of ``a`` in the coefficient space) was
+        chosen.
+    theta_ls : ndarray, shape (n_params,)
+        Least-squares estimate; ``cost_ls`` its cost.
+    """
+
+    structure: ARXStructure
+    cost: ARXCost
+    parametrisation: Parametrisation
+    problem: Problem
+    search: SearchSpec
+    box_rule: str
+    theta_ls: np.ndarray
+    cost_ls: float
+    _oe: Any = field(default=None, repr=False)
+
+    def theta(self, z: Any) -> np.ndarray:
+        """ARX coefficients of search vector(s) ``z``: ``(n_params,)`` or ``(P, n_params)``."""
+        return self.parametrisation.to_coefficients(z)
+
+    def describe(self) -> str:
+        """One line: the parametrisation, its box rule, penalty and initial population."""
+        return (
+            f"{self.parametrisation.describe()}; {self.box_rule}; initial population "
+            f"{self.search.init}"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe description of the search (for results and the store)."""
+        return {
+            "parametrisation": self.parametrisation.to_dict(),
+            "penalty": self.search.penalty,
+            "init": self.search.init,
+            "box_rule": self.box_rule,
+        }
+
+    def output_error_reference(self, *, starts: int = 4, seed: int = 0):
+        """The output-error reference of a simulation cost (cached); ``None`` for one-step."""
+        if self.cost.predictor != "simulation":
+            return None
+        if self._oe is None:
+            from .output_error import output_error
+
+            self._oe = output_error(self.cost, starts=starts, seed=seed)
+        return self._oe
+
+    def reference_cost(self) -> tuple[float, str]:
+        """The best known cost and what it is: least squares, or the output-error reference."""
+        oe = self.output_error_reference()
+        if oe is None or not (oe.cost < self.cost_ls or not math.isfinite(self.cost_ls)):
+            return self.cost_ls, "least squares"
+        return float(oe.cost), "output-error reference (Levenberg-Marquardt)"
+
+
+def _b_bounds(structure: ARXStructure, bounds: Any, theta_ls: np.ndarray):
+    from .identify import search_box
+
+    box = search_box(structure, bounds, theta_ls)
+    na = structure.na
+    return box, box.lower[na:], box.upper[na:]
+
+
+def build_problem(
+    est: IOData,
+    structure: ARXStructure,
+    cost: CostSpec,
+    search: SearchSpec,
+    *,
+    bounds: Any = "auto",
+) -> EstimationProblem:
+    """Build the search problem of an identification.
+
+    Parameters
+    ----------
+    est : IOData
+        Estimation record (one output).
+    structure : ARXStructure
+        Model orders (see :func:`model_structure`).
+    cost : CostSpec
+        The cost (metric, predictor, weight, flat penalty value, initial conditions).
+    search : SearchSpec
+        Parametrisation, stability penalty kind, initial population rule, pole radius cap.
+    bounds : see :func:`flexid.identify.search_box`
+        The box of the coefficients; with ``"poles"`` or ``"reflection"`` only its ``b``
+        part is used.
+
+    Returns
+    -------
+    EstimationProblem
+
+    Raises
+    ------
+    UnknownNameError, ConfigError
+        For an unknown parametrisation, penalty or initialisation, or bad bounds.
+    """
+    if search.parametrisation not in PARAMETRISATIONS:
+        raise UnknownNameError("parametrisation", search.parametrisation, PARAMETRISATIONS)
+    if search.init not in INIT_RULES:
+        raise UnknownNameError("initial population rule", search.init, INIT_RULES)
+    objective = ARXCost(
+        structure,
+        est,
+        metric=cost.metric,
+        predictor=cost.predictor,
+        weight=cost.weight,
+        penalty=cost.penalty,
+        initial=cost.initial,
+        penalty_kind=search.penalty,
+    )
+    theta_ls = np.asarray(objective.theta_ls, dtype=float)
+    box, b_lo, b_hi = _b_bounds(structure, bounds, theta_ls)
+    na = structure.na
+    param = make_parametrisation(
+        search.parametrisation,
+        structure,
+        b_lower=b_lo,
+        b_upper=b_hi,
+        a_lower=box.lower[:na],
+        a_upper=box.upper[:na],
+        r_max=search.r_max,
+        real_pairs=search.real_pairs,
+        k_max=search.k_max,
+    )
+    sampler = None
+    if search.init == "stable" and search.parametrisation == "coefficients" and na:
+        # stable denominators drawn uniformly in the pole-pair space, b uniform in its box
+        poles = make_parametrisation(
+            "poles", structure, b_lower=b_lo, b_upper=b_hi, r_max=search.r_max
+        )
+
+        def sampler(size: int, rng: np.random.Generator) -> np.ndarray:
+            Z = poles.lower + (poles.upper - poles.lower) * rng.random((size, poles.n_search))
+            return np.clip(poles.to_coefficients(Z), param.lower, param.upper)
+
+    if search.parametrisation == "coefficients":
+        evaluate = objective
+    else:
+
+        def evaluate(Z: np.ndarray) -> np.ndarray:
+            return objective(param.to_coefficients(Z))
+
+    problem = Problem(evaluate, param.lower, param.upper, name="arx", sampler=sampler)
+    if search.parametrisation == "coefficients":
+        rule = box.rule
+    else:
+        rule = box.rule.split(", ", 1)[-1] if box.rule.startswith("auto") else box.rule
+        rule = f"b box: {rule}"
+    return EstimationProblem(
+        structure=structure,
+        cost=objective,
+        parametrisation=param,
+        problem=problem,
+        search=search,
+        box_rule=rule,
+        theta_ls=theta_ls,
+        cost_ls=float(objective(theta_ls[None, :])[0]),
+    )
+
+
+def check_search(search: SearchSpec) -> None:
+    """Validate search settings without data (for specs checked before anything runs)."""
+    if search.parametrisation not in PARAMETRISATIONS:
+        raise UnknownNameError("parametrisation", search.parametrisation, PARAMETRISATIONS)
+    if search.init not in INIT_RULES:
+        raise UnknownNameError("initial population rule", search.init, INIT_RULES)
+    from .objective import PENALTY_KINDS
+
+    if search.penalty not in PENALTY_KINDS:
+        raise UnknownNameError("stability penalty", search.penalty, PENALTY_KINDS)
+    for name in ("r_max", "k_max"):
+        v = getattr(search, name)
+        if not (isinstance(v, (int, float)) and 0 < v < 1):
+            raise ConfigError(f"[search] {name} must be in (0, 1), got {v!r}")
