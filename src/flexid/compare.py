@@ -418,6 +418,7 @@ class ComparisonResult:
             f"  data      : {s.data.describe()}",
             f"  model     : ARX(na={m.na}, nb={m.nb if m.nb is not None else m.na}, nk={m.nk}), "
             f"cost {s.cost.metric}, {s.cost.predictor} predictor",
+            f"  search    : {_search_text(s.search)}",
             f"  budget    : {s.budget_label()} per run, {s.runs} runs per optimiser, seed {s.seed}",
             f"  reference : {self.reference_note}: {_f(self.reference_cost)}",
             f"  targets   : reference x (1 + t), t in {list(s.targets)}",
@@ -461,6 +462,15 @@ class ComparisonResult:
                 "stats": self.stats,
             }
         )
+
+
+def _search_text(search) -> str:
+    if search.parametrisation == "coefficients":
+        return (
+            f"coefficient box, {search.penalty} stability penalty, {search.init} initial "
+            "population"
+        )
+    return f"{search.parametrisation} (stable by construction)"
 
 
 def _f(value: float) -> str:
