@@ -93,7 +93,13 @@ class EstimationProblem:
     _oe: Any = field(default=None, repr=False)
 
     def theta(self, z: Any) -> np.ndarray:
-        """ARX coefficients of search vector(s) ``z``: ``(n_params,)`` or ``(P, n_params)``."""
+        """ARX coefficients of search vector(s) ``z``: ``(n_params,)`` or ``(P, n_params)``.
+
+        In the stable spaces a point outside the box (optimisers that do not clip can leave
+        it) is read as its nearest point of the box, so every candidate stays stable.
+        """
+        if self.parametrisation.name != "coefficients":
+            z = np.clip(z, self.parametrisation.lower, self.parametrisation.upper)
         return self.parametrisation.to_coefficients(z)
 
     def describe(self) -> str:
@@ -215,7 +221,9 @@ def build_problem(
     else:
 
         def evaluate(Z: np.ndarray) -> np.ndarray:
-            return objective(param.to_coefficients(Z))
+            # outside the box the maps lose their guarantee (|k| > 1, r > r_max): read a
+            # point there as its projection on the box, which is stable
+            return objective(param.to_coefficients(np.clip(Z, param.lower, param.upper)))
 
     problem = Problem(evaluate, param.lower, param.upper, name="arx", sampler=sampler)
     if search.parametrisation == "coefficients":
