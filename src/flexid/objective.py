@@ -87,11 +87,10 @@ class ARXCost:
         predictor.
     penalty_kind : {"flat", "graded"}
         ``"flat"`` (the paper's): an unstable candidate costs as described under
-        ``penalty``, the same whatever its poles.  ``"graded"``: it costs
-        ``(1 + rho) J_0``, where ``rho >= 1`` is its largest pole radius and ``J_0`` the cost
-        of the zero prediction, so among unstable candidates the one nearer the stable region
-        costs less, and every unstable candidate costs more than any stable model that beats
-        predicting zero.  ``penalty`` is unused then.
+        ``penalty``, the same whatever its poles.  ``"graded"``: the penalty is
+        ``penalty * rho`` instead, where ``rho >= 1`` is the candidate's largest pole radius,
+        so every unstable candidate still costs more than any stable one (as with the paper's
+        penalty) and among unstable candidates the one nearer the stable region costs less.
     initial : {"measured", "zero"}
         Simulation predictor only: the first ``start`` outputs are the measured ones and
         the recursion starts at ``t = start`` (``"measured"``), or every signal is zero
@@ -215,27 +214,28 @@ class ARXCost:
     def _costs(self, X: np.ndarray) -> np.ndarray:
         """Costs of finite rows ``X`` (P, n_params)."""
         stable = is_stable(X[:, : self.structure.na])
-        if self.penalty_kind == "graded" and not stable.all():
-            cost = np.empty(X.shape[0])
-            rho = pole_radius_batched(X[~stable, : self.structure.na])
-            cost[~stable] = (1.0 + np.maximum(rho, 1.0)) * self._from_sse(np.array(self._sse_zero))
-            if stable.any():
-                cost[stable] = self._costs(X[stable])
-            return cost
         if self.predictor == "one-step":
             d = (X - self.theta_ls) @ self._r_t
             sse = np.einsum("ij,ij->i", d, d)
             sse += self.sse_ls
             cost = self._from_sse(sse)
             if self.penalty > 0 and not stable.all():
-                cost[~stable] += self.penalty
+                cost[~stable] += self._penalties(X[~stable])
             return cost
         if stable.all():
             return self._from_sse(self._simulated_sse(X))
-        cost = np.full(X.shape[0], self.penalty + self._from_sse(np.array(self._sse_zero)))
+        cost = np.empty(X.shape[0])
+        cost[~stable] = self._penalties(X[~stable]) + self._from_sse(np.array(self._sse_zero))
         if stable.any():
             cost[stable] = self._from_sse(self._simulated_sse(X[stable]))
         return cost
+
+    def _penalties(self, X: np.ndarray) -> np.ndarray | float:
+        """Stability penalty of unstable rows ``X``: flat, or graded by the pole radius."""
+        if self.penalty_kind == "flat":
+            return self.penalty
+        rho = pole_radius_batched(X[:, : self.structure.na])
+        return self.penalty * np.maximum(rho, 1.0)
 
     def _simulated_sse(self, X: np.ndarray) -> np.ndarray:
         na = self.structure.na
