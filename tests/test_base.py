@@ -1,4 +1,8 @@
-"""Tests of the optimiser framework flexid.optimisers.base (driver, budgets, params, ask/tell)."""
+"""Tests of the optimiser framework flexid.optimisers.base (driver, budgets, params, ask/tell).
+
+Costs are compared exactly: the best cost is one of the evaluated ones, and re-evaluating a
+row (a 3-term row sum, elementwise IEEE operations) gives the same number on any machine.
+"""
 
 from __future__ import annotations
 

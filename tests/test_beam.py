@@ -270,6 +270,7 @@ def _output_terms(u, p):
     return np.maximum(x @ c_abs.T, x @ (c_abs @ np.abs(model.A)).T).max(axis=0)
 
 
+@pytest.mark.numerics
 def test_coulomb_friction_nonlinear_path():
     u = _bang_bang(1500)
     lin = beam.simulate(u)

@@ -1,4 +1,8 @@
-"""Tests of flexid.compare: identical problems, statistics, resumable store, parallel runs."""
+"""Tests of flexid.compare: identical problems, statistics, resumable store, parallel runs.
+
+Results of the same runs (resumed, in worker processes, on a dask cluster) are compared
+exactly: the same code on the same numbers on one machine.
+"""
 
 from __future__ import annotations
 
@@ -58,7 +62,9 @@ def test_compare_in_memory():
         for r in records:
             assert r["status"] == "ok" and r["nfev"] == 600
             assert r["history"]["fe"][-1] == 600
-            assert r["cost"] >= result.reference["cost"] * (1 - 1e-12)
+            # one-step cost w sqrt(sse_ls + |R d|^2) / K, |R d|^2 >= 0, rounding monotone,
+            # the same data and code for every run: least squares is a lower bound, exactly
+            assert r["cost"] >= result.reference["cost"]
     # the same run index has the same seed for every optimiser
     seeds = {label: [r["seed"] for r in rs] for label, rs in result.records.items()}
     assert seeds["sda"] == seeds["random-search"]

@@ -9,6 +9,7 @@ import pytest
 
 from flexid.data import IOData, load, save
 from flexid.errors import DataError, DataFileError
+from numerics import EPS, assert_close_to_terms
 
 
 @pytest.fixture
@@ -113,12 +114,21 @@ def test_bad_split(record, kwargs):
         record.split(**kwargs)
 
 
+@pytest.mark.numerics
 def test_detrend(record):
     shifted = record.replace(y=record.y + np.array([5.0, -2.0]))
     d = shifted.detrend()
-    np.testing.assert_allclose(d.y.mean(axis=0), 0.0, atol=1e-12)
+    # zero up to rounding: the mean is an n-term sum (n u relative to mean|y|, any order),
+    # subtracting it rounds each sample, and the mean of the result is another n-term sum
+    n = shifted.n_samples
+    bound = (n + 1) * EPS * (np.abs(shifted.y).mean(axis=0) + np.abs(d.y).mean(axis=0))
+    assert_close_to_terms(d.y.mean(axis=0), 0.0, bound, 1.0)
     np.testing.assert_allclose(d.metadata["detrend"]["y_mean"], shifted.y.mean(axis=0))
     t = np.arange(50.0)
+    # a line exactly: the residual of a backward-stable least-squares fit (LAPACK) of
+    # m = 50 samples on n = 2 regressors is at most 2 gamma_mn (|b| + |A|_F |x|) = 2.7e-11
+    # here (|b| = 408; scipy's regressors [t / N, 1] give |A|_F |x| = 820), plus the
+    # residual's own rounding (3 u |b|_inf = 3e-14): 1e-10 holds on any machine
     line = IOData(t, 2.0 * t + 1.0).detrend("linear")
     np.testing.assert_allclose(line.y, 0.0, atol=1e-10)
     with pytest.raises(DataError):

@@ -1,4 +1,8 @@
-"""Tests of flexid.datasets: presets, reproducibility, metadata, noise, channel selection."""
+"""Tests of flexid.datasets: presets, reproducibility, metadata, noise, channel selection.
+
+Noise levels are checked with statistical tolerances (15-20 %); everything else is the same
+computation repeated, hence exact.
+"""
 
 from __future__ import annotations
 
@@ -28,7 +32,9 @@ def test_paper_presets():
 def test_noise_free_output_is_the_plant_response_and_noise_is_separate():
     clean = generate("manipulator", signal="prbs", n_samples=500, seed=3,
                      signal_options={"order": 7, "low": -0.2, "high": 0.2})
-    np.testing.assert_allclose(clean.y, beam.simulate(clean.u[:, 0]), rtol=1e-12, atol=1e-15)
+    # generate() runs this very function on these very samples (same model, same FFT
+    # lengths): exact on any machine
+    np.testing.assert_array_equal(clean.y, beam.simulate(clean.u[:, 0]))
     noisy = generate("manipulator", signal="prbs", n_samples=500, seed=3, noise_std=[0, 0, 0, 1],
                      signal_options={"order": 7, "low": -0.2, "high": 0.2})
     np.testing.assert_array_equal(noisy.u, clean.u)  # the input does not change with noise

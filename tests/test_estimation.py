@@ -104,6 +104,7 @@ def test_stable_initial_population_in_the_coefficient_space():
     np.testing.assert_array_equal(Xp, paper.problem.lower + r * paper.problem.width)
 
 
+@pytest.mark.numerics
 def test_graded_penalty_grows_with_the_pole_radius_and_flat_stays_the_papers():
     data = two_input_record()
     s = ARXStructure(2, [2, 2], [1, 1])
@@ -130,6 +131,7 @@ def test_graded_penalty_grows_with_the_pole_radius_and_flat_stays_the_papers():
         ARXCost(s, data, penalty_kind="steep")
 
 
+@pytest.mark.numerics
 def test_batched_pole_radius_equals_roots():
     rng = np.random.default_rng(0)
     a = rng.uniform(-2, 2, (200, 5))

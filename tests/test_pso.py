@@ -1,4 +1,8 @@
-"""Tests of flexid.optimisers.pso (global-best PSO with constriction)."""
+"""Tests of flexid.optimisers.pso (global-best PSO with constriction).
+
+Cost and distance thresholds are modelling tolerances, far above rounding; repeated runs
+are compared exactly (the same code on the same numbers).
+"""
 
 from __future__ import annotations
 

@@ -35,6 +35,7 @@ def _visited(name: str, scale: float) -> np.ndarray:
     return np.concatenate(seen)
 
 
+@pytest.mark.numerics
 @pytest.mark.parametrize("name", sorted(available()))
 def test_same_normalised_points_on_a_scaled_box(name):
     a, b = _visited(name, 1.0), _visited(name, SCALE)

@@ -1,4 +1,9 @@
-"""Tests of flexid.optimisers.scipy_methods (scipy.optimize.minimize adapters)."""
+"""Tests of flexid.optimisers.scipy_methods (scipy.optimize.minimize adapters).
+
+The first local run is compared exactly with plain scipy: the same scipy code on the same
+numbers (the objective sees the same rows).  Cost and distance thresholds are modelling
+tolerances, far above rounding.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,8 @@
-"""Tests of flexid.signals: the defining property of each excitation signal."""
+"""Tests of flexid.signals: the defining property of each excitation signal.
+
+Frequency and amplitude checks (10-15 %) are modelling tolerances; the multisine's
+out-of-band energy is rounding only and is bounded by the FFT's error analysis.
+"""
 
 from __future__ import annotations
 
@@ -19,6 +23,7 @@ from flexid.signals import (
     random_binary,
     uniform,
 )
+from numerics import EPS
 
 
 @pytest.mark.parametrize("order", [2, 3, 5, 7, 8, 10, 12, 16])
@@ -59,6 +64,7 @@ def test_random_signals_bounded_and_reproducible():
     assert runs.min() >= 3 and runs.max() <= 10
 
 
+@pytest.mark.numerics
 def test_multisine_band_and_crest_factor():
     n, dt = 2000, 0.01
     x = multisine(n, dt, band=(2.0, 10.0), amplitude=0.5)
@@ -66,7 +72,10 @@ def test_multisine_band_and_crest_factor():
     spec = np.abs(np.fft.rfft(x)) ** 2
     f = np.fft.rfftfreq(n, dt)
     inside = (f >= 2.0) & (f <= 10.0)
-    assert spec[~inside].sum() < 1e-20 * spec[inside].sum()
+    # out of band there is rounding only: an FFT (irfft, the scaling, rfft) is within
+    # c log2(n) eps of exact in the 2-norm (Higham Thm 24.2, c ~ 3.4 per radix-2 transform;
+    # c = 20 covers two mixed-radix transforms), so the leaked energy is below that squared
+    assert spec[~inside].sum() < (20 * np.log2(n) * EPS) ** 2 * spec[inside].sum()
     assert np.all(spec[inside] > 0.5 * spec[inside].max())
     random_cf = [crest_factor(multisine(n, dt, band=(2, 10), phases="random", rng=s))
                  for s in range(25)]

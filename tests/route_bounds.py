@@ -1,0 +1,159 @@
+"""Rounding bounds for the ARX routes (recursions, sums of squares, least squares).
+
+Built on the analysis of tests/numerics.py: a sum of ``n`` products by two routes (any
+order, with or without FMA, any BLAS kernel) differs by at most ``n eps sum|terms|``.
+
+* The recursion ``y(t) = f(t) - sum_i a_i y(t - i)`` adds such an error ``delta(t)`` (an
+  ``na + 1``-term sum) at every step by each route.  The difference ``d`` of two routes
+  obeys the same recursion driven by the difference of their errors,
+  ``A(q) d(t) = delta1(t) - delta2(t)``, so ``|d(t)| <= sum_s |h(t - s)| |delta1(s) -
+  delta2(s)|`` with ``h`` the impulse response of ``1 / A(q)``: exact for the linear
+  recursion, whatever its damping (a pole at radius 0.999 amplifies by up to ~1000).
+* A sum of squares ``sum_t (target - y)^2`` moves by ``2 |e| |dy| + dy^2`` per sample, plus
+  its own rounding (``K + 2`` roundings per route).
+* Least squares by Householder QR or the SVD is backward stable: the solution is exact for
+  data perturbed column-wise by at most ``gamma_{mn}`` (``m n u``, u = eps / 2, Higham,
+  *Accuracy and Stability of Numerical Algorithms*, Thm 20.3), i.e. normwise by at most
+  ``sqrt(n) m n u``.  The perturbation theorem of least squares (Higham Thm 20.1) turns
+  that into ``|dx| <= kappa epsilon (2 |x| + (kappa + 1) |r| / |A|)``.  This worst-case
+  bound is far above what BLAS-blocked QR does on any machine, which is the point: it
+  holds on all of them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from numerics import EPS, route_tolerance
+
+
+def ar_terms(a: np.ndarray, forced: np.ndarray, state: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``|f(t)| + sum_i |a_i| |y(t - i)|`` (the magnitudes each recursion step sums), (P, K).
+
+    ``state`` is ``[y(-1), ..., y(-na)]``, shape (na,) or (P, na); ``y`` the outputs (P, K).
+    """
+    a, forced, y = np.atleast_2d(a), np.atleast_2d(forced), np.atleast_2d(y)
+    p, na = a.shape
+    k = forced.shape[1]
+    state = np.broadcast_to(np.asarray(state, dtype=float), (p, na))
+    terms = np.abs(forced).astype(float)
+    hist = np.abs(np.concatenate([state[:, ::-1], y], axis=1))  # y(-na) .. y(K - 1)
+    for i in range(1, na + 1):
+        terms += np.abs(a[:, i - 1 : i]) * hist[:, na - i : na - i + k]
+    return terms
+
+
+def propagate(a: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """``sum_s |h(t - s)| delta(s)`` per row: a per-step error bound through ``1 / A(q)``."""
+    a, delta = np.atleast_2d(a), np.atleast_2d(delta)
+    k = delta.shape[1]
+    impulse = np.zeros(k)
+    impulse[0] = 1.0
+    out = np.empty_like(delta, dtype=float)
+    for i in range(a.shape[0]):
+        h = np.abs(signal.lfilter([1.0], np.r_[1.0, a[i]], impulse))
+        out[i] = np.convolve(h, delta[i])[:k]
+    return out
+
+
+def ar_route_bound(a, forced, state, y, forced_terms=None, n_forced: int = 0) -> np.ndarray:
+    """Bound on ``|y_route1 - y_route2|`` of the AR recursion, element-wise, shape (P, K).
+
+    When the routes also compute ``f(t) = B(q) u(t)`` differently (a GEMM, ``lfilter``), an
+    ``n_forced``-term sum of magnitudes ``forced_terms`` (P, K), that difference enters each
+    step as well.
+    """
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    delta = route_tolerance(a.shape[1] + 1) * ar_terms(a, forced, state, y)
+    if forced_terms is not None:
+        delta = delta + route_tolerance(n_forced) * np.atleast_2d(forced_terms)
+    return propagate(a, delta)
+
+
+def sse_route_bound(e: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """Bound on the difference of ``sum_t e(t)^2`` by two routes whose ``e`` differ by ``dy``."""
+    e, dy = np.atleast_2d(e), np.atleast_2d(dy)
+    k = e.shape[1]
+    return (2 * np.abs(e) * dy + dy * dy).sum(axis=1) + route_tolerance(k + 2) * (e * e).sum(
+        axis=1
+    )
+
+
+def lstsq_error(phi: np.ndarray, x: np.ndarray, resid_norm: float = 0.0) -> float:
+    """2-norm bound on one backward-stable least-squares solution minus the exact one."""
+    m, n = phi.shape
+    sv = np.linalg.svd(phi, compute_uv=False)
+    kappa = sv[0] / sv[-1]
+    epsilon = np.sqrt(n) * m * n * EPS / 2
+    assert kappa * epsilon < 0.5, "the problem is too ill-conditioned for a rounding bound"
+    return float(
+        kappa * epsilon / (1 - kappa * epsilon)
+        * (2 * np.linalg.norm(x) + (kappa + 1) * resid_norm / sv[0])
+    )  # fmt: skip
+
+
+def recovery_error(phi: np.ndarray, theta: np.ndarray, target_terms: np.ndarray,
+                   n_terms: int) -> float:
+    """2-norm bound on ``theta_ls - theta`` for noise-free data computed from ``theta``.
+
+    Each target sample was computed by a loop summing ``n_terms`` products of magnitudes
+    ``target_terms`` (per sample), so ``target - phi theta`` is rounding of at most
+    ``n_terms eps target_terms`` (one route, with the margin of tests/numerics.py); least
+    squares maps it through ``phi^+`` (norm ``1 / sigma_min``) and adds its own error.
+    """
+    rho = route_tolerance(n_terms) * np.asarray(target_terms, dtype=float)
+    sigma_min = np.linalg.svd(phi, compute_uv=False)[-1]
+    rho_norm = float(np.linalg.norm(rho))
+    return rho_norm / sigma_min + lstsq_error(phi, theta, rho_norm)
+
+
+# ------------------------------------------------------------------ rotations and spirals
+def rotation_error(n: int) -> float:
+    """Bound on ``|R1 d - R2 d| / |d|`` (2-norm) for two routes to the composite rotation.
+
+    ``R^(n)(theta) d`` is ``N = n (n - 1) / 2`` plane rotations: a Givens sweep on ``d``, or
+    on the identity followed by a GEMM, or a dense product of plane-rotation matrices.  Each
+    plane rotation rounds its two entries within ``gamma_2 (|c a| + |s b|) <= 2 u sqrt 2 |(a,
+    b)|`` and leaves the rest of the norm alone, and rotations do not amplify earlier errors:
+    ``3 N eps`` for two routes; ``cos``/``sin`` within a few ulps on either route (NumPy's SIMD
+    or libm) perturb each plane rotation by up to ``6 eps``: ``6 N eps``; a final dense
+    matrix-vector product adds ``n sqrt(n) eps`` (n terms, ``|R| |d| <= sqrt(n) |d|``).
+    """
+    n_planes = n * (n - 1) // 2
+    return (9 * n_planes + n * np.sqrt(n)) * EPS
+
+
+def spiral_step_bound(xs, r, D, dr=0.0, dtheta=0.0, lower=None) -> np.ndarray:
+    """Element-wise bound on two routes to one spiral step ``xs + r_i R(theta_i) d_i``.
+
+    ``D`` (P, n) holds ``d_i = y_i - xs``; ``r`` is scalar or (P,).  The rotation as in
+    :func:`rotation_error`; the product by ``r`` and the final addition round once each per
+    route; ``dr`` and ``dtheta`` bound how far the routes' radius and angle differ
+    (adaptive laws written differently), and ``|dR/dtheta| <= N``.
+
+    ``lower``: the optimiser steps in the unit box and the objective (hence the recorded
+    batches) sees ``lower + width z``.  Each recorded coordinate is then within
+    ``u (|x| + |x - lower|)`` of the exact image of the optimiser's point (the product and
+    the sum), those input errors move the step by at most ``(1 + r)`` times their norm, and
+    the step's final addition rounds at the resolution of ``z``: ``u |x - lower|``.
+    """
+    D = np.atleast_2d(D)
+    n = D.shape[1]
+    r = np.broadcast_to(np.asarray(r, dtype=float), (D.shape[0],))[:, None]
+    norm = np.linalg.norm(D, axis=1, keepdims=True)
+    n_planes = n * (n - 1) // 2
+    size = np.abs(xs) + r * norm  # |x'| for every coordinate of the new point
+    out = EPS * size + norm * (r * (rotation_error(n) + 2 * np.sqrt(n) * EPS
+                                    + n_planes * dtheta) + dr)  # fmt: skip
+    if lower is not None:
+        low = np.abs(np.asarray(lower, dtype=float))
+
+        def point_error(X):
+            return EPS / 2 * (2 * np.abs(X) + low)
+
+        before = np.asarray(xs) + D
+        propagated = np.linalg.norm(point_error(before), axis=1, keepdims=True)
+        propagated += np.linalg.norm(point_error(np.asarray(xs)))
+        out = out + EPS * (2 * size + 2 * low) + (1 + r) * propagated
+    return out
