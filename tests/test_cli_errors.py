@@ -23,17 +23,7 @@ from flexid.data import IOData, load
 from flexid.errors import BudgetError, DataFileError, FlexidError
 from flexid.identify import identify
 from flexid.validation import validate
-
-
-def _record(path: Path, n: int = 400, seed: int = 0) -> Path:
-    """A noise-free ARX(2,2,1) record written as CSV."""
-    rng = np.random.default_rng(seed)
-    u = rng.uniform(-1, 1, n)
-    y = np.zeros(n)
-    for t in range(2, n):
-        y[t] = 1.5 * y[t - 1] - 0.7 * y[t - 2] + 0.5 * u[t - 1] + 0.25 * u[t - 2]
-    IOData(u, y, dt=0.01).to_csv(path)
-    return path
+from test_cli import _record
 
 
 def _run(argv, capsys):

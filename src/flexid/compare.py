@@ -27,7 +27,7 @@ import numpy as np
 from .config import ComparisonSpec, OptimiserSpec
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
-from .estimation import build_problem, check_search, model_structure
+from .estimation import build_problem, check_search, choose_reference, model_structure
 from .identify import prepare_data
 from .optimisers import Budget, get, minimize
 from .statistics import rank_sum_against_best, summarise
@@ -95,8 +95,16 @@ class _Context:
         self.estimation = build_problem(
             est, self.structure, spec.cost, spec.search, bounds=spec.bounds
         )
-        self.cost = self.estimation.cost
-        self.theta_ls = self.estimation.theta_ls
+
+    @property
+    def cost(self):
+        """The cost on the estimation record (an :class:`~flexid.objective.ARXCost`)."""
+        return self.estimation.cost
+
+    @property
+    def theta_ls(self) -> np.ndarray:
+        """Least-squares estimate, shape (n_params,)."""
+        return self.estimation.theta_ls
 
     @classmethod
     def from_spec(cls, spec: ComparisonSpec) -> _Context:
@@ -300,25 +308,14 @@ class ComparisonResult:
         return result
 
     def _compute(self) -> None:
-        oe = self.reference.get("output_error")
-        if (
-            oe
-            and oe.get("stable")
-            and (not self.reference.get("stable") or oe["cost"] < self.reference["cost"])
-        ):
-            self.reference_cost = float(oe["cost"])
-            self.reference_note = (
-                "output-error reference (Levenberg-Marquardt on the simulation residuals, "
-                f"from least squares and stable starts; least squares {_f(self.reference['cost'])})"
-            )
-        elif self.reference.get("stable"):
-            self.reference_cost = float(self.reference["cost"])
-            self.reference_note = "least squares (the exact optimum of the one-step cost)"
-            if self.spec.cost.predictor != "one-step":
-                self.reference_note = (
-                    "least squares (the one-step optimum; not the optimum of this cost)"
-                )
-        else:
+        ref = self.reference
+        oe = ref.get("output_error")
+        choice = choose_reference(
+            float(ref["cost"]),
+            bool(ref.get("stable")),
+            (float(oe["cost"]), bool(oe.get("stable"))) if oe else None,
+        )
+        if choice is None:
             stable = [
                 r["cost"]
                 for rs in self.records.values()
@@ -328,6 +325,19 @@ class ComparisonResult:
             self.reference_cost = float(min(stable)) if stable else math.nan
             self.reference_note = (
                 "best stable cost of any run (least squares gives an UNSTABLE model here)"
+            )
+        elif choice[1] == "least squares":
+            self.reference_cost = choice[0]
+            self.reference_note = (
+                "least squares (the exact optimum of the one-step cost)"
+                if self.spec.cost.predictor == "one-step"
+                else "least squares (the one-step optimum; not the optimum of this cost)"
+            )
+        else:
+            self.reference_cost = choice[0]
+            self.reference_note = (
+                f"{choice[1]}, from least squares and stable starts; least squares "
+                f"{_f(ref['cost'])}"
             )
         self.stats = {
             label: summarise(rs, self.reference_cost, self.spec.targets)
@@ -467,8 +477,7 @@ class ComparisonResult:
 def _search_text(search) -> str:
     if search.parametrisation == "coefficients":
         return (
-            f"coefficient box, {search.penalty} stability penalty, {search.init} initial "
-            "population"
+            f"coefficient box, {search.penalty} stability penalty, {search.init} initial population"
         )
     return f"{search.parametrisation} (stable by construction)"
 

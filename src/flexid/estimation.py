@@ -24,8 +24,16 @@ from .errors import ConfigError, ModelOrderError, UnknownNameError
 from .objective import ARXCost
 from .optimisers import Problem
 from .parametrisation import PARAMETRISATIONS, Parametrisation, make_parametrisation
+from .stability import is_stable
 
-__all__ = ["INIT_RULES", "EstimationProblem", "build_problem", "check_search", "model_structure"]
+__all__ = [
+    "INIT_RULES",
+    "EstimationProblem",
+    "build_problem",
+    "check_search",
+    "choose_reference",
+    "model_structure",
+]
 
 INIT_RULES = ("uniform", "stable")
 
@@ -75,6 +83,9 @@ class EstimationProblem:
         parametrisation's box, with the shared initial population.
     search : SearchSpec
         The settings it was built from.
+    box : SearchBox
+        The coefficient box the bounds gave (in the stable spaces only its ``b`` part is
+        searched).
     box_rule : str
         How the box of the ``b`` coefficients (and of ``a`` in the coefficient space) was
         chosen.
@@ -87,6 +98,7 @@ class EstimationProblem:
     parametrisation: Parametrisation
     problem: Problem
     search: SearchSpec
+    box: Any
     box_rule: str
     theta_ls: np.ndarray
     cost_ls: float
@@ -129,19 +141,37 @@ class EstimationProblem:
         return self._oe
 
     def reference_cost(self) -> tuple[float, str]:
-        """The best known cost and what it is: least squares, or the output-error reference."""
+        """The best known stable cost and what it is (see :func:`choose_reference`)."""
         oe = self.output_error_reference()
-        if oe is None or not (oe.cost < self.cost_ls or not math.isfinite(self.cost_ls)):
-            return self.cost_ls, "least squares"
-        return float(oe.cost), "output-error reference (Levenberg-Marquardt)"
+        ls_stable = bool(is_stable(self.theta_ls[None, : self.structure.na])[0])
+        choice = choose_reference(
+            self.cost_ls, ls_stable, None if oe is None else (float(oe.cost), bool(oe.stable))
+        )
+        return choice if choice is not None else (math.nan, "no stable reference")
 
 
-def _b_bounds(structure: ARXStructure, bounds: Any, theta_ls: np.ndarray):
-    from .identify import search_box
+def choose_reference(
+    ls_cost: float, ls_stable: bool, oe: tuple[float, bool] | None
+) -> tuple[float, str] | None:
+    """The reference of targets: the lower stable cost of least squares and output error.
 
-    box = search_box(structure, bounds, theta_ls)
-    na = structure.na
-    return box, box.lower[na:], box.upper[na:]
+    Parameters
+    ----------
+    ls_cost, ls_stable : float, bool
+        Least squares' cost and whether its model is stable.
+    oe : (cost, stable) or None
+        The output-error reference (simulation cost only).
+
+    Returns
+    -------
+    (cost, name) or None
+        ``None`` when neither is stable.
+    """
+    if oe is not None and oe[1] and (not ls_stable or oe[0] < ls_cost):
+        return oe[0], "output-error reference (Levenberg-Marquardt on the simulation residuals)"
+    if ls_stable:
+        return ls_cost, "least squares"
+    return None
 
 
 def build_problem(
@@ -177,10 +207,9 @@ def build_problem(
     UnknownNameError, ConfigError
         For an unknown parametrisation, penalty or initialisation, or bad bounds.
     """
-    if search.parametrisation not in PARAMETRISATIONS:
-        raise UnknownNameError("parametrisation", search.parametrisation, PARAMETRISATIONS)
-    if search.init not in INIT_RULES:
-        raise UnknownNameError("initial population rule", search.init, INIT_RULES)
+    from .identify import search_box
+
+    check_search(search)
     objective = ARXCost(
         structure,
         est,
@@ -192,8 +221,9 @@ def build_problem(
         penalty_kind=search.penalty,
     )
     theta_ls = np.asarray(objective.theta_ls, dtype=float)
-    box, b_lo, b_hi = _b_bounds(structure, bounds, theta_ls)
+    box = search_box(structure, bounds, theta_ls)
     na = structure.na
+    b_lo, b_hi = box.lower[na:], box.upper[na:]
     param = make_parametrisation(
         search.parametrisation,
         structure,
@@ -237,6 +267,7 @@ def build_problem(
         parametrisation=param,
         problem=problem,
         search=search,
+        box=box,
         box_rule=rule,
         theta_ls=theta_ls,
         cost_ls=float(objective(theta_ls[None, :])[0]),

@@ -22,7 +22,7 @@ from .arx import ARX, ARXStructure
 from .config import CostSpec, SearchSpec
 from .data import IOData, load
 from .errors import BudgetError, ConfigError, DataError
-from .estimation import build_problem, check_search, model_structure
+from .estimation import build_problem, model_structure
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
 from .output_error import output_error
@@ -480,14 +480,12 @@ def identify(
     given = {"parametrisation": parametrisation, "penalty": penalty_kind, "init": init}
     overrides = {k: v for k, v in given.items() if v is not None}
     search = replace(search or SearchSpec(), **overrides)
-    check_search(search)
     cost_spec = CostSpec(
         metric=cost, predictor=predictor, weight=weight, penalty=penalty, initial=initial
     )
     estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
     objective = estimation.cost
-    theta_ls = estimation.theta_ls
-    box = search_box(structure, bounds, theta_ls)
+    box = estimation.box
     cost_ls = estimation.cost_ls
 
     t_opt = time.perf_counter()

@@ -38,7 +38,7 @@ import numpy as np
 
 from .arx import ARXStructure
 from .errors import ConfigError, DataError, UnknownNameError
-from .stability import is_stable, reflection_coefficients
+from .stability import is_stable, poles_batched, reflection_coefficients
 
 __all__ = [
     "PARAMETRISATIONS",
@@ -458,14 +458,9 @@ class PoleParametrisation(Parametrisation):
     def _from_a(self, a: np.ndarray, tol: float = 1e-8) -> np.ndarray:
         _raise_unstable(a)
         n_pop, na = a.shape
-        # Roots of every row at once: eigenvalues of the stacked companion matrices (what
-        # np.roots does row by row).  LAPACK returns real eigenvalues with an imaginary
-        # part of exactly 0 and complex ones in exact conjugate pairs, so the split below
-        # needs no tolerance.
-        comp = np.zeros((n_pop, na, na))
-        comp[:, 0, :] = -a
-        comp[:, np.arange(1, na), np.arange(na - 1)] = 1.0
-        roots = np.linalg.eigvals(comp).astype(complex)
+        # exact conjugate pairs and exactly real eigenvalues: the split below needs no
+        # tolerance
+        roots = poles_batched(a)
         z = np.empty((n_pop, na))
         for i in range(n_pop):  # variable root structure per row; inverse only
             z[i] = self._assign(roots[i])

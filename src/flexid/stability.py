@@ -14,7 +14,14 @@ import numpy as np
 from . import kernels
 from .errors import DataError
 
-__all__ = ["is_stable", "is_stable_reference", "max_pole_radius", "reflection_coefficients"]
+__all__ = [
+    "is_stable",
+    "is_stable_reference",
+    "max_pole_radius",
+    "pole_radius_batched",
+    "poles_batched",
+    "reflection_coefficients",
+]
 
 
 def _as_population(a) -> np.ndarray:
@@ -129,11 +136,12 @@ def max_pole_radius(a) -> np.ndarray:
     return out
 
 
-def pole_radius_batched(a) -> np.ndarray:
-    """Largest pole magnitude of each denominator, batched (eigenvalues of companion matrices).
+def poles_batched(a) -> np.ndarray:
+    """Poles of each denominator, batched: eigenvalues of the stacked companion matrices.
 
-    One LAPACK call per row inside NumPy's batched ``eigvals`` (no Python loop); used by the
-    graded stability penalty on the unstable rows of a population.
+    What ``np.roots`` does row by row, in one call to NumPy's batched ``eigvals`` (no Python
+    loop).  LAPACK returns real eigenvalues with an imaginary part of exactly 0 and complex
+    ones in exact conjugate pairs.
 
     Parameters
     ----------
@@ -142,16 +150,32 @@ def pole_radius_batched(a) -> np.ndarray:
 
     Returns
     -------
-    ndarray, shape (P,)
-        ``max |p|`` (0 for ``na = 0``).
+    ndarray, shape (P, na), complex
     """
     a = _as_population(a)
     p, na = a.shape
     if na == 0 or p == 0:
-        return np.zeros(p)
+        return np.zeros((p, na), dtype=complex)
     companion = np.zeros((p, na, na))
     companion[:, 0, :] = -a
-    if na > 1:
-        idx = np.arange(na - 1)
-        companion[:, idx + 1, idx] = 1.0
-    return np.abs(np.linalg.eigvals(companion)).max(axis=1)
+    idx = np.arange(na - 1)
+    companion[:, idx + 1, idx] = 1.0
+    return np.linalg.eigvals(companion).astype(complex)
+
+
+def pole_radius_batched(a) -> np.ndarray:
+    """Largest pole magnitude of each denominator, batched (see :func:`poles_batched`).
+
+    Used by the graded stability penalty on the unstable rows of a population.
+
+    Parameters
+    ----------
+    a : array_like, shape (P, na) or (na,)
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        ``max |p|`` (0 for ``na = 0``).
+    """
+    poles = poles_batched(a)
+    return np.abs(poles).max(axis=1, initial=0.0)
