@@ -3,6 +3,7 @@
 Run by hand (several minutes on 2 cores; ``--seeds`` and ``--fe`` make it shorter)::
 
     python benchmarks/bench_identification.py --seeds 10 --fe 20000 --out bench-ident.json
+    python benchmarks/bench_identification.py --spaces "poles (b fitted)" --problems robot
 
 Problems: the simulated manipulator (``paper-manipulator``, ARX(8,8,1)), the simulated twin
 rotor (``paper-twin-rotor``, ARX(5,5,1)) and the DaISy robot arm (ARX(8,8,0)) when
@@ -36,6 +37,8 @@ SPACES = {
     "coefficients (graded, stable init)": SearchSpec(parametrisation="coefficients"),
     "poles": SearchSpec(parametrisation="poles"),
     "reflection": SearchSpec(parametrisation="reflection"),
+    "poles (b fitted)": SearchSpec(parametrisation="poles", numerator="fit"),
+    "reflection (b fitted)": SearchSpec(parametrisation="reflection", numerator="fit"),
 }
 
 
@@ -55,15 +58,21 @@ def main() -> None:
     ap.add_argument("--fe", type=int, default=20_000)
     ap.add_argument("--optimisers", default=",".join(OPTIMISERS))
     ap.add_argument("--predictors", default="one-step,simulation")
+    ap.add_argument("--spaces", default=";".join(SPACES), help="space names, separated by ;")
+    ap.add_argument("--problems", default="", help="substrings of problem names (default all)")
     ap.add_argument("--out", default="bench-identification.json")
     args = ap.parse_args()
     rows = []
+    spaces = {name: SPACES[name] for name in args.spaces.split(";")}
+    wanted = [w for w in args.problems.split(",") if w]
     for pname, data, (na, nb, nk) in problems():
+        if wanted and not any(w in pname for w in wanted):
+            continue
         est, _ = prepare_data(data)
         structure = model_structure(na, nb, nk, est.n_inputs)
         for predictor in args.predictors.split(","):
             cost = CostSpec(predictor=predictor)
-            for sname, search in SPACES.items():
+            for sname, search in spaces.items():
                 ep = build_problem(est, structure, cost, search)
                 ref, ref_name = ep.reference_cost()
                 for opt in args.optimisers.split(","):

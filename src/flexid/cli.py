@@ -189,6 +189,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         parametrisation=args.parametrisation,
         penalty_kind=args.penalty,
         init=args.init,
+        numerator=args.numerator,
         callback=_identify_progress(args),
     )
     if args.figures:
@@ -229,8 +230,18 @@ def _identify_progress(args: argparse.Namespace):
     return callback
 
 
+def _cost_overrides(args: argparse.Namespace) -> dict[str, str]:
+    given = {"metric": args.cost, "predictor": args.predictor}
+    return {k: v for k, v in given.items() if v is not None}
+
+
 def _search_overrides(args: argparse.Namespace) -> dict[str, str]:
-    given = {"parametrisation": args.parametrisation, "penalty": args.penalty, "init": args.init}
+    given = {
+        "parametrisation": args.parametrisation,
+        "penalty": args.penalty,
+        "init": args.init,
+        "numerator": args.numerator,
+    }
     return {k: v for k, v in given.items() if v is not None}
 
 
@@ -243,11 +254,16 @@ def _add_search_options(p: argparse.ArgumentParser) -> None:
         "--penalty", help="stability penalty in the coefficient space: graded (default) | flat"
     )
     p.add_argument("--init", help="initial population in the coefficient space: stable | uniform")
+    p.add_argument(
+        "--numerator",
+        help="search (the optimiser searches b too) | fit (b fitted by least squares for each "
+        "candidate denominator)",
+    )
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     from .compare import check_spec, compare
-    from .config import SearchSpec, default_spec, load_config
+    from .config import CostSpec, SearchSpec, default_spec, load_config
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.runs, "--runs")
@@ -268,9 +284,14 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             from .config import OptimiserSpec
 
             changes["optimisers"] = tuple(OptimiserSpec(n) for n in _names(args.optimisers))
-        search = _search_overrides(args)
+        search, cost = _search_overrides(args), _cost_overrides(args)
         specs = [
-            replace(s, **{**changes, **({"search": replace(s.search, **search)} if search else {})})
+            replace(
+                s,
+                **changes,
+                **({"search": replace(s.search, **search)} if search else {}),
+                **({"cost": replace(s.cost, **cost)} if cost else {}),
+            )
             for s in specs
         ]
     else:
@@ -285,8 +306,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 na=args.na,
                 nb=_int_list(args.nb, "--nb"),
                 nk=_int_list(args.nk, "--nk") if args.nk is not None else 1,
-                metric=args.cost,
-                predictor=args.predictor,
+                cost=CostSpec(**_cost_overrides(args)),
                 search=SearchSpec(**_search_overrides(args)),
             )
         ]
@@ -437,8 +457,8 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument(
         "--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter"
     )
-    i.add_argument("--cost", default="paper", help="paper | rmse | nrmse | sse | mse")
-    i.add_argument("--predictor", default="one-step", help="one-step | simulation")
+    i.add_argument("--cost", help="paper (default) | rmse | nrmse | sse | mse")
+    i.add_argument("--predictor", help="one-step (default) | simulation")
     i.add_argument("--bounds", default="auto", help="auto, a half-width S, or LOW,HIGH")
     _add_search_options(i)
     i.add_argument(
@@ -468,8 +488,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--na", type=int, help="model order (built-in comparison)")
     c.add_argument("--nb", help="B coefficients (built-in comparison)")
     c.add_argument("--nk", help="input delay (built-in comparison)")
-    c.add_argument("--cost", default="paper", help="paper | rmse | nrmse | sse | mse")
-    c.add_argument("--predictor", default="one-step", help="one-step | simulation")
+    c.add_argument("--cost", help="paper (default) | rmse | nrmse | sse | mse")
+    c.add_argument("--predictor", help="one-step (default) | simulation")
     _add_search_options(c)
     c.add_argument("--store", help=f"SQLite result store (default {DEFAULT_OUT}/results.sqlite)")
     c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")

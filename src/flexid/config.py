@@ -154,6 +154,11 @@ class SearchSpec:
         Pole pairs searched as two real poles instead of a complex pair.
     k_max : float
         Bound of the reflection coefficients.
+    numerator : {"search", "fit"}
+        ``"search"``: the optimiser searches the ``b`` coefficients too (the paper's).
+        ``"fit"``: it searches the denominator only, and each candidate's ``b`` is the exact
+        least-squares optimum of the cost for its ``A`` (variable projection; both
+        predictors are linear in ``b``).
     """
 
     parametrisation: str = "poles"
@@ -162,6 +167,7 @@ class SearchSpec:
     r_max: float = 0.9999
     real_pairs: int = 0
     k_max: float = 0.9999
+    numerator: str = "search"
 
 
 PAPER_SEARCH = SearchSpec(parametrisation="coefficients", penalty="flat", init="uniform")
@@ -453,14 +459,14 @@ def default_spec(
     na: int | None = None,
     nb: Any = None,
     nk: Any = 1,
-    metric: str = "paper",
-    predictor: str = "one-step",
+    cost: CostSpec | None = None,
     search: SearchSpec | None = None,
 ) -> ComparisonSpec:
     """The built-in comparison: the paper's experiment on a simulated plant, small by default.
 
     ``plant`` is ``"manipulator"`` (ARX(8,8,1) of the end-point acceleration, paper preset)
-    or ``"twin-rotor"`` (ARX(5,5,1) of the pitch, vertical channel, paper preset).
+    or ``"twin-rotor"`` (ARX(5,5,1) of the pitch, vertical channel, paper preset).  ``cost``
+    and ``search`` default to :class:`CostSpec` and :class:`SearchSpec`.
     """
     from .errors import UnknownNameError
 
@@ -474,7 +480,7 @@ def default_spec(
         name=f"{plant}-default",
         data=DataSpec(plant=plant, preset=preset, seed=0),
         model=ModelSpec(na=na, nb=nb, nk=nk),
-        cost=CostSpec(metric=metric, predictor=predictor),
+        cost=cost or CostSpec(),
         search=search or SearchSpec(),
         optimisers=tuple(OptimiserSpec(n) for n in names),
         runs=runs,

@@ -28,6 +28,7 @@ from .stability import is_stable
 
 __all__ = [
     "INIT_RULES",
+    "NUMERATOR_RULES",
     "EstimationProblem",
     "build_problem",
     "check_search",
@@ -36,6 +37,10 @@ __all__ = [
 ]
 
 INIT_RULES = ("uniform", "stable")
+NUMERATOR_RULES = ("search", "fit")
+
+
+_NUMERATOR_WORDS = {"search": "searched", "fit": "fitted by least squares for each denominator"}
 
 
 def model_structure(
@@ -80,7 +85,9 @@ class EstimationProblem:
         The map from the search box to ARX coefficients.
     problem : Problem
         What the optimisers minimise: ``cost(parametrisation.to_coefficients(z))`` over the
-        parametrisation's box, with the shared initial population.
+        parametrisation's box, with the shared initial population.  With
+        ``search.numerator == "fit"`` the box is the parametrisation's ``A`` part only and
+        each candidate's ``b`` is fitted (:meth:`ARXCost.fit_numerator`).
     search : SearchSpec
         The settings it was built from.
     box : SearchBox
@@ -110,15 +117,21 @@ class EstimationProblem:
         In the stable spaces a point outside the box (optimisers that do not clip can leave
         it) is read as its nearest point of the box, so every candidate stays stable.
         """
-        if self.parametrisation.name != "coefficients":
-            z = np.clip(z, self.parametrisation.lower, self.parametrisation.upper)
-        return self.parametrisation.to_coefficients(z)
+        param = self.parametrisation
+        if self.search.numerator == "fit":
+            na = self.structure.na
+            if param.name != "coefficients":
+                z = np.clip(z, param.lower[:na], param.upper[:na])
+            return self.cost.fit_numerator(param.denominator(z))
+        if param.name != "coefficients":
+            z = np.clip(z, param.lower, param.upper)
+        return param.to_coefficients(z)
 
     def describe(self) -> str:
         """One line: the parametrisation, its box rule, penalty and initial population."""
         return (
             f"{self.parametrisation.describe()}; {self.box_rule}; initial population "
-            f"{self.search.init}"
+            f"{self.search.init}; numerator {_NUMERATOR_WORDS[self.search.numerator]}"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -127,18 +140,25 @@ class EstimationProblem:
             "parametrisation": self.parametrisation.to_dict(),
             "penalty": self.search.penalty,
             "init": self.search.init,
+            "numerator": self.search.numerator,
             "box_rule": self.box_rule,
         }
 
     def output_error_reference(self, *, starts: int = 4, seed: int = 0):
-        """The output-error reference of a simulation cost (cached); ``None`` for one-step."""
+        """The output-error reference of a simulation cost; ``None`` for one-step.
+
+        Levenberg-Marquardt from least squares and stable starts
+        (:func:`flexid.output_error.output_error`), with every pole radius at most
+        ``search.r_max``: the same set the ``"poles"`` space searches.  Cached per seed.
+        """
         if self.cost.predictor != "simulation":
             return None
-        if self._oe is None:
+        if self._oe is None or self._oe[0] != (starts, seed):
             from .output_error import output_error
 
-            self._oe = output_error(self.cost, starts=starts, seed=seed)
-        return self._oe
+            oe = output_error(self.cost, starts=starts, seed=seed, r_max=self.search.r_max)
+            self._oe = ((starts, seed), oe)
+        return self._oe[1]
 
     def reference_cost(self) -> tuple[float, str]:
         """The best known stable cost and what it is (see :func:`choose_reference`)."""
@@ -235,6 +255,13 @@ def build_problem(
         real_pairs=search.real_pairs,
         k_max=search.k_max,
     )
+    fit = search.numerator == "fit"
+    if fit and na == 0:
+        raise ConfigError(
+            "numerator = 'fit' searches the denominator, and na = 0 has none: least squares "
+            "is the optimum"
+        )
+    keep = slice(0, na) if fit else slice(None)
     sampler = None
     if search.init == "stable" and search.parametrisation == "coefficients" and na:
         # stable denominators drawn uniformly in the pole-pair space, b uniform in its box
@@ -244,19 +271,34 @@ def build_problem(
 
         def sampler(size: int, rng: np.random.Generator) -> np.ndarray:
             Z = poles.lower + (poles.upper - poles.lower) * rng.random((size, poles.n_search))
-            return np.clip(poles.to_coefficients(Z), param.lower, param.upper)
+            X = np.clip(poles.to_coefficients(Z), param.lower, param.upper)
+            return X[:, keep]
 
-    if search.parametrisation == "coefficients":
-        evaluate = objective
-    else:
+    lower, upper = param.lower[keep], param.upper[keep]
+    clip = search.parametrisation != "coefficients"
+    if fit:
+
+        def evaluate(Z: np.ndarray) -> np.ndarray:
+            if clip:
+                Z = np.clip(Z, lower, upper)
+            return objective(objective.fit_numerator(param.denominator(Z)))
+
+    elif clip:
 
         def evaluate(Z: np.ndarray) -> np.ndarray:
             # outside the box the maps lose their guarantee (|k| > 1, r > r_max): read a
             # point there as its projection on the box, which is stable
-            return objective(param.to_coefficients(np.clip(Z, param.lower, param.upper)))
+            return objective(param.to_coefficients(np.clip(Z, lower, upper)))
 
-    problem = Problem(evaluate, param.lower, param.upper, name="arx", sampler=sampler)
-    if search.parametrisation == "coefficients":
+    else:
+        evaluate = objective
+
+    problem = Problem(evaluate, lower, upper, name="arx", sampler=sampler)
+    if fit:
+        rule = "b fitted (unbounded)"
+        if search.parametrisation == "coefficients":
+            rule = f"a box: {box.rule}; {rule}"
+    elif search.parametrisation == "coefficients":
         rule = box.rule
     else:
         rule = box.rule.split(", ", 1)[-1] if box.rule.startswith("auto") else box.rule
@@ -280,6 +322,8 @@ def check_search(search: SearchSpec) -> None:
         raise UnknownNameError("parametrisation", search.parametrisation, PARAMETRISATIONS)
     if search.init not in INIT_RULES:
         raise UnknownNameError("initial population rule", search.init, INIT_RULES)
+    if search.numerator not in NUMERATOR_RULES:
+        raise UnknownNameError("numerator rule", search.numerator, NUMERATOR_RULES)
     from .objective import PENALTY_KINDS
 
     if search.penalty not in PENALTY_KINDS:

@@ -25,7 +25,6 @@ from .errors import BudgetError, ConfigError, DataError
 from .estimation import build_problem, model_structure
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
-from .output_error import output_error
 from .validation import ValidationReport, validate
 
 __all__ = ["Identification", "SearchBox", "identify", "prepare_data", "search_box"]
@@ -378,8 +377,8 @@ def identify(
     *,
     optimiser: str = "hbcsd",
     params: Mapping[str, Any] | None = None,
-    cost: str = "paper",
-    predictor: str = "one-step",
+    cost: str | CostSpec | None = None,
+    predictor: str | None = None,
     bounds: Any = "auto",
     budget: Budget | int | Mapping[str, Any] = 20_000,
     seed: int | None = 0,
@@ -388,12 +387,13 @@ def identify(
     output: str | int | None = None,
     detrend: bool = False,
     max_lag: int = 25,
-    weight: float = 1e3,
-    penalty: float = 1e9,
-    initial: str = "measured",
+    weight: float | None = None,
+    penalty: float | None = None,
+    initial: str | None = None,
     parametrisation: str | None = None,
     penalty_kind: str | None = None,
     init: str | None = None,
+    numerator: str | None = None,
     search: SearchSpec | None = None,
     callback: Callable | None = None,
     load_options: Mapping[str, Any] | None = None,
@@ -414,10 +414,10 @@ def identify(
         stable starts, as MATLAB's ``oe``; see :func:`flexid.output_error.output_error`).
     params : mapping, optional
         The optimiser's hyper-parameters.
-    cost : str
+    cost : str or CostSpec, optional
         ``"paper"`` (eq. 5-6: ``1e3 sqrt(sum e^2) / K``, plus 1e9 for an unstable model),
         ``"rmse"``, ``"nrmse"``, ``"sse"`` or ``"mse"``.
-    predictor : str
+    predictor : str, optional
         ``"one-step"`` (equation error, as in the paper) or ``"simulation"`` (output error).
     bounds : see :func:`search_box`
         The search box; recorded in the result.
@@ -435,10 +435,14 @@ def identify(
         Remove the estimation record's means first.
     max_lag : int
         Lags of the correlation tests.
-    weight, penalty : float
+    weight, penalty : float, optional
         Gain ``w`` and stability penalty of the paper cost.
-    initial : str
+    initial : str, optional
         Initial conditions of the simulation predictor: ``"measured"`` or ``"zero"``.
+
+        ``predictor``, ``weight``, ``penalty`` and ``initial`` override the fields of ``cost``
+        (a metric name or a whole :class:`~flexid.config.CostSpec`); what is not given is
+        :class:`~flexid.config.CostSpec`'s default, the one definition of a cost's settings.
     parametrisation : {"poles", "reflection", "coefficients"}, optional
         The search space (default ``"poles"``; ``"coefficients"`` is the paper's box).
     penalty_kind : {"graded", "flat"}, optional
@@ -446,8 +450,11 @@ def identify(
         paper's constant ``penalty``).
     init : {"stable", "uniform"}, optional
         Initial population in the coefficient space (default ``"stable"``).
+    numerator : {"search", "fit"}, optional
+        ``"fit"``: the optimiser searches the denominator only and each candidate's ``b`` is
+        the least-squares optimum of the cost for it (see :class:`~flexid.config.SearchSpec`).
     search : SearchSpec, optional
-        All search settings at once (the three above override its fields).
+        All search settings at once (the four above override its fields).
     callback : callable, optional
         Called after each optimiser iteration (progress bars).
     load_options : mapping, optional
@@ -477,12 +484,24 @@ def identify(
     structure = model_structure(na, nb, nk, est.n_inputs)
     structure.check_samples(est.n_samples)
     structure.check_samples(val.n_samples)
-    given = {"parametrisation": parametrisation, "penalty": penalty_kind, "init": init}
+    given = {
+        "parametrisation": parametrisation,
+        "penalty": penalty_kind,
+        "init": init,
+        "numerator": numerator,
+    }
     overrides = {k: v for k, v in given.items() if v is not None}
     search = replace(search or SearchSpec(), **overrides)
-    cost_spec = CostSpec(
-        metric=cost, predictor=predictor, weight=weight, penalty=penalty, initial=initial
-    )
+    cost_given = {
+        "metric": None if isinstance(cost, CostSpec) else cost,
+        "predictor": predictor,
+        "weight": weight,
+        "penalty": penalty,
+        "initial": initial,
+    }
+    base = cost if isinstance(cost, CostSpec) else CostSpec()
+    cost_spec = replace(base, **{k: v for k, v in cost_given.items() if v is not None})
+    predictor, initial = cost_spec.predictor, cost_spec.initial
     estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
     objective = estimation.cost
     box = estimation.box
@@ -501,7 +520,7 @@ def identify(
                 "predictor='simulation' (--predictor simulation); least squares ('ls') is "
                 "the optimum of the one-step cost"
             )
-        oe = output_error(objective, seed=0 if seed is None else seed)
+        oe = estimation.output_error_reference(seed=0 if seed is None else seed)
         model = structure.model(oe.theta, dt=est.dt)
         result, used_params, used_seed = None, {"starts": len(oe.starts)}, seed
         cost_value = float(oe.cost)

@@ -22,6 +22,7 @@ import numpy as np
 from scipy import linalg
 
 from .arx import ARXStructure, _io_arrays
+from .config import CostSpec
 from .errors import DataError, UnknownNameError
 from .kernels import ar_recursion
 from .stability import is_stable, pole_radius_batched
@@ -32,6 +33,10 @@ METRICS = ("paper", "rmse", "nrmse", "sse", "mse")
 PREDICTORS = ("one-step", "simulation")
 INITIAL = ("measured", "zero")
 PENALTY_KINDS = ("flat", "graded")
+_DEFAULT = CostSpec()  # the one definition of a cost's default settings
+# Largest (rows x samples) work array of one block of simulation numerator fits: 2**22
+# doubles, 32 MB.
+_FIT_BLOCK = 1 << 22
 
 
 def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
@@ -111,11 +116,11 @@ class ARXCost:
         structure: ARXStructure,
         data: Any,
         *,
-        metric: str = "paper",
-        predictor: str = "one-step",
-        weight: float = 1e3,
-        penalty: float = 1e9,
-        initial: str = "measured",
+        metric: str = _DEFAULT.metric,
+        predictor: str = _DEFAULT.predictor,
+        weight: float = _DEFAULT.weight,
+        penalty: float = _DEFAULT.penalty,
+        initial: str = _DEFAULT.initial,
         penalty_kind: str = "flat",
     ) -> None:
         if metric not in METRICS:
@@ -246,6 +251,97 @@ class ARXCost:
         y, _ = ar_recursion(X[:, :na], forced, np.zeros(na))
         e = self._target - y[:, self.structure.start :]
         return np.einsum("ij,ij->i", e, e)
+
+    # ----------------------------------------------------------------------- numerator
+    def fit_numerator(self, a: Any) -> np.ndarray:
+        """Complete each denominator with the numerator that minimises this cost.
+
+        Both predictors are linear in ``b`` for a fixed ``A`` (variable projection, Golub &
+        Pereyra 1973), so the best ``b`` of a denominator is one least-squares solve:
+
+        * one-step: with the regressors ordered ``[b, a]`` and ``QR`` of them,
+          ``SSE = SSE* + ||R11 db + R12 da||^2 + ||R22 da||^2``, minimised over ``b`` by
+          ``db = -R11^-1 R12 da`` (``d`` = distance from least squares); one GEMM for the
+          population;
+        * simulation: ``y_sim = h_A + sum_j b_j (1/A) g_j``, the free response from the
+          initial state plus the B-regressors ``g_j`` filtered by ``1/A``; ``n_b + 1``
+          recursions and one QR per candidate.  An unstable ``A`` cannot be simulated: its
+          row gets the least-squares ``b`` (its cost is the penalty whatever ``b`` is).
+
+        Parameters
+        ----------
+        a : array_like, shape (P, na) or (na,)
+            Denominator coefficients ``a_1 .. a_na``.
+
+        Returns
+        -------
+        ndarray, shape (P, n_params) or (n_params,)
+            ``[a, b]`` with the cost-minimising ``b`` for each row.
+        """
+        a = np.asarray(a, dtype=float)
+        single = a.ndim == 1
+        a = np.atleast_2d(a)
+        na = self.structure.na
+        if a.ndim != 2 or a.shape[1] != na:
+            raise DataError(f"denominators must have shape (P, {na}), got {a.shape}")
+        theta = np.empty((a.shape[0], self.n_params))
+        theta[:, :na] = a
+        theta[:, na:] = self.theta_ls[na:]
+        finite = np.isfinite(a).all(axis=1)
+        if self.n_params > na and finite.any():
+            if self.predictor == "one-step":
+                da = a[finite] - self.theta_ls[:na]
+                theta[finite, na:] -= da @ self._numerator_gain().T
+            else:
+                rows = np.flatnonzero(finite & is_stable(a))
+                if rows.size:
+                    theta[rows, na:] = self._simulation_numerators(a[rows])
+        return theta[0] if single else theta
+
+    def _numerator_gain(self) -> np.ndarray:
+        """``R11^-1 R12`` (n_b, na) of the one-step cost's QR with the ``b`` columns first."""
+        if getattr(self, "_gain", None) is None:
+            na = self.structure.na
+            phi, _ = self.structure.regressors(self.u, self.y)
+            phi = np.hstack([phi[:, na:], phi[:, :na]])
+            scale = np.linalg.norm(phi, axis=0)
+            scale[scale == 0] = 1.0
+            r = linalg.qr(phi / scale, mode="r")[0][: phi.shape[1]]
+            nb = self.n_params - na
+            gain = linalg.solve_triangular(r[:nb, :nb], r[:nb, nb:])
+            # back to original units: db = -(R11 S_b^-1)^-1 (R12 S_a^-1) da
+            self._gain = gain * (1.0 / scale[:nb])[:, None] * scale[nb:][None, :]
+        return self._gain
+
+    def _simulation_numerators(self, a: np.ndarray) -> np.ndarray:
+        """Least-squares ``b`` (P, n_b) of the simulation cost for stable denominators ``a``."""
+        na = self.structure.na
+        nb = self.n_params - na
+        offset = 0 if self.initial == "measured" else self.structure.start
+        state0 = self._state if self.initial == "measured" else np.zeros(na)
+        t = self._phi_u_t.shape[1]
+        # row 0: free response from the initial state; rows 1..nb: filtered B-regressors
+        forced = np.vstack([np.zeros((1, t)), self._phi_u_t])
+        states = np.zeros((nb + 1, na))
+        states[0] = state0
+        out = np.empty((a.shape[0], nb))
+        chunk = max(1, _FIT_BLOCK // ((nb + 1) * t))  # bounds the (rows, T) work array
+        for lo in range(0, a.shape[0], chunk):
+            block = a[lo : lo + chunk]
+            p = block.shape[0]
+            y, _ = ar_recursion(
+                np.repeat(block, nb + 1, axis=0), np.tile(forced, (p, 1)), np.tile(states, (p, 1))
+            )
+            y = y.reshape(p, nb + 1, t)[:, :, offset:]
+            resid = self._target - y[:, 0]
+            q, r = np.linalg.qr(y[:, 1:].transpose(0, 2, 1))
+            c = np.einsum("pkn,pk->pn", q, resid)
+            try:
+                out[lo : lo + p] = np.linalg.solve(r, c[..., None])[..., 0]
+            except np.linalg.LinAlgError:  # a rank-deficient block: minimum-norm solutions
+                for i in range(p):
+                    out[lo + i] = linalg.lstsq(y[i, 1:].T, resid[i])[0]
+        return out
 
     def residuals(self, theta: Any) -> np.ndarray:
         """Error samples of one candidate, shape (K,) (for checks and plots)."""

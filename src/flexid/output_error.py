@@ -54,13 +54,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import linalg
 from scipy.optimize import least_squares
 
 from .errors import ConfigError, DataError
 from .kernels import ar_recursion
 from .objective import ARXCost
-from .stability import is_stable
+from .stability import is_stable, pole_radius_batched
 
 __all__ = ["OEResult", "OERun", "output_error", "simulation_jacobian", "simulation_residuals"]
 
@@ -166,6 +165,7 @@ class _Problem:
 
     def __init__(self, cost: ARXCost) -> None:
         s = cost.structure
+        self.cost = cost
         self.na = s.na
         self.n = cost.n_params
         self.target = cost._target  # (K,)
@@ -221,17 +221,7 @@ class _Problem:
         ``y_sim = free response of A from the initial state + sum_j b_j (1/A) B-regressor_j``
         is linear in ``b``: one least-squares solve on the filtered regressors.
         """
-        na = self.na
-        nb = self.n - na
-        if nb == 0:
-            return a.copy()
-        rows = np.vstack([np.zeros((1, self.T)), self.phi_u_t])
-        states = np.zeros((nb + 1, na))
-        states[0] = self.state  # row 0: the free response from the initial state
-        out, _ = ar_recursion(np.broadcast_to(a, (nb + 1, na)), rows, states)
-        out = out[:, self.offset :]
-        b, *_ = linalg.lstsq(out[1:].T, self.target - out[0])
-        return np.concatenate([a, b])
+        return self.cost.fit_numerator(a)
 
 
 def _simulation_problem(cost: Any) -> _Problem:
@@ -365,6 +355,26 @@ def _pairs(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return real, upper
 
 
+def _admissible(a: np.ndarray, r_max: float) -> bool:
+    """Whether the denominator ``a`` (na,) is stable with every pole radius <= ``r_max``."""
+    if not is_stable(a)[0]:
+        return False
+    return r_max >= 1.0 or a.size == 0 or float(pole_radius_batched(a[None, :])[0]) <= r_max
+
+
+def _capped(a: np.ndarray, r_max: float) -> np.ndarray:
+    """``a`` with every pole of radius above ``r_max`` pulled in radially to ``r_max``."""
+    poles = np.roots(np.concatenate([[1.0], a]))
+    r = np.abs(poles)
+    shrink = r_max
+    while True:
+        out = np.where(r > shrink, poles * (shrink / np.maximum(r, 1e-300)), poles)
+        new = _poles_to_a(out)
+        if _admissible(new, r_max):
+            return new
+        shrink *= 1.0 - 1e-9  # np.poly rounding put a pole back just above the cap
+
+
 def _perturbed_a(a_ls: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Least-squares poles (stable) with damping and angle perturbed; conjugacy kept."""
     real, upper = _pairs(np.roots(np.concatenate([[1.0], a_ls])))
@@ -394,8 +404,9 @@ def _run_lm(
     kind: str,
     max_nfev: int | None,
     tol: float,
+    r_max: float,
 ) -> OERun:
-    """Levenberg-Marquardt (MINPACK) from a stable start, rejecting unstable steps."""
+    """Levenberg-Marquardt (MINPACK) from an admissible start, rejecting other steps."""
     na = prob.na
     nfev0, njev0 = prob.nfev, prob.njev
     cache: dict[str, Any] = {"x": None, "y": None}
@@ -407,7 +418,7 @@ def _run_lm(
 
     def fun(x: np.ndarray) -> np.ndarray:
         prob.nfev += 1
-        if not (np.isfinite(x).all() and is_stable(x[:na])[0]):
+        if not (np.isfinite(x).all() and _admissible(x[:na], r_max)):
             return bad
         y = prob.simulate(x[None, :])[0]
         cache["x"], cache["y"] = x.copy(), y  # the Jacobian at x reuses this simulation
@@ -437,7 +448,7 @@ def _run_lm(
     # one row per call, as a user calls cost(theta): the compiled kernel's rounding may
     # depend on a row's position in a batch, and the guarantees are about cost(theta)
     cost0, cost1 = float(cost(theta0)[0]), float(cost(theta)[0])
-    if not (is_stable(theta[:na])[0] and cost1 <= cost0):
+    if not (_admissible(theta[:na], r_max) and cost1 <= cost0):
         # defensive: MINPACK returns its best accepted (stable) point, so this only guards
         # against rounding differences between its SSE and the cost's
         theta, cost1 = theta0.copy(), cost0
@@ -461,6 +472,7 @@ def output_error(
     max_nfev: int | None = None,
     x0: Any = None,
     tol: float = 1e-10,
+    r_max: float = 1.0,
 ) -> OEResult:
     """The output-error reference: best stable Levenberg-Marquardt fit of the simulation cost.
 
@@ -483,6 +495,12 @@ def output_error(
         One more start (mirrored to stable when it is not).
     tol : float
         ``ftol``, ``xtol`` and ``gtol`` of each run (relative).
+    r_max : float
+        Largest pole radius of an accepted step, in (0, 1]: ``1`` keeps the model stable;
+        below 1 the reference lives in the same set as a search of the ``"poles"`` space
+        with that cap (starts with larger poles are pulled in to it, their ``B`` refitted).
+        A fit whose best model has a pole a hair inside the circle is rarely the model a
+        user wants.
 
     Returns
     -------
@@ -507,6 +525,8 @@ def output_error(
         raise ConfigError(f"max_nfev must be an integer >= 1 or None, got {max_nfev!r}")
     if not (np.isfinite(tol) and 0 < tol < 1):
         raise ConfigError(f"tol must be in (0, 1), got {tol!r}")
+    if not (isinstance(r_max, (int, float)) and 0 < r_max <= 1):
+        raise ConfigError(f"r_max must be in (0, 1], got {r_max!r}")
     max_nfev = None if max_nfev is None else int(max_nfev)
     na = prob.na
     rng = np.random.default_rng(seed)
@@ -523,8 +543,12 @@ def output_error(
         start_list.append(("perturbed" if i % 2 == 1 else "random", prob.refit_b(a)))
     if x0 is not None:
         start_list.append(("x0", _mirror(_as_theta(x0, prob.n, "x0"), na)))
+    for i, (kind, th) in enumerate(start_list):
+        if not _admissible(th[:na], r_max):
+            prob.njev += 1
+            start_list[i] = (kind, prob.refit_b(_capped(th[:na], r_max)))
 
-    runs = [_run_lm(prob, cost, th, kind, max_nfev, tol) for kind, th in start_list]
+    runs = [_run_lm(prob, cost, th, kind, max_nfev, tol, r_max) for kind, th in start_list]
     best = int(np.argmin([r.cost for r in runs]))
     win = runs[best]
     theta = win.theta.copy()

@@ -214,6 +214,29 @@ class Parametrisation(ABC):
         out[:, self.na :] = z[:, self.na :]
         return out[0] if single else out
 
+    def denominator(self, Za: Any) -> np.ndarray:
+        """Map the ``A`` part of search vectors to denominator coefficients.
+
+        Parameters
+        ----------
+        Za : array_like, shape (P, na) or (na,)
+            The first ``na`` entries of search vectors.
+
+        Returns
+        -------
+        ndarray, shape (P, na) or (na,)
+            ``a_1 .. a_na`` (stable for points of the box with ``"poles"`` and
+            ``"reflection"``).
+
+        Raises
+        ------
+        DataError
+            Wrong shape, or non-finite values.
+        """
+        z, single = _as_population(Za, self.na, "denominator search vectors")
+        out = self._to_a(z) if self.na else z
+        return out[0] if single else out
+
     def from_coefficients(self, X: Any) -> np.ndarray:
         """Map ARX parameters back to search vectors, where an inverse exists.
 
