@@ -149,3 +149,26 @@ def test_output_error_reference_respects_the_radius_cap():
     assert capped.cost >= free.cost
     with pytest.raises(ConfigError, match="r_max"):
         output_error(cost, r_max=1.5)
+
+
+def test_compare_with_a_fitted_numerator_stores_arx_coefficients(tmp_path):
+    from flexid.compare import compare
+    from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
+    from flexid.data import save
+
+    path = save(two_input_record(), tmp_path / "two.csv")
+    spec = ComparisonSpec(
+        name="two-input-fit",
+        data=DataSpec(file=str(path), inputs=["u1", "u2"], outputs=["y"]),
+        model=ModelSpec(na=2),
+        search=SearchSpec(numerator="fit"),
+        optimisers=(OptimiserSpec("de"),),
+        runs=2,
+        budget=2000,
+    )
+    result = compare(spec, store=tmp_path / "r.sqlite")
+    assert "b fitted" in result.summary()
+    for record in result.records["de"]:
+        assert record["status"] == "ok", record.get("error")
+        assert len(record["theta"]) == 6 and record["stable"]
+        assert record["cost"] <= result.reference_cost * (1 + 1e-4)  # 2,000 FE, 2-D search

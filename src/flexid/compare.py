@@ -476,10 +476,14 @@ class ComparisonResult:
 
 def _search_text(search) -> str:
     if search.parametrisation == "coefficients":
-        return (
+        text = (
             f"coefficient box, {search.penalty} stability penalty, {search.init} initial population"
         )
-    return f"{search.parametrisation} (stable by construction)"
+    else:
+        text = f"{search.parametrisation} (stable by construction)"
+    if search.numerator == "fit":
+        text += "; b fitted by least squares for each denominator"
+    return text
 
 
 def _f(value: float) -> str:

@@ -39,6 +39,32 @@ _DEFAULT = CostSpec()  # the one definition of a cost's default settings
 _FIT_BLOCK = 1 << 22
 
 
+def _least_squares_rows(F: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``argmin_b ||r_p - b F_p||`` for each ``p``: ``F`` (P, n, K), ``r`` (P, K) -> (P, n).
+
+    Normal equations of the column-scaled regressors, solved once and refined once with the
+    residual (iterative refinement): each step divides the error by about ``kappa(F)^2 eps``,
+    so two steps reach QR's accuracy for ``kappa(F)`` up to ~1e5, at a fraction of the cost of
+    a batched QR (a (P, n, n) Gram matrix by one matmul instead of P Householder
+    factorisations).  Blocks where that fails (singular or non-finite) fall back to SVD least
+    squares, row by row.
+    """
+    scale = np.sqrt(np.einsum("pnk,pnk->pn", F, F))
+    scale[scale == 0] = 1.0
+    Fs = F / scale[:, :, None]
+    G = Fs @ Fs.transpose(0, 2, 1)
+    try:
+        c = np.linalg.solve(G, Fs @ r[:, :, None])
+        resid = r - np.einsum("pnk,pn->pk", Fs, c[:, :, 0])
+        c += np.linalg.solve(G, Fs @ resid[:, :, None])
+        b = c[:, :, 0] / scale
+        if np.isfinite(b).all():
+            return b
+    except np.linalg.LinAlgError:
+        pass
+    return np.stack([linalg.lstsq(F[i].T, r[i])[0] for i in range(F.shape[0])])
+
+
 def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
     """Run ``y(t) = f(t) - sum_i a_i y(t - i)`` for every candidate of a population.
 
@@ -265,8 +291,9 @@ class ARXCost:
           population;
         * simulation: ``y_sim = h_A + sum_j b_j (1/A) g_j``, the free response from the
           initial state plus the B-regressors ``g_j`` filtered by ``1/A``; ``n_b + 1``
-          recursions and one QR per candidate.  An unstable ``A`` cannot be simulated: its
-          row gets the least-squares ``b`` (its cost is the penalty whatever ``b`` is).
+          recursions and a small least-squares solve per candidate.  An unstable ``A``
+          cannot be simulated: its row gets the least-squares ``b`` (its cost is the penalty
+          whatever ``b`` is).
 
         Parameters
         ----------
@@ -333,14 +360,7 @@ class ARXCost:
                 np.repeat(block, nb + 1, axis=0), np.tile(forced, (p, 1)), np.tile(states, (p, 1))
             )
             y = y.reshape(p, nb + 1, t)[:, :, offset:]
-            resid = self._target - y[:, 0]
-            q, r = np.linalg.qr(y[:, 1:].transpose(0, 2, 1))
-            c = np.einsum("pkn,pk->pn", q, resid)
-            try:
-                out[lo : lo + p] = np.linalg.solve(r, c[..., None])[..., 0]
-            except np.linalg.LinAlgError:  # a rank-deficient block: minimum-norm solutions
-                for i in range(p):
-                    out[lo + i] = linalg.lstsq(y[i, 1:].T, resid[i])[0]
+            out[lo : lo + p] = _least_squares_rows(y[:, 1:], self._target - y[:, 0])
         return out
 
     def residuals(self, theta: Any) -> np.ndarray:
