@@ -1,10 +1,13 @@
 """Tests of flexid.envs.twin_rotor: the physics checks of plants.md 2.1 and the environments.
 
-Physics checks (1-5 % of documented values) are modelling tolerances.  The scalar RK4
-(Python ``math``), the batched one (NumPy, whose sin/cos/tanh may be SIMD code on one CPU and
-libm on another) and the vector environment are routes to one trajectory: they are compared
-within a rounding bound propagated along the trajectory (``trajectory_bound``), and carry the
-``numerics`` mark.
+Physics checks (1-5 % of documented values) are modelling tolerances.  The reference route
+(:func:`derivatives` stepped by :func:`step_states`, batched NumPy), the fast scalar route
+(``ScalarStepper``: Python ``math``, behind ``simulate`` and the single environment) and the
+fast batched route (``BatchStepper``, behind the vector environment) are routes to one RK4
+trajectory: NumPy's sin/cos/tanh may be SIMD code on one CPU and libm on another, and the fast
+routes order and group the same operations differently, so they are compared within a
+rounding bound propagated along the trajectory (``trajectory_bound``), and carry the
+``numerics`` mark.  What the locked yaw axis holds at 0 is compared exactly.
 """
 
 from __future__ import annotations
@@ -20,11 +23,15 @@ from scipy import signal
 
 import flexid  # noqa: F401  (registers the environments)
 from flexid.envs.twin_rotor import (
+    THRUST_LAWS,
+    BatchStepper,
+    ScalarStepper,
     TwinRotorEnv,
     TwinRotorParameters,
     TwinRotorVectorEnv,
     derivatives,
     pitch_linear_mode,
+    reference_trajectory,
     simulate,
     step_states,
 )
@@ -135,18 +142,132 @@ def test_thrust_laws_and_input_clipping():
     np.testing.assert_array_equal(big, clipped)
 
 
+def _random_record(rng: np.random.Generator, n: int, lock_yaw: bool):
+    """Voltages (n, 2) over the whole +-2.5 V range on both rotors and a start away from rest
+    (its yaw rate 0 when the yaw is locked)."""
+    u = rng.uniform(-2.5, 2.5, (n, 2))
+    x0 = rng.normal(0.0, [0.3, 0.5, 1.0, 1.0, 1.0, 1.0, 0.1])
+    if lock_yaw:
+        x0[3] = 0.0
+    return u, x0
+
+
 @pytest.mark.numerics
-def test_scalar_and_batched_integrators_agree():
-    rng = np.random.default_rng(1)
-    u = rng.uniform(-2, 2, (150, 2))
-    p = TwinRotorParameters()
+@pytest.mark.parametrize("thrust_law", THRUST_LAWS)
+@pytest.mark.parametrize("lock_yaw", [False, True])
+def test_fast_routes_equal_the_reference(lock_yaw, thrust_law):
+    # Tolerance: trajectory_bound, the rounding of two routes through the RK4 trajectory
+    # (per derivative 16 eps of its term magnitudes, per stage point and update 8 eps),
+    # carried along the trajectory by the sample Jacobians.  The fast routes round
+    # differently but not more: the rotor states and reaction torque at the stages come from
+    # a 5-term product with coefficients from the reference recursion, the constants are
+    # divided out beforehand, the Coulomb rates are held scaled by 1 / eps, the batched cosine
+    # is sin(psi + pi/2): each a few eps of the same magnitudes.  On the machine these tests
+    # were written on the routes use at most 2 % of the bound; an error in a coefficient or a
+    # term (1e-6 relative or more) exceeds it by orders of magnitude.
+    rng = np.random.default_rng(21)
+    n = 150
+    p = TwinRotorParameters(lock_yaw=lock_yaw, thrust_law=thrust_law)
+    u, x0 = _random_record(rng, n, lock_yaw)
+    ref = reference_trajectory(u, p, 0.1, x0)
+    bound = trajectory_bound(x0, u, p, 0.1)
+    assert bound.max() < 1e-9  # the bound is not vacuous
+    scalar = ScalarStepper(p, 0.1)
+    assert_close_to_terms(scalar.run(u, x0), ref, bound, 1.0)
+    x = tuple(x0)
+    stepped = [x]
+    for u1, u2 in u.tolist():
+        x = scalar.step(x, u1, u2)
+        stepped.append(x)
+    assert_close_to_terms(np.array(stepped), ref, bound, 1.0)
+    # row 1 is the record; rows 0 and 2 run other records beside it (a row leaking into
+    # another would show as a difference)
+    batch = BatchStepper(p, 0.1, 3)
+    other_u, other_x0 = _random_record(rng, n, lock_yaw)
+    batch.state = np.stack([other_x0, x0, -other_x0])
+    assert_close_to_terms(batch.state[1], x0, EPS * np.abs(x0), 2.0)  # scaled and unscaled
+    for k in range(n):
+        batch.advance(np.stack([other_u[k], u[k], -other_u[k]]))
+        assert_close_to_terms(batch.state[1], ref[k + 1], bound[k + 1], 1.0)
+    y = simulate(u, p, x0=x0)
+    assert_close_to_terms(y, ref[:-1, [0, 2, 1, 3]], bound[:-1, [0, 2, 1, 3]], 1.0)
+
+
+@pytest.mark.numerics
+def test_environments_equal_the_reference():
+    rng = np.random.default_rng(8)
+    n = 60
+    actions = rng.uniform(-1.3, 1.3, (n, 2))  # some out of the box: clipped
+    volts = np.clip(actions, -1.0, 1.0) * 2.5
+    env = TwinRotorEnv()
+    p = env.params
+    env.reset(seed=0)
+    ref = reference_trajectory(volts, p, 0.1)
+    bound = trajectory_bound(np.zeros(7), volts, p, 0.1)
+    for k in range(n):
+        obs, reward, terminated, truncated, info = env.step(actions[k])
+        np.testing.assert_array_equal(info["applied_voltage"], volts[k])
+        x = info["state"]
+        np.testing.assert_array_equal(x, env.state)
+        assert_close_to_terms(x, ref[k + 1], bound[k + 1], 1.0)
+        # observation and reward are read from that state, noise-free: exact
+        np.testing.assert_array_equal(obs, [x[0], x[2], x[1], x[3], 0.2, 0.0])
+        q = volts[k] / 2.5
+        assert type(reward) is float
+        assert reward == -((x[0] - 0.2) ** 2 + x[2] ** 2 + 0.01 * (q[0] ** 2 + q[1] ** 2))
+        assert terminated is bool(abs(x[0]) > 1.2) and truncated is False
+
+    # the vector environment, through a truncation and its autoreset: two episodes per env
+    horizon, m = 25, 2
+    vec = TwinRotorVectorEnv(m, max_episode_steps=horizon)
+    vec.reset(seed=1)
+    acts = rng.uniform(-1.0, 1.0, (2 * horizon + 1, m, 2))
+    volts = acts * 2.5
+    episodes = []  # per env: (states of episode 1, states of episode 2) and their bounds
+    for i in range(m):
+        first, second = volts[:horizon, i], volts[horizon + 1 :, i]
+        episodes.append([
+            (reference_trajectory(first, p), trajectory_bound(np.zeros(7), first, p, 0.1)),
+            (reference_trajectory(second, p), trajectory_bound(np.zeros(7), second, p, 0.1)),
+        ])  # fmt: skip
+    for k in range(2 * horizon + 1):
+        obs, reward, terminated, truncated, _ = vec.step(acts[k])
+        for i in range(m):
+            if k == horizon:  # the autoreset step: the action is ignored
+                np.testing.assert_array_equal(vec.state[i], np.zeros(7))
+                np.testing.assert_array_equal(obs[i], [0, 0, 0, 0, 0.2, 0.0])
+                assert reward[i] == 0 and not terminated[i] and not truncated[i]
+                continue
+            states, bound = episodes[i][k > horizon]
+            j = k + 1 if k < horizon else k - horizon
+            x = vec.state[i]
+            assert_close_to_terms(x, states[j], bound[j], 1.0)
+            assert_close_to_terms(obs[i, :4], x[[0, 2, 1, 3]], EPS * np.abs(x[[0, 2, 1, 3]]), 1.0)
+            assert truncated[i] == (k in (horizon - 1, 2 * horizon))
+
+
+def test_locked_yaw_holds_yaw_at_zero_on_every_route():
+    rng = np.random.default_rng(4)
+    u = rng.uniform(-2.5, 2.5, (200, 2))  # the tail rotor driven too
+    p = TwinRotorParameters(lock_yaw=True)
+    ref = reference_trajectory(u, p)
+    np.testing.assert_array_equal(ref[:, 2:4], 0.0)
+    assert np.all(ref[1:, 5] != 0)  # the tail rotor state moves, it does not act
     y = simulate(u, p)
-    bound = trajectory_bound(np.zeros(7), u, p, 0.1)
-    x = np.zeros((1, 7))
-    for k in range(150):
-        assert_close_to_terms(x[0, [0, 2, 1, 3]], y[k], bound[k, [0, 2, 1, 3]], 1.0)
-        x = step_states(x, u[k : k + 1], p, 0.1)
-    assert bound[-1].max() < 1e-9  # the bound is not vacuous
+    np.testing.assert_array_equal(y[:, [1, 3]], 0.0)
+    env = TwinRotorEnv(lock_yaw=True)
+    vec = TwinRotorVectorEnv(3, lock_yaw=True, max_episode_steps=None)
+    env.reset(seed=0)
+    vec.reset(seed=0)
+    for k in range(200):
+        obs, *_ = env.step(u[k] / 2.5)
+        np.testing.assert_array_equal(env.state[2:4], 0.0)
+        np.testing.assert_array_equal(obs[[1, 3]], 0.0)
+        obs, *_ = vec.step(np.stack([u[k], -u[k], u[-k]]) / 2.5)
+        np.testing.assert_array_equal(vec.state[:, 2:4], 0.0)
+        np.testing.assert_array_equal(obs[:, [1, 3]], 0.0)
+    with pytest.raises(DataError, match="yaw rate"):
+        simulate(u, p, x0=[0, 0, 0, 0.1, 0, 0, 0])
 
 
 def test_bad_parameters_and_inputs():
@@ -229,4 +350,8 @@ def test_vector_env_equals_single_envs():
             assert tv[i] == t
     env = gym.make_vec("flexid/TwinRotor-v0", num_envs=2, vectorization_mode="vector_entry_point")
     assert env.reset(seed=0)[0].shape == (2, 6)
-    pickle.loads(pickle.dumps(vec))
+    # a copy steps on its own state, as the original does (the stepper's views are rebuilt)
+    copy = pickle.loads(pickle.dumps(vec))
+    a = np.full((n, 2), 0.3)
+    np.testing.assert_array_equal(copy.step(a)[0], vec.step(a)[0])
+    np.testing.assert_array_equal(copy.step(-a)[0], vec.step(-a)[0])
