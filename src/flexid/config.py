@@ -154,11 +154,11 @@ class SearchSpec:
         Pole pairs searched as two real poles instead of a complex pair.
     k_max : float
         Bound of the reflection coefficients.
-    numerator : {"search", "fit"}
+    numerator : {"fit", "search"}
         ``"search"``: the optimiser searches the ``b`` coefficients too (the paper's).
-        ``"fit"``: it searches the denominator only, and each candidate's ``b`` is the exact
-        least-squares optimum of the cost for its ``A`` (variable projection; both
-        predictors are linear in ``b``).
+        ``"fit"`` (default): it searches the denominator only, and each candidate's ``b``
+        is the exact least-squares optimum of the cost for its ``A`` (variable projection;
+        both predictors are linear in ``b``).
     """
 
     parametrisation: str = "poles"
@@ -167,10 +167,12 @@ class SearchSpec:
     r_max: float = 0.9999
     real_pairs: int = 0
     k_max: float = 0.9999
-    numerator: str = "search"
+    numerator: str = "fit"
 
 
-PAPER_SEARCH = SearchSpec(parametrisation="coefficients", penalty="flat", init="uniform")
+PAPER_SEARCH = SearchSpec(
+    parametrisation="coefficients", penalty="flat", init="uniform", numerator="search"
+)
 
 
 @dataclass(frozen=True)
