@@ -34,9 +34,11 @@ ROBOT_ARM = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "
 OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de", "cmaes", "random-search")
 SPACES = {
     "coefficients (paper: flat, uniform)": PAPER_SEARCH,
-    "coefficients (graded, stable init)": SearchSpec(parametrisation="coefficients"),
-    "poles": SearchSpec(parametrisation="poles"),
-    "reflection": SearchSpec(parametrisation="reflection"),
+    "coefficients (graded, stable init)": SearchSpec(
+        parametrisation="coefficients", numerator="search"
+    ),
+    "poles": SearchSpec(parametrisation="poles", numerator="search"),
+    "reflection": SearchSpec(parametrisation="reflection", numerator="search"),
     "poles (b fitted)": SearchSpec(parametrisation="poles", numerator="fit"),
     "reflection (b fitted)": SearchSpec(parametrisation="reflection", numerator="fit"),
 }

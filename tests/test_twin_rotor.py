@@ -22,6 +22,7 @@ from gymnasium.utils.env_checker import check_env
 from scipy import signal
 
 import flexid  # noqa: F401  (registers the environments)
+from flexid.envs import twin_rotor_physics
 from flexid.envs.twin_rotor import (
     THRUST_LAWS,
     BatchStepper,
@@ -35,6 +36,7 @@ from flexid.envs.twin_rotor import (
     simulate,
     step_states,
 )
+from flexid.envs.twin_rotor_physics import CompiledBatchStepper, CompiledScalarStepper
 from flexid.errors import ActionError, DataError, PlantParameterError
 from numerics import EPS, assert_close_to_terms
 
@@ -153,9 +155,10 @@ def _random_record(rng: np.random.Generator, n: int, lock_yaw: bool):
 
 
 @pytest.mark.numerics
+@pytest.mark.parametrize("route", ["python", "compiled"])
 @pytest.mark.parametrize("thrust_law", THRUST_LAWS)
 @pytest.mark.parametrize("lock_yaw", [False, True])
-def test_fast_routes_equal_the_reference(lock_yaw, thrust_law):
+def test_fast_routes_equal_the_reference(lock_yaw, thrust_law, route):
     # Tolerance: trajectory_bound, the rounding of two routes through the RK4 trajectory
     # (per derivative 16 eps of its term magnitudes, per stage point and update 8 eps),
     # carried along the trajectory by the sample Jacobians.  The fast routes round
@@ -164,7 +167,14 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law):
     # divided out beforehand, the Coulomb rates are held scaled by 1 / eps, the batched cosine
     # is sin(psi + pi/2): each a few eps of the same magnitudes.  On the machine these tests
     # were written on the routes use at most 2 % of the bound; an error in a coefficient or a
-    # term (1e-6 relative or more) exceeds it by orders of magnitude.
+    # term (1e-6 relative or more) exceeds it by orders of magnitude.  The compiled route
+    # runs the reference's operations in C (libm sin/tanh, possibly FMA): rounding only.
+    if route == "compiled":
+        if twin_rotor_physics._compiled() is None:
+            pytest.skip("the compiled kernels are not running")
+        scalar_cls, batch_cls = CompiledScalarStepper, CompiledBatchStepper
+    else:
+        scalar_cls, batch_cls = ScalarStepper, BatchStepper
     rng = np.random.default_rng(21)
     n = 150
     p = TwinRotorParameters(lock_yaw=lock_yaw, thrust_law=thrust_law)
@@ -172,7 +182,7 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law):
     ref = reference_trajectory(u, p, 0.1, x0)
     bound = trajectory_bound(x0, u, p, 0.1)
     assert bound.max() < 1e-9  # the bound is not vacuous
-    scalar = ScalarStepper(p, 0.1)
+    scalar = scalar_cls(p, 0.1)
     assert_close_to_terms(scalar.run(u, x0), ref, bound, 1.0)
     x = tuple(x0)
     stepped = [x]
@@ -182,7 +192,7 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law):
     assert_close_to_terms(np.array(stepped), ref, bound, 1.0)
     # row 1 is the record; rows 0 and 2 run other records beside it (a row leaking into
     # another would show as a difference)
-    batch = BatchStepper(p, 0.1, 3)
+    batch = batch_cls(p, 0.1, 3)
     other_u, other_x0 = _random_record(rng, n, lock_yaw)
     batch.state = np.stack([other_x0, x0, -other_x0])
     assert_close_to_terms(batch.state[1], x0, EPS * np.abs(x0), 2.0)  # scaled and unscaled

@@ -15,6 +15,13 @@
  *       [y(-1), ..., y(-na)] (or (na,) shared by all candidates), target (K,) or None,
  *       y_out (P, K) or None, sse_out (P,) or None (sum over t of (target - y)^2).
  *
+ *   twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law)
+ *       The twin rotor's RK4 (flexid.envs.twin_rotor_physics: the same equations as its
+ *       batched ``derivatives`` and ``_rk4``, in the same order of operations): x (B, 7)
+ *       states, updated in place; u (S, B, 2) voltages held over each of S samples;
+ *       out (S, B, 7) or None, the states after each sample; params (22,) in the order of
+ *       TRS_PARAMS below; n_sub substeps of length h per sample.
+ *
  * The recursion runs on blocks of LANES candidates at once, with the block's history in
  * one contiguous buffer, so that the compiler turns the lane loops into SIMD instructions;
  * on x86-64 with GCC an AVX2/FMA clone is chosen at load time when the CPU has it.  The
@@ -337,11 +344,122 @@ done:
     return result;
 }
 
+/* ------------------------------------------------------------------ twin rotor RK4 */
+/* params order: I1 I2 a1 b1 a2 b2 Mg B1psi B2psi B1phi B2phi Kgy k1 k2 T11 T10 T21 T20 Tp T0
+ * kc eps (eps: the Coulomb smoothing velocity) */
+#define TRS_PARAMS 22
+
+static inline double trs_thrust(double tau, double a, double b, int square)
+{
+    return tau * (a * (square ? tau : fabs(tau)) + b);
+}
+
+static void trs_derivatives(const double *p, const double *x, double u1, double u2,
+                            int lock, int square, double *d)
+{
+    const double psi = x[0], dpsi = x[1], dphi = x[3], t1 = x[4], t2 = x[5], mr = x[6];
+    const double m1 = trs_thrust(t1, p[2], p[3], square);
+    const double m2 = trs_thrust(t2, p[4], p[5], square);
+    const double dt1 = (p[12] * u1 - p[15] * t1) / p[14];
+    const double dt2 = (p[13] * u2 - p[17] * t2) / p[16];
+    const double dmr = (-mr + p[20] * (p[19] * dt1 + t1)) / p[18];
+    d[0] = dpsi;
+    d[1] = (m1 - p[6] * sin(psi) - p[7] * dpsi - p[8] * tanh(dpsi / p[21])
+            - p[11] * m1 * dphi * cos(psi)) / p[0];
+    if (lock) {
+        d[2] = 0.0;
+        d[3] = 0.0;
+    } else {
+        d[2] = dphi;
+        d[3] = (m2 - p[9] * dphi - p[10] * tanh(dphi / p[21]) - mr) / p[1];
+    }
+    d[4] = dt1;
+    d[5] = dt2;
+    d[6] = dmr;
+}
+
+static void trs_run(const double *p, double *x, const double *u, double *out, Py_ssize_t S,
+                    Py_ssize_t B, long n_sub, double h, int lock, int square)
+{
+    double k1[7], k2[7], k3[7], k4[7], y[7];
+    const double hh = 0.5 * h, h6 = h / 6.0;
+    for (Py_ssize_t s = 0; s < S; ++s) {
+        for (Py_ssize_t b = 0; b < B; ++b) {
+            double *xb = x + 7 * b;
+            const double u1 = u[2 * (s * B + b)], u2 = u[2 * (s * B + b) + 1];
+            for (long k = 0; k < n_sub; ++k) {
+                trs_derivatives(p, xb, u1, u2, lock, square, k1);
+                for (int i = 0; i < 7; ++i) y[i] = xb[i] + hh * k1[i];
+                trs_derivatives(p, y, u1, u2, lock, square, k2);
+                for (int i = 0; i < 7; ++i) y[i] = xb[i] + hh * k2[i];
+                trs_derivatives(p, y, u1, u2, lock, square, k3);
+                for (int i = 0; i < 7; ++i) y[i] = xb[i] + h * k3[i];
+                trs_derivatives(p, y, u1, u2, lock, square, k4);
+                for (int i = 0; i < 7; ++i)
+                    xb[i] = xb[i] + h6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+            }
+            if (out) memcpy(out + 7 * (s * B + b), xb, 7 * sizeof(double));
+        }
+    }
+}
+
+static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
+{
+    PyObject *objs[4];
+    Py_buffer bufs[4];
+    int have[4] = {0};
+    static const char *names[4] = {"params", "x", "u", "out"};
+    long n_sub;
+    double h;
+    int lock, square;
+    if (!PyArg_ParseTuple(args, "OOOOldpp", &objs[0], &objs[1], &objs[2], &objs[3], &n_sub, &h,
+                          &lock, &square))
+        return NULL;
+    PyObject *result = NULL;
+    for (int i = 0; i < 4; ++i) {
+        if (objs[i] == Py_None) {
+            if (i < 3) {
+                PyErr_Format(PyExc_TypeError, "twin_rotor_run: %s is required", names[i]);
+                goto done;
+            }
+            continue;
+        }
+        if (get_buffer(objs[i], &bufs[i], i == 1 || i == 3, names[i]) < 0) goto done;
+        have[i] = 1;
+        if (check_format(&bufs[i], "d", names[i]) < 0) goto done;
+    }
+    if (bufs[0].ndim != 1 || bufs[0].shape[0] != TRS_PARAMS || bufs[1].ndim != 2 ||
+        bufs[1].shape[1] != 7 || bufs[2].ndim != 3 || bufs[2].shape[1] != bufs[1].shape[0] ||
+        bufs[2].shape[2] != 2 || n_sub < 1) {
+        PyErr_SetString(PyExc_ValueError,
+                        "twin_rotor_run: params (22,), x (B, 7), u (S, B, 2), n_sub >= 1");
+        goto done;
+    }
+    Py_ssize_t S = bufs[2].shape[0], B = bufs[1].shape[0];
+    if (have[3] && (bufs[3].ndim != 3 || bufs[3].shape[0] != S || bufs[3].shape[1] != B ||
+                    bufs[3].shape[2] != 7)) {
+        PyErr_SetString(PyExc_ValueError, "twin_rotor_run: out must be (S, B, 7)");
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    trs_run((const double *)bufs[0].buf, (double *)bufs[1].buf, (const double *)bufs[2].buf,
+            have[3] ? (double *)bufs[3].buf : NULL, S, B, n_sub, h, lock, square);
+    Py_END_ALLOW_THREADS
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < 4; ++i)
+        if (have[i]) PyBuffer_Release(&bufs[i]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"schur_cohn", py_schur_cohn, METH_VARARGS,
      "schur_cohn(a, out): strict stability of monic denominators a (P, n) into out (P,) uint8."},
     {"ar_run", py_ar_run, METH_VARARGS,
      "ar_run(a, forced, state, target, y_out, sse_out): batched AR recursion (see module)."},
+    {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
+     "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law): twin rotor RK4."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -128,11 +128,20 @@ class EstimationProblem:
         return param.to_coefficients(z)
 
     def describe(self) -> str:
-        """One line: the parametrisation, its box rule, penalty and initial population."""
-        return (
-            f"{self.parametrisation.describe()}; {self.box_rule}; initial population "
-            f"{self.search.init}; numerator {_NUMERATOR_WORDS[self.search.numerator]}"
-        )
+        """One line: the parametrisation, its box rule, penalty, initial population, numerator."""
+        param, search = self.parametrisation, self.search
+        if search.numerator == "fit":
+            text = f"{param.name} parametrisation of {self.structure!r}: {param._describe_a()}"
+        else:
+            text = param.describe().rstrip(".")
+        parts = [text]
+        if param.name == "coefficients":
+            parts += [self.box_rule, f"{search.penalty} penalty"]
+            parts.append(f"{search.init} initial population")
+        elif search.numerator != "fit":
+            parts.append(self.box_rule)
+        parts.append(f"numerator {_NUMERATOR_WORDS[search.numerator]}")
+        return "; ".join(parts)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe description of the search (for results and the store)."""

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ._json import jsonable
 from .arx import ARX, ARXStructure
 from .config import CostSpec, SearchSpec
 from .data import IOData, load
@@ -281,7 +282,7 @@ class Identification:
             + (f" (seed {self.seed})" if self.seed is not None else ""),
             f"  data        : {self.data_info.get('description', '')}",
             f"  cost        : {self.cost.describe()}",
-            f"  search box  : {self.box.rule}",
+            f"  search box  : {self.search.get('box_rule', self.box.rule)}",
         ]
         if self.search:
             lines.append(f"  search space: {self.search.get('description', '')}")
@@ -315,57 +316,46 @@ class Identification:
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
-        """Machine-readable result (JSON-safe): coefficients, cost, fits, stability, timings."""
+        """Machine-readable result (JSON-safe): coefficients, cost, fits, stability, timings.
+
+        Non-finite numbers are ``None`` (see :func:`flexid._json.jsonable`).
+        """
         m = self.model
-        return {
-            "structure": {
-                "na": m.structure.na,
-                "nb": list(m.structure.nb),
-                "nk": list(m.structure.nk),
-            },
-            "optimiser": self.optimiser,
-            "params": _plain(self.params),
-            "seed": self.seed,
-            "cost": {
-                "description": self.cost.describe(),
-                "value": _num(self.cost_value),
-                "least_squares": _num(self.cost_ls),
-            },
-            "search": {
-                "space": _plain(self.search),
-                "box": self.box.to_dict(),
-                "nfev": self.nfev,
-                "nit": 0 if self.result is None else int(self.result.nit),
-                "message": "least squares (closed form)"
-                if self.result is None
-                else self.result.message,
-            },
-            "model": m.to_dict(),
-            "estimation": self.estimation.to_dict(),
-            "validation": self.validation.to_dict(),
-            "timings": {k: round(v, 6) for k, v in self.timings.items()},
-            "data": _plain(self.data_info),
-        }
+        return jsonable(
+            {
+                "structure": {
+                    "na": m.structure.na,
+                    "nb": list(m.structure.nb),
+                    "nk": list(m.structure.nk),
+                },
+                "optimiser": self.optimiser,
+                "params": self.params,
+                "seed": self.seed,
+                "cost": {
+                    "description": self.cost.describe(),
+                    "value": self.cost_value,
+                    "least_squares": self.cost_ls,
+                },
+                "search": {
+                    "space": self.search,
+                    "box": self.box.to_dict(),
+                    "nfev": self.nfev,
+                    "nit": 0 if self.result is None else int(self.result.nit),
+                    "message": "least squares (closed form)"
+                    if self.result is None
+                    else self.result.message,
+                },
+                "model": m.to_dict(),
+                "estimation": self.estimation.to_dict(),
+                "validation": self.validation.to_dict(),
+                "timings": {k: round(v, 6) for k, v in self.timings.items()},
+                "data": self.data_info,
+            }
+        )
 
 
 def _indent(text: str, prefix: str = "  ") -> str:
     return "\n".join(prefix + line if line else line for line in text.splitlines())
-
-
-def _num(value: float) -> float | str:
-    return value if math.isfinite(value) else repr(value)
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return value
 
 
 # ================================================================================ identify
@@ -532,7 +522,6 @@ def identify(
         used_params, used_seed = dict(result.params), result.seed
         cost_value = float(result.fun)
     t_val = time.perf_counter()
-    _name_model(model, est)
     report_est = validate(model, est, max_lag=max_lag, initial=initial)
     report_val = validate(model, val, max_lag=max_lag, initial=initial)
     t_end = time.perf_counter()
@@ -584,16 +573,3 @@ def _budget(budget: Budget | int | Mapping[str, Any]) -> Budget:
         raise BudgetError(
             f"budget must be a positive integer (function evaluations), got {budget!r}"
         ) from None
-
-
-def _name_model(model: ARX, data: IOData) -> None:
-    """Give the model the record's channel names where the model supports them."""
-    for attr, value in (
-        ("input_names", list(data.input_names)),
-        ("output_name", data.output_names[0]),
-    ):
-        if hasattr(model, attr):
-            try:
-                setattr(model, attr, value)
-            except AttributeError:
-                pass

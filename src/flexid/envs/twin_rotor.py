@@ -32,10 +32,12 @@ from .twin_rotor_physics import (
     BatchStepper,
     ScalarStepper,
     TwinRotorParameters,
+    batch_stepper,
     clip_inputs,
     derivatives,
     pitch_linear_mode,
     reference_trajectory,
+    scalar_stepper,
     simulate,
     step_states,
     substeps,
@@ -173,7 +175,7 @@ class TwinRotorEnv(gymnasium.Env):
         self.dt = self._cfg.dt
         self.action_space = self._cfg.action_space
         self.observation_space = self._cfg.observation_space
-        self._stepper = ScalarStepper(self.params, self.dt)
+        self._stepper = scalar_stepper(self.params, self.dt)
         self._x: tuple[float, ...] = (0.0,) * 7
 
     @property
@@ -291,7 +293,7 @@ class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
         self.single_observation_space = self._cfg.observation_space
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._stepper = BatchStepper(self.params, self.dt, self.num_envs)
+        self._stepper = batch_stepper(self.params, self.dt, self.num_envs)
         self.steps = np.zeros(self.num_envs, dtype=np.int64)
         self.prev_done = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]

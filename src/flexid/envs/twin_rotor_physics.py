@@ -63,12 +63,16 @@ __all__ = [
     "STATE_NAMES",
     "THRUST_LAWS",
     "BatchStepper",
+    "CompiledBatchStepper",
+    "CompiledScalarStepper",
     "ScalarStepper",
     "TwinRotorParameters",
+    "batch_stepper",
     "clip_inputs",
     "derivatives",
     "pitch_linear_mode",
     "reference_trajectory",
+    "scalar_stepper",
     "simulate",
     "step_states",
     "substeps",
@@ -758,6 +762,140 @@ class BatchStepper:
             dot(mat, blk, out=out)
 
 
+# ------------------------------------------------------------------------ compiled route
+def _compiled():
+    """The compiled kernels module when it runs and has the twin rotor stepper, else None."""
+    from .. import kernels
+
+    c = getattr(kernels, "_c", None)
+    if kernels.BACKEND != "c" or not hasattr(c, "twin_rotor_run"):
+        return None
+    return c
+
+
+def _kernel_params(p: TwinRotorParameters) -> np.ndarray:
+    """The parameter vector of the compiled stepper (order of ``TRS_PARAMS`` in _kernels.c)."""
+    names = ("I1", "I2", "a1", "b1", "a2", "b2", "Mg", "B1psi", "B2psi", "B1phi", "B2phi",
+             "Kgy", "k1", "k2", "T11", "T10", "T21", "T20", "Tp", "T0", "kc",
+             "coulomb_velocity")  # fmt: skip
+    return np.array([float(getattr(p, n)) for n in names])
+
+
+class CompiledScalarStepper(ScalarStepper):
+    """:class:`ScalarStepper` with the samples run by the compiled RK4 of ``flexid._kernels``.
+
+    The compiled loop evaluates :func:`derivatives` and :func:`_rk4` operation for operation
+    (C ``sin``/``tanh`` and possible FMA contraction differ from NumPy by rounding only).
+    """
+
+    def __init__(self, params: TwinRotorParameters, dt: float) -> None:
+        super().__init__(params, dt)
+        self._c = _compiled()
+        n_sub, h = substeps(params, self.dt)
+        self._args = (n_sub, h, bool(params.lock_yaw), params.thrust_law == "square")
+        self._k = _kernel_params(params)
+        self._x = np.empty((1, 7))
+        self._u = np.empty((1, 1, 2))
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        del state["_c"]  # a module does not pickle; the unpickling process finds its own
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._c = _compiled()
+
+    def step(self, x, u1: float, u2: float) -> tuple[float, ...]:
+        xb, ub = self._x, self._u
+        xb[0] = x
+        ub[0, 0, 0], ub[0, 0, 1] = u1, u2
+        self._c.twin_rotor_run(self._k, xb, ub, None, *self._args)
+        return tuple(xb[0].tolist())
+
+    def run(self, u: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        n = u.shape[0]
+        out = np.empty((n + 1, 7))
+        out[0] = x0
+        x = np.array(x0, dtype=float).reshape(1, 7)
+        u3 = np.ascontiguousarray(u, dtype=float).reshape(n, 1, 2)
+        self._c.twin_rotor_run(self._k, x, u3, out[1:].reshape(n, 1, 7), *self._args)
+        return out
+
+
+class CompiledBatchStepper:
+    """:class:`BatchStepper`'s interface, the samples run by the compiled RK4."""
+
+    def __init__(self, params: TwinRotorParameters, dt: float, batch: int) -> None:
+        self.params = params
+        self.dt = _check_dt(dt)
+        self.batch = int(batch)
+        n_sub, h = substeps(params, self.dt)
+        self.n_sub = n_sub
+        self._args = (n_sub, h, bool(params.lock_yaw), params.thrust_law == "square")
+        self._k = _kernel_params(params)
+        self._x = np.zeros((self.batch, 7))
+        self._u = np.empty((1, self.batch, 2))
+        self._bind()
+
+    def _bind(self) -> None:
+        self._c = _compiled()
+        self._angles = self._x[:, 0:3:2].T  # pitch and yaw, a view
+        self._angles.flags.writeable = False
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        del state["_c"], state["_angles"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind()
+
+    @property
+    def state(self) -> np.ndarray:
+        """States (B, 7) (a copy); assign to set them.  With ``lock_yaw`` the yaw rate is 0."""
+        return self._x.copy()
+
+    @state.setter
+    def state(self, x: np.ndarray) -> None:
+        self._x[...] = np.asarray(x, dtype=float)
+        if self.params.lock_yaw:
+            self._x[:, 3] = 0.0
+
+    def reset(self, mask: np.ndarray) -> None:
+        """Put the rotors where ``mask`` (B,) is true at rest."""
+        self._x[mask] = 0.0
+
+    @property
+    def angles(self) -> np.ndarray:
+        """Pitch and yaw (rad), shape (2, B), a read-only view of the state."""
+        return self._angles
+
+    def outputs(self, out: np.ndarray) -> None:
+        """Write pitch, yaw, pitch rate, yaw rate into ``out[:, :4]`` (``out`` (B, k))."""
+        np.take(self._x, _OUTPUT_COLUMNS, axis=1, out=out[:, :4])
+
+    def advance(self, u: np.ndarray) -> None:
+        """Step every rotor over one sample with voltages ``u`` (B, 2) (V, clipped) held."""
+        self._u[0] = u
+        self._c.twin_rotor_run(self._k, self._x, self._u, None, *self._args)
+
+
+def scalar_stepper(params: TwinRotorParameters, dt: float) -> ScalarStepper:
+    """The fastest available route for one twin rotor: compiled, else :class:`ScalarStepper`."""
+    if _compiled() is not None:
+        return CompiledScalarStepper(params, dt)
+    return ScalarStepper(params, dt)
+
+
+def batch_stepper(params: TwinRotorParameters, dt: float, batch: int):
+    """The fastest available route for a batch: compiled, else :class:`BatchStepper`."""
+    if _compiled() is not None:
+        return CompiledBatchStepper(params, dt, batch)
+    return BatchStepper(params, dt, batch)
+
+
 def simulate(
     u: Any,
     params: TwinRotorParameters | None = None,
@@ -785,11 +923,11 @@ def simulate(
 
     Notes
     -----
-    Computed by :class:`ScalarStepper`; :func:`reference_trajectory` gives the same samples
-    up to rounding.
+    Computed by the compiled RK4 when the kernels run, else by :class:`ScalarStepper`;
+    :func:`reference_trajectory` gives the same samples up to rounding.
     """
     p = params or TwinRotorParameters()
     u = _check_inputs(u, p)
     dt = _check_dt(dt)
     x = _initial_state(x0, p)
-    return ScalarStepper(p, dt).run(u, x)[:-1, _OUTPUT_COLUMNS]
+    return scalar_stepper(p, dt).run(u, x)[:-1, _OUTPUT_COLUMNS]
