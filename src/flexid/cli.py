@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -199,18 +198,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"figures: {len(paths)} PNG files in {args.figures}")
     if args.json:
-        print(json.dumps(ident.to_dict(), indent=2, allow_nan=False, default=_json_default))
+        print(json.dumps(ident.to_dict(), indent=2, allow_nan=False))
     else:
         print(ident.summary())
     return 0
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
 
 
 def _identify_progress(args: argparse.Namespace):
@@ -349,7 +340,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         if not args.json:
             print()
     if args.json:
-        print(json.dumps([r.to_dict() for r in outputs], indent=2))
+        print(json.dumps([r.to_dict() for r in outputs], indent=2, allow_nan=False))
     return 0
 
 

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from ._json import jsonable
 from .config import ComparisonSpec, OptimiserSpec
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
@@ -461,8 +462,11 @@ class ComparisonResult:
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe result: spec, reference, statistics (without per-run histories)."""
-        return _json_safe(
+        """JSON-safe result: spec, reference, statistics (without per-run histories).
+
+        Non-finite numbers are ``None`` (see :func:`flexid._json.jsonable`).
+        """
+        return jsonable(
             {
                 "key": self.key,
                 "spec": self.spec.to_dict(),
@@ -510,19 +514,6 @@ def _format_table(rows: list[list[str]]) -> str:
         if n == 0:
             lines.append("  ".join("-" * w for w in widths))
     return "\n".join(lines)
-
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, (float, np.floating)):
-        v = float(value)
-        return v if math.isfinite(v) else repr(v)
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 # ================================================================================ compare

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from ._json import jsonable
 from .errors import DataError, DataFileError, check_finite
 
 __all__ = ["IOData", "load", "save"]
@@ -65,23 +66,6 @@ def _names(names: Sequence[str] | str | None, count: int, prefix: str, what: str
     if len(names) != count:
         raise DataError(f"{what}: {len(names)} name(s) given for {count} channel(s)")
     return names
-
-
-def _jsonable(value: Any) -> Any:
-    """Convert numpy scalars/arrays and tuples in metadata into plain JSON types."""
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 class IOData:
@@ -402,7 +386,7 @@ class IOData:
             "output_names": list(self.output_names),
             "input_units": list(self.input_units),
             "output_units": list(self.output_units),
-            "metadata": _jsonable(self.metadata),
+            "metadata": jsonable(self.metadata),
         }
 
     @classmethod

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ._json import jsonable
 from .data import IOData
 from .errors import DataError, PlantParameterError, UnknownNameError
 from .signals import SIGNALS, make_signal
@@ -245,9 +246,9 @@ def generate(
     metadata = {
         "plant": plant,
         "preset": preset,
-        "parameters": _jsonable(dataclasses.asdict(params)),
+        "parameters": jsonable(dataclasses.asdict(params)),
         "signal": signal,
-        "signal_options": _jsonable(options),
+        "signal_options": jsonable(options),
         "seed": seed,
         "dt": dt,
         "n_samples": n,
@@ -266,16 +267,6 @@ def generate(
         output_units=[output_units[i] for i in cols],
         metadata=metadata,
     )
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def write(data: IOData, path: str | os.PathLike) -> None:

@@ -88,6 +88,7 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import signal, stats
 
+from ._json import jsonable
 from .data import IOData
 from .errors import DataError, ModelOrderError, check_finite
 
@@ -671,24 +672,10 @@ class StabilityReport:
             "max_zero_radius": self.max_zero_radius,
             "poles": [[float(z.real), float(z.imag)] for z in self.poles],
             "radius": [float(v) for v in self.radius],
-            "damping": [_num(v) for v in self.damping],
-            "natural_frequency": [_num(v) for v in self.natural_frequency],
+            "damping": jsonable(self.damping),
+            "natural_frequency": jsonable(self.natural_frequency),
             "zeros": [[[float(z.real), float(z.imag)] for z in zs] for zs in self.zeros],
         }
-
-
-def _num(v: float) -> float | None:
-    """A float, or ``None`` for NaN/inf (strict JSON has neither)."""
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
-def _plain(a: Any) -> list:
-    """Nested lists of floats, with ``None`` for NaN/inf."""
-    a = np.asarray(a, dtype=float)
-    obj = a.astype(object)
-    obj[~np.isfinite(a)] = None
-    return obj.tolist()
 
 
 def stability_report(poles: Any, zeros: Any = (), dt: float = 1.0) -> StabilityReport:
@@ -928,11 +915,11 @@ class ValidationReport:
             "initial": self.initial,
             "initial_rule": self.initial_rule,
             "fit_one_step": float(self.fit_one_step),
-            "fit_simulation": _num(self.fit_simulation),
+            "fit_simulation": jsonable(self.fit_simulation),
             "rmse_one_step": float(self.rmse_one_step),
-            "rmse_simulation": _num(self.rmse_simulation),
+            "rmse_simulation": jsonable(self.rmse_simulation),
             "error_range_one_step": [float(v) for v in self.error_range_one_step],
-            "error_range_simulation": [_num(v) for v in self.error_range_simulation],
+            "error_range_simulation": jsonable(self.error_range_simulation),
             "simulation_diverged": bool(self.simulation_diverged),
             "max_lag": int(self.max_lag),
             "passed": bool(self.passed),
@@ -941,13 +928,13 @@ class ValidationReport:
             "correlation_tests": [t.to_dict(arrays) for t in self.correlation_tests],
             "nonlinear_tests": [t.to_dict(arrays) for t in self.nonlinear_tests],
             "peak_measured": float(self.peak_measured),
-            "peak_model": _num(self.peak_model),
+            "peak_model": jsonable(self.peak_model),
             "stability": self.stability.to_dict(),
             "input_names": [str(n) for n in self.input_names],
             "output_name": str(self.output_name),
         }
         if arrays:
-            out["arrays"] = {k: _plain(v) for k, v in self.arrays().items()}
+            out["arrays"] = jsonable(self.arrays())
         return out
 
 

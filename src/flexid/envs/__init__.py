@@ -4,7 +4,7 @@
     Single-link flexible manipulator: finite-difference Euler-Bernoulli beam on a motor hub
     (:mod:`flexid.envs.beam`, :mod:`flexid.envs.manipulator`).
 ``flexid/TwinRotor-v0``
-    Twin rotor MIMO system, Feedback 33-220 phenomenological model
+    Twin rotor MIMO system, Feedback 33-949S phenomenological model
     (:mod:`flexid.envs.twin_rotor`).
 
 Both are registered when :mod:`flexid` is imported; the entry points are strings, so the

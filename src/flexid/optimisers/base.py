@@ -33,7 +33,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from ..errors import BudgetError, FlexidError, HyperParameterError, OptimiserError
+from ..errors import BudgetError, HyperParameterError, OptimiserError
 
 __all__ = [
     "AskTell",
@@ -968,8 +968,3 @@ class AskTell:
     def best(self) -> tuple[np.ndarray, float]:
         """Best point and cost told so far."""
         return self._run.best_x.copy(), self._run.best_f
-
-
-def is_flexid_error(exc: BaseException) -> bool:
-    """True for errors flexid raises on purpose (used by comparisons to record failures)."""
-    return isinstance(exc, FlexidError)

@@ -134,7 +134,7 @@ def register_variant(
         param.default = value
         namespace[key] = param  # type() calls __set_name__, which validates the default
     variant = type(f"{base_cls.__name__}_{_identifier(name)}", (base_cls,), namespace)
-    variant.check(variant())  # cross-parameter rules hold for the new defaults
+    variant()  # the constructor runs check(): cross-parameter rules hold for the new defaults
     return register(variant, source=_SOURCES.get(base_cls.name, "flexid") + " (variant)")
 
 
