@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -117,15 +117,7 @@ class EstimationProblem:
         In the stable spaces a point outside the box (optimisers that do not clip can leave
         it) is read as its nearest point of the box, so every candidate stays stable.
         """
-        param = self.parametrisation
-        if self.search.numerator == "fit":
-            na = self.structure.na
-            if param.name != "coefficients":
-                z = np.clip(z, param.lower[:na], param.upper[:na])
-            return self.cost.fit_numerator(param.denominator(z))
-        if param.name != "coefficients":
-            z = np.clip(z, param.lower, param.upper)
-        return param.to_coefficients(z)
+        return _coefficients_of(z, self.parametrisation, self.cost, self.search.numerator)
 
     def describe(self) -> str:
         """One line: the parametrisation, its box rule, penalty, initial population, numerator."""
@@ -177,6 +169,19 @@ class EstimationProblem:
             self.cost_ls, ls_stable, None if oe is None else (float(oe.cost), bool(oe.stable))
         )
         return choice if choice is not None else (math.nan, "no stable reference")
+
+
+def _coefficients_of(z: Any, param: Parametrisation, cost: ARXCost, numerator: str) -> np.ndarray:
+    """The one map from search vectors to ARX coefficients (what the optimisers' costs see)."""
+    fit = numerator == "fit"
+    if param.name != "coefficients":
+        # outside the box the maps lose their guarantee (|k| > 1, r > r_max): read a point
+        # there as its projection on the box, which is stable
+        n = param.na if fit else param.n_search
+        z = np.clip(z, param.lower[:n], param.upper[:n])
+    if fit:
+        return cost.fit_numerator(param.denominator(z))
+    return param.to_coefficients(z)
 
 
 def choose_reference(
@@ -239,16 +244,7 @@ def build_problem(
     from .identify import search_box
 
     check_search(search)
-    objective = ARXCost(
-        structure,
-        est,
-        metric=cost.metric,
-        predictor=cost.predictor,
-        weight=cost.weight,
-        penalty=cost.penalty,
-        initial=cost.initial,
-        penalty_kind=search.penalty,
-    )
+    objective = ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
     theta_ls = np.asarray(objective.theta_ls, dtype=float)
     box = search_box(structure, bounds, theta_ls)
     na = structure.na
@@ -283,26 +279,14 @@ def build_problem(
             X = np.clip(poles.to_coefficients(Z), param.lower, param.upper)
             return X[:, keep]
 
-    lower, upper = param.lower[keep], param.upper[keep]
-    clip = search.parametrisation != "coefficients"
-    if fit:
-
-        def evaluate(Z: np.ndarray) -> np.ndarray:
-            if clip:
-                Z = np.clip(Z, lower, upper)
-            return objective(objective.fit_numerator(param.denominator(Z)))
-
-    elif clip:
-
-        def evaluate(Z: np.ndarray) -> np.ndarray:
-            # outside the box the maps lose their guarantee (|k| > 1, r > r_max): read a
-            # point there as its projection on the box, which is stable
-            return objective(param.to_coefficients(np.clip(Z, lower, upper)))
-
+    if search.parametrisation == "coefficients" and not fit:
+        evaluate = objective  # the search vector is theta
     else:
-        evaluate = objective
 
-    problem = Problem(evaluate, lower, upper, name="arx", sampler=sampler)
+        def evaluate(Z: np.ndarray) -> np.ndarray:
+            return objective(_coefficients_of(Z, param, objective, search.numerator))
+
+    problem = Problem(evaluate, param.lower[keep], param.upper[keep], name="arx", sampler=sampler)
     if fit:
         rule = "b fitted (unbounded)"
         if search.parametrisation == "coefficients":

@@ -188,6 +188,7 @@ class ARXCost:
         self.theta_ls = theta_s / scale
         resid = target - phi @ self.theta_ls
         self.sse_ls = float(resid @ resid)
+        self._r_scaled, self._scale = r, scale
         self._r = r * scale[None, :]  # R (theta - theta*) in original units
         self._r_t = np.ascontiguousarray(self._r.T)
         self._std_y = float(np.std(target))
@@ -285,10 +286,9 @@ class ARXCost:
         Both predictors are linear in ``b`` for a fixed ``A`` (variable projection, Golub &
         Pereyra 1973), so the best ``b`` of a denominator is one least-squares solve:
 
-        * one-step: with the regressors ordered ``[b, a]`` and ``QR`` of them,
-          ``SSE = SSE* + ||R11 db + R12 da||^2 + ||R22 da||^2``, minimised over ``b`` by
-          ``db = -R11^-1 R12 da`` (``d`` = distance from least squares); one GEMM for the
-          population;
+        * one-step: ``SSE = SSE* + ||R_a da + R_b db||^2`` with the cost's ``R`` (``d`` =
+          distance from least squares), minimised over ``b`` by ``db = -G da`` with ``G``
+          one small least-squares solve; one GEMM for the population;
         * simulation: ``y_sim = h_A + sum_j b_j (1/A) g_j``, the free response from the
           initial state plus the B-regressors ``g_j`` filtered by ``1/A``; ``n_b + 1``
           recursions and a small least-squares solve per candidate.  An unstable ``A``
@@ -326,18 +326,16 @@ class ARXCost:
         return theta[0] if single else theta
 
     def _numerator_gain(self) -> np.ndarray:
-        """``R11^-1 R12`` (n_b, na) of the one-step cost's QR with the ``b`` columns first."""
+        """``G`` (n_b, na) with ``db = -G da`` minimising the one-step SSE for a given ``da``.
+
+        From the cost's own ``R`` (columns ``[a, b]``, scaled): the excess SSE is
+        ``||R_a da + R_b db||^2``, least squares in ``db`` over the ``n x n_b`` matrix ``R_b``.
+        """
         if getattr(self, "_gain", None) is None:
-            na = self.structure.na
-            phi, _ = self.structure.regressors(self.u, self.y)
-            phi = np.hstack([phi[:, na:], phi[:, :na]])
-            scale = np.linalg.norm(phi, axis=0)
-            scale[scale == 0] = 1.0
-            r = linalg.qr(phi / scale, mode="r")[0][: phi.shape[1]]
-            nb = self.n_params - na
-            gain = linalg.solve_triangular(r[:nb, :nb], r[:nb, nb:])
-            # back to original units: db = -(R11 S_b^-1)^-1 (R12 S_a^-1) da
-            self._gain = gain * (1.0 / scale[:nb])[:, None] * scale[nb:][None, :]
+            na, r, scale = self.structure.na, self._r_scaled, self._scale
+            gain = linalg.lstsq(r[:, na:], r[:, :na])[0]
+            # back to original units: theta_s = S theta, so G = S_b^-1 G_s S_a
+            self._gain = gain * (1.0 / scale[na:])[:, None] * scale[:na][None, :]
         return self._gain
 
     def _simulation_numerators(self, a: np.ndarray) -> np.ndarray:

@@ -115,7 +115,7 @@ def is_stable_reference(a) -> np.ndarray:
 
 
 def max_pole_radius(a) -> np.ndarray:
-    """Largest pole magnitude of each denominator (``np.roots``; for reports, not hot paths).
+    """Largest pole magnitude of each denominator, ``inf`` for a row with non-finite values.
 
     Parameters
     ----------
@@ -124,15 +124,12 @@ def max_pole_radius(a) -> np.ndarray:
     Returns
     -------
     ndarray, shape (P,)
+        ``max |p|`` (0 for ``na = 0``; see :func:`pole_radius_batched`).
     """
     a = _as_population(a)
-    out = np.zeros(a.shape[0])
-    for i, row in enumerate(a):
-        if row.size and np.isfinite(row).all():
-            r = np.roots(np.concatenate([[1.0], row]))
-            out[i] = np.abs(r).max() if r.size else 0.0
-        elif row.size:
-            out[i] = np.inf
+    out = np.full(a.shape[0], np.inf)
+    finite = np.isfinite(a).all(axis=1)
+    out[finite] = pole_radius_batched(a[finite])
     return out
 
 
