@@ -30,13 +30,17 @@ def test_paper_presets():
 
 
 def test_noise_free_output_is_the_plant_response_and_noise_is_separate():
-    clean = generate("manipulator", signal="prbs", n_samples=500, seed=3,
-                     signal_options={"order": 7, "low": -0.2, "high": 0.2})
+    prbs = {"signal": "prbs", "n_samples": 500, "seed": 3,
+            "signal_options": {"order": 7, "low": -0.2, "high": 0.2}}
+    clean = generate("manipulator", sensors="ideal", **prbs)
     # generate() runs this very function on these very samples (same model, same FFT
-    # lengths): exact on any machine
-    np.testing.assert_array_equal(clean.y, beam.simulate(clean.u[:, 0]))
-    noisy = generate("manipulator", signal="prbs", n_samples=500, seed=3, noise_std=[0, 0, 0, 1],
-                     signal_options={"order": 7, "low": -0.2, "high": 0.2})
+    # lengths): exact on any machine.  Ideal sensors are the beam alone, as before the
+    # measurement chain existed.
+    ideal = beam.BeamParameters(**beam.IDEAL_SENSORS)
+    np.testing.assert_array_equal(clean.y, beam.simulate(clean.u[:, 0], ideal))
+    assert clean.metadata["sensors"] == "ideal"
+    assert clean.metadata["parameters"]["encoder_counts"] is None
+    noisy = generate("manipulator", sensors="ideal", noise_std=[0, 0, 0, 1], **prbs)
     np.testing.assert_array_equal(noisy.u, clean.u)  # the input does not change with noise
     np.testing.assert_array_equal(noisy.y[:, :3], clean.y[:, :3])
     assert np.std(noisy.y[:, 3] - clean.y[:, 3]) == pytest.approx(1.0, rel=0.15)
@@ -44,6 +48,21 @@ def test_noise_free_output_is_the_plant_response_and_noise_is_separate():
     base = generate("manipulator", n_samples=400, seed=1, outputs=["hub_angle"])
     ratio = np.std(rel.y - base.y) / np.std(base.y)
     assert ratio == pytest.approx(0.05, rel=0.2)
+
+
+def test_lab_sensors_are_the_chain_model_read_by_the_encoder_with_tachometer_noise():
+    lab = generate("manipulator", n_samples=2000, seed=4)
+    p = beam.BeamParameters()
+    expected = beam.measure(beam.simulate(lab.u[:, 0], p), p)
+    np.testing.assert_array_equal(lab.y[:, [0, 2, 3]], expected[:, [0, 2, 3]])
+    counts = lab.y[:, 0] / (2 * np.pi / 2048)
+    np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-9)
+    # the tachometer's 0.005 rad/s: 2,000 draws put the sample std within 10 % w.p. > 1 - 1e-5
+    assert np.std(lab.y[:, 1] - expected[:, 1]) == pytest.approx(0.005, rel=0.1)
+    assert lab.metadata["sensors"] == "lab"
+    assert lab.metadata["parameters"]["actuator_bandwidth"] == 500.0
+    with pytest.raises(PlantParameterError, match="sensors"):
+        generate("manipulator", n_samples=100, sensors="perfect")
 
 
 def test_same_seed_byte_identical_files(tmp_path):

@@ -74,12 +74,13 @@ def test_bad_kwargs_raise(kwargs, match):
 
 # ---- dynamics, reward, termination ----------------------------------------------------------
 def test_env_follows_beam_simulate_and_reward_formula():
-    env = FlexibleManipulatorEnv(payload_mass=0.01, tip_weight=50.0, torque_weight=0.1)
+    ideal = beam.IDEAL_SENSORS
+    env = FlexibleManipulatorEnv(payload_mass=0.01, tip_weight=50.0, torque_weight=0.1, **ideal)
     obs, info = env.reset(seed=3)
     np.testing.assert_array_equal(obs, [0, 0, 0, 0, 0.5])
     rng = np.random.default_rng(0)
     u = rng.uniform(-0.3, 0.3, 300)
-    y = beam.simulate(u, beam.BeamParameters(payload_mass=0.01))
+    y = beam.simulate(u, beam.BeamParameters(payload_mass=0.01, **ideal))
     for k in range(299):
         obs, reward, terminated, truncated, info = env.step(np.array([u[k]]))
         scale = np.abs(y).max(axis=0)
@@ -166,14 +167,38 @@ def test_reset_options():
         env.reset(options={"initial_angle": 0.1})
 
 
-def test_coulomb_friction_env_matches_simulate():
-    kw = {"hub_coulomb_friction": 0.02, **SMALL}
+@pytest.mark.parametrize("chain", ["ideal", "lab"])
+def test_coulomb_friction_env_matches_simulate(chain):
+    # with the lab chain the friction acts at the hub, behind the actuator's lag
+    sensors = beam.IDEAL_SENSORS if chain == "ideal" else {"tachometer_noise": 0.0}
+    kw = {"hub_coulomb_friction": 0.02, **SMALL, **sensors}
     env = FlexibleManipulatorEnv(**kw)
     env.reset(seed=0)
     u = np.where(np.arange(200) < 100, 0.3, -0.3)
-    y = beam.simulate(u, beam.BeamParameters(**kw))
+    p = beam.BeamParameters(**kw)
+    y = beam.measure(beam.simulate(u, p), p)
     obs = np.array([env.step(np.array([t]))[0][:4] for t in u[:-1]])
-    np.testing.assert_allclose(obs, y[1:], rtol=1e-7, atol=1e-9 * np.abs(y).max())
+    # the hub angle in encoder steps: a value on a step boundary may round either way
+    # after the batched and the single-state routes' different summation orders
+    step = p.encoder_step
+    assert np.all(np.abs(obs[:, 0] - y[1:, 0]) <= step * (1 + 1e-9) + 1e-9 * np.abs(y[:, 0]).max())
+    np.testing.assert_allclose(obs[:, 1:], y[1:, 1:], rtol=1e-7, atol=1e-9 * np.abs(y).max())
+
+
+def test_env_reads_the_hub_angle_through_the_encoder_and_adds_tachometer_noise():
+    env = FlexibleManipulatorEnv(**SMALL)
+    env.reset(seed=0)
+    obs = np.array([env.step(np.array([0.3]))[0][:4] for _ in range(100)])
+    step = 2 * math.pi / 2048
+    counts = obs[:, 0] / step
+    np.testing.assert_allclose(counts, np.round(counts), atol=1e-9)
+    assert len(np.unique(obs[:, 0])) > 5  # it moved through several counts
+    quiet = FlexibleManipulatorEnv(**SMALL, tachometer_noise=0.0)
+    quiet.reset(seed=0)
+    ref = np.array([quiet.step(np.array([0.3]))[0][:4] for _ in range(100)])
+    np.testing.assert_array_equal(obs[:, [0, 2, 3]], ref[:, [0, 2, 3]])
+    noise = obs[:, 1] - ref[:, 1]
+    assert 0.003 < noise.std() < 0.007  # 0.005 rad/s; 100 draws: within +-40 % w.p. > 1 - 1e-6
 
 
 # ---- rendering ----------------------------------------------------------------------------------

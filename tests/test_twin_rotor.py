@@ -220,8 +220,11 @@ def test_environments_equal_the_reference():
         x = info["state"]
         np.testing.assert_array_equal(x, env.state)
         assert_close_to_terms(x, ref[k + 1], bound[k + 1], 1.0)
-        # observation and reward are read from that state, noise-free: exact
-        np.testing.assert_array_equal(obs, [x[0], x[2], x[1], x[3], 0.2, 0.0])
+        # observation and reward are read from that state, noise-free: exact; the angles
+        # in encoder counts
+        seen = twin_rotor_physics.measure(x[[0, 2, 1, 3]], p)
+        np.testing.assert_array_equal(obs, [*seen, 0.2, 0.0])
+        np.testing.assert_allclose(seen[:2], x[[0, 2]], rtol=0, atol=p.encoder_step / 2)
         q = volts[k] / 2.5
         assert type(reward) is float
         assert reward == -((x[0] - 0.2) ** 2 + x[2] ** 2 + 0.01 * (q[0] ** 2 + q[1] ** 2))
@@ -252,7 +255,8 @@ def test_environments_equal_the_reference():
             j = k + 1 if k < horizon else k - horizon
             x = vec.state[i]
             assert_close_to_terms(x, states[j], bound[j], 1.0)
-            assert_close_to_terms(obs[i, :4], x[[0, 2, 1, 3]], EPS * np.abs(x[[0, 2, 1, 3]]), 1.0)
+            seen = twin_rotor_physics.measure(x[[0, 2, 1, 3]], p)
+            assert_close_to_terms(obs[i, :4], seen, EPS * np.abs(seen), 1.0)
             assert truncated[i] == (k in (horizon - 1, 2 * horizon))
 
 

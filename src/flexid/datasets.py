@@ -14,8 +14,11 @@ Presets reproduce the experiments of Nasir & Tokhi (section 4.1):
     vertical channel (yaw locked), 8,000 samples at 0.1 s, uniform random +-1 V on the main
     rotor held 0.1 s (tail rotor 0 V), pitch output.
 
-Both presets add measurement noise of 1 % of each output's standard deviation (so that
-identification is not done on perfect data); ``noise_std=0`` turns it off.
+Both plants are read through their measurement and actuation chain (``sensors="lab"``,
+the default; ``sensors="ideal"`` reads the plant's states exactly).  The manipulator preset
+adds white noise of 1 % of the acceleration's standard deviation (the accelerometer's
+analog channel); the twin rotor's pitch is an encoder count, whose quantisation is its
+measurement error, so its preset adds none.  ``noise_std`` overrides either.
 """
 
 from __future__ import annotations
@@ -29,12 +32,11 @@ import numpy as np
 
 from ._json import jsonable
 from .data import IOData
-from .errors import DataError, PlantParameterError, UnknownNameError
+from .errors import DataError, UnknownNameError
+from .plants import PLANTS, get_plant
 from .signals import SIGNALS, make_signal
 
 __all__ = ["PLANTS", "PRESETS", "generate", "write"]
-
-PLANTS = ("manipulator", "twin-rotor")
 
 PRESETS: dict[str, dict[str, Any]] = {
     "paper-manipulator": {
@@ -59,41 +61,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         "outputs": ["pitch"],
         "inputs": ["main_rotor"],
         "plant_params": {"lock_yaw": True},
-        "noise_std": "1%",
+        "noise_std": 0.0,
     },
 }
-
-_DEFAULTS = {
-    "manipulator": {"dt": 1e-3, "n_samples": 2000, "signal_options": {"low": -0.3, "high": 0.3}},
-    "twin-rotor": {"dt": 0.1, "n_samples": 3000, "signal_options": {"low": -1.0, "high": 1.0}},
-}
-
-
-def _plant_module(plant: str):
-    if plant == "manipulator":
-        from .envs import beam
-
-        return beam
-    from .envs import twin_rotor
-
-    return twin_rotor
-
-
-def _parameters(module, plant: str, overrides: Mapping[str, Any] | None):
-    cls = module.BeamParameters if plant == "manipulator" else module.TwinRotorParameters
-    overrides = dict(overrides or {})
-    known = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(overrides) - known)
-    if unknown:
-        raise PlantParameterError(
-            f"{plant}: unknown parameter(s) {', '.join(map(repr, unknown))}; "
-            f"known: {', '.join(sorted(known))}"
-        )
-    for key, value in overrides.items():  # lists from JSON/TOML become tuples
-        if isinstance(value, list):
-            overrides[key] = tuple(value)
-    return cls(**overrides)
-
 
 def _noise_levels(noise_std: Any, clean: np.ndarray) -> np.ndarray:
     """Per-output noise standard deviations from a number, a list or a "1%" string."""
@@ -130,12 +100,15 @@ def generate(
     signal_options: Mapping[str, Any] | None = None,
     plant_params: Mapping[str, Any] | None = None,
     preset: str | None = None,
+    sensors: str = "lab",
 ) -> IOData:
     """Simulate a plant under an excitation signal and return the record.
 
     Parameters
     ----------
-    plant : {"manipulator", "twin-rotor"}
+    plant : str
+        A registered plant (:data:`flexid.plants.PLANTS`): ``"manipulator"`` or
+        ``"twin-rotor"``.
     signal : str, optional
         Excitation (see :func:`flexid.signals.describe_signals`), default ``"uniform"``.
     n_samples : int, optional
@@ -158,6 +131,11 @@ def generate(
         Physical parameter overrides, e.g. ``{"payload_mass": 0.02}`` or ``{"lock_yaw": True}``.
     preset : str, optional
         ``"paper-manipulator"`` or ``"paper-twin-rotor"``; explicit arguments override it.
+    sensors : {"lab", "ideal"}
+        ``"lab"`` (default): the plant read through its measurement and actuation chain
+        (drive lag, sensor dynamics, anti-aliasing filter, encoder steps, tachometer noise;
+        see the plant's parameters).  ``"ideal"``: the chain switched off, the plant's states
+        read exactly.  ``plant_params`` apply on top of either.
 
     Returns
     -------
@@ -171,9 +149,7 @@ def generate(
         settings = {k: v for k, v in PRESETS[preset].items() if k != "description"}
         if plant != settings["plant"]:
             raise DataError(f"preset {preset!r} is for the {settings['plant']}, not {plant!r}")
-    if plant not in PLANTS:
-        raise UnknownNameError("plant", plant, PLANTS)
-    defaults = _DEFAULTS[plant]
+    spec = get_plant(plant)
     explicit = {
         "signal": signal,
         "n_samples": n_samples,
@@ -192,26 +168,24 @@ def generate(
     if preset is not None and signal == PRESETS[preset]["signal"]:
         options = dict(PRESETS[preset].get("signal_options", {}))
     elif signal in level_signals:
-        options = dict(defaults["signal_options"])  # +-0.3 N m or +-1 V
+        options = dict(spec.signal_options)  # +-0.3 N m or +-1 V
     else:
         options = {}
     options.update(signal_options or {})
     params_over = dict(settings.get("plant_params", {}))
     params_over.update(plant_params or {})
-    n = settings.get("n_samples", defaults["n_samples"])
+    n = settings.get("n_samples", spec.n_samples)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
         raise DataError(f"n_samples must be an integer >= 2, got {n!r}")
     n = int(n)
-    dt = float(settings.get("dt", defaults["dt"]))
+    dt = float(settings.get("dt", spec.dt))
     if not (np.isfinite(dt) and dt > 0):
         raise DataError(f"dt must be a positive number of seconds, got {dt!r}")
 
-    module = _plant_module(plant)
-    params = _parameters(module, plant, params_over)
+    params = spec.make_parameters(params_over, sensors=sensors)
     signal_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
     signal_rng = np.random.default_rng(signal_seq)
-    input_names = list(module.INPUT_NAMES) if plant == "twin-rotor" else ["torque"]
-    input_units = list(module.INPUT_UNITS) if plant == "twin-rotor" else ["N m"]
+    input_names, input_units = list(spec.input_names), list(spec.input_units)
     excited = list(settings.get("inputs") or input_names)
     for name in excited:
         if name not in input_names:
@@ -219,14 +193,9 @@ def generate(
     u = np.zeros((n, len(input_names)))
     for name in excited:
         u[:, input_names.index(name)] = make_signal(signal, n, dt, rng=signal_rng, **options)
-    if plant == "manipulator":
-        y_all = module.simulate(u[:, 0], params, dt=dt)
-        output_names, output_units = list(module.OUTPUT_NAMES), list(module.OUTPUT_UNITS)
-    else:
-        y_all = module.simulate(u, params, dt=dt)
-        output_names, output_units = list(module.OUTPUT_NAMES), list(module.OUTPUT_UNITS)
-        u_applied = module.clip_inputs(u, params)
-        u = u_applied
+    y_all, u = spec.simulate(spec.physics(), u, params, dt)
+    y_all = spec.measure(y_all, params)
+    output_names, output_units = list(spec.output_names), list(spec.output_units)
     keep = list(settings.get("outputs") or output_names)
     for name in keep:
         if name not in output_names:
@@ -234,9 +203,11 @@ def generate(
     cols = [output_names.index(name) for name in keep]
     clean = y_all[:, cols]
     levels = _noise_levels(settings.get("noise_std"), clean)
+    floor = spec.noise_floor(params)[cols]
+    levels = np.where(floor > 0, np.hypot(levels, floor), levels)
     noise_rng = np.random.default_rng(noise_seq)
     y = clean + noise_rng.standard_normal(clean.shape) * levels
-    if plant == "twin-rotor" and settings.get("inputs"):
+    if settings.get("inputs"):
         sel = [input_names.index(name) for name in excited]
         u = u[:, sel]
         input_names = [input_names[i] for i in sel]
@@ -254,6 +225,7 @@ def generate(
         "n_samples": n,
         "noise_std": [float(v) for v in levels],
         "noise_rule": settings.get("noise_std"),
+        "sensors": sensors,
         "flexid_version": __version__,
         "source": f"flexid simulated {plant}",
     }

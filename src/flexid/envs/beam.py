@@ -26,9 +26,6 @@ hub-beam (:func:`exact_frequencies`) are the validation reference for the finite
 model (:func:`natural_frequencies`).
 """
 
-# Owner: engineer C (notes/task_C.md).  Public API used by flexid.datasets (task E):
-# BeamParameters(payload_mass=..., n_sections=...), simulate, OUTPUT_NAMES, OUTPUT_UNITS.
-
 from __future__ import annotations
 
 import dataclasses
@@ -44,7 +41,11 @@ import scipy.signal
 
 from flexid.errors import PlantParameterError, check_finite
 
+from . import sensors
+
 __all__ = [
+    "DAMPING_LAWS",
+    "IDEAL_SENSORS",
     "OUTPUT_NAMES",
     "OUTPUT_UNITS",
     "BeamModel",
@@ -54,8 +55,11 @@ __all__ = [
     "discrete_model",
     "exact_frequencies",
     "fd_matrices",
+    "measure",
+    "measured_model",
     "natural_frequencies",
     "node_positions",
+    "noise_floor",
     "simulate",
 ]
 
@@ -63,6 +67,20 @@ OUTPUT_NAMES: tuple[str, ...] = ("hub_angle", "hub_velocity", "tip_deflection", 
 """Names of the four plant outputs, in column order."""
 OUTPUT_UNITS: tuple[str, ...] = ("rad", "rad/s", "m", "m/s^2")
 """SI units of the four plant outputs, in column order."""
+
+DAMPING_LAWS = ("constant", "stiffness")
+"""How the damping ratios of the modes beyond ``damping_ratios`` are set."""
+
+IDEAL_SENSORS: dict[str, object] = {
+    "damping_law": "constant",
+    "actuator_bandwidth": None,
+    "accelerometer_bandwidth": None,
+    "anti_alias_fraction": None,
+    "encoder_counts": None,
+    "tachometer_noise": 0.0,
+}
+"""The chain switched off: torque applied as commanded, every output read ideally, and the
+higher modes damped like the last listed one (``BeamParameters(**IDEAL_SENSORS)``)."""
 
 
 def _number(name: str, value, unit: str, *, strict: bool) -> float:
@@ -124,6 +142,41 @@ class BeamParameters:
     n_sections : int
         Number of finite-difference sections n, in [4, 400].  Default 40 (< 1 % frequency
         error on the first three modes needs n >= 30).
+    damping_law : {"stiffness", "constant"}
+        Damping of the modes beyond ``damping_ratios``.  ``"stiffness"`` (default):
+        ``zeta_k = zeta_last omega_k / omega_last``, the stiffness-proportional (Rayleigh
+        ``beta K``) law of material and joint damping, which grows with frequency, so that
+        the beam's higher modes die out as a real beam's do.  ``"constant"``: the last
+        listed ratio for every higher mode (lightly damped modes up to the Nyquist
+        frequency).  The frequencies do not depend on it.
+    actuator_bandwidth : float or None
+        -3 dB bandwidth [Hz] of the drive amplifier's current loop, a first-order lag from
+        the commanded to the applied torque.  Default 500 Hz, a current loop of a PWM
+        amplifier on a small DC servo motor (hundreds of Hz to a few kHz); None: ideal.
+    accelerometer_bandwidth : float or None
+        Natural frequency [Hz] of the tip accelerometer, a damped (zeta = 0.707)
+        second-order sensor.  Default 1000 Hz (a capacitive or piezo-resistive sensor of a
+        few grams); None: ideal.
+    anti_alias_fraction : float or None
+        Cutoff of the anti-aliasing filter on the analog channels (hub velocity, tip
+        deflection and acceleration) as a fraction of the sampling rate ``1/dt``, in
+        (0, 0.5).  Default 0.2 (200 Hz at 1 kHz: above the 0-100 Hz band of the first three
+        modes, well below Nyquist); None: no filter.  The filter acts on the continuous
+        signal, before the sampler.
+    anti_alias_order : int
+        Order of the Butterworth anti-aliasing filter, in [1, 8].  Default 4.
+    encoder_counts : int or None
+        Counts per revolution of the hub encoder: the hub angle is read in steps of
+        ``2 pi / encoder_counts``.  Default 2048 (the rig's encoder, 2,048 pulses per
+        revolution); None: ideal.
+    tachometer_noise : float
+        Standard deviation [rad/s] of the tachometer's white noise (ripple and brush
+        noise) on the hub velocity, >= 0.  Default 0.005.
+
+    Notes
+    -----
+    ``BeamParameters(**IDEAL_SENSORS)`` switches the measurement and actuation chain off:
+    the data are then those of the beam alone, as before the chain existed.
     """
 
     length: float = 0.96
@@ -139,6 +192,13 @@ class BeamParameters:
     hub_coulomb_friction: float = 0.0
     coulomb_velocity: float = 0.05
     n_sections: int = 40
+    damping_law: str = "stiffness"
+    actuator_bandwidth: float | None = 500.0
+    accelerometer_bandwidth: float | None = 1000.0
+    anti_alias_fraction: float | None = 0.2
+    anti_alias_order: int = 4
+    encoder_counts: int | None = 2048
+    tachometer_noise: float = 0.005
 
     def __post_init__(self) -> None:
         strict = {
@@ -182,6 +242,58 @@ class BeamParameters:
                 f"beam parameter 'n_sections' must be an integer in [4, 400], got {n!r}"
             )
         object.__setattr__(self, "n_sections", int(n))
+        self._check_chain()
+
+    def _check_chain(self) -> None:
+        if self.damping_law not in DAMPING_LAWS:
+            raise PlantParameterError(
+                f"beam parameter 'damping_law' must be one of {DAMPING_LAWS}, "
+                f"got {self.damping_law!r}"
+            )
+        for name in ("actuator_bandwidth", "accelerometer_bandwidth"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, _number(name, value, "Hz", strict=True))
+        frac = self.anti_alias_fraction
+        if frac is not None:
+            frac = _number("anti_alias_fraction", frac, "of the sampling rate", strict=True)
+            if frac >= 0.5:
+                raise PlantParameterError(
+                    "beam parameter 'anti_alias_fraction' must be below 0.5 (the Nyquist "
+                    f"frequency), got {frac!r}"
+                )
+            object.__setattr__(self, "anti_alias_fraction", frac)
+        order = self.anti_alias_order
+        if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not (
+            1 <= order <= 8
+        ):
+            raise PlantParameterError(
+                f"beam parameter 'anti_alias_order' must be an integer in [1, 8], got {order!r}"
+            )
+        object.__setattr__(self, "anti_alias_order", int(order))
+        counts = self.encoder_counts
+        if counts is not None:
+            if isinstance(counts, bool) or not isinstance(counts, (int, np.integer)) or counts < 1:
+                raise PlantParameterError(
+                    "beam parameter 'encoder_counts' must be a positive integer (counts per "
+                    f"revolution) or None, got {counts!r}"
+                )
+            object.__setattr__(self, "encoder_counts", int(counts))
+        object.__setattr__(
+            self,
+            "tachometer_noise",
+            _number("tachometer_noise", self.tachometer_noise, "rad/s", strict=False),
+        )
+
+    @property
+    def ideal_sensors(self) -> bool:
+        """True when the measurement and actuation chain is off (:data:`IDEAL_SENSORS`)."""
+        return all(getattr(self, k) == v for k, v in IDEAL_SENSORS.items())
+
+    @property
+    def encoder_step(self) -> float:
+        """Hub-angle resolution ``2 pi / encoder_counts`` [rad] (0 for an ideal encoder)."""
+        return 0.0 if self.encoder_counts is None else 2.0 * math.pi / self.encoder_counts
 
     # ---- derived properties -------------------------------------------------------------
     @property
@@ -233,9 +345,18 @@ class BeamParameters:
         """Return a copy with some parameters changed (validated)."""
         return dataclasses.replace(self, **changes)
 
-    def damping_ratio(self, mode: int) -> float:
-        """Damping ratio of flexible mode ``mode`` (1-based)."""
-        return self.damping_ratios[min(mode, len(self.damping_ratios)) - 1]
+    def damping_ratio(self, mode: int, omega: np.ndarray | None = None) -> float:
+        """Damping ratio of flexible mode ``mode`` (1-based).
+
+        ``omega``: the modal frequencies (rad/s, rigid mode first) when the caller has them;
+        the ``"stiffness"`` law needs them beyond ``damping_ratios``.
+        """
+        listed = len(self.damping_ratios)
+        if mode <= listed or self.damping_law == "constant":
+            return self.damping_ratios[min(mode, listed) - 1]
+        if omega is None:
+            omega = _modes(self)[0]
+        return self.damping_ratios[-1] * float(omega[mode] / omega[listed])
 
 
 def _params(params: BeamParameters | None) -> BeamParameters:
@@ -444,7 +565,7 @@ def _continuous(p: BeamParameters) -> tuple[np.ndarray, ...]:
     m, k, b = _fd_matrices(p)
     nd = m.shape[0]
     omega, phi = _modes(p)
-    zeta = np.array([0.0] + [p.damping_ratio(i) for i in range(1, nd)])
+    zeta = np.array([0.0] + [p.damping_ratio(i, omega) for i in range(1, nd)])
     mphi = m @ phi
     c = (mphi * (2.0 * zeta * omega)) @ mphi.T
     c[0, 0] += p.hub_viscous_friction
@@ -468,6 +589,84 @@ def _continuous(p: BeamParameters) -> tuple[np.ndarray, ...]:
     for arr in (a, bc, cy, dy):
         arr.setflags(write=False)
     return a, bc, cy, dy
+
+
+def _sensor_filters(p: BeamParameters, dt: float) -> list:
+    """Filter of each output channel (OUTPUT_NAMES order); the encoder has none."""
+    aa = None
+    if p.anti_alias_fraction is not None:
+        aa = sensors.butterworth(p.anti_alias_order, p.anti_alias_fraction / dt)
+    acc = aa
+    if p.accelerometer_bandwidth is not None:
+        acc = sensors.second_order_lowpass(p.accelerometer_bandwidth)
+        if aa is not None:
+            acc = sensors.series(acc, aa)
+    return [None, aa, aa, acc]
+
+
+def _measured(p: BeamParameters, dt: float) -> tuple[np.ndarray, ...]:
+    """The beam with its chain: inputs [commanded torque, torque at the hub] when there is an
+    actuator, [torque] when there is not."""
+    a, b, c, d = _continuous(p)
+    if p.actuator_bandwidth is not None:
+        al, bl, cl, dl = sensors.first_order_lag(p.actuator_bandwidth)
+        n = a.shape[0]
+        a_act = np.zeros((n + 1, n + 1))
+        a_act[:n, :n] = a
+        a_act[:n, n:] = b @ cl
+        a_act[n:, n:] = al
+        b_act = np.zeros((n + 1, 2))
+        b_act[:n, :1] = b @ dl
+        b_act[:n, 1:] = b
+        b_act[n:, :1] = bl
+        a, b, c, d = a_act, b_act, np.hstack([c, d @ cl]), np.hstack([d @ dl, d])
+    filters = _sensor_filters(p, dt)
+    if any(f is not None for f in filters):
+        a, b, c, d = sensors.filter_outputs((a, b, c, d), filters)
+    return a, b, c, d
+
+
+def measured_model(
+    params: BeamParameters | None = None, dt: float = 1e-3
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Continuous-time model of the beam seen through its chain, for sampling at ``dt``.
+
+    The actuator lag in front of the beam, and behind it the accelerometer and the
+    anti-aliasing filter of the analog channels (the filter's cutoff depends on ``dt``).
+    The state is ``[q; q'; actuator; filters]``.  With ideal sensors this is
+    :func:`continuous_model`.
+
+    Returns
+    -------
+    A : ndarray, shape (n_x, n_x)
+    B : ndarray, shape (n_x, 1)
+        From the commanded torque [N m].
+    C : ndarray, shape (4, n_x)
+    D : ndarray, shape (4, 1)
+    """
+    p = _params(params)
+    a, b, c, d = _measured(p, _check_dt(dt))
+    return a.copy(), b[:, :1].copy(), c.copy(), d[:, :1].copy()
+
+
+def measure(y: np.ndarray, params: BeamParameters | None = None) -> np.ndarray:
+    """Read sampled outputs (..., 4) through the digital sensors: the encoder's steps.
+
+    The hub angle (column 0) is rounded to multiples of :attr:`BeamParameters.encoder_step`;
+    the other columns are returned unchanged (their chain is in :func:`measured_model`, the
+    tachometer's noise in :func:`noise_floor`).  A copy; ``y`` itself is not changed.
+    """
+    p = _params(params)
+    y = np.array(y, dtype=float)
+    if p.encoder_counts is not None:
+        y[..., 0] = sensors.quantise(y[..., 0], p.encoder_step)
+    return y
+
+
+def noise_floor(params: BeamParameters | None = None) -> np.ndarray:
+    """Standard deviation of each output's own sensor noise, shape (4,), output units."""
+    p = _params(params)
+    return np.array([0.0, p.tachometer_noise, 0.0, 0.0])
 
 
 def continuous_model(
@@ -500,27 +699,34 @@ class BeamModel:
     dt : float
         Sample time [s].
     A, B, C, D : ndarray
-        ``x[k+1] = A x[k] + B tau[k]``, ``y[k] = C x[k] + D tau[k]``; shapes (n_x, n_x),
-        (n_x, 1), (4, n_x), (4, 1).
+        ``x[k+1] = A x[k] + B tau[k]``, ``y[k] = C x[k] + D tau[k]`` for the commanded
+        torque ``tau``; shapes (n_x, n_x), (n_x, 1), (4, n_x), (4, 1).
+    B_hub, D_hub : ndarray
+        The same for a torque acting at the hub itself (friction), bypassing the actuator;
+        equal to ``B`` and ``D`` when the actuator is ideal.
     n_states : int
-        ``n_x = 2 (n_sections + 1)``.
+        ``2 (n_sections + 1)`` beam states ``[q; q']`` first, then the actuator's state and
+        the sensor filters' states (see :func:`measured_model`).
     """
 
     def __init__(self, params: BeamParameters, dt: float):
         self.params = params
         self.dt = dt
-        ac, bc, cy, dy = _continuous(params)
+        ac, bc, cy, dy = _measured(params, dt)
         nx = ac.shape[0]
-        aug = np.zeros((nx + 1, nx + 1))
+        nu = bc.shape[1]
+        aug = np.zeros((nx + nu, nx + nu))
         aug[:nx, :nx] = ac
         aug[:nx, nx:] = bc
         e = scipy.linalg.expm(aug * dt)
         self.A = e[:nx, :nx].copy()
-        self.B = e[:nx, nx:].copy()
-        self.C = cy
-        self.D = dy
+        self.B = e[:nx, nx : nx + 1].copy()
+        self.B_hub = e[:nx, nx + nu - 1 :].copy()
+        self.C = np.array(cy)
+        self.D = dy[:, :1].copy()
+        self.D_hub = dy[:, nu - 1 :].copy()
         self.n_states = nx
-        for arr in (self.A, self.B):
+        for arr in (self.A, self.B, self.B_hub, self.C, self.D, self.D_hub):
             arr.setflags(write=False)
         self._reset_markov()
 
@@ -812,10 +1018,14 @@ class Stepper:
         sub = self.model if self.n_substeps == 1 else discrete_model(p, self.dt / self.n_substeps)
         self._a_t = np.array(sub.A.T)
         self._b = np.array(sub.B[:, 0])
+        self._b_hub = np.array(sub.B_hub[:, 0])
         self._c_t = np.array(self.model.C.T)
         self._d = np.array(self.model.D[:, 0])
-        self._has_d = bool(np.any(self._d != 0.0))
-        self._vel = self.model.n_states // 2  # index of theta' in the state
+        self._d_hub = np.array(self.model.D_hub[:, 0])
+        self._has_d = bool(np.any(self._d != 0.0) or np.any(self._d_hub != 0.0))
+        # friction bypasses the actuator, so it needs its own input columns when there is one
+        self._split = p.actuator_bandwidth is not None
+        self._vel = p.n_sections + 1  # index of theta' in the state
 
     @property
     def n_states(self) -> int:
@@ -833,6 +1043,10 @@ class Stepper:
         """Outputs ``C x + D (tau - friction)`` for states (..., n_x) -> (..., 4)."""
         y = x @ self._c_t
         if self._has_d:
+            if self._split:
+                tau = np.asarray(tau, dtype=float)
+                y = y + np.multiply.outer(tau, self._d)
+                return y - np.multiply.outer(self.friction(x), self._d_hub)
             net = np.asarray(tau, dtype=float) - self.friction(x)
             y = y + np.multiply.outer(net, self._d)
         return y
@@ -856,7 +1070,14 @@ class Stepper:
             return x @ self._a_t + np.multiply.outer(tau, self._b)
         tau = np.asarray(tau, dtype=float)
         for _ in range(self.n_substeps):
-            x = x @ self._a_t + np.multiply.outer(tau - self.friction(x), self._b)
+            if self._split:
+                x = (
+                    x @ self._a_t
+                    + np.multiply.outer(tau, self._b)
+                    - np.multiply.outer(self.friction(x), self._b_hub)
+                )
+            else:
+                x = x @ self._a_t + np.multiply.outer(tau - self.friction(x), self._b)
         return x
 
 

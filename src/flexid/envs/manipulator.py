@@ -19,7 +19,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
-from flexid.envs import beam
+from flexid.envs import beam, sensors
 from flexid.envs._render import Canvas
 from flexid.errors import ActionError, PlantParameterError
 
@@ -76,8 +76,10 @@ class _Config:
                 f"{', '.join(beam.OUTPUT_NAMES)} in {', '.join(beam.OUTPUT_UNITS)}), "
                 f"got {noise_std!r}"
             )
-        self.noise_std = std
-        self.noisy = bool(np.any(std > 0))
+        floor = beam.noise_floor(self.params)  # the sensors' own noise (tachometer)
+        self.noise_std = np.where(floor > 0, np.hypot(std, floor), std)
+        self.noisy = bool(np.any(self.noise_std > 0))
+        self.encoder_step = self.params.encoder_step
         self.angle_limit = _real("angle_limit", angle_limit, 0.0, 1e3, lo_open=True)
         self.target_angle = _real(
             "target_angle", target_angle, -self.angle_limit, self.angle_limit
@@ -238,7 +240,11 @@ _DOC_KWARGS = """
         Torque limit [N m], > 0; default 0.3.  The action space is ``[-tau_max, tau_max]``.
     noise_std : float or sequence of 4 float
         Standard deviation of additive Gaussian measurement noise on hub angle [rad], hub
-        velocity [rad/s], tip deflection [m] and tip acceleration [m/s^2]; default 0.
+        velocity [rad/s], tip deflection [m] and tip acceleration [m/s^2]; default 0.  The
+        plant's own sensor noise (``tachometer_noise``) adds to it in quadrature, and the hub
+        angle is read in the encoder's steps first (``encoder_counts``).  The measurement and
+        actuation chain are physical parameters (below); pass
+        ``**flexid.envs.beam.IDEAL_SENSORS`` to switch it off.
     target_angle : float
         Hub angle set point theta_ref [rad] used when ``reset`` has no options; default 0.5.
     target_range : float, optional
@@ -330,6 +336,8 @@ class FlexibleManipulatorEnv(gymnasium.Env):
     def _observe(self, y: np.ndarray) -> np.ndarray:
         obs = np.empty(5)
         obs[:4] = y
+        if self._cfg.encoder_step:
+            obs[0] = round(obs[0] / self._cfg.encoder_step) * self._cfg.encoder_step
         if self._cfg.noisy:
             obs[:4] += self._cfg.noise_std * self._noise.draw(self.np_random)
         obs[4] = self.target
@@ -464,6 +472,8 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
     def _observe(self, y: np.ndarray) -> np.ndarray:
         obs = np.empty((self.num_envs, 5))
         obs[:, :4] = y
+        if self._cfg.encoder_step:
+            obs[:, 0] = sensors.quantise(obs[:, 0], self._cfg.encoder_step)
         if self._cfg.noisy:
             z = np.stack([s.draw(r) for s, r in zip(self._noise, self._rngs)])
             obs[:, :4] += self._cfg.noise_std * z

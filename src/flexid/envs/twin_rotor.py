@@ -22,6 +22,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
 from ..errors import ActionError, PlantParameterError
+from . import sensors
 from .twin_rotor_physics import (
     INPUT_NAMES,
     INPUT_UNITS,
@@ -96,6 +97,7 @@ class _Config:
             raise PlantParameterError(f"noise_std must be >= 0, got {noise_std!r}")
         self.noise = noise
         self.noisy = bool(np.any(noise > 0))
+        self.encoder_step = self.params.encoder_step
         if not (math.isfinite(pitch_limit) and pitch_limit > 0):
             raise PlantParameterError(f"pitch_limit must be > 0 rad, got {pitch_limit!r}")
         self.pitch_limit = float(pitch_limit)
@@ -190,6 +192,8 @@ class TwinRotorEnv(gymnasium.Env):
     def _observe(self, psi: float, dpsi: float, phi: float, dphi: float) -> np.ndarray:
         cfg = self._cfg
         obs = np.array((psi, phi, dpsi, dphi, cfg.pitch_ref, cfg.yaw_ref))
+        if cfg.encoder_step:
+            obs[:2] = sensors.quantise(obs[:2], cfg.encoder_step)
         if cfg.noisy:
             obs[:4] += self.np_random.standard_normal(4) * cfg.noise
         return obs
@@ -316,6 +320,8 @@ class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
         cfg = self._cfg
         obs = np.empty((self.num_envs, 6))
         self._stepper.outputs(obs)
+        if cfg.encoder_step:
+            obs[:, :2] = sensors.quantise(obs[:, :2], cfg.encoder_step)
         if cfg.noisy:
             obs[:, :4] += np.stack([r.standard_normal(4) for r in self._rngs]) * cfg.noise
         obs[:, 4:] = cfg.setpoint

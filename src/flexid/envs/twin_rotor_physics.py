@@ -54,8 +54,10 @@ import numpy as np
 from scipy.special import expit
 
 from ..errors import DataError, PlantParameterError, check_finite
+from . import sensors
 
 __all__ = [
+    "IDEAL_SENSORS",
     "INPUT_NAMES",
     "INPUT_UNITS",
     "OUTPUT_NAMES",
@@ -70,6 +72,8 @@ __all__ = [
     "batch_stepper",
     "clip_inputs",
     "derivatives",
+    "measure",
+    "noise_floor",
     "pitch_linear_mode",
     "reference_trajectory",
     "scalar_stepper",
@@ -87,6 +91,9 @@ STATE_NAMES = ("pitch", "pitch_rate", "yaw", "yaw_rate", "tau1", "tau2", "reacti
 """Columns of a state array, units rad, rad/s, rad, rad/s, model units, model units, N m."""
 THRUST_LAWS = ("signed_square", "square")
 
+IDEAL_SENSORS: dict[str, Any] = {"encoder_counts": None}
+"""The measurement chain switched off: pitch and yaw read exactly."""
+
 _OUTPUT_COLUMNS = [0, 2, 1, 3]  # outputs (pitch, yaw, pitch rate, yaw rate) from a state
 
 
@@ -96,6 +103,13 @@ class TwinRotorParameters:
 
     Inertias in kg m^2, moments in N m, friction in N m s/rad (viscous) and N m (Coulomb),
     time constants in s; ``u_max`` in V; ``substep`` in s.
+
+    The actuators' dynamics are part of the model (the rotors' first-order lags ``T10``,
+    ``T11``, ``T20``, ``T21``), and the angles are counted digitally, so the measurement
+    chain is the encoders': ``encoder_counts`` counts per revolution of the pitch and yaw
+    encoders (default 4096, a 1,024-line encoder decoded in quadrature; an assumption of the
+    rig class, the manual's resolution was not available), ``None`` for exact angles
+    (:data:`IDEAL_SENSORS`).  Nothing analog is sampled, so there is nothing to alias.
     """
 
     I1: float = 6.8e-2
@@ -124,6 +138,7 @@ class TwinRotorParameters:
     lock_yaw: bool = False
     coulomb_velocity: float = 0.05
     substep: float = 0.01
+    encoder_counts: int | None = 4096
 
     def __post_init__(self) -> None:
         positive = ("I1", "I2", "T11", "T10", "T21", "T20", "Tp", "u_max", "coulomb_velocity",
@@ -134,6 +149,15 @@ class TwinRotorParameters:
                 if value not in THRUST_LAWS:
                     raise PlantParameterError(
                         f"twin rotor: thrust_law must be one of {THRUST_LAWS}, got {value!r}"
+                    )
+                continue
+            if f.name == "encoder_counts":
+                if value is not None and (
+                    isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1
+                ):
+                    raise PlantParameterError(
+                        "twin rotor: encoder_counts must be a positive integer (counts per "
+                        f"revolution) or None, got {value!r}"
                     )
                 continue
             if f.name == "lock_yaw":
@@ -153,6 +177,28 @@ class TwinRotorParameters:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    @property
+    def encoder_step(self) -> float:
+        """Angle resolution ``2 pi / encoder_counts`` [rad] (0 for ideal encoders)."""
+        return 0.0 if self.encoder_counts is None else 2.0 * math.pi / self.encoder_counts
+
+
+def measure(y: np.ndarray, params: TwinRotorParameters | None = None) -> np.ndarray:
+    """Read sampled outputs (..., 4) through the encoders: pitch and yaw in whole counts.
+
+    A copy; the rates (columns 2, 3) are returned unchanged.
+    """
+    p = TwinRotorParameters() if params is None else params
+    y = np.array(y, dtype=float)
+    if p.encoder_counts is not None:
+        y[..., :2] = sensors.quantise(y[..., :2], p.encoder_step)
+    return y
+
+
+def noise_floor(params: TwinRotorParameters | None = None) -> np.ndarray:
+    """Standard deviation of each output's own sensor noise, shape (4,): none here."""
+    return np.zeros(4)
 
 
 def pitch_linear_mode(params: TwinRotorParameters | None = None) -> tuple[float, float]:

@@ -1,0 +1,150 @@
+"""The measurement and actuation chain between a simulated plant and its sampled record.
+
+A laboratory never sees a plant's states directly: the command passes through a drive
+amplifier, analog signals through their sensors and an anti-aliasing filter before the
+sampler, angles through an encoder that counts whole steps.  These are the linear blocks
+and the quantiser the plants compose with their physics.  Every block is a continuous-time
+state space ``(A, B, C, D)`` so that a linear plant and its chain can be discretised
+exactly together, which is the chain simulated at the plant's internal rate: the filter
+acts on the continuous signal before the sampler, so what lies above the Nyquist frequency
+is attenuated before it can alias.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.signal
+
+from flexid.errors import PlantParameterError
+
+__all__ = [
+    "StateSpace",
+    "butterworth",
+    "filter_outputs",
+    "first_order_lag",
+    "quantise",
+    "second_order_lowpass",
+    "series",
+]
+
+StateSpace = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""Continuous-time ``(A, B, C, D)`` with shapes (n, n), (n, m), (p, n), (p, m)."""
+
+
+def _corner(name: str, hz: float) -> float:
+    if isinstance(hz, bool) or not isinstance(hz, (int, float, np.floating, np.integer)):
+        raise PlantParameterError(f"{name} must be a frequency in Hz, got {hz!r}")
+    if not (math.isfinite(hz) and hz > 0):
+        raise PlantParameterError(f"{name} must be a finite frequency > 0 Hz, got {hz!r}")
+    return 2.0 * math.pi * float(hz)
+
+
+def first_order_lag(bandwidth: float) -> StateSpace:
+    """Unit-gain first-order lag ``w / (s + w)`` with ``w = 2 pi bandwidth``.
+
+    A drive amplifier's current loop: the torque follows the command with this lag.
+
+    Parameters
+    ----------
+    bandwidth : float
+        -3 dB frequency [Hz].
+    """
+    w = _corner("actuator bandwidth", bandwidth)
+    return (np.array([[-w]]), np.array([[w]]), np.array([[1.0]]), np.zeros((1, 1)))
+
+
+def second_order_lowpass(bandwidth: float, zeta: float = math.sqrt(0.5)) -> StateSpace:
+    """Unit-gain second-order low-pass ``w^2 / (s^2 + 2 zeta w s + w^2)``.
+
+    With ``zeta = 1/sqrt(2)`` (default) the -3 dB frequency is ``bandwidth``: the response of
+    a damped (capacitive or piezo-resistive) accelerometer below its mounted resonance.
+
+    Parameters
+    ----------
+    bandwidth : float
+        Natural frequency [Hz].
+    zeta : float
+        Damping ratio, > 0.
+    """
+    w = _corner("sensor bandwidth", bandwidth)
+    a = np.array([[0.0, 1.0], [-w * w, -2.0 * zeta * w]])
+    return (a, np.array([[0.0], [w * w]]), np.array([[1.0, 0.0]]), np.zeros((1, 1)))
+
+
+def butterworth(order: int, cutoff: float) -> StateSpace:
+    """Analog Butterworth low-pass of ``order`` with its -3 dB point at ``cutoff`` [Hz].
+
+    Realised as a cascade of first- and second-order sections (real state space, no
+    polynomial of high degree), unit gain at DC.
+    """
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 8:
+        raise PlantParameterError(
+            f"anti-alias filter order must be an integer in [1, 8], got {order!r}"
+        )
+    w = _corner("anti-alias cutoff", cutoff)
+    _, poles, _ = scipy.signal.buttap(int(order))
+    sections: list[StateSpace] = []
+    for p in poles:
+        if p.imag > 1e-12:
+            zeta = -p.real / abs(p)  # |p| = 1 for the normalised prototype
+            sections.append(second_order_lowpass(w / (2.0 * math.pi), zeta))
+        elif abs(p.imag) <= 1e-12:
+            sections.append(first_order_lag(w / (2.0 * math.pi)))
+    system = sections[0]
+    for section in sections[1:]:
+        system = series(system, section)
+    return system
+
+
+def series(first: StateSpace, second: StateSpace) -> StateSpace:
+    """``second`` driven by the output of ``first``; the state is ``[x_first; x_second]``."""
+    a1, b1, c1, d1 = first
+    a2, b2, c2, d2 = second
+    n1, n2 = a1.shape[0], a2.shape[0]
+    a = np.zeros((n1 + n2, n1 + n2))
+    a[:n1, :n1] = a1
+    a[n1:, :n1] = b2 @ c1
+    a[n1:, n1:] = a2
+    b = np.vstack([b1, b2 @ d1])
+    c = np.hstack([d2 @ c1, c2])
+    return a, b, c, d2 @ d1
+
+
+def quantise(x: np.ndarray, step: float) -> np.ndarray:
+    """Round to the nearest multiple of ``step`` (an encoder's count times its resolution).
+
+    Mid-tread: zero stays zero, and the error is within ``+-step/2``.
+    """
+    return np.round(np.asarray(x, dtype=float) / step) * step
+
+
+def filter_outputs(system: StateSpace, filters: list[StateSpace | None]) -> StateSpace:
+    """Pass output ``i`` of ``system`` through ``filters[i]`` (``None``: unfiltered).
+
+    The state is ``[x_system; x_filter_0; x_filter_1; ...]`` (filters in output order), so the
+    system's own states keep their indices.
+    """
+    a, b, c, d = system
+    n_sys = a.shape[0]
+    used = [(i, f) for i, f in enumerate(filters) if f is not None]
+    n = n_sys + sum(f[0].shape[0] for _, f in used)
+    a_new = np.zeros((n, n))
+    a_new[:n_sys, :n_sys] = a
+    b_new = np.zeros((n, b.shape[1]))
+    b_new[:n_sys] = b
+    c_new = np.zeros((c.shape[0], n))
+    c_new[:, :n_sys] = c
+    d_new = d.copy()
+    pos = n_sys
+    for i, (af, bf, cf, df) in used:
+        k = af.shape[0]
+        a_new[pos : pos + k, :n_sys] = bf @ c[i : i + 1]
+        a_new[pos : pos + k, pos : pos + k] = af
+        b_new[pos : pos + k] = bf @ d[i : i + 1]
+        c_new[i, :n_sys] = (df @ c[i : i + 1])[0]
+        c_new[i, pos : pos + k] = cf[0]
+        d_new[i] = (df @ d[i : i + 1])[0]
+        pos += k
+    return a_new, b_new, c_new, d_new

@@ -1,0 +1,167 @@
+"""The registry of simulated plants: one record per plant, read by ``generate`` and the CLI.
+
+Each plant is a physics module in :mod:`flexid.envs` with the same shape: a frozen parameter
+dataclass, pure batched physics (``simulate``), its measurement chain (``measure``,
+``noise_floor`` and the ``IDEAL_SENSORS`` overrides that switch it off) and the names and
+units of its inputs and outputs.  :class:`Plant` ties a name to that module; a third plant is
+one new physics module and one :func:`register_plant` call.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import PlantParameterError, UnknownNameError
+
+__all__ = ["PLANTS", "Plant", "get_plant", "register_plant"]
+
+
+@dataclass(frozen=True)
+class Plant:
+    """How to simulate and measure one plant.
+
+    Attributes
+    ----------
+    name : str
+        Registry name, e.g. ``"manipulator"``.
+    module : str
+        Import path of the physics module.
+    parameters : str
+        Name of the parameter dataclass in ``module``.
+    input_names, input_units : tuple of str
+        Inputs, in the order of ``simulate``'s input columns.
+    dt, n_samples : float, int
+        Default sample time [s] and record length.
+    signal_options : mapping
+        Default options of the level signals (amplitude of the excitation).
+    env_id : str
+        Gymnasium id of its environment.
+    simulate : callable
+        ``simulate(module, u (N, n_u), params, dt) -> (y (N, n_y), u_applied (N, n_u))``.
+    """
+
+    name: str
+    module: str
+    parameters: str
+    input_names: tuple[str, ...]
+    input_units: tuple[str, ...]
+    dt: float
+    n_samples: int
+    signal_options: Mapping[str, Any]
+    env_id: str
+    simulate: Callable[..., tuple[np.ndarray, np.ndarray]] = field(repr=False)
+
+    def physics(self) -> Any:
+        """The physics module (imported on first use)."""
+        return importlib.import_module(self.module)
+
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        return tuple(self.physics().OUTPUT_NAMES)
+
+    @property
+    def output_units(self) -> tuple[str, ...]:
+        return tuple(self.physics().OUTPUT_UNITS)
+
+    def make_parameters(self, overrides: Mapping[str, Any] | None = None, *, sensors: str = "lab"):
+        """The parameter dataclass with ``overrides``; ``sensors="ideal"`` switches the chain off.
+
+        Raises
+        ------
+        PlantParameterError
+            An unknown parameter name, a bad value or an unknown ``sensors`` rule.
+        """
+        module = self.physics()
+        cls = getattr(module, self.parameters)
+        if sensors not in ("lab", "ideal"):
+            raise PlantParameterError(f"sensors must be 'lab' or 'ideal', got {sensors!r}")
+        values = dict(module.IDEAL_SENSORS) if sensors == "ideal" else {}
+        given = dict(overrides or {})
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(given) - known)
+        if unknown:
+            raise PlantParameterError(
+                f"{self.name}: unknown parameter(s) {', '.join(map(repr, unknown))}; "
+                f"known: {', '.join(sorted(known))}"
+            )
+        for key, value in given.items():  # lists from JSON/TOML become tuples
+            values[key] = tuple(value) if isinstance(value, list) else value
+        return cls(**values)
+
+    def measure(self, y: np.ndarray, params: Any) -> np.ndarray:
+        """Sampled outputs (N, n_y) read through the plant's digital sensors."""
+        return self.physics().measure(y, params)
+
+    def noise_floor(self, params: Any) -> np.ndarray:
+        """Each output's own sensor-noise standard deviation, shape (n_y,)."""
+        return self.physics().noise_floor(params)
+
+
+def _simulate_manipulator(module, u, params, dt):
+    return module.simulate(u[:, 0], params, dt=dt), u
+
+
+def _simulate_twin_rotor(module, u, params, dt):
+    return module.simulate(u, params, dt=dt), module.clip_inputs(u, params)
+
+
+PLANTS: dict[str, Plant] = {}
+"""Registered plants by name."""
+
+
+def register_plant(plant: Plant) -> Plant:
+    """Add ``plant`` to :data:`PLANTS` (a name may be registered once)."""
+    if plant.name in PLANTS:
+        raise PlantParameterError(f"a plant named {plant.name!r} is already registered")
+    PLANTS[plant.name] = plant
+    return plant
+
+
+def get_plant(name: str) -> Plant:
+    """The registered plant ``name``.
+
+    Raises
+    ------
+    UnknownNameError
+        When no plant has that name (the message lists the known ones).
+    """
+    try:
+        return PLANTS[name]
+    except (KeyError, TypeError):
+        raise UnknownNameError("plant", name, PLANTS) from None
+
+
+register_plant(
+    Plant(
+        name="manipulator",
+        module="flexid.envs.beam",
+        parameters="BeamParameters",
+        input_names=("torque",),
+        input_units=("N m",),
+        dt=1e-3,
+        n_samples=2000,
+        signal_options={"low": -0.3, "high": 0.3},
+        env_id="flexid/FlexibleManipulator-v0",
+        simulate=_simulate_manipulator,
+    )
+)
+register_plant(
+    Plant(
+        name="twin-rotor",
+        module="flexid.envs.twin_rotor_physics",
+        parameters="TwinRotorParameters",
+        input_names=("main_rotor", "tail_rotor"),
+        input_units=("V", "V"),
+        dt=0.1,
+        n_samples=3000,
+        signal_options={"low": -1.0, "high": 1.0},
+        env_id="flexid/TwinRotor-v0",
+        simulate=_simulate_twin_rotor,
+    )
+)
