@@ -138,7 +138,8 @@ _DOC = """
         Any :class:`TwinRotorParameters` field, e.g. ``lock_yaw=True``, ``Kgy=0.05``.
 
     Observation (float64, shape (6,)): pitch, yaw (rad), pitch rate, yaw rate (rad/s), then the
-    pitch and yaw set points.  Action (float64, shape (2,)): main and tail rotor voltages
+    pitch and yaw set points.  Pitch and yaw are read in the encoders' steps
+    (``encoder_counts``; ``encoder_counts=None`` reads them exactly).  Action (float64, shape (2,)): main and tail rotor voltages
     normalised to ``[-1, 1]`` (times ``u_max`` = 2.5 V); finite out-of-range actions are
     clipped to the box (the applied voltages are in ``info["applied_voltage"]``), non-finite
     actions raise
