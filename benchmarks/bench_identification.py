@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 import flexid
+from flexid._identify import prepare_data
 from flexid.config import PAPER_SEARCH, CostSpec, SearchSpec
 from flexid.estimation import build_problem, model_structure
-from flexid.identify import prepare_data
 from flexid.optimisers import minimize
 from flexid.stability import is_stable
 

@@ -9,8 +9,7 @@ several seeds; least squares is the reference row.  Results go to an SQLite stor
 
 from __future__ import annotations
 
-from flexid.compare import compare
-from flexid.config import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec
+from flexid import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec, compare
 
 
 def main() -> None:

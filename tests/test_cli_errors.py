@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 
 import flexid.datasets
+from flexid import identify
 from flexid.arx import ARXStructure
 from flexid.cli import main
 from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.data import IOData, load
 from flexid.errors import BudgetError, DataFileError, FlexidError
-from flexid.identify import identify
 from flexid.validation import validate
 from test_cli import _record
 
@@ -117,7 +117,7 @@ def test_compare_malformed_config_leaves_nothing(tmp_path, monkeypatch, capsys):
 
 
 def test_library_compare_checks_the_spec_before_opening_the_store(tmp_path):
-    from flexid.compare import check_spec, compare
+    from flexid import check_spec, compare
 
     spec = ComparisonSpec(
         name="bad",
@@ -190,7 +190,7 @@ def test_load_of_a_folder_says_folder(name, tmp_path):
 
 # ------------------------------------------------------------------ 5. diverged fits
 def test_format_fit_is_shared_and_caps_diverged_fits():
-    from flexid import compare as compare_module
+    from flexid import _compare as compare_module
     from flexid.validation import format_fit
 
     assert format_fit(-1.4e113) == "< -999"

@@ -17,7 +17,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from flexid.compare import ComparisonResult, compare, load_result, run_seed
+from flexid import ComparisonResult, compare, load_result
+from flexid._compare import run_seed
 from flexid.config import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.errors import ConfigError, HyperParameterError, UnknownOptimiserError
 from flexid.optimisers import Optimiser, Param, register, unregister

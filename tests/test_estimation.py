@@ -11,8 +11,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from flexid import compare, identify
 from flexid.arx import ARXStructure
-from flexid.compare import compare
 from flexid.config import (
     PAPER_SEARCH,
     ComparisonSpec,
@@ -25,7 +25,6 @@ from flexid.config import (
 from flexid.data import IOData, save
 from flexid.errors import ConfigError, ModelOrderError, UnknownNameError
 from flexid.estimation import build_problem, check_search, model_structure
-from flexid.identify import identify
 from flexid.objective import ARXCost
 from flexid.stability import is_stable, max_pole_radius, pole_radius_batched
 

@@ -12,10 +12,10 @@ import json
 import numpy as np
 import pytest
 
+from flexid import identify, search_box
 from flexid.arx import ARXStructure
 from flexid.data import IOData
 from flexid.errors import ConfigError, DataError, ModelOrderError, UnknownNameError
-from flexid.identify import identify, search_box
 from flexid.stability import is_stable
 from numerics import EPS
 from route_bounds import recovery_error

@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from flexid import identify
 from flexid.arx import ARXStructure
 from flexid.config import CostSpec, SearchSpec
 from flexid.errors import ConfigError, DataError, UnknownNameError
 from flexid.estimation import build_problem, check_search
-from flexid.identify import identify
 from flexid.objective import ARXCost
 from flexid.optimisers import minimize
 from flexid.output_error import output_error
@@ -152,7 +152,7 @@ def test_output_error_reference_respects_the_radius_cap():
 
 
 def test_compare_with_a_fitted_numerator_stores_arx_coefficients(tmp_path):
-    from flexid.compare import compare
+    from flexid import compare
     from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
     from flexid.data import save
 

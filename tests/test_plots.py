@@ -7,10 +7,9 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from flexid.compare import compare
+from flexid import compare, identify
 from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.data import IOData
-from flexid.identify import identify
 from flexid.plots import (
     comparison_figures,
     identification_figures,

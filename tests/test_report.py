@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from flexid.compare import compare
+from flexid import compare
 from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.errors import ConfigError, StoreError
 from flexid.report import write_report

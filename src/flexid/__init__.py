@@ -1,8 +1,29 @@
 """flexid: flexible-plant simulators, ARX identification with pluggable optimisers, fair comparison.
 
-Importing ``flexid`` registers the Gymnasium environments ``flexid/FlexibleManipulator-v0``
-and ``flexid/TwinRotor-v0``.  Public names are imported lazily from their modules, so
-``import flexid`` stays quick.
+The names here are the front door; each is imported from its module on first use, so
+``import flexid`` stays quick (it does not import Gymnasium).
+
+Data and models
+    :class:`IOData`, :func:`load`, :func:`save`, :func:`generate`, :class:`ARX`,
+    :class:`ARXStructure`, :class:`ARXCost`, :func:`is_stable`, :func:`validate`,
+    :class:`ValidationReport`
+Identification
+    :func:`identify` -> :class:`Identification`; the search box (:class:`SearchBox`,
+    :func:`search_box`), search space (:class:`SearchSpec`) and cost (:class:`CostSpec`)
+Comparison
+    :func:`compare` (:class:`ComparisonSpec` of :class:`DataSpec`, :class:`ModelSpec`,
+    :class:`CostSpec`, :class:`SearchSpec`, :class:`OptimiserSpec`) -> :class:`ComparisonResult`;
+    :func:`check_spec`, :func:`load_result`
+Optimisers
+    :func:`minimize`, :class:`Problem`, :class:`Budget`, :class:`AskTell`; writing one:
+    :class:`Optimiser`, :class:`Param`, :func:`register`
+Modules
+    :mod:`flexid.signals`, :mod:`flexid.optimisers`, :mod:`flexid.envs`; errors from
+    :mod:`flexid.errors`
+
+The Gymnasium environments ``flexid/FlexibleManipulator-v0`` and ``flexid/TwinRotor-v0``
+are registered once both flexid and Gymnasium are imported, in either order (see
+:mod:`flexid.envs`).
 """
 
 from __future__ import annotations
@@ -10,7 +31,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from . import envs as _envs  # noqa: F401  (registers the Gymnasium environments)
+from ._gymnasium_hook import install as _install_gymnasium_hook
 from .errors import (
     ActionError,
     BudgetError,
@@ -32,25 +53,42 @@ __version__ = "0.1.0"
 
 # public name -> module that defines it (imported on first use)
 _LAZY = {
+    # data and models
     "IOData": "data",
     "load": "data",
     "save": "data",
+    "generate": "datasets",
     "ARX": "arx",
     "ARXStructure": "arx",
     "ARXCost": "objective",
-    "make_cost": "objective",
     "is_stable": "stability",
     "validate": "validation",
     "ValidationReport": "validation",
-    "identify": "identify",
-    "Identification": "identify",
-    "compare": "compare",
+    # identification (the function lives in a private module: no module shares its name)
+    "identify": "_identify",
+    "Identification": "_identify",
+    "SearchBox": "_identify",
+    "search_box": "_identify",
+    # comparison
+    "compare": "_compare",
+    "ComparisonResult": "_compare",
+    "check_spec": "_compare",
+    "load_result": "_compare",
+    "ComparisonSpec": "config",
+    "DataSpec": "config",
+    "ModelSpec": "config",
+    "CostSpec": "config",
     "SearchSpec": "config",
-    "generate": "datasets",
+    "OptimiserSpec": "config",
+    # optimisers
     "minimize": "optimisers",
     "Problem": "optimisers",
     "Budget": "optimisers",
+    "AskTell": "optimisers",
+    "Optimiser": "optimisers",
+    "Param": "optimisers",
     "register": "optimisers",
+    # public modules
     "signals": None,
     "optimisers": None,
     "envs": None,
@@ -90,3 +128,6 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
+
+
+_install_gymnasium_hook()  # registers the environments once Gymnasium is imported

@@ -17,7 +17,7 @@ from typing import Any, NoReturn
 from . import __version__
 from .errors import ConfigError, FlexidError
 
-__all__ = ["main"]
+__all__ = ["DEFAULT_OUT", "build_parser", "main"]
 
 DEFAULT_OUT = Path("flexid-results")
 
@@ -147,7 +147,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
-    from .identify import identify
+    from ._identify import identify
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.iterations, "--iterations")
@@ -253,7 +253,7 @@ def _add_search_options(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from .compare import check_spec, compare
+    from ._compare import check_spec, compare
     from .config import CostSpec, SearchSpec, default_spec, load_config
 
     _check_positive(args.budget, "--budget")

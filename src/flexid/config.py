@@ -58,6 +58,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 __all__ = [
     "DEFAULT_OPTIMISERS",
     "PAPER_SEARCH",
+    "SCHEDULE",
     "ComparisonSpec",
     "CostSpec",
     "DataSpec",
@@ -66,6 +67,7 @@ __all__ = [
     "SearchSpec",
     "default_spec",
     "load_config",
+    "spec_from_mapping",
 ]
 
 DEFAULT_OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de")

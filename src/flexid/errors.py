@@ -9,7 +9,10 @@ for unreadable files), so generic handlers keep working.  The command line turns
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover - NumPy is imported on first use: `import flexid` stays light
+    import numpy as np
 
 __all__ = [
     "ActionError",
@@ -127,6 +130,8 @@ def check_finite(array: np.ndarray, what: str, error: type[FlexidError] = DataEr
         If any entry is NaN or infinite; the message gives its index, its value and how
         many entries are affected.
     """
+    import numpy as np
+
     array = np.asarray(array)
     if array.dtype.kind not in "fc":
         return

@@ -228,7 +228,7 @@ def build_problem(
         The cost (metric, predictor, weight, flat penalty value, initial conditions).
     search : SearchSpec
         Parametrisation, stability penalty kind, initial population rule, pole radius cap.
-    bounds : see :func:`flexid.identify.search_box`
+    bounds : see :func:`flexid.search_box`
         The box of the coefficients; with ``"poles"`` or ``"reflection"`` only its ``b``
         part is used.
 
@@ -241,7 +241,7 @@ def build_problem(
     UnknownNameError, ConfigError
         For an unknown parametrisation, penalty or initialisation, or bad bounds.
     """
-    from .identify import search_box
+    from ._identify import search_box
 
     check_search(search)
     objective = ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)

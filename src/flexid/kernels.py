@@ -27,7 +27,13 @@ from scipy import signal
 
 from .errors import FlexidError
 
-__all__ = ["BACKEND", "ar_recursion", "ar_recursion_reference", "compiled_available"]
+__all__ = [
+    "BACKEND",
+    "ar_recursion",
+    "ar_recursion_reference",
+    "compiled_available",
+    "schur_cohn_compiled",
+]
 
 try:  # pragma: no cover - depends on the build
     from . import _kernels as _c

@@ -27,7 +27,7 @@ from .errors import DataError, UnknownNameError
 from .kernels import ar_recursion
 from .stability import is_stable, pole_radius_batched
 
-__all__ = ["METRICS", "PENALTY_KINDS", "PREDICTORS", "ARXCost", "make_cost", "simulate_population"]
+__all__ = ["INITIAL", "METRICS", "PENALTY_KINDS", "PREDICTORS", "ARXCost", "simulate_population"]
 
 METRICS = ("paper", "rmse", "nrmse", "sse", "mse")
 PREDICTORS = ("one-step", "simulation")
@@ -386,7 +386,3 @@ class ARXCost:
     def __repr__(self) -> str:
         return f"ARXCost({self.structure!r}, {self.describe()})"
 
-
-def make_cost(structure: ARXStructure, data: Any, **options: Any) -> ARXCost:
-    """Build an :class:`ARXCost` (keyword options as in its constructor)."""
-    return ARXCost(structure, data, **options)

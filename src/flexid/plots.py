@@ -19,10 +19,11 @@ from .errors import FlexidError
 from .statistics import convergence_band
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .compare import ComparisonResult
-    from .identify import Identification
+    from ._compare import ComparisonResult
+    from ._identify import Identification
 
 __all__ = [
+    "PlottingUnavailable",
     "comparison_figures",
     "identification_figures",
     "plot_comparison_convergence",

@@ -6,7 +6,7 @@ import html
 import re
 from pathlib import Path
 
-from .compare import ComparisonResult, load_result
+from ._compare import ComparisonResult, load_result
 from .errors import ConfigError
 
 __all__ = ["write_report"]
@@ -72,7 +72,7 @@ def write_report(
     Parameters
     ----------
     store : path
-        A result store written by :func:`flexid.compare.compare`.
+        A result store written by :func:`flexid.compare`.
     outdir : path
         Folder for the report and figures (created).
     fmt : {"md", "html"}

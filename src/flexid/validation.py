@@ -93,6 +93,9 @@ from .data import IOData
 from .errors import DataError, ModelOrderError, check_finite
 
 __all__ = [
+    "CONFIDENCE",
+    "INITIAL_RULES",
+    "PASS_LEVEL",
     "CorrelationTest",
     "StabilityReport",
     "ValidationReport",

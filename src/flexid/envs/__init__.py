@@ -7,8 +7,13 @@
     Twin rotor MIMO system, Feedback 33-949S phenomenological model
     (:mod:`flexid.envs.twin_rotor`).
 
-Both are registered when :mod:`flexid` is imported; the entry points are strings, so the
-physics modules are imported only when an environment is made.
+Importing this module registers both (and imports Gymnasium).  ``import flexid`` does not
+import Gymnasium: it arranges for this module to be imported as soon as Gymnasium is (or at
+once if Gymnasium already is), so ``import flexid; import gymnasium; gymnasium.make(ID)``
+works in either import order.  Gymnasium 1.x reads no plugin entry points, so without
+importing flexid use the ``module:id`` form, ``gymnasium.make("flexid.envs:" + ID)``, which
+imports this module first.  The entry points are strings, so the physics modules are imported
+only when an environment is made.
 """
 
 from __future__ import annotations

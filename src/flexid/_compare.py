@@ -24,19 +24,19 @@ from typing import Any
 
 import numpy as np
 
+from ._identify import prepare_data
 from ._json import jsonable
 from .config import ComparisonSpec, OptimiserSpec
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
 from .estimation import build_problem, check_search, choose_reference, model_structure
-from .identify import prepare_data
 from .optimisers import Budget, get, minimize
 from .statistics import rank_sum_against_best, summarise
 from .store import ResultStore
 from .validation import format_fit as _fit
 from .validation import validate
 
-__all__ = ["ComparisonResult", "build_data", "check_spec", "compare", "run_seed"]
+__all__ = ["ComparisonResult", "build_data", "check_spec", "compare", "load_result", "run_seed"]
 
 LS_LABEL = "ls"
 
@@ -738,6 +738,3 @@ def load_result(store: str | Path | ResultStore, key: str | None = None) -> list
     finally:
         if db is not store:
             db.close()
-
-
-__all__ += ["load_result"]
