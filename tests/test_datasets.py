@@ -109,3 +109,22 @@ def test_bad_arguments():
         generate("manipulator", n_samples=-5)
     with pytest.raises(DataError):
         generate("manipulator", noise_std="lots")
+
+
+def test_sensors_reach_generate_from_a_comparison_spec_and_the_cli(tmp_path):
+    from flexid._compare import build_data
+    from flexid.cli import main
+    from flexid.config import ComparisonSpec, DataSpec
+
+    options = {"preset": "paper-twin-rotor", "n_samples": 300, "seed": 2, "noise_std": "1%"}
+    spec = ComparisonSpec(data=DataSpec(plant="twin-rotor", sensors="ideal", **options))
+    want = generate("twin-rotor", sensors="ideal", **options)
+    np.testing.assert_array_equal(build_data(spec).y, want.y)
+    assert "ideal sensors" in spec.data.describe()
+    out = tmp_path / "d.npz"
+    argv = ["generate", "twin-rotor", "--preset", "paper-twin-rotor", "--samples", "300",
+            "--seed", "2", "--noise", "1%", "--sensors", "ideal", "--output", str(out)]
+    assert main(argv) == 0
+    np.testing.assert_array_equal(IOData.from_npz(out).y, want.y)
+    lab = generate("twin-rotor", **options)
+    assert not np.array_equal(lab.y, want.y)

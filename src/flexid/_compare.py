@@ -76,7 +76,7 @@ def build_data(spec: ComparisonSpec) -> IOData:
         options["plant_params"] = dict(d.plant_params)
     if d.outputs is not None:
         options["outputs"] = d.outputs
-    return generate(d.plant, **options)
+    return generate(d.plant, sensors=d.sensors, **options)
 
 
 class _Context:

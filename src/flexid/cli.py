@@ -138,6 +138,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     plant_params = _key_values(args.param, "--param")
     if plant_params:
         options["plant_params"] = plant_params
+    options["sensors"] = args.sensors
     data = generate(args.plant, **options)
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -382,15 +383,14 @@ def _cmd_list(args: argparse.Namespace) -> int:
         from .datasets import PRESETS
 
         if what == "plants":
-            print(
-                "manipulator  single-link flexible manipulator (torque -> hub angle, hub velocity, "
-                "tip deflection, tip acceleration), gymnasium id flexid/FlexibleManipulator-v0"
-            )
-            print(
-                "twin-rotor   twin rotor MIMO system "
-                "(main/tail rotor voltages -> pitch, yaw, rates), "
-                "gymnasium id flexid/TwinRotor-v0"
-            )
+            from .plants import PLANTS
+
+            for plant in PLANTS.values():
+                print(
+                    f"{plant.name:12s} {', '.join(plant.input_names)} -> "
+                    f"{', '.join(plant.output_names)}; dt {plant.dt:g} s; "
+                    f"gymnasium id {plant.env_id}"
+                )
             return 0
         for name, preset in PRESETS.items():
             print(f"{name}: {json.dumps(preset, default=str)}")
@@ -418,6 +418,12 @@ def build_parser() -> argparse.ArgumentParser:
     g = sub.add_parser("generate", help="write a synthetic dataset from a simulated plant")
     g.add_argument("plant", help="manipulator or twin-rotor")
     g.add_argument("--preset", help="paper-manipulator or paper-twin-rotor")
+    g.add_argument(
+        "--sensors",
+        choices=("lab", "ideal"),
+        default="lab",
+        help="read the plant through its measurement chain (lab, default) or exactly (ideal)",
+    )
     g.add_argument("--signal", help="excitation signal (flexid list signals)")
     g.add_argument("--samples", type=int, help="number of samples")
     g.add_argument("--seed", type=int, default=0, help="seed (default 0)")

@@ -79,7 +79,7 @@ class DataSpec:
     """Where the record comes from, and how it is split.
 
     Either ``plant`` (simulate; ``preset``, ``signal``, ``n_samples``, ``seed``,
-    ``noise_std``, ``signal_options``, ``plant_params`` as in
+    ``noise_std``, ``signal_options``, ``plant_params``, ``sensors`` as in
     :func:`flexid.datasets.generate`) or ``file`` (a CSV/NPZ/DAT record; ``inputs``,
     ``outputs``, ``dt`` as in :func:`flexid.data.load`).  ``output`` picks the modelled
     output channel; ``split`` is the estimation share (or a sample index); ``detrend``
@@ -94,6 +94,7 @@ class DataSpec:
     noise_std: Any = None
     signal_options: dict = field(default_factory=dict)
     plant_params: dict = field(default_factory=dict)
+    sensors: str = "lab"
     file: str | None = None
     inputs: Any = None
     outputs: Any = None
@@ -110,6 +111,8 @@ class DataSpec:
         if self.file is not None:
             return f"file {self.file}"
         parts = [self.plant, self.preset or self.signal or "default signal"]
+        if self.sensors != "lab":
+            parts.append(f"{self.sensors} sensors")
         return " / ".join(p for p in parts if p) + f" (seed {self.seed})"
 
 
