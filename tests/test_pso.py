@@ -1,7 +1,8 @@
 """Tests of flexid.optimisers.pso (global-best PSO with constriction).
 
-Cost and distance thresholds are modelling tolerances, far above rounding; repeated runs
-are compared exactly (the same code on the same numbers).
+Cost and distance thresholds are modelling tolerances, far above rounding.  Determinism,
+FE-exactness, ask/tell and hyper-parameter validation of every optimiser are in
+test_conformance.py.
 """
 
 from __future__ import annotations
@@ -9,10 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexid.errors import HyperParameterError
 from flexid.optimisers import Problem, create, minimize
 from flexid.optimisers.pso import ParticleSwarm
-from objectives import counted, rosenbrock, shifted_rastrigin, shifted_sphere
+from objectives import rosenbrock, shifted_rastrigin, shifted_sphere
 
 N = 10
 SHIFT = np.linspace(-1.4, 1.4, N)
@@ -25,19 +25,6 @@ def test_registered_with_clerc_kennedy_defaults():
     assert isinstance(opt, ParticleSwarm)
     assert opt.inertia == pytest.approx(0.7298)
     assert opt.cognitive == pytest.approx(1.49618) and opt.social == pytest.approx(1.49618)
-
-
-def test_deterministic_and_fe_exact():
-    f, calls = counted(sphere)
-    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
-    a = minimize("pso", p, budget=1234, seed=3)
-    assert calls["fe"] == 1234 == a.nfev
-    b = minimize("pso", p, budget=1234, seed=3)
-    np.testing.assert_array_equal(a.x, b.x)
-    assert a.fun == b.fun
-    np.testing.assert_array_equal(a.history.best, b.history.best)
-    c = minimize("pso", p, budget=1234, seed=4)
-    assert c.fun != a.fun
 
 
 def test_shifted_sphere_10d_reaches_1e_6_in_10000_fe():
@@ -79,15 +66,6 @@ def test_velocity_is_clamped():
         return np.zeros(X.shape[0])  # flat: only the swarm dynamics move points
 
     p = Problem(f, -np.ones(3), np.ones(3))
-    minimize("pso", p, budget=20 * 10, seed=0, params={"particles": 10, "v_max": 0.05})
+    minimize("pso", p, budget=20 * 10, seed=0, params={"population": 10, "v_max": 0.05})
     steps = np.abs(np.diff(np.stack(seen), axis=0))
     assert steps.max() <= 0.05 * 2 + 1e-12
-
-
-@pytest.mark.parametrize(
-    "params",
-    [{"particles": 1}, {"inertia": -0.1}, {"v_max": 0.0}, {"particles": 2.5}, {"swarm": 3}],
-)
-def test_invalid_hyper_parameters(params):
-    with pytest.raises(HyperParameterError, match="pso"):
-        create("pso", **params)

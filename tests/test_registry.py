@@ -131,6 +131,13 @@ def test_variant_invalid_default_raises_hyper_parameter_error(names):
         register_variant("test-v4", "test-base4", points=0)
 
 
+def test_variant_of_a_builtin_by_an_old_name(names):
+    register_variant("test-pso-old-name", "pso", "swarm of 12", particles=12)
+    names.append("test-pso-old-name")
+    assert create("test-pso-old-name").population == 12
+    assert describe("test-pso-old-name")["hyperparameters"]["population"]["default"] == 12
+
+
 def test_variant_cross_parameter_check_applied():
     with pytest.raises(HyperParameterError, match="elites"):
         register_variant("test-ga-bad", "ga", elites=60)
@@ -151,7 +158,8 @@ def test_describe_builtin():
     d = describe("pso")
     assert d["name"] == "pso" and d["source"] == "flexid" and d["reference"]
     hp = d["hyperparameters"]
-    assert hp["particles"]["default"] == 50 and hp["particles"]["type"] == "int"
+    assert hp["population"]["default"] == 50 and hp["population"]["type"] == "int"
+    assert hp["population"]["aliases"] == ["particles"] and "particles" not in hp
     assert hp["inertia"]["default"] == pytest.approx(0.7298)
     assert set(hp["inertia"]) == {"type", "default", "range", "doc"}
     assert describe("ga")["hyperparameters"]["p_mutation"]["type"] == "float or None"

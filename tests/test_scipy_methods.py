@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from flexid.errors import HyperParameterError
 from flexid.optimisers import AskTell, Problem, create, describe, minimize
 
 N = 5
@@ -36,20 +35,12 @@ def test_variants_registered(name, method):
 
 
 @pytest.mark.parametrize("name", METHODS)
-def test_fe_exact_deterministic_and_threads_cleaned_up(name):
-    calls = {"fe": 0}
-
-    def f(X):
-        calls["fe"] += len(X)
-        return sphere(X)
-
+def test_threads_cleaned_up(name):
+    # FE-exactness and determinism: test_conformance.py
     before = threading.active_count()
-    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
-    a = minimize(name, p, budget=400, seed=2)
-    assert calls["fe"] == a.nfev == 400
-    b = minimize(name, p, budget=400, seed=2)
-    np.testing.assert_array_equal(a.x, b.x)
-    np.testing.assert_array_equal(a.history.best, b.history.best)
+    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    for seed in (2, 3):
+        assert minimize(name, p, budget=400, seed=seed).nfev == 400
     assert threading.active_count() == before
 
 
@@ -164,16 +155,10 @@ def test_points_stay_in_box(name):
     np.testing.assert_allclose(r.x, np.ones(3), atol=1e-3)
 
 
-def test_ask_tell_matches_minimize_and_abandoned_run_ends_its_thread():
+def test_abandoned_ask_tell_run_ends_its_thread():
+    # ask/tell equals minimize: test_conformance.py
     p = Problem(rosenbrock, -2 * np.ones(N), 2 * np.ones(N))
-    ref = minimize("powell", p, budget=500, seed=4)
     before = threading.active_count()
-    at = AskTell("powell", p, budget=500, seed=4)
-    while not at.done:
-        at.tell(rosenbrock(at.ask()))
-    r = at.result()
-    assert r.fun == ref.fun and r.nfev == ref.nfev
-    np.testing.assert_array_equal(r.history.best, ref.history.best)
     at = AskTell("nelder-mead", p, seed=4)
     for _ in range(5):
         at.tell(rosenbrock(at.ask()))
@@ -192,10 +177,3 @@ def test_objective_error_propagates():
     with pytest.raises(RuntimeError, match="plant exploded"):
         minimize("nelder-mead", p, budget=500, seed=0)
     assert threading.active_count() == before
-
-
-@pytest.mark.parametrize("params", [{"method": "BFGS"}, {"fd_step": 0.0},
-                                    {"initial_points": 0}])
-def test_invalid_hyper_parameters(params):
-    with pytest.raises(HyperParameterError, match=r"scipy|nelder-mead"):
-        create("nelder-mead", **params)

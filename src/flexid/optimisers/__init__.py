@@ -16,31 +16,31 @@ Writing a new optimiser (in flexid or in your own package)::
     @register
     class MySearch(Optimiser):
         name = "my-search"
-        points = Param(int, 20, "population size", low=1)
+        population = Param(int, 20, "population size", low=1)
 
         def search(self, space, rng):
-            X = space.initial_population(self.points)
+            X = space.initial_population(self.population)
             F = yield X
             while True:
                 ...
                 F = yield X
 
 A separate package exposes it through the entry-point group ``flexid.optimisers``.
+
+The framework lives in private modules, each depending only on those before it:
+``_budget`` (stop rules), ``_problem`` (problem and search space), ``_params``
+(hyper-parameters and the Optimiser base class), ``_history`` (history and callback
+information), ``registry`` (names, variants, plugins) and ``_driver`` (:func:`minimize`
+and :class:`AskTell`, which resolve optimiser names through the registry).
 """
 
 from __future__ import annotations
 
-from .base import (
-    AskTell,
-    Budget,
-    History,
-    IterationInfo,
-    Optimiser,
-    Param,
-    Problem,
-    SearchSpace,
-    minimize,
-)
+from ._budget import Budget
+from ._driver import AskTell, minimize
+from ._history import History, IterationInfo
+from ._params import Optimiser, Param
+from ._problem import Problem, SearchSpace
 from .registry import (
     ENTRY_POINT_GROUP,
     PluginWarning,

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
-from .base import Optimiser, Param, SearchSpace
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
 from .registry import register, register_variant
 
-__all__ = ["BacterialForaging", "swarming_cost", "tumble_directions"]
+__all__ = ["BacterialForaging", "chemotactic_step", "swarming_cost", "tumble_directions"]
 
 
 def tumble_directions(rng: np.random.Generator, size: int, dim: int) -> np.ndarray:
@@ -32,6 +35,77 @@ def swarming_cost(X: np.ndarray, d_attract: float, w_attract: float, h_repellant
                   axis=1)
 
 
+def chemotactic_step(
+    space: SearchSpace,
+    rng: np.random.Generator,
+    X: np.ndarray,
+    J: np.ndarray,
+    T: np.ndarray,
+    step: float,
+    n_swim: int,
+    clip: bool,
+    decide: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    evaluated: Callable[[np.ndarray, np.ndarray], None] | None = None,
+):
+    """One chemotactic step of every bacterium (Passino's tumble and swim), as a generator.
+
+    Shared by BFA and HBCSD: a search runs it with ``X, J = yield from chemotactic_step(...)``.
+    It yields the tumbled population, then each batch of swimming bacteria, marks the end of
+    the iteration (phase ``"chemotaxis"``) and returns the new positions and costs.
+
+    Parameters
+    ----------
+    space, rng
+        The search's space and random generator (the tumble draws ``S x n`` uniforms).
+    X, J : ndarray, shapes (S, n) and (S,)
+        Positions and their costs (``X`` is not modified; ``J`` is not kept).
+    T : ndarray, shape (S,)
+        The cost that decides the swims at the start of the step: ``J``, or ``J + J_cc``.
+    step : float
+        Chemotactic step ``C``.
+    n_swim : int
+        Swim length ``N_s``.
+    clip : bool
+        Clip moved bacteria to the box.
+    decide : callable, optional
+        ``decide(X, J) -> T`` after every batch (BFA: ``J + J_cc``); default ``T = J``.
+    evaluated : callable, optional
+        ``evaluated(X, J)`` after every batch (HBCSD: personal bests).
+
+    Notes
+    -----
+    Bacterium ``i`` moves ``x_i <- x_i + C u_i`` with the tumble direction ``u_i`` (always
+    taken), then, up to ``N_s`` times, while its deciding cost is lower than ``J_last`` (the
+    cost before the tumble, following every improvement) takes another step ``C u_i``.
+    FE: ``S`` for the tumble plus one per swim step.
+    """
+    j_last = T.copy()
+    U = tumble_directions(rng, X.shape[0], space.dim)
+    X = X + step * U
+    if clip:
+        X = space.clip(X)
+    J = (yield X).copy()
+    if evaluated is not None:
+        evaluated(X, J)
+    T = J if decide is None else decide(X, J)
+    swim = np.ones(X.shape[0], dtype=bool)
+    for _ in range(n_swim):
+        swim &= T < j_last
+        if not swim.any():
+            break
+        j_last[swim] = T[swim]
+        moved = X[swim] + step * U[swim]
+        if clip:
+            moved = space.clip(moved)
+        X[swim] = moved
+        J[swim] = yield moved
+        if evaluated is not None:
+            evaluated(X, J)
+        T = J if decide is None else decide(X, J)
+    space.end_iteration("chemotaxis")
+    return X, J
+
+
 @register
 class BacterialForaging(Optimiser):
     """Bacterial foraging algorithm (BFA) of Passino (2002).
@@ -44,8 +118,8 @@ class BacterialForaging(Optimiser):
 
     Hyper-parameters (defaults: Passino's paper and program)
     ---------------------------------------------------------
-    bacteria : int
-        Population ``S`` (even), 50.
+    population : int
+        Population ``S`` (even), 50 (also accepted as ``bacteria``).
     n_chemotactic, n_swim, n_reproduction : int
         ``N_c`` = 100, ``N_s`` = 4, ``N_re`` = 4.
     n_elim_disp : int or None
@@ -71,6 +145,7 @@ class BacterialForaging(Optimiser):
     before the tumble and follows every improvement) take another step ``C phi_i`` in the
     same direction.  No revert.  With ``swarming`` every decision uses ``J + J_cc``, where
     ``J_cc(theta) = sum_j -d exp(-w_a |theta - theta_j|^2) + h exp(-w_r |theta - theta_j|^2)``.
+    One step of every bacterium is :func:`chemotactic_step` (HBCSD's phase 1 runs it too).
 
     Reproduction: ``health_i = sum_{j=1}^{N_c + 1} J(i, j)`` (cost at the start of every
     chemotactic step plus the cost at the end); the ``S / 2`` healthiest bacteria (lowest
@@ -100,7 +175,7 @@ class BacterialForaging(Optimiser):
     name = "bfa"
     auto_iterations = False
     reference = "Passino, IEEE Control Systems Magazine 22(3):52-67, 2002"
-    bacteria = Param(int, 50, "population S (even)", low=2)
+    population = Param(int, 50, "population S (even)", low=2, aliases=("bacteria",))
     n_chemotactic = Param(int, 100, "chemotactic steps N_c per reproduction", low=1)
     n_swim = Param(int, 4, "swim length N_s", low=0)
     n_reproduction = Param(int, 4, "reproduction steps N_re", low=1)
@@ -118,9 +193,10 @@ class BacterialForaging(Optimiser):
     def check(self) -> None:
         from ..errors import HyperParameterError
 
-        if self.bacteria % 2:
+        if self.population % 2:
             raise HyperParameterError(
-                f"bfa: bacteria must be even (half of them split), got {self.bacteria}"
+                f"{self.name}: population (bacteria) must be even (half of them split), "
+                f"got {self.population}"
             )
 
     def _jcc(self, X: np.ndarray) -> np.ndarray | float:
@@ -129,8 +205,11 @@ class BacterialForaging(Optimiser):
         return swarming_cost(X, self.d_attract, self.w_attract, self.h_repellant,
                              self.w_repellant)
 
+    def _decide(self, X: np.ndarray, J: np.ndarray) -> np.ndarray:
+        return J + self._jcc(X)
+
     def search(self, space: SearchSpace, rng: np.random.Generator):
-        S, C = self.bacteria, self.step_size
+        S, C = self.population, self.step_size
         X = space.initial_population(S)
         J = (yield X).copy()
         event = 0
@@ -139,29 +218,12 @@ class BacterialForaging(Optimiser):
             for _ in range(self.n_reproduction):
                 health = np.zeros(S)
                 for _ in range(self.n_chemotactic):
-                    T = J + self._jcc(X)
+                    T = self._decide(X, J)
                     health += T
-                    j_last = T.copy()
-                    U = tumble_directions(rng, S, space.dim)
-                    X = X + C * U
-                    if self.clip:
-                        X = space.clip(X)
-                    J = (yield X).copy()
-                    T = J + self._jcc(X)
-                    swim = np.ones(S, dtype=bool)
-                    for _ in range(self.n_swim):
-                        swim &= T < j_last
-                        if not swim.any():
-                            break
-                        j_last[swim] = T[swim]
-                        moved = X[swim] + C * U[swim]
-                        if self.clip:
-                            moved = space.clip(moved)
-                        X[swim] = moved
-                        J[swim] = yield moved
-                        T = J + self._jcc(X)
-                    space.end_iteration("chemotaxis")
-                health += J + self._jcc(X)
+                    X, J = yield from chemotactic_step(
+                        space, rng, X, J, T, C, self.n_swim, self.clip, decide=self._decide
+                    )
+                health += self._decide(X, J)
                 keep = np.argsort(health, kind="stable")[: S // 2]
                 X = np.concatenate([X[keep], X[keep]])
                 J = np.concatenate([J[keep], J[keep]])
@@ -177,13 +239,13 @@ register_variant(
     "bfa-paper-manipulator", "bfa",
     "Nasir & Tokhi 2014 section 5, manipulator: N_s=4, N_c=30, N_re=6, N_ed=6, C=0.01; "
     "S=50 and p_ed=0.25 assumed",
-    bacteria=50, n_swim=4, n_chemotactic=30, n_reproduction=6, n_elim_disp=6, step_size=0.01,
+    population=50, n_swim=4, n_chemotactic=30, n_reproduction=6, n_elim_disp=6, step_size=0.01,
     p_ed=0.25,
 )
 register_variant(
     "bfa-paper-trs", "bfa",
     "Nasir & Tokhi 2014 section 5, twin rotor: N_s=4, N_c=30, N_re=4, N_ed=4, C=0.0175; "
     "S=10 and p_ed=0.25 assumed",
-    bacteria=10, n_swim=4, n_chemotactic=30, n_reproduction=4, n_elim_disp=4, step_size=0.0175,
+    population=10, n_swim=4, n_chemotactic=30, n_reproduction=4, n_elim_disp=4, step_size=0.0175,
     p_ed=0.25,
 )

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Optimiser, Param, SearchSpace
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
 from .registry import register
 
 __all__ = ["CMAES"]
@@ -32,6 +33,8 @@ class CMAES(Optimiser):
         relative to the box.
     initial_points : int
         Size of the shared initial population evaluated as the first batch (default 50).
+        It differs from ``population`` (lambda, the size of every later generation), the
+        name every flexid optimiser gives its population size.
     penalty : float
         Weight of the boundary penalty used for ranking (default 1; 0 disables it).
 

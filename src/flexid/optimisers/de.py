@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Optimiser, Param, SearchSpace
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
 from .registry import register
 
 __all__ = ["DifferentialEvolution"]

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Optimiser, Param, SearchSpace
-from .bfa import tumble_directions
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
+from .bfa import chemotactic_step
 from .registry import register, register_variant
 from .rotation import rotate_rows, rotation_matrix
 
@@ -42,8 +43,8 @@ class HBCSD(Optimiser):
 
     Hyper-parameters
     ----------------
-    points : int
-        Bacteria / spiral points ``m``, 50.
+    population : int
+        Bacteria / spiral points ``m``, 50 (also accepted as ``points``).
     n_chemotactic, n_swim, step_size :
         ``N_c`` = 100 (0 skips phase 1), ``N_s`` = 4, ``C`` = 0.05.
     k_max : int or None
@@ -61,7 +62,8 @@ class HBCSD(Optimiser):
     Phase 1 per bacterium and step: ``x_i <- x_i + C Delta_i / |Delta_i|`` with
     ``Delta_i ~ U[-1, 1]^n``, then up to ``N_s`` further steps along the same direction while
     the cost keeps falling; ``P_i, J_i`` <- the position and cost if it beats the personal
-    best.  Phase 2 starts at ``Y = P``, ``x* = argmin J`` (no FE) and iterates::
+    best.  The step is BFA's (:func:`~flexid.optimisers.bfa.chemotactic_step`, shared).
+    Phase 2 starts at ``Y = P``, ``x* = argmin J`` (no FE) and iterates::
 
         r_i(k)     = (r_l - r_u) / (1 + c1_r / (c2_r |f(y_i(k))|)) + r_u           (eq. 1)
         theta_i(k) = (theta_l - theta_u) / (1 + c1_t / (c2_t |f(y_i(k))|)) + theta_u
@@ -95,7 +97,7 @@ class HBCSD(Optimiser):
     name = "hbcsd"
     auto_iterations = False
     reference = "Nasir & Tokhi, Eng. Appl. Artif. Intell. 33:31-46, 2014"
-    points = Param(int, 50, "bacteria / spiral points m", low=1)
+    population = Param(int, 50, "bacteria / spiral points m", low=1, aliases=("points",))
     n_chemotactic = Param(int, 100, "chemotactic steps N_c (phase 1)", low=0)
     n_swim = Param(int, 4, "swim length N_s", low=0)
     step_size = Param(float, 0.05, "chemotactic step C", low=0.0, low_open=True)
@@ -117,34 +119,20 @@ class HBCSD(Optimiser):
     clip = Param(bool, False, "clip moved points to the box (deviation)")
 
     def search(self, space: SearchSpace, rng: np.random.Generator):
-        m, C = self.points, self.step_size
-        X = space.initial_population(m)
+        X = space.initial_population(self.population)
         J = (yield X).copy()
         Pb, Jb = X.copy(), J.copy()
-        # ---- phase 1: chemotaxis with personal bests
-        for _ in range(self.n_chemotactic):
-            j_last = J.copy()
-            U = tumble_directions(rng, m, space.dim)
-            X = X + C * U
-            if self.clip:
-                X = space.clip(X)
-            J = (yield X).copy()
+
+        def personal_bests(X: np.ndarray, J: np.ndarray) -> None:
             upd = J < Jb
             Pb[upd], Jb[upd] = X[upd], J[upd]
-            swim = np.ones(m, dtype=bool)
-            for _ in range(self.n_swim):
-                swim &= J < j_last
-                if not swim.any():
-                    break
-                j_last[swim] = J[swim]
-                moved = X[swim] + C * U[swim]
-                if self.clip:
-                    moved = space.clip(moved)
-                X[swim] = moved
-                J[swim] = yield moved
-                upd = J < Jb
-                Pb[upd], Jb[upd] = X[upd], J[upd]
-            space.end_iteration("chemotaxis")
+
+        # ---- phase 1: chemotaxis with personal bests
+        for _ in range(self.n_chemotactic):
+            X, J = yield from chemotactic_step(
+                space, rng, X, J, J, self.step_size, self.n_swim, self.clip,
+                evaluated=personal_bests,
+            )
         # ---- phase 2: adaptive spiral from the personal bests
         yield from self.spiral(space, Pb, Jb)
 
@@ -183,7 +171,7 @@ register_variant(
     "hbcsd-paper-manipulator", "hbcsd",
     "Nasir & Tokhi 2014 section 5, manipulator: m=50, N_s=4, C=0.01, N_c=500, k_max=500, "
     "theta=0.34 fixed, r_l=0.99, r_u=1, c1_r=0.1, c2_r=0.3",
-    points=50, n_swim=4, step_size=0.01, n_chemotactic=500, k_max=500, angle=0.34,
+    population=50, n_swim=4, step_size=0.01, n_chemotactic=500, k_max=500, angle=0.34,
     r_lower=0.99, r_upper=1.0, c1_r=0.1, c2_r=0.3,
 )
 register_variant(
@@ -191,7 +179,7 @@ register_variant(
     "Nasir & Tokhi 2014 section 5, twin rotor: m=10, N_s=4, C=0.04, N_c=50, k_max=150, "
     "r_l=0.65, r_u=0.99, c1_r=996, c2_r=0.97, theta_1=1.03, theta_2=1.8, c1=110, c2=0.98; "
     "theta_l=theta_1 and theta_u=theta_2 assumed",
-    points=10, n_swim=4, step_size=0.04, n_chemotactic=50, k_max=150, r_lower=0.65,
+    population=10, n_swim=4, step_size=0.04, n_chemotactic=50, k_max=150, r_lower=0.65,
     r_upper=0.99, c1_r=996.0, c2_r=0.97, angle=None, theta_lower=1.03, theta_upper=1.8,
     c1_theta=110.0, c2_theta=0.98,
 )

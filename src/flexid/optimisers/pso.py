@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Optimiser, Param, SearchSpace
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
 from .registry import register
 
 __all__ = ["ParticleSwarm"]
@@ -27,10 +28,10 @@ class ParticleSwarm(Optimiser):
 
     Parameters
     ----------
-    particles : int
-        Swarm size (FE per iteration), default 50.  The initial positions are the shared
-        initial population; initial velocities are uniform in ``[-v_max, v_max]`` times
-        the box width.
+    population : int
+        Swarm size (FE per iteration), default 50 (also accepted as ``particles``).  The
+        initial positions are the shared initial population; initial velocities are uniform
+        in ``[-v_max, v_max]`` times the box width.
     inertia, cognitive, social : float
         ``w``, ``c1`` and ``c2``.
     v_max : float
@@ -40,12 +41,12 @@ class ParticleSwarm(Optimiser):
     -----
     Boundary handling: absorbing walls.  A position that leaves the box is put back on the
     violated face and that velocity component is set to zero, so no FE is spent outside
-    the box.  One iteration is one swarm update (``particles`` FE).
+    the box.  One iteration is one swarm update (``population`` FE).
     """
 
     name = "pso"
     reference = "Kennedy & Eberhart 1995; Clerc & Kennedy, IEEE TEC 6(1):58-73, 2002"
-    particles = Param(int, 50, "swarm size", low=2)
+    population = Param(int, 50, "swarm size", low=2, aliases=("particles",))
     inertia = Param(float, 0.7298, "inertia weight w", low=0.0)
     cognitive = Param(float, 1.49618, "cognitive coefficient c1", low=0.0)
     social = Param(float, 1.49618, "social coefficient c2", low=0.0)
@@ -53,7 +54,7 @@ class ParticleSwarm(Optimiser):
                   low_open=True)
 
     def search(self, space: SearchSpace, rng: np.random.Generator):
-        n, P = space.dim, self.particles
+        n, P = space.dim, self.population
         width = space.upper - space.lower
         vmax = self.v_max * width
         X = space.initial_population(P)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Optimiser, Param, SearchSpace
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
 from .registry import register
 
 __all__ = ["RandomSearch"]
@@ -16,13 +17,14 @@ class RandomSearch(Optimiser):
 
     The first batch is the shared initial population; every later batch is drawn uniformly
     in the box from the run's generator.  The best point ever sampled is the result.
+    ``population`` (also accepted as ``points``) is the batch size.
     """
 
     name = "random-search"
     reference = "Brooks, Operations Research 6(2):244-251, 1958"
-    points = Param(int, 50, "samples per batch (one iteration)", low=1)
+    population = Param(int, 50, "samples per batch (one iteration)", low=1, aliases=("points",))
 
     def search(self, space: SearchSpace, rng: np.random.Generator):
-        yield space.initial_population(self.points)
+        yield space.initial_population(self.population)
         while True:
-            yield space.uniform(self.points, rng)
+            yield space.uniform(self.population, rng)

@@ -1,6 +1,6 @@
 """The optimiser registry: built-ins, configured variants and third-party plugins.
 
-* ``@register`` puts an :class:`~flexid.optimisers.base.Optimiser` subclass under its
+* ``@register`` puts an :class:`~flexid.optimisers.Optimiser` subclass under its
   ``name``; registering a taken name is a :class:`~flexid.errors.RegistryError`.
 * :func:`register_variant` registers a configured variant (the same algorithm with other
   default hyper-parameters) under its own name, e.g. ``hbcsd-paper-trs``.
@@ -20,8 +20,8 @@ import warnings
 from importlib.metadata import entry_points
 from typing import Any
 
-from ..errors import HyperParameterError, RegistryError, UnknownOptimiserError
-from .base import Optimiser, Param
+from ..errors import RegistryError, UnknownOptimiserError
+from ._params import Optimiser, Param
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -104,7 +104,8 @@ def register_variant(
     doc : str
         One line saying where the settings come from.
     **defaults
-        New defaults, validated now against the base's hyper-parameters.
+        New defaults, validated now against the base's hyper-parameters (an alias of a
+        hyper-parameter stands for it).
 
     Returns
     -------
@@ -113,11 +114,8 @@ def register_variant(
     """
     base_cls = get(base) if isinstance(base, str) else base
     spec = base_cls.hyperparameters()
-    unknown = sorted(set(defaults) - set(spec))
-    if unknown:
-        raise HyperParameterError(
-            f"variant {name!r}: unknown hyper-parameter(s) {unknown} of {base_cls.name!r}"
-        )
+    # aliases are accepted and replaced by the canonical names
+    defaults = base_cls.canonical_params(defaults, owner=f"variant {name!r} of {base_cls.name!r}")
     for key, value in defaults.items():  # clear errors before the class is built
         spec[key].validate(value, owner=name)
     namespace: dict[str, Any] = {

@@ -17,7 +17,8 @@ import threading
 import numpy as np
 from scipy import optimize
 
-from .base import Optimiser, Param, SearchSpace
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
 from .registry import register, register_variant
 
 __all__ = ["ScipyMinimize"]
@@ -42,7 +43,8 @@ class ScipyMinimize(Optimiser):
         initial population of ``initial_points`` points (like the population methods) and
         the runs start at its members in order of cost.
     initial_points : int
-        Size of that initial population (``start="best-initial"`` only).
+        Size of that initial population (``start="best-initial"`` only; the name CMA-ES
+        gives its first batch too).
     restarts : bool
         When scipy stops before the FE budget (converged or its own iteration limit), start
         again from the next point: for ``"x0"`` a uniform point drawn from the run's

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Optimiser, Param, SearchSpace
+from ._params import Optimiser, Param
+from ._problem import SearchSpace
 from .registry import register, register_variant
 from .rotation import rotation_matrix
 
@@ -21,8 +22,8 @@ class SpiralDynamics(Optimiser):
 
     Hyper-parameters
     ----------------
-    points : int
-        Number of search points ``m`` (>= 2), default 50.
+    population : int
+        Number of search points ``m`` (>= 2), default 50 (also accepted as ``points``).
     radius : float
         Convergence rate ``r`` in (0, 1], default 0.95.
     angle : float
@@ -64,7 +65,7 @@ class SpiralDynamics(Optimiser):
 
     name = "sda"
     reference = "Tamura & Yasuda, JACIII 15(8):1116-1122, 2011"
-    points = Param(int, 50, "search points m", low=2)
+    population = Param(int, 50, "search points m", low=2, aliases=("points",))
     radius = Param(float, 0.95, "convergence rate r", low=0.0, high=1.0, low_open=True)
     angle = Param(float, np.pi / 4, "rotation angle theta (rad)", low=0.0, high=2 * np.pi,
                   high_open=True)
@@ -72,7 +73,7 @@ class SpiralDynamics(Optimiser):
     clip = Param(bool, False, "clip moved points to the box (deviation)")
 
     def search(self, space: SearchSpace, rng: np.random.Generator):
-        X = space.initial_population(self.points)
+        X = space.initial_population(self.population)
         F = yield X
         b = int(np.argmin(F))
         xs, fs = X[b].copy(), F[b]
@@ -92,10 +93,10 @@ class SpiralDynamics(Optimiser):
 register_variant(
     "sda-paper-manipulator", "sda",
     "Nasir & Tokhi 2014 section 5, manipulator: r=0.99, theta=0.381; m=50, k_max=1000 assumed",
-    points=50, radius=0.99, angle=0.381, k_max=1000,
+    population=50, radius=0.99, angle=0.381, k_max=1000,
 )
 register_variant(
     "sda-paper-trs", "sda",
     "Nasir & Tokhi 2014 section 5, twin rotor: r=0.98, theta=0.72; m=10, k_max=200 assumed",
-    points=10, radius=0.98, angle=0.72, k_max=200,
+    population=10, radius=0.98, angle=0.72, k_max=200,
 )
