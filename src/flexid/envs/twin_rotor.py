@@ -139,10 +139,10 @@ _DOC = """
 
     Observation (float64, shape (6,)): pitch, yaw (rad), pitch rate, yaw rate (rad/s), then the
     pitch and yaw set points.  Pitch and yaw are read in the encoders' steps
-    (``encoder_counts``; ``encoder_counts=None`` reads them exactly).  Action (float64, shape (2,)): main and tail rotor voltages
-    normalised to ``[-1, 1]`` (times ``u_max`` = 2.5 V); finite out-of-range actions are
-    clipped to the box (the applied voltages are in ``info["applied_voltage"]``), non-finite
-    actions raise
+    (``encoder_counts``; ``encoder_counts=None`` reads them exactly).  Action (float64,
+    shape (2,)): main and tail rotor voltages normalised to ``[-1, 1]`` (times ``u_max`` =
+    2.5 V); finite out-of-range actions are clipped to the box (the applied voltages are in
+    ``info["applied_voltage"]``), non-finite actions raise
     :class:`~flexid.errors.ActionError`.  Reward: ``-((pitch - pitch_ref)^2 + (yaw -
     yaw_ref)^2 + control_weight |u / u_max|^2)`` from the noise-free state.
 """
