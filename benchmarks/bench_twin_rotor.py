@@ -36,12 +36,8 @@ from flexid.envs.manipulator import (  # noqa: E402
     FlexibleManipulatorEnv,
     FlexibleManipulatorVectorEnv,
 )
-from flexid.envs.twin_rotor import (  # noqa: E402
-    TwinRotorEnv,
-    TwinRotorVectorEnv,
-    reference_trajectory,
-    simulate,
-)
+from flexid.envs.twin_rotor import TwinRotorEnv, TwinRotorVectorEnv  # noqa: E402
+from flexid.envs.twin_rotor_physics import reference_trajectory, simulate  # noqa: E402
 
 N_ENVS = 64
 

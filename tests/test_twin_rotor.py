@@ -23,20 +23,20 @@ from scipy import signal
 
 import flexid  # noqa: F401  (registers the environments)
 from flexid.envs import twin_rotor_physics
-from flexid.envs.twin_rotor import (
+from flexid.envs.twin_rotor import TwinRotorEnv, TwinRotorVectorEnv
+from flexid.envs.twin_rotor_physics import (
     THRUST_LAWS,
     BatchStepper,
+    CompiledBatchStepper,
+    CompiledScalarStepper,
     ScalarStepper,
-    TwinRotorEnv,
     TwinRotorParameters,
-    TwinRotorVectorEnv,
     derivatives,
     pitch_linear_mode,
     reference_trajectory,
     simulate,
     step_states,
 )
-from flexid.envs.twin_rotor_physics import CompiledBatchStepper, CompiledScalarStepper
 from flexid.errors import ActionError, DataError, PlantParameterError
 from numerics import EPS, assert_close_to_terms
 

@@ -203,8 +203,9 @@ def generate(
     cols = [output_names.index(name) for name in keep]
     clean = y_all[:, cols]
     levels = _noise_levels(settings.get("noise_std"), clean)
-    floor = spec.noise_floor(params)[cols]
-    levels = np.where(floor > 0, np.hypot(levels, floor), levels)
+    from .envs.sensors import total_noise  # flexid.envs registers the environments
+
+    levels = total_noise(levels, spec.noise_floor(params)[cols])
     noise_rng = np.random.default_rng(noise_seq)
     y = clean + noise_rng.standard_normal(clean.shape) * levels
     if settings.get("inputs"):

@@ -76,8 +76,7 @@ class _Config:
                 f"{', '.join(beam.OUTPUT_NAMES)} in {', '.join(beam.OUTPUT_UNITS)}), "
                 f"got {noise_std!r}"
             )
-        floor = beam.noise_floor(self.params)  # the sensors' own noise (tachometer)
-        self.noise_std = np.where(floor > 0, np.hypot(std, floor), std)
+        self.noise_std = sensors.total_noise(std, beam.noise_floor(self.params))
         self.noisy = bool(np.any(self.noise_std > 0))
         self.encoder_step = self.params.encoder_step
         self.angle_limit = _real("angle_limit", angle_limit, 0.0, 1e3, lo_open=True)
@@ -337,7 +336,7 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         obs = np.empty(5)
         obs[:4] = y
         if self._cfg.encoder_step:
-            obs[0] = round(obs[0] / self._cfg.encoder_step) * self._cfg.encoder_step
+            obs[:1] = sensors.quantise(obs[:1], self._cfg.encoder_step)
         if self._cfg.noisy:
             obs[:4] += self._cfg.noise_std * self._noise.draw(self.np_random)
         obs[4] = self.target

@@ -27,6 +27,7 @@ __all__ = [
     "quantise",
     "second_order_lowpass",
     "series",
+    "total_noise",
 ]
 
 StateSpace = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
@@ -110,6 +111,14 @@ def series(first: StateSpace, second: StateSpace) -> StateSpace:
     b = np.vstack([b1, b2 @ d1])
     c = np.hstack([d2 @ c1, c2])
     return a, b, c, d2 @ d1
+
+
+def total_noise(std: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Standard deviations of added noise ``std`` and a sensor's own ``floor``, independent.
+
+    Added in quadrature; where the floor is 0 the result is ``std`` itself, bit for bit.
+    """
+    return np.where(floor > 0, np.hypot(std, floor), std)
 
 
 def quantise(x: np.ndarray, step: float) -> np.ndarray:

@@ -5,8 +5,8 @@
 vectorization_mode="vector_entry_point")``).  The physics is
 :mod:`flexid.envs.twin_rotor_physics`: the single environment steps with its
 :class:`~flexid.envs.twin_rotor_physics.ScalarStepper`, the vector environment with its
-:class:`~flexid.envs.twin_rotor_physics.BatchStepper`.  The physics names (parameters,
-:func:`simulate`, :func:`derivatives`, ...) are re-exported here.
+:class:`~flexid.envs.twin_rotor_physics.BatchStepper`; a thin shell, as the manipulator's
+environments are over :mod:`flexid.envs.beam`.
 """
 
 from __future__ import annotations
@@ -23,49 +23,9 @@ from gymnasium.vector.utils import batch_space
 
 from ..errors import ActionError, PlantParameterError
 from . import sensors
-from .twin_rotor_physics import (
-    INPUT_NAMES,
-    INPUT_UNITS,
-    OUTPUT_NAMES,
-    OUTPUT_UNITS,
-    STATE_NAMES,
-    THRUST_LAWS,
-    BatchStepper,
-    ScalarStepper,
-    TwinRotorParameters,
-    batch_stepper,
-    clip_inputs,
-    derivatives,
-    pitch_linear_mode,
-    reference_trajectory,
-    scalar_stepper,
-    simulate,
-    step_states,
-    substeps,
-    thrust,
-)
+from .twin_rotor_physics import TwinRotorParameters, batch_stepper, scalar_stepper
 
-__all__ = [
-    "INPUT_NAMES",
-    "INPUT_UNITS",
-    "OUTPUT_NAMES",
-    "OUTPUT_UNITS",
-    "STATE_NAMES",
-    "THRUST_LAWS",
-    "BatchStepper",
-    "ScalarStepper",
-    "TwinRotorEnv",
-    "TwinRotorParameters",
-    "TwinRotorVectorEnv",
-    "clip_inputs",
-    "derivatives",
-    "pitch_linear_mode",
-    "reference_trajectory",
-    "simulate",
-    "step_states",
-    "substeps",
-    "thrust",
-]
+__all__ = ["TwinRotorEnv", "TwinRotorVectorEnv"]
 
 _FIELDS = tuple(f.name for f in fields(TwinRotorParameters))
 
@@ -254,7 +214,7 @@ def _render(x, setpoint: np.ndarray, size: int = 400) -> np.ndarray:
 
 
 class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
-    """``num_envs`` twin rotors stepped together (one :class:`BatchStepper`).
+    """``num_envs`` twin rotors stepped together (one batch stepper of the physics).
 
     Same keyword arguments, spaces, reward and termination as :class:`TwinRotorEnv`, plus
     ``num_envs`` and ``max_episode_steps`` (default 600).  Autoreset: Gymnasium's
