@@ -13,7 +13,7 @@ same objective (16-D shifted sphere or Rastrigin on [-5, 5]^16) and the same FE 
 are counted by a wrapper around the objective (the peers evaluate one vector at a time);
 mealpy checks its budget only between epochs and overshoots, which the table shows.
 
-Known peer issues (algorithms.md 4.1, 4.2):
+Known problems of the peer implementations, which the table shows:
 
 * mealpy 3.0.3 ``OriginalBFO`` passes ``Ci`` through ``check_int``: any ``Ci < 1`` becomes a
   step of 0, so its bacteria never move and progress comes only from re-initialisation and

@@ -1,4 +1,4 @@
-"""Benchmark of the batched ARX costs (issue: foundation, point 7).
+"""Benchmark of the batched ARX costs.
 
 16-parameter ARX(8, 8, 1), 1,500 samples from a lightly damped 8th-order system driven by a
 random +-0.3 input with small noise, population 50.  Compares, in the same run:

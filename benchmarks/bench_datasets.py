@@ -1,4 +1,4 @@
-"""Benchmark of dataset generation and the twin-rotor environments (issue: plants, point 6).
+"""Benchmark of dataset generation and the twin-rotor environments.
 
 Times ``generate(preset=...)`` for both paper presets (first call, which builds and caches
 the manipulator model, and warm calls), every signal generator for 10^5 samples, and the

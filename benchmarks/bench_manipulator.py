@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import os
 
-# Small (82 x 82) matrix products: multi-threaded BLAS only adds overhead, and on a shared
-# machine it can be 10x slower.  Respect a user setting, default to one thread.
+# Small (82 x 82) matrix products: multi-threaded BLAS only adds overhead, and much more of
+# it on a shared machine.  Respect a user setting, default to one thread.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 

@@ -1,6 +1,8 @@
 """Speed of the twin-rotor environments and dataset, as ratios to reference environments.
 
-Run: ``.venv/bin/python benchmarks/bench_twin_rotor.py [--repeat 5]``.  Prints a table of
+Run: ``.venv/bin/python benchmarks/bench_twin_rotor.py [--repeat 5]`` (the compiled route when
+the kernels are built; ``FLEXID_KERNELS=numpy`` in the environment times the Python route).
+Prints a table of
 
 * single-environment step rate (``env.step``, no wrappers) of ``TwinRotorEnv`` (yaw free, the
   default) against gymnasium's ``Pendulum-v1`` and ``FlexibleManipulatorEnv``; the same

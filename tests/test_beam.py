@@ -13,14 +13,15 @@ from flexid.envs.beam import BeamParameters
 from flexid.errors import PlantParameterError
 from numerics import assert_close_to_terms, route_tolerance
 
-EXACT_NO_PAYLOAD = [11.853, 32.238, 58.491, 102.571]  # plants.md 1.4
+# exact modes (Hz) of the hub-inertia beam: roots of the frequency equation, two root-finders
+EXACT_NO_PAYLOAD = [11.853, 32.238, 58.491, 102.571]
 EXACT_20G = [10.206, 29.434, 53.660, 93.871]
 CLAMPED_FREE_BETA_L = [1.87510, 4.69409, 7.85476]
 PINNED_FREE_BETA_L = [3.92660, 7.06858, 10.21018]
 
 
 def _closed_form(lam, mu_h, mu_p):
-    """plants.md 1.4 characteristic equation for J_p = 0 (independent of the 4x4 determinant)."""
+    """Closed-form frequency equation for J_p = 0 (independent of the 4x4 determinant)."""
     s, c, sh, ch = np.sin(lam), np.cos(lam), np.sinh(lam), np.cosh(lam)
     return (s * ch - c * sh) + 2 * mu_p * lam * s * sh + mu_h * lam**3 * (
         1 + c * ch + mu_p * lam * (c * sh - s * ch)

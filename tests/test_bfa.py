@@ -1,4 +1,4 @@
-"""Tests of the bacterial foraging algorithm (algorithms.md section 2).
+"""Tests of the bacterial foraging algorithm.
 
 The reference loops normalise each tumble with a dot product, flexid with np.linalg.norm:
 unit directions differ by a few eps, and since chemotaxis only adds steps ``C u`` the

@@ -1,4 +1,4 @@
-"""Failures that left traces or spoke in internals (issue 10, point 6).
+"""Command-line failures leave no traces and speak in the user's terms.
 
 An invalid command is refused before anything is opened, simulated or written; error
 messages name what the user typed; diverged fits print as ``< -999``; the compare footer

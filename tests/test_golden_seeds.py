@@ -90,10 +90,14 @@ class _Enough(Exception):
 
 
 def builtins() -> list[str]:
+    """flexid's own algorithms (the adapters' numbers belong to their libraries' versions)."""
     from flexid.optimisers import registry
 
     return sorted(
-        n for n in available() if registry.get(n).__module__.startswith("flexid.optimisers")
+        n
+        for n in available()
+        if registry.get(n).__module__.startswith("flexid.optimisers")
+        and registry.get(n).__module__ != "flexid.optimisers.external"
     )
 
 

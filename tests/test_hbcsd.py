@@ -1,4 +1,4 @@
-"""Tests of the hybrid bacteria-chemotaxis spiral-dynamic algorithm (algorithms.md section 3).
+"""Tests of the hybrid bacteria-chemotaxis spiral-dynamic algorithm.
 
 Against the reference, every recorded spiral batch is compared with one reference step from
 the batch before it (centre and adaptive laws from the recorded costs), so the tolerance is

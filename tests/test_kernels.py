@@ -193,6 +193,41 @@ def test_compiled_ar_run_rejects_bad_buffers():
         _kernels.schur_cohn(a, np.zeros(3, np.uint8))
 
 
+@compiled
+def test_compiled_twin_rotor_run_checks_buffers_and_fills_out():
+    # Its numbers are held to the reference route in tests/test_twin_rotor.py; here the glue:
+    # the argument checks, and out holding the state after each sample.  The same kernel on
+    # the same rotors with and without out does the same arithmetic: equal exactly.
+    from flexid import _kernels
+    from flexid.envs.twin_rotor_physics import TwinRotorParameters, _kernel_params
+
+    k = _kernel_params(TwinRotorParameters())
+    rng = np.random.default_rng(5)
+    batch, samples = 6, 9
+    x0 = rng.normal(0.0, 0.3, (batch, 7))
+    u = rng.uniform(-2.5, 2.5, (samples, batch, 2))
+    out = np.full((samples, batch, 7), np.nan)
+    x = x0.copy()
+    _kernels.twin_rotor_run(k, x, u, out, 10, 0.01, False, False)
+    np.testing.assert_array_equal(out[-1], x)
+    assert np.all(np.isfinite(out)) and np.all(out[0] != x0)
+    for s in range(samples):  # sample by sample, without out: the same states
+        x1 = (x0 if s == 0 else out[s - 1]).copy()
+        _kernels.twin_rotor_run(k, x1, u[s : s + 1], None, 10, 0.01, False, False)
+        np.testing.assert_array_equal(x1, out[s])
+    with pytest.raises(ValueError, match="params"):
+        _kernels.twin_rotor_run(k[:-1], x, u, None, 10, 0.01, False, False)
+    with pytest.raises(ValueError, match="x \\(B, 7\\)"):
+        _kernels.twin_rotor_run(k, x[:-1], u, None, 10, 0.01, False, False)
+    with pytest.raises(ValueError, match="n_sub"):
+        _kernels.twin_rotor_run(k, x, u, None, 0, 0.01, False, False)
+    with pytest.raises(ValueError, match="out must be"):
+        _kernels.twin_rotor_run(k, x, u, out[:, 1:].copy(), 10, 0.01, False, False)
+    with pytest.raises(TypeError, match="writable"):
+        x.flags.writeable = False
+        _kernels.twin_rotor_run(k, x, u, None, 10, 0.01, False, False)
+
+
 @pytest.mark.numerics
 @compiled
 @pytest.mark.parametrize("predictor", ["one-step", "simulation"])

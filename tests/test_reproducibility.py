@@ -1,4 +1,4 @@
-"""A seeded result is a pure function of its arguments, whatever ran before it (issue 14).
+"""A seeded result is a pure function of its arguments, whatever ran before it.
 
 Each result computed here, after other work in this process, must equal bit for bit the same
 computation done first thing in a fresh interpreter.  Rounding in the simulators depends on

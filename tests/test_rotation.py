@@ -1,4 +1,4 @@
-"""Tests of the Tamura-Yasuda composite rotation (algorithms.md 1.2, 1.4, 1.6).
+"""Tests of the Tamura-Yasuda composite rotation.
 
 The Givens sweep and the explicit product of plane-rotation matrices are two routes to one
 rotation: they agree within ``rotation_error`` of tests/route_bounds.py (``N = n (n-1) / 2``

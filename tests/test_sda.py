@@ -1,4 +1,4 @@
-"""Tests of the spiral dynamics algorithm (algorithms.md section 1).
+"""Tests of the spiral dynamics algorithm.
 
 Against the reference, every recorded batch is compared with one reference step from the
 batch before it (its centre chosen by the reference rule from the recorded costs): the

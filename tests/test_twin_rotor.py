@@ -1,4 +1,4 @@
-"""Tests of flexid.envs.twin_rotor: the physics checks of plants.md 2.1 and the environments.
+"""Tests of flexid.envs.twin_rotor: the physics of the 33-949S model and the environments.
 
 Physics checks (1-5 % of documented values) are modelling tolerances.  The reference route
 (:func:`derivatives` stepped by :func:`step_states`, batched NumPy), the fast scalar route
@@ -168,7 +168,8 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law, route):
     # is sin(psi + pi/2): each a few eps of the same magnitudes.  On the machine these tests
     # were written on the routes use at most 2 % of the bound; an error in a coefficient or a
     # term (1e-6 relative or more) exceeds it by orders of magnitude.  The compiled route
-    # runs the reference's operations in C (libm sin/tanh, possibly FMA): rounding only.
+    # runs the reference's equations in C with the constants divided out once (possibly with
+    # FMA) and sin, cos and tanh within a few eps of the exact values: rounding only.
     if route == "compiled":
         if twin_rotor_physics._compiled() is None:
             pytest.skip("the compiled kernels are not running")
@@ -201,6 +202,45 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law, route):
         assert_close_to_terms(batch.state[1], ref[k + 1], bound[k + 1], 1.0)
     y = simulate(u, p, x0=x0)
     assert_close_to_terms(y, ref[:-1, [0, 2, 1, 3]], bound[:-1, [0, 2, 1, 3]], 1.0)
+
+
+@pytest.mark.numerics
+@pytest.mark.parametrize("thrust_law", THRUST_LAWS)
+@pytest.mark.parametrize("lock_yaw", [False, True])
+def test_compiled_batch_rows_equal_the_reference(lock_yaw, thrust_law):
+    # The compiled route steps 4 rotors per SIMD vector: 11 rotors fill two vectors, then
+    # three lanes of a third (its last lane runs a rotor at rest).  Each row runs its own
+    # record from a start in another quadrant of the pitch (sin and cos are reduced by
+    # multiples of pi / 2), one of them 3e5 rad, where the library's sin and cos take over;
+    # one starts near rest without input, so that its rates stay below the Coulomb velocity,
+    # where tanh is not saturated.
+    # Tolerance: trajectory_bound, as in test_fast_routes_equal_the_reference; the compiled
+    # sin, cos and tanh are within a few eps of the exact values (absolute), inside the 16 eps
+    # per derivative the bound gives the terms they multiply.  A row computed with another
+    # row's input, state or constants, or a wrong quadrant, is off by orders of magnitude.
+    if twin_rotor_physics._compiled() is None:
+        pytest.skip("the compiled kernels are not running")
+    rng = np.random.default_rng(33)
+    n, rows = 30, 11
+    p = TwinRotorParameters(lock_yaw=lock_yaw, thrust_law=thrust_law)
+    records = [_random_record(rng, n, lock_yaw) for _ in range(rows)]
+    x0 = np.array([x for _, x in records])
+    x0[:, 0] += 0.5 * np.pi * np.arange(-5, rows - 5)
+    x0[-1, 0] = 3e5
+    x0[1] = [0.0, 0.01, 0.0, 0.0 if lock_yaw else -0.02, 0.0, 0.0, 0.0]
+    u = np.stack([v for v, _ in records], axis=1)  # (n, rows, 2)
+    u[:, 1] = 0.0
+    batch = CompiledBatchStepper(p, 0.1, rows)
+    batch.state = x0
+    states = [batch.state]
+    for k in range(n):
+        batch.advance(u[k])
+        states.append(batch.state)
+    states = np.array(states)
+    for i in range(rows):
+        ref = reference_trajectory(u[:, i], p, 0.1, x0[i])
+        bound = trajectory_bound(x0[i], u[:, i], p, 0.1)
+        assert_close_to_terms(states[:, i], ref, bound, 1.0)
 
 
 @pytest.mark.numerics

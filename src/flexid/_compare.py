@@ -26,7 +26,8 @@ import numpy as np
 
 from ._identify import prepare_data
 from ._json import jsonable
-from .config import ComparisonSpec, OptimiserSpec
+from ._validate import positive_int
+from .config import LEAST_SQUARES, ComparisonSpec, OptimiserSpec
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
 from .estimation import build_problem, check_search, choose_reference, model_structure
@@ -37,8 +38,6 @@ from .validation import format_fit as _fit
 from .validation import validate
 
 __all__ = ["ComparisonResult", "build_data", "check_spec", "compare", "load_result", "run_seed"]
-
-LS_LABEL = "ls"
 
 
 # ================================================================================ context
@@ -177,10 +176,10 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     model = ctx.structure.model(ctx.theta_ls, dt=ctx.est.dt)
     cost = float(ctx.cost(ctx.theta_ls[None, :])[0])
     record = {
-        "label": LS_LABEL,
-        "optimiser": LS_LABEL,
+        "label": LEAST_SQUARES,
+        "optimiser": LEAST_SQUARES,
         "params": {},
-        "fingerprint": LS_LABEL,
+        "fingerprint": LEAST_SQUARES,
         "run": 0,
         "seed": 0,
         "status": "ok",
@@ -265,6 +264,7 @@ class ComparisonResult:
     Attributes
     ----------
     spec : ComparisonSpec
+        What was compared.
     key : str
         Store key.
     reference : dict
@@ -272,10 +272,19 @@ class ComparisonResult:
     records : dict
         ``label -> list of run records`` (run order).
     stats : dict
-        ``label -> summary`` (see :func:`flexid.statistics.summarise`), plus ``"tests"``.
+        ``label -> summary`` (see :func:`flexid.statistics.summarise`); each summary also
+        holds its rank-sum ``"test"`` against the best optimiser
+        (:func:`flexid.statistics.rank_sum_against_best`).
     reference_cost : float
-        The cost targets are relative to: least squares if its model is stable, else the
-        best stable cost found by any run (``reference_note`` says which).
+        The cost targets are relative to: the lower stable cost of least squares and (for
+        the simulation cost) the output-error reference, else the best stable cost found by
+        any run, else NaN (``reference_note`` says which).
+    reference_note : str
+        Where ``reference_cost`` comes from, in words.
+    store_path : str or None
+        Path of the result store the runs are kept in (None when not stored).
+    elapsed : float
+        Wall time of the comparison in seconds (0.0 when loaded from a store).
     """
 
     spec: ComparisonSpec
@@ -292,11 +301,36 @@ class ComparisonResult:
     def from_records(
         cls, spec: ComparisonSpec, key: str, records: Iterable[Mapping[str, Any]], **extra: Any
     ) -> ComparisonResult:
+        """Build a result from stored run records and compute its statistics.
+
+        Parameters
+        ----------
+        spec : ComparisonSpec
+            The comparison the records belong to.
+        key : str
+            Its store key.
+        records : iterable of mapping
+            Run records (as :meth:`flexid.store.ResultStore.runs` returns them): the
+            least-squares row and the optimisers' runs.  Runs of optimisers not in ``spec``
+            and runs numbered ``>= spec.runs`` are left out.
+        **extra
+            Further fields of the result (``store_path``, ``elapsed``, ...).
+
+        Returns
+        -------
+        ComparisonResult
+            With ``stats``, ``reference_cost`` and ``reference_note`` computed.
+
+        Raises
+        ------
+        StoreError
+            If the least-squares reference row is missing.
+        """
         by_label: dict[str, list] = {}
         reference = None
         order = [o.display for o in spec.optimisers]
         for r in records:
-            if r["label"] == LS_LABEL:
+            if r["label"] == LEAST_SQUARES:
                 reference = dict(r)
                 continue
             if r["label"] in order and r["run"] < spec.runs:
@@ -354,7 +388,18 @@ class ComparisonResult:
 
     # ------------------------------------------------------------------ tables
     def cost_table(self) -> str:
-        """Final cost, FE to target and success rate per optimiser (plain-text table)."""
+        """Final cost, FE to target and success rate per optimiser.
+
+        Returns
+        -------
+        str
+            A plain-text table: least squares, then one row per optimiser with the number of
+            runs, median, IQR and best cost, median FE to each target with the success rate,
+            the Holm-corrected rank-sum p-value and the median wall time in seconds.
+        """
+        return _format_table(self._cost_rows())
+
+    def _cost_rows(self) -> list[list[str]]:
         targets = self.spec.targets
         head = ["optimiser", "runs", "median", "IQR", "best"]
         head += [f"FE to {t:g} (ok)" for t in targets]
@@ -380,10 +425,21 @@ class ComparisonResult:
             row.append("best" if test.get("best") else _p(test.get("p_holm")))
             row.append(f"{s['median_time']:.2f}")
             rows.append(row)
-        return _format_table(rows)
+        return rows
 
     def validation_table(self) -> str:
-        """Held-out fits, modelling-error range and correlation-test pass rate (medians)."""
+        """Held-out fits, modelling-error range and correlation-test pass rate.
+
+        Returns
+        -------
+        str
+            A plain-text table: least squares, then one row per optimiser with the median
+            one-step and simulation fits (%), the one-step error range, the correlation-test
+            pass rate and the share of stable models.
+        """
+        return _format_table(self._validation_rows())
+
+    def _validation_rows(self) -> list[list[str]]:
         head = [
             "optimiser",
             "fit 1-step %",
@@ -418,27 +474,51 @@ class ComparisonResult:
                     f"{s['stable_rate'] * 100:.0f}%",
                 ]
             )
-        return _format_table(rows)
+        return rows
 
-    def summary(self) -> str:
-        """Both tables with a header saying what was compared and how."""
+    def _title(self) -> str:
+        return f"Comparison {self.spec.name!r} [{self.key}]"
+
+    def _items(self) -> list[tuple[str, str]]:
+        """The labelled header lines of :meth:`summary` (shared with the notebook display)."""
         s = self.spec
         m = s.model
-        lines = [
-            f"Comparison {s.name!r} [{self.key}]",
-            f"  data      : {s.data.describe()}",
-            f"  model     : ARX(na={m.na}, nb={m.nb if m.nb is not None else m.na}, nk={m.nk}), "
-            f"cost {s.cost.metric}, {s.cost.predictor} predictor",
-            f"  search    : {_search_text(s.search)}",
-            f"  budget    : {s.budget_label()} per run, {s.runs} runs per optimiser, seed {s.seed}",
-            f"  reference : {self.reference_note}: {_f(self.reference_cost)}",
-            f"  targets   : reference x (1 + t), t in {list(s.targets)}",
+        return [
+            ("data", s.data.describe()),
+            (
+                "model",
+                f"ARX(na={m.na}, nb={m.nb if m.nb is not None else m.na}, nk={m.nk}), "
+                f"cost {s.cost.metric}, {s.cost.predictor} predictor",
+            ),
+            ("search", _search_text(s.search)),
+            ("budget", f"{s.budget_label()} per run, {s.runs} runs per optimiser, seed {s.seed}"),
+            ("reference", f"{self.reference_note}: {_f(self.reference_cost)}"),
+            ("targets", f"reference x (1 + t), t in {list(s.targets)}"),
+        ]
+
+    def summary(self) -> str:
+        """Both tables with a header saying what was compared and how.
+
+        Returns
+        -------
+        str
+            The header (data, model, search, budget, reference, targets), :meth:`cost_table`,
+            :meth:`validation_table`, failed runs and the rank-sum conclusion.
+        """
+        lines = [self._title()]
+        lines += [f"  {label:<10}: {value}" for label, value in self._items()]
+        lines += [
             "",
             self.cost_table(),
             "",
-            "Validation on the held-out record (medians over runs)",
+            _VALIDATION_CAPTION,
             self.validation_table(),
         ]
+        return "\n".join(lines + self._notes())
+
+    def _notes(self) -> list[str]:
+        """The lines after the tables: failed runs and the rank-sum conclusion."""
+        lines: list[str] = []
         failed = {k: v.get("errors") for k, v in self.stats.items() if v.get("failed")}
         for label, errors in failed.items():
             lines.append(f"  {label}: failed runs: {'; '.join(errors or [])}")
@@ -459,12 +539,30 @@ class ComparisonResult:
                     else "Every other optimiser is significantly worse (rank-sum, Holm, 5 %)."
                 )
             )
-        return "\n".join(lines)
+        return lines
+
+    def _repr_html_(self) -> str:
+        """The notebook display: the header and both tables of :meth:`summary` in HTML."""
+        from . import _html
+
+        return _html.block(
+            self._title(),
+            _html.key_values(self._items()),
+            _html.table(self._cost_rows()),
+            _html.table(self._validation_rows(), caption=_VALIDATION_CAPTION),
+            *(_html.paragraph(line.strip()) for line in self._notes() if line),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe result: spec, reference, statistics (without per-run histories).
 
         Non-finite numbers are ``None`` (see :func:`flexid._json.jsonable`).
+
+        Returns
+        -------
+        dict
+            ``key``, ``spec`` (:meth:`ComparisonSpec.to_dict`), ``reference`` (without its
+            history), ``reference_cost``, ``reference_note`` and ``stats``.
         """
         return jsonable(
             {
@@ -476,6 +574,9 @@ class ComparisonResult:
                 "stats": self.stats,
             }
         )
+
+
+_VALIDATION_CAPTION = "Validation on the held-out record (medians over runs)"
 
 
 def _search_text(search) -> str:
@@ -551,6 +652,11 @@ def check_spec(spec: ComparisonSpec) -> None:
     data file, orders, cost or bounds.  Nothing is run or written (the record is built, then
     dropped); :func:`compare` does the same check before it opens the store.
 
+    Parameters
+    ----------
+    spec : ComparisonSpec
+        The comparison to check.
+
     Raises
     ------
     ConfigError, UnknownOptimiserError, HyperParameterError, DataError, ModelOrderError
@@ -595,8 +701,7 @@ def compare(
         Before any run starts, for an invalid specification (and before the store is
         opened, so an invalid specification leaves no file behind).
     """
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError(f"workers must be a positive integer, got {workers!r}")
+    workers = positive_int(workers, "workers", error=ConfigError)
     t0 = time.perf_counter()
     ctx = _checked_context(spec)  # the whole specification, before the store is opened
     owns_store = store is not None and not isinstance(store, ResultStore)
@@ -610,7 +715,7 @@ def compare(
             db.add_comparison(key, spec.name, spec.to_dict())
             done = db.finished(key, include_failed=not retry_failed)
             records = [r for r in db.runs(key) if (r["label"], r["run"]) in done]
-        if (LS_LABEL, 0) not in done:
+        if (LEAST_SQUARES, 0) not in done:
             ls = _least_squares_record(ctx)
             records.append(ls)
             if db is not None:
@@ -722,7 +827,20 @@ def _progress(progress: bool | Callable, total: int, name: str) -> Callable[[dic
 
 
 def load_result(store: str | Path | ResultStore, key: str | None = None) -> list[ComparisonResult]:
-    """Comparison results rebuilt from a store (all comparisons, or the one with ``key``)."""
+    """Comparison results rebuilt from a store (all comparisons, or the one with ``key``).
+
+    Parameters
+    ----------
+    store : str, pathlib.Path or ResultStore
+        The SQLite store (a path or an open store).
+    key : str, optional
+        A comparison key; default every comparison in the store.
+
+    Returns
+    -------
+    list of ComparisonResult
+        One result per comparison read.
+    """
     db = store if isinstance(store, ResultStore) else ResultStore(store, readonly=True)
     try:
         entries = [db.comparison(key)] if key else db.comparisons()

@@ -19,19 +19,17 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
+from ._validate import is_integer, positive_real
 from .arx import ARX, ARXStructure
-from .config import CostSpec, SearchSpec
+from .config import LEAST_SQUARES, OUTPUT_ERROR, CostSpec, SearchSpec
 from .data import IOData, load
 from .errors import BudgetError, ConfigError, DataError
 from .estimation import build_problem, model_structure
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
-from .validation import ValidationReport, validate
+from .validation import ValidationReport, format_fit, validate
 
 __all__ = ["Identification", "SearchBox", "identify", "prepare_data", "search_box"]
-
-LEAST_SQUARES = "ls"
-OUTPUT_ERROR = "oe"
 
 
 # ================================================================================ search box
@@ -53,6 +51,14 @@ class SearchBox:
     rule: str
 
     def to_dict(self) -> dict[str, Any]:
+        """The box as a JSON-safe dictionary.
+
+        Returns
+        -------
+        dict
+            ``{"rule": str, "lower": list of float, "upper": list of float}`` (n_params
+            values each).
+        """
         return {"rule": self.rule, "lower": self.lower.tolist(), "upper": self.upper.tolist()}
 
 
@@ -88,6 +94,11 @@ def search_box(
     theta_ls : ndarray, optional
         Least-squares estimate, needed by ``"auto"``.
 
+    Returns
+    -------
+    SearchBox
+        The bounds, shapes (n_params,), and the rule that made them.
+
     Raises
     ------
     ConfigError
@@ -97,9 +108,9 @@ def search_box(
 
     def pair(value: Any, what: str) -> tuple[float, float]:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            if value <= 0:
-                raise ConfigError(f"bounds {what}: a half-width must be positive, got {value}")
-            return -float(value), float(value)
+            name = " ".join(filter(None, ["bounds", what, "half-width"]))
+            half = positive_real(value, name, error=ConfigError)
+            return -half, half
         if isinstance(value, Sequence) and len(value) == 2 and not isinstance(value, str):
             return float(value[0]), float(value[1])
         raise ConfigError(f"bounds {what}: expected a half-width or (low, high), got {value!r}")
@@ -198,7 +209,7 @@ def prepare_data(
         if output is not None:
             val = val.select(outputs=[output])
         est = data
-    elif isinstance(split, (int, np.integer)) and not isinstance(split, bool) and split > 1:
+    elif is_integer(split) and split > 1:
         est, val = data.split(index=int(split))
     else:
         est, val = data.split(split)
@@ -225,7 +236,8 @@ class Identification:
     model : ARX
         The identified model.
     optimiser : str
-        Optimiser name (``"ls"`` for least squares).
+        Optimiser name (``"ls"`` for least squares, ``"oe"`` for the output-error
+        reference).
     params : dict
         The optimiser's hyper-parameters.
     cost : ARXCost
@@ -236,14 +248,22 @@ class Identification:
         Cost of the least-squares estimate under it (the reference).
     box : SearchBox
         The search box (for ``"ls"``: the box an optimiser would have searched).
-    result : scipy.optimize.OptimizeResult or None
-        The optimiser's result (``None`` for least squares).
+    result : OptimizeResult or None
+        The optimiser's result (``None`` for least squares and the output-error reference).
     estimation, validation : ValidationReport
         Validation on the estimation and on the held-out record.
     seed : int or None
         Seed of the optimiser run.
     timings : dict
-        Seconds spent optimising, validating and in total.
+        Seconds spent: ``setup_s``, ``optimise_s``, ``validate_s`` and ``total_s``.
+    data_info : dict
+        The records used: ``description``, ``n_estimation``, ``n_validation``, ``dt`` (s),
+        ``inputs``, ``output`` and ``source``.
+    search : dict
+        The search space (:meth:`flexid.estimation.EstimationProblem.to_dict` plus a
+        ``description``).
+    output_error : OEResult or None
+        The Levenberg-Marquardt result when ``optimiser`` is ``"oe"``, else None.
     """
 
     model: ARX
@@ -274,38 +294,65 @@ class Identification:
             return int(self.output_error.nfev_equivalent)
         return 0 if self.result is None else int(self.result.nfev)
 
-    def summary(self) -> str:
-        """A readable multi-line account: data, search, cost, model, validation."""
+    def _title(self) -> str:
         s = self.model.structure
-        lines = [
+        return (
             f"ARX(na={s.na}, nb={list(s.nb)}, nk={list(s.nk)}) identified by {self.optimiser}"
-            + (f" (seed {self.seed})" if self.seed is not None else ""),
-            f"  data        : {self.data_info.get('description', '')}",
-            f"  cost        : {self.cost.describe()}",
-            f"  search box  : {self.search.get('box_rule', self.box.rule)}",
+            + (f" (seed {self.seed})" if self.seed is not None else "")
+        )
+
+    def _items(self) -> list[tuple[str, str]]:
+        """The labelled header lines of :meth:`summary` (shared with the notebook display)."""
+        items = [
+            ("data", self.data_info.get("description", "")),
+            ("cost", self.cost.describe()),
+            ("search box", self.search.get("box_rule", self.box.rule)),
         ]
         if self.search:
-            lines.append(f"  search space: {self.search.get('description', '')}")
+            items.append(("search space", self.search.get("description", "")))
         if self.output_error is not None:
             oe = self.output_error
-            lines.append(
-                f"  search      : Levenberg-Marquardt from {len(oe.starts)} starts, "
-                f"{oe.nfev} residual + {oe.njev} Jacobian evaluations"
+            items.append(
+                (
+                    "search",
+                    f"Levenberg-Marquardt from {len(oe.starts)} starts, "
+                    f"{oe.nfev} residual + {oe.njev} Jacobian evaluations",
+                )
             )
         if self.result is not None:
-            lines.append(
-                f"  search      : {self.result.nfev} FE, {self.result.nit} iterations, "
-                f"{self.result.message}"
+            items.append(
+                (
+                    "search",
+                    f"{self.result.nfev} FE, {self.result.nit} iterations, {self.result.message}",
+                )
             )
         ratio = self.cost_value / self.cost_ls if self.cost_ls > 0 else float("nan")
-        lines.append(
-            f"  final cost  : {self.cost_value:.6g}  (least squares {self.cost_ls:.6g}, "
-            f"ratio {ratio:.4g})"
+        items.append(
+            (
+                "final cost",
+                f"{self.cost_value:.6g}  (least squares {self.cost_ls:.6g}, ratio {ratio:.4g})",
+            )
         )
-        lines.append(
-            f"  time        : optimise {self.timings.get('optimise_s', 0):.3f} s, "
-            f"validate {self.timings.get('validate_s', 0):.3f} s"
+        items.append(
+            (
+                "time",
+                f"optimise {self.timings.get('optimise_s', 0):.3f} s, "
+                f"validate {self.timings.get('validate_s', 0):.3f} s",
+            )
         )
+        return items
+
+    def summary(self) -> str:
+        """A readable multi-line account: data, search, cost, model, validation.
+
+        Returns
+        -------
+        str
+            The header lines (data, cost, search, final cost, time), the model's
+            :meth:`~flexid.ARX.summary` and the validation summaries of both records.
+        """
+        lines = [self._title()]
+        lines += [f"  {label:<12}: {value}" for label, value in self._items()]
         lines.append("")
         lines.append(self.model.summary())
         lines.append("")
@@ -315,10 +362,35 @@ class Identification:
         lines.append(_indent(self.validation.summary()))
         return "\n".join(lines)
 
+    def _repr_html_(self) -> str:
+        """The notebook display: the numbers of :meth:`summary`, the long parts collapsed."""
+        from . import _html
+
+        rows = [["", "estimation", "validation (held out)"]]
+        columns = [_report_column(r) for r in (self.estimation, self.validation)]
+        for label, est, val in zip(_REPORT_ROWS, *columns):
+            rows.append([label, est, val])
+        return _html.block(
+            self._title(),
+            _html.key_values(self._items()),
+            _html.table(rows),
+            _html.details("model", self.model.summary()),
+            _html.details("estimation record", self.estimation.summary()),
+            _html.details("validation record (held out)", self.validation.summary()),
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """Machine-readable result (JSON-safe): coefficients, cost, fits, stability, timings.
 
         Non-finite numbers are ``None`` (see :func:`flexid._json.jsonable`).
+
+        Returns
+        -------
+        dict
+            ``structure``, ``optimiser``, ``params``, ``seed``, ``cost`` (description,
+            value, least squares), ``search``, ``model`` (:meth:`~flexid.ARX.to_dict`),
+            ``estimation`` and ``validation`` (:meth:`ValidationReport.to_dict`),
+            ``timings`` (s) and ``data``.
         """
         m = self.model
         return jsonable(
@@ -352,6 +424,38 @@ class Identification:
                 "data": self.data_info,
             }
         )
+
+
+_REPORT_ROWS = (
+    "samples",
+    "fit one-step %",
+    "fit simulation %",
+    "RMSE one-step",
+    "RMSE simulation",
+    "error range one-step",
+    "correlation tests",
+    "largest pole radius",
+    "spectral peak measured, Hz",
+    "spectral peak model, Hz",
+)
+
+
+def _report_column(report: ValidationReport) -> list[str]:
+    """One report's entries of the notebook table, formatted as its ``summary()`` does."""
+    lo, hi = report.error_range_one_step
+    st = report.stability
+    return [
+        f"{report.n_samples}",
+        format_fit(report.fit_one_step),
+        format_fit(report.fit_simulation) + (" (diverged)" if report.simulation_diverged else ""),
+        f"{report.rmse_one_step:.4g}",
+        f"{report.rmse_simulation:.4g}",
+        f"[{lo:.4g}, {hi:.4g}]",
+        "PASS" if report.passed else "FAIL",
+        f"{st.max_pole_radius:.5f}" + ("" if st.stable else " (UNSTABLE)"),
+        f"{report.peak_measured:.4g}",
+        f"{report.peak_model:.4g}",
+    ]
 
 
 def _indent(text: str, prefix: str = "  ") -> str:
@@ -393,7 +497,8 @@ def identify(
     Parameters
     ----------
     data : IOData or path
-        The record (CSV, NPZ or ``.dat`` when a path; see :func:`flexid.data.load`).
+        The record (CSV, NPZ, ``.dat`` or MATLAB ``.mat`` when a path; see
+        :func:`flexid.data.load`).
     na, nb, nk : int
         Orders and delay in MATLAB's convention (``nb`` defaults to ``na``; one ``nb``/``nk``
         per input for several inputs).

@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
+from ._json import jsonable
+from ._validate import integer, positive_real
 from .errors import DataError, ModelOrderError, check_finite
 from .stability import is_stable as _is_stable
 
@@ -26,14 +28,11 @@ def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
     items = [value] if np.isscalar(value) else list(value)
     if not items:
         raise ModelOrderError(f"{what} needs at least one value (one per input)")
-    out = []
-    for v in items:
-        if isinstance(v, bool) or not float(v).is_integer():
-            raise ModelOrderError(f"model order {what} must be an integer, got {v!r}")
-        if int(v) < low:
-            raise ModelOrderError(f"model order {what} must be >= {low}, got {int(v)}")
-        out.append(int(v))
-    return tuple(out)
+    # orders may come from float arrays (8.0), so integer-valued floats count as integers
+    return tuple(
+        integer(v, f"model order {what}", error=ModelOrderError, minimum=low, integral_float=True)
+        for v in items
+    )
 
 
 def _io_arrays(u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -111,6 +110,10 @@ class ARXStructure:
 
     @property
     def param_names(self) -> list[str]:
+        """Parameter names in ``theta`` order, ``["a1", ..., "b1", ...]``.
+
+        With several inputs each ``b`` name carries a ``[u_i]`` suffix (``"b1[u2]"``).
+        """
         names = [f"a{i + 1}" for i in range(self.na)]
         for j, nb in enumerate(self.nb):
             suffix = f"[u{j + 1}]" if self.n_inputs > 1 else ""
@@ -133,10 +136,29 @@ class ARXStructure:
         return hash((self.na, self.nb, self.nk))
 
     def to_dict(self) -> dict[str, Any]:
+        """The orders as a JSON-safe dictionary.
+
+        Returns
+        -------
+        dict
+            ``{"na": int, "nb": list of int, "nk": list of int}``; ``ARXStructure(**d)``
+            rebuilds the structure.
+        """
         return {"na": self.na, "nb": list(self.nb), "nk": list(self.nk)}
 
     def check_samples(self, n_samples: int) -> None:
-        """Raise ModelOrderError unless the record leaves more equations than parameters."""
+        """Check that a record of ``n_samples`` leaves more equations than parameters.
+
+        Parameters
+        ----------
+        n_samples : int
+            Number of samples N in the record.
+
+        Raises
+        ------
+        ModelOrderError
+            If ``N - start <= n_params``.
+        """
         k = n_samples - self.start
         if k <= self.n_params:
             raise ModelOrderError(
@@ -224,7 +246,20 @@ class ARXStructure:
         return ARX(self, theta, dt=dt, param_std=std, noise_variance=sigma2)
 
     def model(self, theta: Any, dt: float = 1.0) -> ARX:
-        """An ARX model of this structure with parameters ``theta`` (n_params,)."""
+        """An ARX model of this structure with the given parameters.
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_params,)
+            ``[a_1 .. a_na, b ...]`` in :attr:`param_names` order.
+        dt : float, optional
+            Sample time in seconds (default 1).
+
+        Returns
+        -------
+        ARX
+            The model, without ``param_std`` or ``noise_variance``.
+        """
         return ARX(self, theta, dt=dt)
 
 
@@ -256,12 +291,11 @@ class ARX:
                 f"theta has {theta.size} values but {structure!r} has {structure.n_params}"
             )
         check_finite(theta, "theta", DataError)
-        if not (np.isfinite(dt) and dt > 0):
-            raise DataError(f"dt must be a positive number of seconds, got {dt!r}")
+        dt = positive_real(dt, "dt", error=DataError, unit="s")
         self.structure = structure
         self.theta = theta
         self.theta.setflags(write=False)
-        self.dt = float(dt)
+        self.dt = dt
         self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
         self.noise_variance = None if noise_variance is None else float(noise_variance)
 
@@ -295,15 +329,36 @@ class ARX:
     def predict(self, u: Any, y: Any = None) -> np.ndarray:
         """One-step-ahead prediction ``yhat(t) = phi(t) theta``; samples before t = 0 are 0.
 
+        Parameters
+        ----------
+        u : array_like, shape (N,) or (N, n_u), or IOData
+            Inputs, in the units of the identification data.
+        y : array_like, shape (N,), optional
+            Measured output (omit when ``u`` is an IOData).
+
         Returns
         -------
         ndarray, shape (N,)
+            The predicted output, in the units of ``y``.
         """
         u, y = self.structure._data(u, y)
         return self.structure._phi_padded(u, y) @ self.theta
 
     def residuals(self, u: Any, y: Any = None) -> np.ndarray:
-        """``y - predict(u, y)``, shape (N,)."""
+        """One-step prediction errors ``y - predict(u, y)``.
+
+        Parameters
+        ----------
+        u : array_like, shape (N,) or (N, n_u), or IOData
+            Inputs, in the units of the identification data.
+        y : array_like, shape (N,), optional
+            Measured output (omit when ``u`` is an IOData).
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            The residuals, in the units of ``y``.
+        """
         u, y = self.structure._data(u, y)
         return y - self.structure._phi_padded(u, y) @ self.theta
 
@@ -362,11 +417,29 @@ class ARX:
 
     # ------------------------------------------------------------------ poles, zeros
     def poles(self) -> np.ndarray:
-        """Roots of ``z^na A(z^-1)``, shape (na,)."""
+        """The poles of the model.
+
+        Returns
+        -------
+        ndarray of complex, shape (na,)
+            Roots of ``z^na A(z^-1)`` (empty when ``na = 0``).
+        """
         return np.roots(self.a) if self.structure.na else np.zeros(0, dtype=complex)
 
     def zeros(self, input: int = 0) -> np.ndarray:
-        """Zeros of ``B_input`` (finite, in z), shape (nb - 1 - leading zeros,)."""
+        """The finite zeros of one input's numerator.
+
+        Parameters
+        ----------
+        input : int, optional
+            Input index, ``0 <= input < n_inputs`` (default 0).
+
+        Returns
+        -------
+        ndarray of complex, shape (m,)
+            Roots in z of ``B_input`` with its leading zero coefficients dropped; ``m`` is
+            the number of remaining coefficients minus 1 (empty when fewer than 2 remain).
+        """
         b = np.trim_zeros(self.b[input], "f")
         return np.roots(b) if b.size > 1 else np.zeros(0, dtype=complex)
 
@@ -377,12 +450,20 @@ class ARX:
 
     @property
     def max_pole_radius(self) -> float:
+        """Largest pole modulus ``max |p_i|`` (0.0 when ``na = 0``); below 1 means stable."""
         p = self.poles()
         return float(np.abs(p).max()) if p.size else 0.0
 
     # ------------------------------------------------------------------ export
     def to_control(self):
-        """A ``control.TransferFunction`` (1 output x n_inputs) with ``dt`` set."""
+        """The model as a python-control transfer function.
+
+        Returns
+        -------
+        control.TransferFunction
+            Discrete-time, 1 output x n_inputs, with sample time ``dt`` (s); the numerators
+            include the input delays.
+        """
         import control
 
         nums, dens = [], []
@@ -395,7 +476,18 @@ class ARX:
         return control.tf([nums], [dens], self.dt)
 
     def to_dlti(self, input: int = 0):
-        """A ``scipy.signal.dlti`` of one input's transfer function."""
+        """One input's transfer function as a SciPy discrete-time system.
+
+        Parameters
+        ----------
+        input : int, optional
+            Input index, ``0 <= input < n_inputs`` (default 0).
+
+        Returns
+        -------
+        scipy.signal.dlti
+            ``B_input(z) / A(z)`` with sample time ``dt`` (s).
+        """
         from scipy import signal
 
         num, den = self._tf_num_den(input)
@@ -403,7 +495,15 @@ class ARX:
         return signal.dlti(num if num.size else [0.0], den, dt=self.dt)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dictionary; :meth:`from_dict` restores the model exactly."""
+        """The model as a JSON-safe dictionary; :meth:`from_dict` restores it exactly.
+
+        Returns
+        -------
+        dict
+            The orders (``na``, ``nb``, ``nk``), ``theta``, ``param_names``, ``dt`` (s),
+            ``param_std``, ``noise_variance`` and the derived ``stable`` and
+            ``max_pole_radius``.
+        """
         return {
             "na": self.structure.na,
             "nb": list(self.structure.nb),
@@ -419,6 +519,24 @@ class ARX:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ARX:
+        """Rebuild a model from :meth:`to_dict` output.
+
+        Parameters
+        ----------
+        d : dict
+            Needs ``na``, ``nb``, ``nk`` and ``theta``; ``dt`` (s, default 1),
+            ``param_std`` and ``noise_variance`` are optional and other keys are ignored.
+
+        Returns
+        -------
+        ARX
+            The model.
+
+        Raises
+        ------
+        DataError
+            If a required key is missing or ``theta`` does not fit the orders.
+        """
         try:
             structure = ARXStructure(d["na"], d["nb"], d["nk"])
             return cls(
@@ -432,16 +550,48 @@ class ARX:
             raise DataError(f"ARX dictionary lacks the key {exc.args[0]!r}") from None
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict())
+        """The model as JSON text (:meth:`to_dict` serialised; no NaN or infinity).
+
+        Returns
+        -------
+        str
+            JSON text that :meth:`from_json` reads back.
+        """
+        return json.dumps(jsonable(self.to_dict()), allow_nan=False)
 
     @classmethod
     def from_json(cls, text: str) -> ARX:
+        """Rebuild a model from :meth:`to_json` text.
+
+        Parameters
+        ----------
+        text : str
+            JSON text of a :meth:`to_dict` dictionary.
+
+        Returns
+        -------
+        ARX
+            The model.
+
+        Raises
+        ------
+        DataError
+            If the text is not JSON or lacks a required key.
+        """
         try:
             return cls.from_dict(json.loads(text))
         except json.JSONDecodeError as exc:
             raise DataError(f"not an ARX model in JSON: {exc}") from None
 
     def summary(self) -> str:
+        """A multi-line, human-readable description of the model.
+
+        Returns
+        -------
+        str
+            The orders and ``dt``, each parameter (with its standard deviation when known),
+            the noise variance, the poles and whether the model is stable.
+        """
         s = self.structure
         lines = [f"ARX model {s!r}, dt = {self.dt:g} s"]
         std = self.param_std

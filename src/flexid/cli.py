@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from . import __version__
+from ._validate import integer
+from .config import LEAST_SQUARES, OUTPUT_ERROR
 from .errors import ConfigError, FlexidError
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
@@ -90,8 +92,7 @@ def _columns(text: str | None) -> Any:
 
 def _check_positive(value: int | None, option: str) -> None:
     """An integer option that must be >= 1, named as the user typed it."""
-    if value is not None and value < 1:
-        raise ConfigError(f"{option} must be a positive integer, got {value}")
+    integer(value, option, error=ConfigError, minimum=1, none_ok=True)
 
 
 def _bounds(text: str) -> Any:
@@ -159,6 +160,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         load_options["outputs"] = _columns(args.outputs)
     if args.dt is not None:
         load_options["dt"] = args.dt
+    if args.variable is not None:
+        if Path(args.file).suffix.lower() != ".mat":
+            raise ConfigError(f"--variable is for MATLAB .mat files, not {args.file!r}")
+        load_options["variable"] = args.variable
     split: Any = args.split
     if split is not None and split > 1:
         if not float(split).is_integer():
@@ -206,7 +211,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 
 def _identify_progress(args: argparse.Namespace):
-    if args.json or args.no_progress or args.optimiser in ("ls", "oe") or not sys.stderr.isatty():
+    references = (LEAST_SQUARES, OUTPUT_ERROR)
+    if args.json or args.no_progress or args.optimiser in references or not sys.stderr.isatty():
         return None
     from .progress import ProgressBar
 
@@ -351,6 +357,13 @@ def _cmd_report(args: argparse.Namespace) -> int:
     outdir = (
         Path(args.output) if args.output else Path(args.store).with_suffix("").parent / "report"
     )
+    if args.format in ("ioh", "ioh-info"):
+        from .report import export_ioh
+
+        layout = "json" if args.format == "ioh" else "info"
+        folders = export_ioh(args.store, outdir, key=args.key, layout=layout)
+        print(f"wrote {', '.join(str(f) for f in folders)} (IOHprofiler, {layout} layout)")
+        return 0
     path = write_report(
         args.store, outdir, fmt=args.format, key=args.key, figures=not args.no_figures
     )
@@ -359,13 +372,15 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
+    from ._json import jsonable
+
     what = args.what
     if what == "optimisers":
         from .optimisers import available, describe
 
         entries = [describe(name) for name in available()]
         if args.json:
-            print(json.dumps(entries, indent=2, default=str))
+            print(json.dumps(jsonable(entries), indent=2, allow_nan=False, default=str))
             return 0
         for e in entries:
             origin = f" (variant of {e['variant_of']})" if e["variant_of"] else ""
@@ -373,6 +388,11 @@ def _cmd_list(args: argparse.Namespace) -> int:
             print(f"{e['name']}{origin}{src}: {e['summary']}")
             for pname, p in e["hyperparameters"].items():
                 print(f"    {pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}")
+        from .optimisers.external import library_notes
+
+        print("\nOptimisers of other libraries (flexid's FE budget, initial population and seed):")
+        for line in library_notes():
+            print(f"  {line}")
         return 0
     if what == "signals":
         from .signals import describe_signals
@@ -393,7 +413,7 @@ def _cmd_list(args: argparse.Namespace) -> int:
                 )
             return 0
         for name, preset in PRESETS.items():
-            print(f"{name}: {json.dumps(preset, default=str)}")
+            print(f"{name}: {json.dumps(jsonable(preset), allow_nan=False, default=str)}")
         return 0
     if what == "environments":
         import gymnasium
@@ -406,6 +426,13 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 # ============================================================================ parser
 def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``flexid`` command and its subcommands.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        A parser whose usage errors :func:`main` reports in one line (exit status 2).
+    """
     parser = _Parser(
         prog="flexid",
         description="Flexible-plant simulators, ARX identification with pluggable optimisers, "
@@ -442,14 +469,15 @@ def build_parser() -> argparse.ArgumentParser:
     g.set_defaults(func=_cmd_generate)
 
     i = sub.add_parser("identify", help="identify an ARX model from a record")
-    i.add_argument("file", help="record: .csv, .npz or .dat")
+    i.add_argument("file", help="record: .csv, .npz, .dat or .mat")
     i.add_argument("--na", type=int, required=True, help="number of poles (A coefficients)")
     i.add_argument("--nb", help="B coefficients per input (default: na)")
     i.add_argument("--nk", help="input delay in samples per input (default 1)")
     i.add_argument(
         "--optimiser",
         default="hbcsd",
-        help="registered optimiser, 'ls' (least squares) or 'oe' (output-error reference)",
+        help=f"registered optimiser, {LEAST_SQUARES!r} (least squares) or {OUTPUT_ERROR!r} "
+        "(output-error reference)",
     )
     i.add_argument(
         "--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter"
@@ -464,8 +492,12 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--iterations", type=int, help="also stop after this many iterations")
     i.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     i.add_argument("--split", type=float, help="estimation share (default 2/3) or sample index")
-    i.add_argument("--inputs", help="input columns (names or 0-based indices)")
-    i.add_argument("--outputs", help="output columns (names or 0-based indices)")
+    i.add_argument("--inputs", help="input columns or .mat variables (names or 0-based indices)")
+    i.add_argument("--outputs", help="output columns or .mat variables (names or 0-based indices)")
+    i.add_argument(
+        "--variable",
+        help=".mat file: the structure to read, or the matrix whose columns indices name",
+    )
     i.add_argument("--output", help="which output to model when there are several")
     i.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
     i.add_argument("--detrend", action="store_true", help="remove the estimation means")
@@ -501,7 +533,12 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("report", help="write a Markdown/HTML report of a result store")
     r.add_argument("store", help="SQLite result store")
     r.add_argument("--output", "-o", help="report folder (default: report/ next to the store)")
-    r.add_argument("--format", default="md", choices=["md", "html"], help="md or html")
+    r.add_argument(
+        "--format",
+        default="md",
+        choices=["md", "html", "ioh", "ioh-info"],
+        help="md, html, or the runs for IOHanalyzer: ioh (JSON meta-data), ioh-info (.info)",
+    )
     r.add_argument("--key", help="only the comparison with this key (prefix)")
     r.add_argument("--no-figures", action="store_true", help="tables only")
     r.set_defaults(func=_cmd_report)
@@ -514,7 +551,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; return the exit status (0 ok, 2 user error)."""
+    """Run the command line; return the exit status (0 ok, 2 user error).
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments after the program name; default ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        The exit status.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     debug = "--debug" in argv

@@ -48,6 +48,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from ._validate import integer, is_integer
 from .errors import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -57,6 +58,8 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = [
     "DEFAULT_OPTIMISERS",
+    "LEAST_SQUARES",
+    "OUTPUT_ERROR",
     "PAPER_SEARCH",
     "SCHEDULE",
     "ComparisonSpec",
@@ -72,6 +75,11 @@ __all__ = [
 
 DEFAULT_OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de")
 SCHEDULE = "schedule"
+#: The least-squares reference: an ``optimiser`` name of ``identify`` and the label of the
+#: reference row every comparison includes.
+LEAST_SQUARES = "ls"
+#: The output-error (simulation cost) reference: an ``optimiser`` name of ``identify``.
+OUTPUT_ERROR = "oe"
 
 
 @dataclass(frozen=True)
@@ -84,6 +92,48 @@ class DataSpec:
     ``outputs``, ``dt`` as in :func:`flexid.data.load`).  ``output`` picks the modelled
     output channel; ``split`` is the estimation share (or a sample index); ``detrend``
     removes the estimation means.
+
+    Attributes
+    ----------
+    plant : str or None
+        A registered plant to simulate (``"manipulator"`` or ``"twin-rotor"``).
+    preset : str or None
+        A dataset preset (``"paper-manipulator"``, ``"paper-twin-rotor"``); the other
+        fields override it.
+    signal : str or None
+        Excitation signal name (default: the preset's, else ``"uniform"``).
+    n_samples : int or None
+        Record length in samples (default: the preset's or the plant's).
+    seed : int
+        Seed of the simulated record (signal and noise), default 0.
+    noise_std : float, list of float, str or None
+        Measurement noise: one standard deviation for all outputs, one per output (output
+        units), or ``"p%"`` of each noise-free output's standard deviation.
+    signal_options : dict
+        Options of the signal (``{"low": -0.3, "high": 0.3}``, ...).
+    plant_params : dict
+        Physical parameter overrides of the plant.
+    sensors : {"lab", "ideal"}
+        The plant read through its measurement chain (``"lab"``, default) or exactly.
+    file : str or None
+        A recorded CSV/NPZ/DAT file to read instead of simulating.
+    inputs : list of str or None
+        Input columns of ``file``.
+    outputs : list of str or None
+        Output columns of ``file``, or the outputs a simulated plant records.
+    dt : float or None
+        Sample time of ``file`` in seconds, when the file does not give it.
+    output : str, int or None
+        The output channel modelled when the record has several.
+    split : float, int or None
+        Estimation share in (0, 1) (default 2/3) or, above 1, the first validation sample.
+    detrend : bool
+        Remove the estimation record's means from both records (default False).
+
+    Raises
+    ------
+    ConfigError
+        Unless exactly one of ``plant`` and ``file`` is given.
     """
 
     plant: str | None = None
@@ -108,6 +158,13 @@ class DataSpec:
             raise ConfigError("[data] needs exactly one of 'plant' (simulate) or 'file' (a record)")
 
     def describe(self) -> str:
+        """One line saying where the record comes from.
+
+        Returns
+        -------
+        str
+            ``"file PATH"``, or ``"PLANT / PRESET-OR-SIGNAL[ / SENSORS sensors] (seed S)"``.
+        """
         if self.file is not None:
             return f"file {self.file}"
         parts = [self.plant, self.preset or self.signal or "default signal"]
@@ -118,7 +175,18 @@ class DataSpec:
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """ARX orders in MATLAB's convention (``nb`` defaults to ``na``)."""
+    """ARX orders in MATLAB's convention (``nb`` defaults to ``na``).
+
+    Attributes
+    ----------
+    na : int
+        Number of ``A`` coefficients (poles), default 8.
+    nb : int, list of int or None
+        Number of ``B`` coefficients, for every input or one per input; None (default)
+        means ``na``.
+    nk : int or list of int
+        Input delay in samples, for every input or one per input (default 1).
+    """
 
     na: int = 8
     nb: Any = None
@@ -127,7 +195,22 @@ class ModelSpec:
 
 @dataclass(frozen=True)
 class CostSpec:
-    """The cost the optimisers minimise (see :class:`flexid.objective.ARXCost`)."""
+    """The cost the optimisers minimise (see :class:`flexid.objective.ARXCost`).
+
+    Attributes
+    ----------
+    metric : {"paper", "rmse", "nrmse", "sse", "mse"}
+        Error measure; ``"paper"`` (default) is ``weight * sqrt(SSE) / K``.
+    predictor : {"one-step", "simulation"}
+        Equation error (default) or output error.
+    weight : float
+        ``w`` of the paper's cost (default 1e3).
+    penalty : float
+        Cost added to an unstable candidate (default 1e9); its kind (flat or graded) is
+        :attr:`SearchSpec.penalty`.
+    initial : {"measured", "zero"}
+        Initial conditions of the simulation predictor (default ``"measured"``).
+    """
 
     metric: str = "paper"
     predictor: str = "one-step"
@@ -182,7 +265,17 @@ PAPER_SEARCH = SearchSpec(
 
 @dataclass(frozen=True)
 class OptimiserSpec:
-    """A registered optimiser, its hyper-parameters and the label it has in tables."""
+    """A registered optimiser, its hyper-parameters and the label it has in tables.
+
+    Attributes
+    ----------
+    name : str
+        Registry name (see :func:`flexid.optimisers.available`).
+    params : dict
+        Hyper-parameters, ``name -> value`` (default: the optimiser's defaults).
+    label : str or None
+        Label in tables and in the store (default: ``name``).
+    """
 
     name: str
     params: dict = field(default_factory=dict)
@@ -190,9 +283,18 @@ class OptimiserSpec:
 
     @property
     def display(self) -> str:
+        """The label in tables and in the store: ``label``, else ``name``."""
         return self.label or self.name
 
     def fingerprint(self) -> str:
+        """A short hash of the name and hyper-parameters (not the label).
+
+        Returns
+        -------
+        str
+            The first 12 hexadecimal digits of the SHA-256 of ``{"name", "params"}`` as
+            sorted-key JSON.
+        """
         text = json.dumps({"name": self.name, "params": self.params}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
@@ -204,6 +306,43 @@ class ComparisonSpec:
     The comparison's store key is a hash of the data, model, cost, box, budget, seed and
     validation settings; it leaves out the name, the number of runs and the list of
     optimisers, so adding runs or optimisers to a finished comparison reuses its runs.
+
+    Attributes
+    ----------
+    name : str
+        Name in reports and in the store (default ``"comparison"``).
+    data : DataSpec
+        Where the record comes from (default: the paper's manipulator preset).
+    model : ModelSpec
+        ARX orders.
+    cost : CostSpec
+        The cost the optimisers minimise.
+    search : SearchSpec
+        How the search space is posed.
+    bounds : "auto", float, tuple or mapping
+        The coefficient box, as in :func:`flexid.search_box` (default ``"auto"``).
+    optimisers : tuple of OptimiserSpec
+        The optimisers compared (default: hbcsd, bfa, sda, pso, de); labels must be unique.
+    runs : int
+        Runs per optimiser, >= 1 (default 10).
+    seed : int
+        Seed of the runs, >= 0 (default 0).
+    budget : int or "schedule"
+        Function evaluations per run (default 10,000), or ``"schedule"``: each optimiser's
+        own loop counts, capped at ``schedule_cap``.
+    schedule_cap : int
+        FE cap of a run in schedule mode (default 2,000,000).
+    targets : tuple of float
+        Relative tolerances ``t > 0``: a run reaches a target when its cost is
+        ``<= reference_cost * (1 + t)`` (default ``(0.1, 0.01, 0.001)``).
+    max_lag : int
+        Largest lag, in samples, of the validation correlation tests (default 25).
+
+    Raises
+    ------
+    ConfigError
+        For a non-integer or out-of-range count, no optimiser, repeated labels, an
+        optimiser labelled ``"ls"`` or a target that is not positive.
     """
 
     name: str = "comparison"
@@ -223,20 +362,22 @@ class ComparisonSpec:
     max_lag: int = 25
 
     def __post_init__(self) -> None:
-        _check_int(self.runs, "[run] runs", low=1)
-        _check_int(self.seed, "[run] seed", low=0)
-        _check_int(self.max_lag, "[validation] max_lag", low=1)
-        _check_int(self.schedule_cap, "[run] schedule_cap", low=1)
+        _check_int(self, "runs", "[run] runs", low=1)
+        _check_int(self, "seed", "[run] seed", low=0)
+        _check_int(self, "max_lag", "[validation] max_lag", low=1)
+        _check_int(self, "schedule_cap", "[run] schedule_cap", low=1)
         if self.budget != SCHEDULE:
-            _check_int(self.budget, "[run] budget", low=1)
+            _check_int(self, "budget", "[run] budget", low=1)
         if not self.optimisers:
             raise ConfigError("a comparison needs at least one optimiser")
         labels = [o.display for o in self.optimisers]
         dup = sorted({x for x in labels if labels.count(x) > 1})
         if dup:
             raise ConfigError(f"optimiser labels must be unique; repeated: {dup} (set 'label')")
-        if "ls" in labels:
-            raise ConfigError("'ls' is the least-squares reference row, always included; remove it")
+        if LEAST_SQUARES in labels:
+            raise ConfigError(
+                f"{LEAST_SQUARES!r} is the least-squares reference row, always included; remove it"
+            )
         for t in self.targets:
             if not (isinstance(t, (int, float)) and t > 0):
                 raise ConfigError(f"[run] targets must be positive relative tolerances, got {t!r}")
@@ -247,6 +388,15 @@ class ComparisonSpec:
         return self.schedule_cap if self.budget == SCHEDULE else int(self.budget)
 
     def key_material(self) -> dict[str, Any]:
+        """What :attr:`key` hashes: the settings that determine the runs' numbers.
+
+        Returns
+        -------
+        dict
+            ``data``, ``model``, ``cost``, ``search`` (as dicts), ``bounds``, ``seed``,
+            ``budget``, ``schedule_cap`` (None unless the budget is ``"schedule"``) and
+            ``max_lag``.
+        """
         return {
             "data": asdict(self.data),
             "model": asdict(self.model),
@@ -266,6 +416,14 @@ class ComparisonSpec:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
+        """The spec as plain dictionaries and lists; :meth:`from_dict` restores it.
+
+        Returns
+        -------
+        dict
+            Every field, the nested specs as dicts, ``optimisers`` as a list of dicts and
+            ``targets`` as a list.
+        """
         out = asdict(self)
         out["optimisers"] = [asdict(o) for o in self.optimisers]
         out["targets"] = list(self.targets)
@@ -273,6 +431,20 @@ class ComparisonSpec:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> ComparisonSpec:
+        """Rebuild a spec from :meth:`to_dict` output.
+
+        Parameters
+        ----------
+        d : mapping
+            Needs ``data``, ``model``, ``cost``, ``optimisers`` and ``targets``; ``search``
+            may be missing (default :class:`SearchSpec`), the other fields default as in
+            the constructor.
+
+        Returns
+        -------
+        ComparisonSpec
+            The spec.
+        """
         d = dict(d)
         d["data"] = DataSpec(**d["data"])
         d["model"] = ModelSpec(**d["model"])
@@ -283,12 +455,20 @@ class ComparisonSpec:
         return cls(**d)
 
     def budget_label(self) -> str:
+        """The budget in words.
+
+        Returns
+        -------
+        str
+            ``"N FE"``, or ``"paper loop counts"`` in schedule mode.
+        """
         return "paper loop counts" if self.budget == SCHEDULE else f"{self.budget} FE"
 
 
-def _check_int(value: Any, what: str, low: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ConfigError(f"{what} must be an integer >= {low}, got {value!r}")
+def _check_int(spec: ComparisonSpec, name: str, what: str, low: int) -> None:
+    """Check an integer field and store it as ``int`` (a NumPy integer would change the key)."""
+    value = integer(getattr(spec, name), what, error=ConfigError, minimum=low)
+    object.__setattr__(spec, name, value)
 
 
 def _take(table: Mapping[str, Any], allowed: Sequence[str], section: str) -> dict[str, Any]:
@@ -340,7 +520,7 @@ def _optimiser_specs(entries: Any, where: str) -> tuple[OptimiserSpec, ...]:
 def _budgets(value: Any, where: str) -> list:
     budgets = value if isinstance(value, list) else [value]
     for b in budgets:
-        if b != SCHEDULE and (isinstance(b, bool) or not isinstance(b, int)):
+        if b != SCHEDULE and not is_integer(b):
             raise ConfigError(f"{where} budget must be an FE count or 'schedule', got {b!r}")
     return budgets
 
@@ -352,6 +532,18 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
     budget.  ``[[comparison]]`` tables describe several comparisons that share the top-level
     data, model, cost, search and validation settings, each with its own ``name``,
     ``budget``, ``runs``, ``seed`` and ``optimisers`` (defaults from the top level).
+
+    Parameters
+    ----------
+    config : mapping
+        The parsed TOML (or an equivalent dict).
+    source : str
+        Where the mapping comes from, named in error messages.
+
+    Returns
+    -------
+    list of ComparisonSpec
+        One spec per comparison.
     """
     top = _take(config, _TOP_KEYS, "top level")
     try:
@@ -428,6 +620,16 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
 def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
     """Read a TOML comparison configuration.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The TOML file.
+
+    Returns
+    -------
+    list of ComparisonSpec
+        One spec per comparison the file describes.
+
     Raises
     ------
     ConfigError
@@ -471,9 +673,39 @@ def default_spec(
 ) -> ComparisonSpec:
     """The built-in comparison: the paper's experiment on a simulated plant, small by default.
 
-    ``plant`` is ``"manipulator"`` (ARX(8,8,1) of the end-point acceleration, paper preset)
-    or ``"twin-rotor"`` (ARX(5,5,1) of the pitch, vertical channel, paper preset).  ``cost``
-    and ``search`` default to :class:`CostSpec` and :class:`SearchSpec`.
+    Parameters
+    ----------
+    plant : {"manipulator", "twin-rotor"}
+        ``"manipulator"`` (ARX(8,8,1) of the end-point acceleration, paper preset) or
+        ``"twin-rotor"`` (ARX(5,5,1) of the pitch, vertical channel, paper preset).
+    optimisers : sequence of str, optional
+        Registry names (default: hbcsd, bfa, sda, pso, de).
+    runs : int, optional
+        Runs per optimiser (default 5).
+    budget : int or "schedule", optional
+        Function evaluations per run (default 10,000), or the optimisers' own loop counts.
+    seed : int, optional
+        Seed of the runs (default 0); the simulated record always uses seed 0.
+    na : int, optional
+        Number of ``A`` coefficients (default: 8 manipulator, 5 twin rotor).
+    nb : int, list of int or None, optional
+        Number of ``B`` coefficients (default ``na``).
+    nk : int or list of int, optional
+        Input delay in samples (default 1).
+    cost : CostSpec, optional
+        The cost (default :class:`CostSpec`).
+    search : SearchSpec, optional
+        The search space (default :class:`SearchSpec`).
+
+    Returns
+    -------
+    ComparisonSpec
+        The comparison, named ``"<plant>-default"``.
+
+    Raises
+    ------
+    UnknownNameError
+        For an unknown ``plant``.
     """
     from .errors import UnknownNameError
 

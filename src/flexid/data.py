@@ -5,8 +5,10 @@ every ``dt`` seconds, channel names and units, and free metadata (plant, paramet
 signal, seed, flexid version...).  It is checked on construction: finite values, equal
 lengths, at least two samples, a positive sample time.
 
-Files
+Notes
 -----
+File formats:
+
 * **CSV** (``.csv``): flexid writes one comment line ``# flexid-iodata {json}`` with the
   sample time, the channel names, units and the metadata, then a header row
   ``time,<inputs...>,<outputs...>`` and one row per sample.  Plain CSV files with a header
@@ -17,6 +19,8 @@ Files
   read without pickle.
 * **DaISy-style** ``.dat`` / ``.txt``: whitespace-separated numbers, optional ``%`` or ``#``
   comment lines; the user names the input and output columns (0-based indices).
+* **MATLAB** ``.mat`` (v4 to v7, read only): an iddata-like structure (fields ``y``, ``u``,
+  ``Ts``...) or plain variables; see :func:`flexid._matfile.read_mat`.
 """
 
 from __future__ import annotations
@@ -24,7 +28,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -33,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
+from ._validate import integer, is_integer, positive_real, real
 from .errors import DataError, DataFileError, check_finite
 
 __all__ = ["IOData", "load", "save"]
@@ -142,12 +146,7 @@ class IOData:
                 f"a record needs at least one input and one output channel, "
                 f"got {u.shape[1]} input(s) and {y.shape[1]} output(s)"
             )
-        try:
-            dt = float(dt)
-        except (TypeError, ValueError):
-            raise DataError(f"sample time dt must be a number, got {dt!r}") from None
-        if not math.isfinite(dt) or dt <= 0:
-            raise DataError(f"sample time dt must be positive and finite, got {dt!r}")
+        dt = positive_real(dt, "sample time dt", error=DataError, unit="s")
         self.input_names = _names(input_names, u.shape[1], "u", "input_names")
         self.output_names = _names(output_names, y.shape[1], "y", "output_names")
         for array, names, kind in (
@@ -231,7 +230,27 @@ class IOData:
 
     # ------------------------------------------------------------------ derived records
     def replace(self, **changes: Any) -> IOData:
-        """A copy with some fields replaced (``u``, ``y``, ``dt``, names, units, metadata)."""
+        """A copy with some fields replaced.
+
+        Parameters
+        ----------
+        **changes
+            New values of ``u`` (N, n_u), ``y`` (N, n_y), ``dt`` (s), ``input_names``,
+            ``output_names``, ``input_units``, ``output_units`` or ``metadata``; the others
+            are kept.  The result is validated as a new record.
+
+        Returns
+        -------
+        IOData
+            The new record.
+
+        Raises
+        ------
+        TypeError
+            For a field that IOData does not have.
+        DataError
+            If the new fields do not make a valid record.
+        """
         fields = {
             "u": self._u,
             "y": self._y,
@@ -269,6 +288,12 @@ class IOData:
         inputs, outputs : str, int or sequence of them, optional
             Channels to keep, in the order given; ``None`` keeps all.
 
+        Returns
+        -------
+        IOData
+            The record with those channels (names and units follow), same ``dt`` and
+            metadata.
+
         Raises
         ------
         DataError
@@ -293,7 +318,7 @@ class IOData:
             which = [which]
         indices = []
         for item in which:
-            if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+            if is_integer(item):
                 if not -len(names) <= item < len(names):
                     raise DataError(
                         f"{kind} channel index {item} out of range; the record has "
@@ -335,14 +360,12 @@ class IOData:
             raise DataError("give either fraction or index to split(), not both")
         if index is None:
             fraction = 2.0 / 3.0 if fraction is None else fraction
-            if not (isinstance(fraction, (int, float)) and 0.0 < fraction < 1.0):
-                raise DataError(
-                    f"split fraction must lie strictly between 0 and 1, got {fraction!r}"
-                )
+            fraction = real(
+                fraction, "split fraction", error=DataError, minimum=0, maximum=1,
+                low_open=True, high_open=True,
+            )
             index = round(fraction * n)
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
-            raise DataError(f"split index must be an integer, got {index!r}")
-        index = int(index)
+        index = integer(index, "split index", error=DataError)
         if index < 0:
             index += n
         if not 2 <= index <= n - 2:
@@ -361,6 +384,22 @@ class IOData:
 
         The removed offsets are stored in ``metadata["detrend"]`` (for ``"constant"``) so a
         model's output can be put back in physical units.
+
+        Parameters
+        ----------
+        kind : {"constant", "linear"}, optional
+            What is removed from each input and output channel (default ``"constant"``).
+
+        Returns
+        -------
+        IOData
+            The detrended record; ``metadata["detrend"]`` holds ``kind`` and, for
+            ``"constant"``, the removed means ``u_mean`` (n_u,) and ``y_mean`` (n_y,).
+
+        Raises
+        ------
+        DataError
+            For another ``kind``.
         """
         if kind not in ("constant", "linear"):
             raise DataError(f"detrend kind must be 'constant' or 'linear', got {kind!r}")
@@ -408,10 +447,20 @@ class IOData:
             raise type(exc)(f"{source}: {exc}") from None
 
     def to_csv(self, path: str | os.PathLike) -> Path:
-        """Write a CSV file with a JSON metadata line and a header row; return its path.
+        """Write a CSV file with a JSON metadata line and a header row.
 
         Numbers are written with ``repr`` precision (17 significant digits), so reading the
         file back gives bit-identical arrays.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Destination file (overwritten).
+
+        Returns
+        -------
+        pathlib.Path
+            The path written; columns ``time`` (s), the inputs, then the outputs.
         """
         path = Path(path)
         buffer = io.StringIO()
@@ -425,7 +474,18 @@ class IOData:
         return path
 
     def to_npz(self, path: str | os.PathLike) -> Path:
-        """Write an ``.npz`` (arrays ``u``, ``y``, ``dt`` and JSON ``meta``), no pickle."""
+        """Write an ``.npz`` (arrays ``u``, ``y``, ``dt`` and JSON ``meta``), no pickle.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Destination file (overwritten; used as given, no suffix is added).
+
+        Returns
+        -------
+        pathlib.Path
+            The path written.
+        """
         path = Path(path)
         meta = np.array(json.dumps(self._header(), sort_keys=True))
         buffer = io.BytesIO()
@@ -434,12 +494,47 @@ class IOData:
         return path
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write to ``.csv`` or ``.npz`` according to the suffix; return the path."""
+        """Write to ``.csv`` or ``.npz`` according to the suffix.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Destination file; its suffix (``.csv`` or ``.npz``, any case) picks the format.
+
+        Returns
+        -------
+        pathlib.Path
+            The path written.
+
+        Raises
+        ------
+        DataFileError
+            For another suffix.
+        """
         return save(self, path)
 
     @classmethod
     def from_npz(cls, path: str | os.PathLike) -> IOData:
-        """Read a file written by :meth:`to_npz` (pickle is never allowed)."""
+        """Read a file written by :meth:`to_npz` (pickle is never allowed).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.npz`` file.
+
+        Returns
+        -------
+        IOData
+            The record, with its names, units and metadata.
+
+        Raises
+        ------
+        DataFileError
+            If the file is missing, unreadable, or lacks the ``u``, ``y`` or ``meta`` arrays
+            or a header key.
+        DataError
+            If the arrays do not make a valid record.
+        """
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as archive:
@@ -481,6 +576,11 @@ class IOData:
             (recorded as assumed in ``metadata["dt_assumed"]``).
         metadata : mapping, optional
             Extra metadata to merge in.
+
+        Returns
+        -------
+        IOData
+            The record, inputs (N, n_u) and outputs (N, n_y).
 
         Raises
         ------
@@ -563,6 +663,12 @@ class IOData:
         metadata : mapping, optional
             Extra metadata.
 
+        Returns
+        -------
+        IOData
+            The record, inputs (N, n_u) and outputs (N, n_y); ``metadata["source"]`` is the
+            path.
+
         Raises
         ------
         DataFileError
@@ -597,7 +703,7 @@ class IOData:
         ins = [inputs] if isinstance(inputs, (int, np.integer)) else list(inputs)
         outs = [outputs] if isinstance(outputs, (int, np.integer)) else list(outputs)
         for j in (*ins, *outs):
-            if isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < width:
+            if not is_integer(j) or not 0 <= j < width:
                 raise DataError(f"{path}: column {j!r} out of range; the file has {width} columns")
         meta = {"source": str(path), **(metadata or {})}
         if dt is None:
@@ -612,7 +718,14 @@ class IOData:
         )
 
     def describe(self) -> str:
-        """A short human-readable description: length, sample time, channel statistics."""
+        """A short human-readable description: length, sample time, channel statistics.
+
+        Returns
+        -------
+        str
+            The ``repr`` line, then one line per channel with its unit, mean, standard
+            deviation and range.
+        """
         lines = [repr(self)]
         for kind, names, units, array in (
             ("input", self.input_names, self.input_units, self._u),
@@ -626,6 +739,12 @@ class IOData:
                     f"range [{col.min():.4g}, {col.max():.4g}]"
                 )
         return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        """The notebook display: the numbers of :meth:`describe` in an HTML table."""
+        from ._html import iodata_html
+
+        return iodata_html(self)
 
 
 # ---------------------------------------------------------------------- helpers
@@ -694,7 +813,7 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
             which = [which]
         out = []
         for item in which:
-            if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+            if is_integer(item):
                 if not 0 <= item < len(columns):
                     raise DataError(
                         f"{path}: {kind} column {item} out of range ({len(columns)} columns)"
@@ -741,10 +860,23 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
 
 
 def load(path: str | os.PathLike, **options: Any) -> IOData:
-    """Read a record from ``.csv``, ``.npz`` or ``.dat``/``.txt`` according to the suffix.
+    """Read a record from ``.csv``, ``.npz``, ``.dat``/``.txt`` or ``.mat`` by the suffix.
 
-    Keyword options are passed to :meth:`IOData.from_csv`, :meth:`IOData.from_npz` or
-    :meth:`IOData.from_dat`.
+    Keyword options are passed to :meth:`IOData.from_csv`, :meth:`IOData.from_npz`,
+    :meth:`IOData.from_dat` or, for MATLAB files (v4-v7, plain variables or an iddata-like
+    structure), :func:`flexid._matfile.read_mat`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    **options
+        Passed to the reader of the suffix (e.g. ``inputs``, ``outputs``, ``dt``).
+
+    Returns
+    -------
+    IOData
+        The record.
 
     Raises
     ------
@@ -753,7 +885,7 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
     """
     path = Path(path)
     if path.is_dir():
-        raise DataFileError(f"{path}: is a folder, not a data file (.csv, .npz or .dat)")
+        raise DataFileError(f"{path}: is a folder, not a data file (.csv, .npz, .dat or .mat)")
     suffix = path.suffix.lower()
     if suffix == ".csv":
         return IOData.from_csv(path, **options)
@@ -769,11 +901,28 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
                 "(0-based), e.g. inputs=0, outputs=1"
             )
         return IOData.from_dat(path, **options)
-    raise DataFileError(f"{path}: unknown data file type {suffix!r}; use .csv, .npz or .dat")
+    if suffix == ".mat":
+        from ._matfile import read_mat
+
+        return read_mat(path, **options)
+    raise DataFileError(f"{path}: unknown data file type {suffix!r}; use .csv, .npz, .dat or .mat")
 
 
 def save(data: IOData, path: str | os.PathLike) -> Path:
-    """Write ``data`` to ``.csv`` or ``.npz`` according to the suffix; return the path."""
+    """Write ``data`` to ``.csv`` or ``.npz`` according to the suffix; return the path.
+
+    Parameters
+    ----------
+    data : IOData
+        The record.
+    path : str or os.PathLike
+        Destination; ``.csv`` or ``.npz``.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".csv":

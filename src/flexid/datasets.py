@@ -24,19 +24,19 @@ measurement error, so its preset adds none.  ``noise_std`` overrides either.
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from ._json import jsonable
+from ._validate import integer, positive_real
 from .data import IOData
 from .errors import DataError, UnknownNameError
 from .plants import PLANTS, get_plant
 from .signals import SIGNALS, make_signal
 
-__all__ = ["PLANTS", "PRESETS", "generate", "write"]
+__all__ = ["PLANTS", "PRESETS", "generate"]
 
 PRESETS: dict[str, dict[str, Any]] = {
     "paper-manipulator": {
@@ -175,12 +175,8 @@ def generate(
     params_over = dict(settings.get("plant_params", {}))
     params_over.update(plant_params or {})
     n = settings.get("n_samples", spec.n_samples)
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
-        raise DataError(f"n_samples must be an integer >= 2, got {n!r}")
-    n = int(n)
-    dt = float(settings.get("dt", spec.dt))
-    if not (np.isfinite(dt) and dt > 0):
-        raise DataError(f"dt must be a positive number of seconds, got {dt!r}")
+    n = integer(n, "n_samples", error=DataError, minimum=2)
+    dt = positive_real(settings.get("dt", spec.dt), "dt", error=DataError, unit="s")
 
     params = spec.make_parameters(params_over, sensors=sensors)
     signal_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
@@ -241,7 +237,3 @@ def generate(
         metadata=metadata,
     )
 
-
-def write(data: IOData, path: str | os.PathLike) -> None:
-    """Save a record as CSV or NPZ by suffix (see :meth:`flexid.data.IOData.save`)."""
-    data.save(path)

@@ -78,7 +78,15 @@ class UnknownNameError(FlexidError, LookupError):
 
 
 class UnknownOptimiserError(UnknownNameError, OptimiserError):
-    """An optimiser name that is neither built in nor provided by a plugin."""
+    """An optimiser name that is neither built in nor provided by a plugin.
+
+    Parameters
+    ----------
+    name : str
+        The name that was asked for.
+    known : sequence of str
+        The names that exist (listed in the message).
+    """
 
     def __init__(self, name: str, known=()):
         super().__init__("optimiser", name, known)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import is_integer
 from .arx import ARXStructure
 from .config import CostSpec, SearchSpec
 from .data import IOData
@@ -51,6 +52,22 @@ def model_structure(
     ``nb = None`` gives ``na`` for every input; a scalar ``nb`` or ``nk`` applies to every
     input.
 
+    Parameters
+    ----------
+    na : int
+        Order of ``A``.
+    nb : int, sequence of int or None
+        Number of ``B`` coefficients, per input or for all.
+    nk : int or sequence of int
+        Input delay in samples, per input or for all.
+    n_inputs : int
+        Number of inputs of the record.
+
+    Returns
+    -------
+    ARXStructure
+        The orders, one ``nb`` and ``nk`` per input.
+
     Raises
     ------
     ModelOrderError
@@ -59,9 +76,9 @@ def model_structure(
     if nb is None:
         nb = na
     if n_inputs > 1:
-        if isinstance(nb, (int, np.integer)) and not isinstance(nb, bool):
+        if is_integer(nb):
             nb = [int(nb)] * n_inputs
-        if isinstance(nk, (int, np.integer)) and not isinstance(nk, bool):
+        if is_integer(nk):
             nk = [int(nk)] * n_inputs
     structure = ARXStructure(na, nb, nk)
     if structure.n_inputs != n_inputs:
@@ -79,6 +96,7 @@ class EstimationProblem:
     Attributes
     ----------
     structure : ARXStructure
+        Model orders.
     cost : ARXCost
         The cost on the estimation record, in ARX coefficients.
     parametrisation : Parametrisation
@@ -97,7 +115,9 @@ class EstimationProblem:
         How the box of the ``b`` coefficients (and of ``a`` in the coefficient space) was
         chosen.
     theta_ls : ndarray, shape (n_params,)
-        Least-squares estimate; ``cost_ls`` its cost.
+        Least-squares estimate.
+    cost_ls : float
+        The cost at ``theta_ls``.
     """
 
     structure: ARXStructure
@@ -112,15 +132,32 @@ class EstimationProblem:
     _oe: Any = field(default=None, repr=False)
 
     def theta(self, z: Any) -> np.ndarray:
-        """ARX coefficients of search vector(s) ``z``: ``(n_params,)`` or ``(P, n_params)``.
+        """ARX coefficients of search vectors.
 
         In the stable spaces a point outside the box (optimisers that do not clip can leave
         it) is read as its nearest point of the box, so every candidate stays stable.
+
+        Parameters
+        ----------
+        z : array_like, shape (P, n) or (n,)
+            Points of the search space (``n = problem.n``).
+
+        Returns
+        -------
+        ndarray, shape (P, n_params) or (n_params,)
+            ``[a_1 .. a_na, b ...]`` of each point (the fitted ``b`` when
+            ``search.numerator == "fit"``).
         """
         return _coefficients_of(z, self.parametrisation, self.cost, self.search.numerator)
 
     def describe(self) -> str:
-        """One line: the parametrisation, its box rule, penalty, initial population, numerator."""
+        """One line: the parametrisation, its box rule, penalty, initial population, numerator.
+
+        Returns
+        -------
+        str
+            The parts that apply to this search space, joined by ``"; "``.
+        """
         param, search = self.parametrisation, self.search
         if search.numerator == "fit":
             text = f"{param.name} parametrisation of {self.structure!r}: {param._describe_a()}"
@@ -136,7 +173,14 @@ class EstimationProblem:
         return "; ".join(parts)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe description of the search (for results and the store)."""
+        """JSON-safe description of the search (for results and the store).
+
+        Returns
+        -------
+        dict
+            ``parametrisation`` (:meth:`Parametrisation.to_dict`), ``penalty``, ``init``,
+            ``numerator`` and ``box_rule``.
+        """
         return {
             "parametrisation": self.parametrisation.to_dict(),
             "penalty": self.search.penalty,
@@ -150,7 +194,20 @@ class EstimationProblem:
 
         Levenberg-Marquardt from least squares and stable starts
         (:func:`flexid.output_error.output_error`), with every pole radius at most
-        ``search.r_max``: the same set the ``"poles"`` space searches.  Cached per seed.
+        ``search.r_max``: the same set the ``"poles"`` space searches.  Cached for the last
+        ``(starts, seed)``.
+
+        Parameters
+        ----------
+        starts : int, optional
+            Number of Levenberg-Marquardt starts, >= 1 (default 4).
+        seed : int, optional
+            Seed of the random stable starts (default 0).
+
+        Returns
+        -------
+        OEResult or None
+            The best stable fit, or None when the cost's predictor is ``"one-step"``.
         """
         if self.cost.predictor != "simulation":
             return None
@@ -162,7 +219,16 @@ class EstimationProblem:
         return self._oe[1]
 
     def reference_cost(self) -> tuple[float, str]:
-        """The best known stable cost and what it is (see :func:`choose_reference`)."""
+        """The best known stable cost and what it is (see :func:`choose_reference`).
+
+        Returns
+        -------
+        cost : float
+            The lower stable cost of least squares and the output-error reference (seed 0),
+            or NaN when neither is stable.
+        name : str
+            Which one it is (``"no stable reference"`` for NaN).
+        """
         oe = self.output_error_reference()
         ls_stable = bool(is_stable(self.theta_ls[None, : self.structure.na])[0])
         choice = choose_reference(
@@ -310,7 +376,13 @@ def build_problem(
 
 
 def check_search(search: SearchSpec) -> None:
-    """Validate search settings without data (for specs checked before anything runs)."""
+    """Validate search settings without data (for specs checked before anything runs).
+
+    Parameters
+    ----------
+    search : SearchSpec
+        The search settings.
+    """
     if search.parametrisation not in PARAMETRISATIONS:
         raise UnknownNameError("parametrisation", search.parametrisation, PARAMETRISATIONS)
     if search.init not in INIT_RULES:

@@ -56,7 +56,13 @@ BACKEND: str = "c" if (_c is not None and _CHOICE != "numpy") else "numpy"
 
 
 def compiled_available() -> bool:
-    """True when the optional compiled kernels were built (whatever ``BACKEND`` says)."""
+    """True when the optional compiled kernels were built (whatever ``BACKEND`` says).
+
+    Returns
+    -------
+    bool
+        Whether ``flexid._kernels`` imports.
+    """
     return _c is not None
 
 
@@ -84,6 +90,20 @@ def ar_recursion_reference(a: np.ndarray, forced: np.ndarray, state: np.ndarray)
     The initial state enters as an extra input on the first ``na`` samples (what
     ``scipy.signal.lfiltic`` would compute, for every row at once), which is cheaper than
     passing ``zi``.
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, na)
+        Denominator coefficients ``a1..a_na`` of every candidate.
+    forced : ndarray, shape (P, K)
+        The input part ``f(t) = B(q) u(t)`` of every candidate.
+    state : ndarray, shape (na,) or (P, na)
+        ``[y(-1), ..., y(-na)]`` before the first sample (shared or per candidate).
+
+    Returns
+    -------
+    ndarray, shape (P, K)
+        The simulated outputs.
     """
     p, na = a.shape
     out = np.array(forced, dtype=float)

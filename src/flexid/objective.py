@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
+from ._validate import real
 from .arx import ARXStructure, _io_arrays
 from .config import CostSpec
 from .errors import DataError, UnknownNameError
@@ -158,8 +159,7 @@ class ARXCost:
         if initial not in INITIAL:
             raise UnknownNameError("initial condition rule", initial, INITIAL)
         for name, value in (("weight", weight), ("penalty", penalty)):
-            if not (np.isfinite(value) and value >= 0):
-                raise DataError(f"{name} must be a finite number >= 0, got {value!r}")
+            real(value, name, error=DataError, minimum=0)
         if isinstance(data, tuple):
             u, y = _io_arrays(*data)
         else:
@@ -362,7 +362,20 @@ class ARXCost:
         return out
 
     def residuals(self, theta: Any) -> np.ndarray:
-        """Error samples of one candidate, shape (K,) (for checks and plots)."""
+        """Error samples of one candidate (for checks and plots).
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_params,)
+            Candidate ``[a_1 .. a_na, b ...]``.
+
+        Returns
+        -------
+        ndarray, shape (K,)
+            ``y(t) - yhat(t)`` for ``t >= start``, in the units of ``y``, with this cost's
+            predictor (and, for the simulation predictor, its ``initial``); no stability
+            penalty is involved.
+        """
         theta = np.asarray(theta, dtype=float).reshape(-1)
         model = self.structure.model(theta)
         if self.predictor == "one-step":
@@ -375,6 +388,14 @@ class ARXCost:
         return self.y[self.structure.start :] - ysim[self.structure.start :]
 
     def describe(self) -> str:
+        """One line naming the metric, penalty, predictor and number of error samples.
+
+        Returns
+        -------
+        str
+            For example ``"paper cost (eq. 5-6, w=1000, penalty 1e+09), one-step predictor,
+            K=997"``.
+        """
         pen = f"penalty {self.penalty:g}" if self.penalty_kind == "flat" else "graded penalty"
         if self.metric == "paper":
             name = f"paper cost (eq. 5-6, w={self.weight:g}, {pen})"

@@ -8,8 +8,8 @@ simulation residuals ``e(t) = y(t) - y_sim(t)``; :func:`output_error` does the s
 starts, and returns the best stable result.  It is the fair reference an optimiser's result
 on the simulation cost is compared with.
 
-Design
-------
+Notes
+-----
 * **Residuals.**  Exactly the cost's: ``target - y_sim`` over ``t >= start`` with the cost's
   initial-condition rule, simulated with the same batched machinery
   (:func:`flexid.kernels.ar_recursion`).  Every metric of the cost (paper, RMSE, NRMSE, SSE,
@@ -34,10 +34,9 @@ Design
   Limitation: once a pole is within ~1e-9 of the circle every step with an outward
   component is rejected, so LM cannot slide along the boundary and stops there (``xtol``)
   even where a tangential move would still lower the cost.  Projection (mirroring each
-  unstable step, as ``pem``) and a reflection-coefficient parametrisation were tried on
-  the robot-arm orders: the first was no better overall and 2-3x slower, the second
-  converged badly (ill-conditioned for lightly damped 8th-order denominators).  Several
-  starts are the cheaper remedy.
+  unstable step, as ``pem``) is no better on the robot-arm orders and slower, and a
+  reflection-coefficient parametrisation converges badly (it is ill-conditioned for
+  lightly damped 8th-order denominators), so several starts are the remedy.
 * **Starts.**  Least squares (``cost.theta_ls``, mirrored when unstable), the end of 30
   Steiglitz-McBride iterations from it (it finds the dominant modes that local search from
   least squares misses, as on the simulated manipulator), then ``starts - 1`` stable starts
@@ -58,6 +57,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
+from ._validate import integer, positive_int, real
 from .errors import ConfigError, DataError
 from .kernels import ar_recursion
 from .objective import ARXCost
@@ -552,17 +552,10 @@ def output_error(
     """
     t_begin = time.perf_counter()
     prob = _simulation_problem(cost)
-    if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)) or starts < 1:
-        raise ConfigError(f"starts must be an integer >= 1, got {starts!r}")
-    if max_nfev is not None and (
-        isinstance(max_nfev, bool) or not isinstance(max_nfev, (int, np.integer)) or max_nfev < 1
-    ):
-        raise ConfigError(f"max_nfev must be an integer >= 1 or None, got {max_nfev!r}")
-    if not (np.isfinite(tol) and 0 < tol < 1):
-        raise ConfigError(f"tol must be in (0, 1), got {tol!r}")
-    if not (isinstance(r_max, (int, float)) and 0 < r_max <= 1):
-        raise ConfigError(f"r_max must be in (0, 1], got {r_max!r}")
-    max_nfev = None if max_nfev is None else int(max_nfev)
+    starts = positive_int(starts, "starts", error=ConfigError)
+    max_nfev = integer(max_nfev, "max_nfev", error=ConfigError, minimum=1, none_ok=True)
+    tol = real(tol, "tol", error=ConfigError, minimum=0, maximum=1, low_open=True, high_open=True)
+    r_max = real(r_max, "r_max", error=ConfigError, minimum=0, maximum=1, low_open=True)
     na = prob.na
     rng = np.random.default_rng(seed)
 

@@ -2,8 +2,7 @@
 
 A metaheuristic searches a box; a :class:`Parametrisation` maps points of that box (the
 *search vector* ``z``) to ARX parameters ``theta = [a_1 .. a_na, b ...]`` in the order of
-:class:`flexid.arx.ARXStructure`.  Three maps are provided (see
-``docs/identification.md``, section 2):
+:class:`flexid.arx.ARXStructure`.  Three maps are provided:
 
 ``"coefficients"``
     The identity over a box of ``a`` and ``b`` coefficients.  Most of a coefficient box is
@@ -36,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import integer, real
 from .arx import ARXStructure
 from .errors import ConfigError, DataError, UnknownNameError
 from .stability import is_stable, poles_batched, reflection_coefficients
@@ -102,13 +102,7 @@ def _check_box(lower: np.ndarray, upper: np.ndarray, what: str) -> None:
 
 def _open_unit(value: Any, what: str) -> float:
     """A radius-like option in ``(0, 1)``; 1 itself would admit poles on the unit circle."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{what} must be a number in (0, 1), got {value!r}") from None
-    if not 0.0 < v < 1.0:
-        raise ConfigError(f"{what} must lie in (0, 1) so that every image is stable, got {v!r}")
-    return v
+    return real(value, what, error=ConfigError, minimum=0, maximum=1, low_open=True, high_open=True)
 
 
 def _fmt(x: float) -> str:
@@ -268,7 +262,14 @@ class Parametrisation(ABC):
     # -- description --------------------------------------------------------------------
 
     def describe(self) -> str:
-        """One paragraph in plain words: what each search variable means and its range."""
+        """One paragraph in plain words: what each search variable means and its range.
+
+        Returns
+        -------
+        str
+            The parametrisation's name and structure, the meaning and range of the ``A``
+            search variables, and the range of the ``b`` coefficients.
+        """
         b = (
             f"{self.n_b} b coefficient(s) passed through in "
             f"[{_fmt(self.lower[self.na :].min())}, {_fmt(self.upper[self.na :].max())}]"
@@ -426,13 +427,10 @@ class PoleParametrisation(Parametrisation):
     ) -> None:
         self.r_max = _open_unit(r_max, "r_max")
         na = structure.na if isinstance(structure, ARXStructure) else 0
-        if isinstance(real_pairs, bool) or not isinstance(real_pairs, (int, np.integer)):
-            raise ConfigError(f"real_pairs must be an integer, got {real_pairs!r}")
-        real_pairs = int(real_pairs)
-        if not 0 <= real_pairs <= na // 2:
-            raise ConfigError(
-                f"real_pairs must lie in [0, na // 2] = [0, {na // 2}], got {real_pairs}"
-            )
+        real_pairs = integer(
+            real_pairs, "real_pairs (at most na // 2)", error=ConfigError, minimum=0,
+            maximum=na // 2,
+        )
         self.real_pairs = real_pairs
         self.n_pairs = na // 2
         self.n_complex = self.n_pairs - real_pairs
@@ -578,7 +576,7 @@ class PoleParametrisation(Parametrisation):
 
 
 class ReflectionParametrisation(Parametrisation):
-    """``A`` from lattice (reflection) coefficients ``k_1 .. k_na``.
+    """``A`` from lattice (reflection) coefficients ``k_1, ..., k_na``.
 
     Step-up (Levinson) recursion, starting from ``A^(0) = 1``::
 

@@ -3,14 +3,19 @@
 Each plant is a physics module in :mod:`flexid.envs` with the same shape: a frozen parameter
 dataclass, pure batched physics (``simulate``), its measurement chain (``measure``,
 ``noise_floor`` and the ``IDEAL_SENSORS`` overrides that switch it off) and the names and
-units of its inputs and outputs.  :class:`Plant` ties a name to that module; a third plant is
-one new physics module and one :func:`register_plant` call.
+units of its outputs (``OUTPUT_NAMES``, ``OUTPUT_UNITS``).  :class:`Plant` ties a name to that
+module, the names and units of its inputs, its defaults and its Gymnasium environment.
+:mod:`flexid.envs` registers the environment of every plant here with Gymnasium, and the
+environments read the names and units of their actions and observations from their record.
+A third plant is one new physics module, its thin environment and one :func:`register_plant`
+call.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -44,6 +49,13 @@ class Plant:
         Gymnasium id of its environment.
     simulate : callable
         ``simulate(module, u (N, n_u), params, dt) -> (y (N, n_y), u_applied (N, n_u))``.
+    env_entry_point : str or None
+        ``"module:Class"`` of its Gymnasium environment; None: no environment is registered.
+    vector_entry_point : str or None
+        ``"module:Class"`` of its vector environment (``gymnasium.make_vec(...,
+        vectorization_mode="vector_entry_point")``), if any.
+    max_episode_steps : int or None
+        Episode length the Gymnasium registration gives the environment.
     """
 
     name: str
@@ -56,6 +68,9 @@ class Plant:
     signal_options: Mapping[str, Any]
     env_id: str
     simulate: Callable[..., tuple[np.ndarray, np.ndarray]] = field(repr=False)
+    env_entry_point: str | None = None
+    vector_entry_point: str | None = None
+    max_episode_steps: int | None = None
 
     def physics(self) -> Any:
         """The physics module (imported on first use)."""
@@ -116,10 +131,18 @@ PLANTS: dict[str, Plant] = {}
 
 
 def register_plant(plant: Plant) -> Plant:
-    """Add ``plant`` to :data:`PLANTS` (a name may be registered once)."""
+    """Add ``plant`` to :data:`PLANTS` (a name may be registered once).
+
+    Its environment is registered with Gymnasium too: now if :mod:`flexid.envs` is loaded,
+    else when it is.
+    """
     if plant.name in PLANTS:
         raise PlantParameterError(f"a plant named {plant.name!r} is already registered")
     PLANTS[plant.name] = plant
+    envs = sys.modules.get("flexid.envs")
+    register = getattr(envs, "register_environments", None)  # None while it is importing
+    if register is not None:
+        register()
     return plant
 
 
@@ -149,6 +172,9 @@ register_plant(
         signal_options={"low": -0.3, "high": 0.3},
         env_id="flexid/FlexibleManipulator-v0",
         simulate=_simulate_manipulator,
+        env_entry_point="flexid.envs.manipulator:FlexibleManipulatorEnv",
+        vector_entry_point="flexid.envs.manipulator:FlexibleManipulatorVectorEnv",
+        max_episode_steps=2000,
     )
 )
 register_plant(
@@ -163,5 +189,8 @@ register_plant(
         signal_options={"low": -1.0, "high": 1.0},
         env_id="flexid/TwinRotor-v0",
         simulate=_simulate_twin_rotor,
+        env_entry_point="flexid.envs.twin_rotor:TwinRotorEnv",
+        vector_entry_point="flexid.envs.twin_rotor:TwinRotorVectorEnv",
+        max_episode_steps=600,
     )
 )

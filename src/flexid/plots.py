@@ -29,6 +29,7 @@ __all__ = [
     "plot_comparison_convergence",
     "plot_convergence",
     "plot_correlations",
+    "plot_ecdf",
     "plot_fe_to_target",
     "plot_pole_zero",
     "plot_spectra",
@@ -73,9 +74,17 @@ def plot_convergence(histories: dict[str, Any], *, ax=None, reference: float | N
     Parameters
     ----------
     histories : dict
-        ``label -> History`` (or ``{"fe": [...], "best": [...]}``).
+        ``label -> History`` (or ``{"fe": [...], "best": [...]}``); rows with a
+        non-finite best cost are not drawn.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
     reference : float, optional
-        A horizontal line (least-squares cost).
+        A horizontal line (least-squares cost); not drawn when NaN or infinite.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
     """
     fig, ax = _axes(ax, figsize=(6.4, 4.0))
     for label, h in histories.items():
@@ -102,7 +111,20 @@ def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axe
     t : ndarray, shape (N,)
         Time in seconds.
     y, yhat : ndarray, shape (N,)
-        Measured and model output.
+        Measured and model output (output units).  Model samples that are non-finite or
+        beyond 1000 times the largest ``|y|`` (a diverging free run) are not drawn, and the
+        title says where the divergence starts.
+    title : str, optional
+        Title of the top panel.
+    label : str, optional
+        Legend label of the model line (default ``"model"``).
+    axes : sequence of two matplotlib.axes.Axes, optional
+        Top and bottom axes to draw on (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
     """
     plt = _plt()
     if axes is None:
@@ -133,7 +155,25 @@ def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axe
 def plot_spectra(
     freq, spectra: dict[str, np.ndarray], *, ax=None, title: str = "Power spectral density"
 ):
-    """Welch power spectra (dB) against frequency in Hz, one line per signal."""
+    """Power spectra in dB against frequency in Hz, one line per signal.
+
+    Parameters
+    ----------
+    freq : array_like, shape (F,)
+        Frequencies in Hz.
+    spectra : dict of str to ndarray
+        ``label -> PSD`` (shape (F,), linear units, e.g. from Welch's method), drawn as
+        ``10 log10(PSD)``; non-finite values are not drawn.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+    title : str, optional
+        Axes title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _axes(ax, figsize=(6.4, 4.0))
     for label, p in spectra.items():
         p = np.asarray(p, float)
@@ -148,7 +188,24 @@ def plot_spectra(
 
 
 def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
-    """Poles (x) and zeros (o) with the unit circle (dotted)."""
+    """Poles (x) and zeros (o) in the z-plane with the unit circle (dotted).
+
+    Parameters
+    ----------
+    poles : array_like of complex, shape (n_p,)
+        Poles.
+    zeros : array_like of complex, shape (n_z,)
+        Zeros (may be empty).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+    title : str, optional
+        Axes title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _axes(ax, figsize=(4.8, 4.8))
     theta = np.linspace(0, 2 * np.pi, 400)
     ax.plot(np.cos(theta), np.sin(theta), "k:", lw=1)
@@ -175,7 +232,16 @@ def plot_correlations(
     Parameters
     ----------
     panels : sequence of (title, lags, values, bound)
-        One panel each; ``bound`` is the half-width of the 95 % band (1.96/sqrt(N)).
+        One panel each (as :meth:`flexid.ValidationReport.correlation_panels` gives them):
+        ``lags`` (K,) in samples, ``values`` (K,) correlation coefficients and ``bound`` the
+        half-width of the 95 % band (1.96/sqrt(N)).
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        A new figure, one row of axes per panel.
     """
     plt = _plt()
     fig, axes = plt.subplots(len(panels), 1, figsize=(7.0, 2.3 * len(panels)), squeeze=False)
@@ -204,6 +270,23 @@ def identification_figures(
     Convergence (if an optimiser ran), measured vs model output with the error on the
     estimation and validation records (one-step and simulation), power spectra, pole-zero
     map with the unit circle, residual correlations with 95 % bands.
+
+    Parameters
+    ----------
+    ident : Identification
+        The identification (from :func:`flexid.identify`).
+    outdir : str or pathlib.Path
+        Directory to write to (created if needed; files there are overwritten).
+    prefix : str, optional
+        Prefix of every file name.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written: ``convergence.png`` (when an optimiser ran), then
+        ``{estimation,validation}_{simulation,one_step}.png``, ``spectra.png``
+        (validation record), ``pole_zero.png`` (zeros of the first input) and
+        ``correlations.png`` (validation record), each with ``prefix``.
     """
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
@@ -245,7 +328,20 @@ def identification_figures(
 
 # ============================================================================ comparison
 def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
-    """Median (line) and quartiles (band) of the best cost against FE, per optimiser."""
+    """Median (line) and quartiles (band) of the best cost against FE, per optimiser.
+
+    Parameters
+    ----------
+    result : ComparisonResult
+        The comparison; failed runs are left out, and the reference cost is a dashed line.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _axes(ax, figsize=(7.0, 4.4))
     max_fe = max(
         (r["nfev"] for rs in result.records.values() for r in rs if r["status"] == "ok"), default=1
@@ -275,6 +371,21 @@ def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
     """Empirical distribution of the FE needed to reach ``reference * (1 + target)``.
 
     Runs that never reach the target keep the curve below 1 (the success rate).
+
+    Parameters
+    ----------
+    result : ComparisonResult
+        The comparison.
+    target : float
+        A relative target of ``result.spec.targets``; optimisers without statistics for it
+        are left out.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
     """
     fig, ax = _axes(ax, figsize=(6.4, 4.0))
     for label, stats in result.stats.items():
@@ -299,10 +410,62 @@ def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
     return fig
 
 
+def plot_ecdf(ecdf: dict[str, Any], *, ax=None, title: str = ""):
+    """ECDF of (run, target) pairs reached against function evaluations (log axis).
+
+    Parameters
+    ----------
+    ecdf : dict
+        The output of :func:`flexid.report.comparison_ecdf`: ``targets`` (target costs),
+        ``curves`` (``label -> {"fe", "fraction", "runs"}``, each curve a step function of
+        FE).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+    title : str, optional
+        Figure title (default: the number of targets).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
+    fig, ax = _axes(ax, figsize=(6.4, 4.0))
+    n_targets = len(ecdf["targets"])
+    for label, curve in ecdf["curves"].items():
+        fe = np.asarray(curve["fe"], float)
+        fraction = np.asarray(curve["fraction"], float)
+        if fe.size:
+            ax.step(fe, fraction, where="post", label=f"{label} ({curve['runs']} runs)")
+    ax.set_xscale("log")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("function evaluations")
+    ax.set_ylabel("fraction of (run, target) pairs reached")
+    ax.set_title(title or f"ECDF over {n_targets} targets reference x (1 + d)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="lower right")
+    return fig
+
+
 def comparison_figures(
     result: ComparisonResult, outdir: str | Path, prefix: str = ""
 ) -> list[Path]:
-    """Write the convergence band figure and one FE-to-target ECDF per target."""
+    """Write the convergence band figure and one FE-to-target ECDF per target.
+
+    Parameters
+    ----------
+    result : ComparisonResult
+        The comparison.
+    outdir : str or pathlib.Path
+        Directory to write to (created if needed; files there are overwritten).
+    prefix : str, optional
+        Prefix of every file name.
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``convergence.png``, then ``fe_to_target_<t>.png`` for each target ``t`` of the
+        spec, each with ``prefix``.
+    """
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     paths = [_save(plot_comparison_convergence(result), outdir / f"{prefix}convergence.png")]

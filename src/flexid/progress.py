@@ -36,7 +36,17 @@ class ProgressBar:
             self._bar = tqdm(total=total, desc=description, unit="run", leave=True, file=sys.stderr)
 
     def update(self, n: int = 1, status: str = "") -> None:
-        """Advance by ``n`` steps; ``status`` is a short note on the latest step."""
+        """Advance the bar.
+
+        Without tqdm a line goes to stderr at most once a second, and at the last step.
+
+        Parameters
+        ----------
+        n : int, optional
+            Number of steps completed (default 1).
+        status : str, optional
+            A short note on the latest step, shown after the count.
+        """
         self.count += n
         if self._bar is not None:
             self._bar.update(n)

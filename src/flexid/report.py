@@ -1,15 +1,41 @@
-"""Markdown or HTML reports of the comparisons in a result store, with their figures."""
+"""Reports of the comparisons in a result store: Markdown or HTML with their figures, and the
+IOHprofiler export for IOHanalyzer.
+
+The report's ECDF is the empirical distribution of the runtimes over (run, target) pairs, as
+COCO and IOHanalyzer draw it (:func:`comparison_ecdf`); :func:`export_ioh` writes the runs in
+the IOHprofiler format (the module :mod:`flexid._ioh` says which layout and how flexid maps
+onto it).
+"""
 
 from __future__ import annotations
 
 import html
+import math
 import re
 from pathlib import Path
 
+import numpy as np
+
 from ._compare import ComparisonResult, load_result
+from ._ioh import (
+    IOH_LAYOUTS,
+    TARGETS_PER_DECADE,
+    check_histories,
+    comparison_ecdf,
+    ecdf_fraction,
+    ecdf_targets,
+    export_ioh,
+)
 from .errors import ConfigError
 
-__all__ = ["write_report"]
+__all__ = [
+    "IOH_LAYOUTS",
+    "comparison_ecdf",
+    "ecdf_fraction",
+    "ecdf_targets",
+    "export_ioh",
+    "write_report",
+]
 
 
 def _slug(text: str) -> str:
@@ -51,12 +77,47 @@ def _section(result: ComparisonResult, outdir: Path, figures: bool) -> list[str]
     conclusion = result.summary().rsplit("\n", 1)[-1]
     if conclusion.startswith("Lowest median cost"):
         lines += [conclusion, ""]
+    ecdf = comparison_ecdf(result)
+    lines += _ecdf_lines(result, ecdf)
     if figures:
-        from .plots import comparison_figures
+        from .plots import _save, comparison_figures, plot_ecdf
 
-        for path in comparison_figures(result, outdir, prefix=f"{slug}-"):
+        paths = comparison_figures(result, outdir, prefix=f"{slug}-")
+        if len(ecdf["targets"]):
+            paths.append(_save(plot_ecdf(ecdf), outdir / f"{slug}-ecdf.png"))
+        for path in paths:
             lines += [f"![{path.stem}]({path.name})", ""]
     return lines
+
+
+def _ecdf_lines(result: ComparisonResult, ecdf: dict) -> list[str]:
+    """The ECDF section: what the targets are, and the fraction reached at a few budgets."""
+    lines = ["### ECDF of (run, target) pairs", ""]
+    targets = ecdf["targets"]
+    if not len(targets):
+        return [*lines, "No ECDF: the reference cost is not a finite positive number.", ""]
+    reference = ecdf["reference"]
+    easiest, hardest = targets[0] / reference - 1.0, targets[-1] / reference - 1.0
+    budget = result.spec.max_fe
+    budgets = sorted({max(1, math.ceil(budget / 100)), max(1, math.ceil(budget / 10)), budget})
+    head = ["optimiser", "runs"] + [f"{b} FE" for b in budgets]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for label, curve in ecdf["curves"].items():
+        if not curve["runs"]:
+            out.append("| " + " | ".join([label, "0"] + ["-"] * len(budgets)) + " |")
+            continue
+        fe, fraction = curve["fe"], curve["fraction"]
+        at = fraction[np.searchsorted(fe, np.asarray(budgets, float), side="right") - 1]
+        cells = [label, str(curve["runs"])] + [f"{v * 100:.0f}%" for v in at]
+        out.append("| " + " | ".join(cells) + " |")
+    note = (
+        f"Fraction of (run, target) pairs reached within the FE shown, over {len(targets)} "
+        f"targets reference x (1 + d), d log-spaced from {easiest:.3g} (the worst first "
+        f"best cost of any run) down to {hardest:.3g} (the smallest target t), "
+        f"{TARGETS_PER_DECADE} to a decade as COCO places its targets; reference "
+        f"{reference:.5g}. Finished runs only."
+    )
+    return lines + out + ["", note, ""]
 
 
 def write_report(
@@ -89,6 +150,7 @@ def write_report(
     """
     if fmt not in ("md", "html"):
         raise ConfigError(f"report format must be 'md' or 'html', got {fmt!r}")
+    check_histories(store, key)  # the statistics read every history
     results = load_result(store, key)
     if not results:
         raise ConfigError(f"{store}: the store holds no comparison")

@@ -20,13 +20,13 @@ bang_bang  +amplitude for ``width`` s, -amplitude for ``width`` s, then 0
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from scipy import signal as sps
 
+from ._validate import integer, positive_int, positive_real, real
 from .errors import DataError, UnknownNameError
 
 __all__ = [
@@ -55,31 +55,15 @@ PRBS_TAPS: dict[int, tuple[int, ...]] = {
 
 
 def _count(n_samples: Any) -> int:
-    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)):
-        raise DataError(f"n_samples must be a positive integer, got {n_samples!r}")
-    if n_samples < 1:
-        raise DataError(f"n_samples must be a positive integer, got {n_samples}")
-    return int(n_samples)
-
-
-def _positive_int(value: Any, what: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise DataError(f"{what} must be a positive integer, got {value!r}")
-    return int(value)
+    return positive_int(n_samples, "n_samples", error=DataError)
 
 
 def _bounds(low: Any, high: Any) -> tuple[float, float]:
-    low, high = float(low), float(high)
-    if not (math.isfinite(low) and math.isfinite(high)) or low >= high:
+    low = real(low, "signal bound low", error=DataError)
+    high = real(high, "signal bound high", error=DataError)
+    if low >= high:
         raise DataError(f"signal bounds need finite low < high, got low={low}, high={high}")
     return low, high
-
-
-def _positive(value: Any, what: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise DataError(f"{what} must be a positive number, got {value!r}")
-    return value
 
 
 def _rng(rng: np.random.Generator | int | None) -> np.random.Generator:
@@ -124,9 +108,10 @@ def prbs(
         ``clock``).
     """
     n = _count(n_samples)
-    if order not in PRBS_TAPS:
-        raise DataError(f"PRBS order must be an integer in 2..24, got {order!r}")
-    clock = _positive_int(clock, "PRBS clock")
+    order = integer(
+        order, "PRBS order", error=DataError, minimum=min(PRBS_TAPS), maximum=max(PRBS_TAPS)
+    )
+    clock = positive_int(clock, "PRBS clock", error=DataError)
     low, high = _bounds(low, high)
     period = 2**order - 1
     bits_needed = -(-n // clock)
@@ -165,10 +150,27 @@ def random_binary(
     hold: int = 1,
     rng: np.random.Generator | int | None = None,
 ) -> np.ndarray:
-    """Random binary signal: ``low`` or ``high`` with equal probability, held ``hold`` samples."""
+    """Random binary signal: ``low`` or ``high`` with equal probability, held ``hold`` samples.
+
+    Parameters
+    ----------
+    n_samples : int
+        Length ``N`` of the signal.
+    low, high : float
+        The two levels (input units).
+    hold : int
+        Samples each level is held.
+    rng : numpy.random.Generator or int, optional
+        Generator or seed.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The signal.
+    """
     n = _count(n_samples)
     low, high = _bounds(low, high)
-    hold = _positive_int(hold, "hold")
+    hold = positive_int(hold, "hold", error=DataError)
     bits = _rng(rng).integers(0, 2, -(-n // hold))
     return _hold(np.where(bits == 1, high, low).astype(float), hold, n)
 
@@ -185,10 +187,26 @@ def uniform(
 
     The paper's inputs: manipulator torque uniform in +-0.3 N m every 1 ms sample; twin rotor
     main-rotor voltage uniform in +-1 V held 0.1 s.
+
+    Parameters
+    ----------
+    n_samples : int
+        Length ``N`` of the signal.
+    low, high : float
+        Range of the values (input units).
+    hold : int
+        Samples each value is held.
+    rng : numpy.random.Generator or int, optional
+        Generator or seed.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The signal.
     """
     n = _count(n_samples)
     low, high = _bounds(low, high)
-    hold = _positive_int(hold, "hold")
+    hold = positive_int(hold, "hold", error=DataError)
     return _hold(_rng(rng).uniform(low, high, -(-n // hold)), hold, n)
 
 
@@ -201,11 +219,28 @@ def aprbs(
     max_hold: int = 20,
     rng: np.random.Generator | int | None = None,
 ) -> np.ndarray:
-    """Amplitude-modulated PRBS: uniform random levels held a random 1..max samples each."""
+    """Amplitude-modulated PRBS: uniform random levels held a random 1..max samples each.
+
+    Parameters
+    ----------
+    n_samples : int
+        Length ``N`` of the signal.
+    low, high : float
+        Range of the levels (input units).
+    min_hold, max_hold : int
+        Shortest and longest hold of a level, in samples.
+    rng : numpy.random.Generator or int, optional
+        Generator or seed.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The signal.
+    """
     n = _count(n_samples)
     low, high = _bounds(low, high)
-    min_hold = _positive_int(min_hold, "min_hold")
-    max_hold = _positive_int(max_hold, "max_hold")
+    min_hold = positive_int(min_hold, "min_hold", error=DataError)
+    max_hold = positive_int(max_hold, "max_hold", error=DataError)
     if max_hold < min_hold:
         raise DataError(f"max_hold ({max_hold}) must be >= min_hold ({min_hold})")
     g = _rng(rng)
@@ -249,8 +284,8 @@ def multisine(
         Power only at the chosen bins of the N-point DFT (exactly periodic over the record).
     """
     n = _count(n_samples)
-    dt = _positive(dt, "dt")
-    amplitude = _positive(amplitude, "amplitude")
+    dt = positive_real(dt, "dt", error=DataError)
+    amplitude = positive_real(amplitude, "amplitude", error=DataError)
     fs = 1.0 / dt
     lo, hi = band if band is not None else (fs / n, 0.4 * fs)
     lo, hi = float(lo), float(hi)
@@ -262,7 +297,7 @@ def multisine(
     if bins.size == 0:
         raise DataError(f"no FFT frequency of a {n}-sample record lies in {lo:g}-{hi:g} Hz")
     if n_freqs is not None:
-        n_freqs = _positive_int(n_freqs, "n_freqs")
+        n_freqs = positive_int(n_freqs, "n_freqs", error=DataError)
         pick = np.unique(np.linspace(0, bins.size - 1, min(n_freqs, bins.size)).round())
         bins = bins[pick.astype(int)]
     k = np.arange(1, bins.size + 1)
@@ -287,10 +322,31 @@ def chirp(
     amplitude: float = 1.0,
     method: str = "linear",
 ) -> np.ndarray:
-    """Swept sine from ``f0`` to ``f1`` Hz over the record (``scipy.signal.chirp``)."""
+    """Swept sine from ``f0`` to ``f1`` Hz over the record (``scipy.signal.chirp``).
+
+    Parameters
+    ----------
+    n_samples : int
+        Length ``N`` of the signal.
+    dt : float
+        Sample time (s).
+    f0 : float
+        Start frequency (Hz).
+    f1 : float, optional
+        End frequency (Hz); default ``0.4 / dt``.
+    amplitude : float
+        Peak value (input units).
+    method : str
+        Sweep law of ``scipy.signal.chirp`` (``"linear"``, ``"logarithmic"``, ...).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The signal.
+    """
     n = _count(n_samples)
-    dt = _positive(dt, "dt")
-    amplitude = _positive(amplitude, "amplitude")
+    dt = positive_real(dt, "dt", error=DataError)
+    amplitude = positive_real(amplitude, "amplitude", error=DataError)
     f1 = 0.4 / dt if f1 is None else float(f1)
     f0 = float(f0)
     if method not in ("linear", "logarithmic"):
@@ -313,11 +369,29 @@ def bang_bang(
     """The classic manipulator test torque: +amplitude for ``width`` s, then -amplitude.
 
     Zero before ``start`` and after ``start + 2 width`` seconds.
+
+    Parameters
+    ----------
+    n_samples : int
+        Length ``N`` of the signal.
+    dt : float
+        Sample time (s).
+    amplitude : float
+        Height of the pulses (N m for the manipulator).
+    width : float
+        Duration of each pulse (s).
+    start : float
+        Start of the first pulse (s).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The signal.
     """
     n = _count(n_samples)
-    dt = _positive(dt, "dt")
-    amplitude = _positive(amplitude, "amplitude")
-    width = _positive(width, "width")
+    dt = positive_real(dt, "dt", error=DataError)
+    amplitude = positive_real(amplitude, "amplitude", error=DataError)
+    width = positive_real(width, "width", error=DataError)
     t = np.arange(n) * dt
     x = np.zeros(n)
     x[(t >= start - 1e-12) & (t < start + width - 1e-12)] = amplitude
@@ -326,7 +400,18 @@ def bang_bang(
 
 
 def crest_factor(x: np.ndarray) -> float:
-    """Peak over RMS of a signal."""
+    """Peak over RMS of a signal.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N,)
+        The signal.
+
+    Returns
+    -------
+    float
+        ``max |x| / rms(x)`` (1 for a square wave, sqrt(2) for a sine).
+    """
     x = np.asarray(x, dtype=float)
     return float(np.abs(x).max() / np.sqrt(np.mean(x**2)))
 
@@ -335,7 +420,7 @@ def _levels(options: dict[str, Any]) -> dict[str, Any]:
     """Accept ``amplitude=a`` as shorthand for ``low=-a, high=a``."""
     options = dict(options)
     if "amplitude" in options:
-        a = _positive(options.pop("amplitude"), "amplitude")
+        a = positive_real(options.pop("amplitude"), "amplitude", error=DataError)
         options.setdefault("low", -a)
         options.setdefault("high", a)
     return options
@@ -366,6 +451,24 @@ def make_signal(
     ``amplitude=a`` stands for ``low=-a, high=a`` in the two-level and random signals.
     Unknown names raise :class:`~flexid.errors.UnknownNameError`; unknown options raise
     :class:`~flexid.errors.DataError`.
+
+    Parameters
+    ----------
+    name : str
+        Signal name, a key of :data:`SIGNALS`.
+    n_samples : int
+        Length ``N`` of the signal.
+    dt : float
+        Sample time (s), for the signals defined in seconds or hertz.
+    rng : numpy.random.Generator or int, optional
+        Generator or seed of the random signals.
+    **options
+        The signal's own options (see :func:`describe_signals`).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The signal.
     """
     key = name.replace("-", "_") if name.replace("-", "_") in SIGNALS else name
     if key not in SIGNALS:
@@ -383,5 +486,11 @@ def make_signal(
 
 
 def describe_signals() -> str:
-    """One line per signal: name and options."""
+    """One line per signal: name and options.
+
+    Returns
+    -------
+    str
+        The lines, joined by newlines.
+    """
     return "\n".join(f"{name:10s} {desc}" for name, (_, _, _, desc) in SIGNALS.items())

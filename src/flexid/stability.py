@@ -96,6 +96,16 @@ def is_stable_reference(a) -> np.ndarray:
 
     Once a row has a reflection coefficient with ``|k| >= 1`` it is marked unstable; later
     steps may overflow in that row, which is ignored.  Same contract as :func:`is_stable`.
+
+    Parameters
+    ----------
+    a : array_like, shape (P, na) or (na,)
+        Denominator coefficients ``a1..a_na`` (``A = 1 + a1 q^-1 + ...``).
+
+    Returns
+    -------
+    ndarray of bool, shape (P,)
+        True where all roots lie strictly inside the unit circle.
     """
     a = _as_population(a)
     p, n = a.shape

@@ -47,14 +47,38 @@ def best_at(history: Mapping[str, Sequence], fe: np.ndarray) -> np.ndarray:
 
 
 def fe_to_target(history: Mapping[str, Sequence], target: float) -> float:
-    """FE after which the best cost is ``<= target`` (``nan`` if never reached)."""
+    """FE after which the best cost is ``<= target`` (``nan`` if never reached).
+
+    Parameters
+    ----------
+    history : mapping
+        A run's history with sequences ``fe`` and ``best``.
+    target : float
+        Target cost.
+
+    Returns
+    -------
+    float
+        The FE count, or ``nan``.
+    """
     best = np.asarray(history["best"], dtype=float)
     hits = np.flatnonzero(best <= target)
     return float(history["fe"][hits[0]]) if hits.size else float("nan")
 
 
 def holm(p_values: Sequence[float]) -> np.ndarray:
-    """Holm-Bonferroni adjusted p-values (step-down, monotone, capped at 1)."""
+    """Holm-Bonferroni adjusted p-values (step-down, monotone, capped at 1).
+
+    Parameters
+    ----------
+    p_values : sequence of float
+        Raw p-values of the ``k`` comparisons.
+
+    Returns
+    -------
+    ndarray, shape (k,)
+        Adjusted p-values, in the input order.
+    """
     p = np.asarray(p_values, dtype=float)
     m = p.size
     if m == 0:
@@ -74,6 +98,11 @@ def rank_sum_against_best(costs: Mapping[str, Sequence[float]]) -> dict[str, dic
     The best optimiser is the one with the lowest median final cost.  p-values are
     Holm-corrected over the comparisons made.  Labels with fewer than two finite runs are
     left out of the tests.
+
+    Parameters
+    ----------
+    costs : mapping of str to sequence of float
+        Final costs of the runs, per optimiser label.
 
     Returns
     -------
@@ -118,6 +147,15 @@ def summarise(
         Reference cost (the least-squares optimum when it is stable).
     targets : sequence of float
         Relative tolerances: target cost ``reference * (1 + t)``.
+
+    Returns
+    -------
+    dict
+        Run counts (``runs``, ``ok``, ``failed``, ``errors``); over the finished runs the final
+        cost's ``median``, ``q25``, ``q75``, ``iqr``, ``best``, ``worst``, the median FE and
+        wall time (s), the share of stable models; ``reach``, per tolerance the target cost,
+        success rate and FE to reach it; the medians of the fits (%) and error bounds, and
+        the correlation-test pass rate.
     """
     ok = [r for r in records if r["status"] == "ok"]
     failed = [r for r in records if r["status"] != "ok"]
@@ -164,8 +202,20 @@ def convergence_band(
 ) -> dict[str, np.ndarray]:
     """Median and quartiles of best cost against FE over runs, on a common FE grid.
 
-    Returns ``{"fe", "q25", "median", "q75"}`` arrays of length ``points`` (FE grid from the
-    first evaluation to ``max_fe``, logarithmic-friendly linear spacing).
+    Parameters
+    ----------
+    histories : sequence of mapping
+        Run histories with sequences ``fe`` and ``best``.
+    max_fe : int
+        End of the FE grid.
+    points : int
+        Number of grid points (fewer where rounding to whole FE merges them).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``{"fe", "q25", "median", "q75"}``, arrays on the FE grid (linear from the first
+        evaluation to ``max_fe``); NaN everywhere when there are no histories.
     """
     grid = np.unique(np.linspace(1, max_fe, points).round())
     if not histories:

@@ -7,8 +7,10 @@ skips them, while a changed comparison gets a new key.  Each run is one row, wri
 own transaction as soon as it finishes; SQLite's journal makes the write atomic, so killing
 the process at any moment (even ``kill -9``) leaves either the whole row or none of it.
 
-Tables
-------
+Notes
+-----
+The file has two tables.
+
 ``comparisons(key, name, spec, created)``
     ``spec`` is the JSON of the comparison's specification.
 ``runs(key, label, run, seed, status, error, payload, created)``
@@ -110,8 +112,25 @@ class ResultStore:
 
     # ----------------------------------------------------------------- comparisons
     def add_comparison(self, key: str, name: str, spec: Mapping[str, Any]) -> None:
-        """Record a comparison; a rerun with the same key (more runs, other optimisers)
-        replaces the stored name and specification, the runs already finished stay."""
+        """Record a comparison, or update the one stored under the same key.
+
+        A rerun with the same key (more runs, other optimisers) replaces the stored name and
+        specification; the runs already finished stay.
+
+        Parameters
+        ----------
+        key : str
+            The comparison's key (:attr:`flexid.ComparisonSpec.key`).
+        name : str
+            Its name.
+        spec : mapping
+            Its specification (:meth:`flexid.ComparisonSpec.to_dict`), stored as JSON.
+
+        Raises
+        ------
+        StoreError
+            If the write fails (for example in a read-only store).
+        """
         self._execute(
             "INSERT INTO comparisons(key, name, spec, created) VALUES (?, ?, ?, ?) "
             "ON CONFLICT(key) DO UPDATE SET name = excluded.name, spec = excluded.spec",
@@ -119,7 +138,14 @@ class ResultStore:
         )
 
     def comparisons(self) -> list[dict[str, Any]]:
-        """All comparisons, oldest first: ``key``, ``name``, ``spec``, ``created``, ``n_runs``."""
+        """All comparisons in the store, oldest first.
+
+        Returns
+        -------
+        list of dict
+            One dict per comparison: ``key``, ``name``, ``spec`` (dict), ``created``
+            (seconds since the epoch) and ``n_runs`` (stored runs, failed ones included).
+        """
         rows = self._query(
             "SELECT c.key, c.name, c.spec, c.created, COUNT(r.run) FROM comparisons c "
             "LEFT JOIN runs r ON r.key = c.key GROUP BY c.key ORDER BY c.created, c.key"
@@ -130,7 +156,24 @@ class ResultStore:
         ]
 
     def comparison(self, key: str) -> dict[str, Any]:
-        """One comparison by key (a unique prefix is enough)."""
+        """One comparison by key.
+
+        Parameters
+        ----------
+        key : str
+            The key, or a prefix of it that only one comparison has.
+
+        Returns
+        -------
+        dict
+            ``key`` (the full key), ``name``, ``spec`` (dict) and ``created`` (seconds since
+            the epoch).
+
+        Raises
+        ------
+        StoreError
+            If no comparison or more than one matches.
+        """
         rows = self._query(
             "SELECT key, name, spec, created FROM comparisons WHERE key LIKE ?", (key + "%",)
         )
@@ -143,7 +186,21 @@ class ResultStore:
 
     # ----------------------------------------------------------------- runs
     def finished(self, key: str, *, include_failed: bool = True) -> set[tuple[str, int]]:
-        """``(label, run)`` pairs already stored for comparison ``key``."""
+        """The runs already stored for a comparison.
+
+        Parameters
+        ----------
+        key : str
+            The comparison's full key.
+        include_failed : bool, optional
+            Count failed runs as finished too (default True); False lists ``ok`` runs only,
+            so that failed ones are run again.
+
+        Returns
+        -------
+        set of (str, int)
+            ``(optimiser label, run index)`` pairs.
+        """
         sql = "SELECT label, run FROM runs WHERE key = ?"
         if not include_failed:
             sql += " AND status = 'ok'"
@@ -152,9 +209,24 @@ class ResultStore:
     def write_run(self, key: str, record: Mapping[str, Any]) -> None:
         """Write one finished run at once (its own transaction).
 
-        ``record`` needs ``label``, ``run``, ``seed`` and ``status``; ``error`` is optional;
-        the whole record is stored as JSON.  Writing the same (key, label, run) again
-        replaces the row, so a retried failed run does not duplicate.
+        Writing the same (key, label, run) again replaces the row, so a retried failed run
+        does not duplicate.
+
+        Parameters
+        ----------
+        key : str
+            The comparison's full key.
+        record : mapping
+            The run record, stored whole as JSON (NaN and infinity allowed).  It needs
+            ``label`` (str), ``run`` (int), ``seed`` (int) and ``status`` (``"ok"`` or
+            ``"failed"``); ``error`` (str) is optional.
+
+        Raises
+        ------
+        StoreError
+            If the record is not JSON-serialisable or the write fails.
+        KeyError
+            If a required key is missing.
         """
         try:
             payload = json.dumps(record, sort_keys=True, allow_nan=True)
@@ -176,12 +248,35 @@ class ResultStore:
         )
 
     def runs(self, key: str) -> list[dict[str, Any]]:
-        """All run records of comparison ``key``, ordered by label then run index."""
+        """All run records of a comparison.
+
+        Parameters
+        ----------
+        key : str
+            The comparison's full key.
+
+        Returns
+        -------
+        list of dict
+            The records as written by :meth:`write_run`, ordered by label then run index
+            (empty for an unknown key).
+        """
         rows = self._query("SELECT payload FROM runs WHERE key = ? ORDER BY label, run", (key,))
         return [json.loads(p) for (p,) in rows]
 
     def iter_runs(self, key: str) -> Iterator[dict[str, Any]]:
-        """Iterate over the run records of ``key`` without loading them all."""
+        """Iterate over the run records of a comparison without loading them all.
+
+        Parameters
+        ----------
+        key : str
+            The comparison's full key.
+
+        Yields
+        ------
+        dict
+            One record as written by :meth:`write_run`, ordered by label then run index.
+        """
         cursor = self._db.execute(
             "SELECT payload FROM runs WHERE key = ? ORDER BY label, run", (key,)
         )
@@ -189,7 +284,18 @@ class ResultStore:
             yield json.loads(payload)
 
     def count(self, key: str) -> dict[str, int]:
-        """Number of ``ok`` and ``failed`` runs of ``key``."""
+        """Number of stored runs of a comparison, by status.
+
+        Parameters
+        ----------
+        key : str
+            The comparison's full key.
+
+        Returns
+        -------
+        dict of str to int
+            ``{"ok": n_ok, "failed": n_failed}``.
+        """
         counts = {"ok": 0, "failed": 0}
         for status, n in self._query(
             "SELECT status, COUNT(*) FROM runs WHERE key = ? GROUP BY status", (key,)

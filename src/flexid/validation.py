@@ -6,8 +6,8 @@ The plain-array functions (:func:`fit_percent`, :func:`rmse`, :func:`error_range
 :func:`validate` runs all of them on a model and a record and returns a
 :class:`ValidationReport`.
 
-Conventions
------------
+Notes
+-----
 Fit
     ``fit % = 100 (1 - ||y - yhat|| / ||y - mean(y)||)`` (the NRMSE fit of MATLAB
     ``compare``): 100 for a perfect model, 0 for the constant predictor ``mean(y)``, negative
@@ -35,7 +35,7 @@ Pass rule
        lag-1 autocorrelation, say) fails the test even if the other lags are quiet.
 
     Each rule alone rejects a valid model in at most about 1 % of records, so a single test
-    wrongly fails in at most about 2 % of records (measured: 1-2 %), and a valid single-input
+    wrongly fails in at most about 2 % of records, and a valid single-input
     model fails at least one of the five tests in up to about 8 % of records; see
     ``linear_passed`` and ``nonlinear_passed`` for the two groups.  A plain "no lag outside
     the 95 % band" rule, as often read off plots, fails a perfect model in most records of 25 lags
@@ -89,6 +89,7 @@ from scipy import fft as sfft
 from scipy import signal, stats
 
 from ._json import jsonable
+from ._validate import integer, positive_int, positive_real
 from .data import IOData
 from .errors import DataError, ModelOrderError, check_finite
 
@@ -151,11 +152,7 @@ def _pair(y: Any, yhat: Any, what: str = "prediction") -> tuple[np.ndarray, np.n
 
 
 def _check_max_lag(max_lag: Any, n: int, what: str = "record") -> int:
-    if isinstance(max_lag, bool) or not isinstance(max_lag, (int, np.integer)):
-        raise DataError(f"max_lag must be an integer, got {max_lag!r}")
-    max_lag = int(max_lag)
-    if max_lag < 1:
-        raise DataError(f"max_lag must be at least 1, got {max_lag}")
+    max_lag = positive_int(max_lag, "max_lag", error=DataError)
     if n < 2 * max_lag + 2:
         raise DataError(
             f"{what} of {n} samples is too short for max_lag={max_lag}: correlation tests "
@@ -197,6 +194,16 @@ def format_fit(value: float | None) -> str:
     run gives -inf or a number with a hundred digits); ``"-"`` when missing (None or NaN).
 
     The one fit formatter of the summaries, the comparison tables and the command line.
+
+    Parameters
+    ----------
+    value : float or None
+        Fit in percent.
+
+    Returns
+    -------
+    str
+        The formatted fit.
     """
     if value is None or math.isnan(value):
         return "-"
@@ -204,13 +211,35 @@ def format_fit(value: float | None) -> str:
 
 
 def rmse(y: Any, yhat: Any) -> float:
-    """Root-mean-square error ``sqrt(mean((y - yhat)^2))``, in the units of ``y``."""
+    """Root-mean-square error ``sqrt(mean((y - yhat)^2))``, in the units of ``y``.
+
+    Parameters
+    ----------
+    y, yhat : array_like, shape (N,) or (N, n_y)
+        Measured and model outputs.
+
+    Returns
+    -------
+    float
+        The RMSE.
+    """
     y, yhat = _pair(y, yhat)
     return float(np.sqrt(np.mean((y - yhat) ** 2)))
 
 
 def error_range(y: Any, yhat: Any) -> tuple[float, float]:
-    """Smallest and largest modelling error ``y - yhat`` (the paper's "error range")."""
+    """Smallest and largest modelling error ``y - yhat`` (the paper's "error range").
+
+    Parameters
+    ----------
+    y, yhat : array_like, shape (N,)
+        Measured and model outputs.
+
+    Returns
+    -------
+    tuple of float
+        ``(min(y - yhat), max(y - yhat))``, in the units of ``y``.
+    """
     y, yhat = _pair(y, yhat)
     err = y - yhat
     return float(err.min()), float(err.max())
@@ -245,11 +274,9 @@ def xcorr(a: Any, b: Any, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
     if a.size != b.size:
         raise DataError(f"signals have different lengths: {a.size} and {b.size}")
     n = a.size
-    if isinstance(max_lag, bool) or not isinstance(max_lag, (int, np.integer)):
-        raise DataError(f"max_lag must be an integer, got {max_lag!r}")
-    max_lag = int(max_lag)
-    if not 0 <= max_lag <= n - 1:
-        raise DataError(f"max_lag must lie in 0..{n - 1} for {n} samples, got {max_lag}")
+    max_lag = integer(
+        max_lag, f"max_lag for {n} samples", error=DataError, minimum=0, maximum=n - 1
+    )
     a = a - a.mean()
     b = b - b.mean()
     lags = np.arange(-max_lag, max_lag + 1)
@@ -264,7 +291,20 @@ def xcorr(a: Any, b: Any, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def correlation_bound(n: int, confidence: float = CONFIDENCE) -> float:
-    """Half-width ``z / sqrt(n)`` of the band (``1.96/sqrt(n)`` at 95 %)."""
+    """Half-width ``z / sqrt(n)`` of the band (``1.96/sqrt(n)`` at 95 %).
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    confidence : float
+        Two-sided confidence level, in (0, 1).
+
+    Returns
+    -------
+    float
+        The half-width.
+    """
     z = stats.norm.ppf(0.5 + confidence / 2.0)
     return float(z / math.sqrt(n))
 
@@ -274,6 +314,20 @@ def max_outside_allowed(m: int, p: float = 1.0 - CONFIDENCE, level: float = PASS
 
     The ``1 - level`` quantile of ``Binomial(m, p)``: a white residual exceeds it in at most
     ``level`` of records (e.g. 4 of 25 lags, 6 of 51 at the defaults).
+
+    Parameters
+    ----------
+    m : int
+        Number of counted lags.
+    p : float
+        Probability of one lag outside the band (0.05 for the 95 % band).
+    level : float
+        Accepted rate of wrongly failed valid models.
+
+    Returns
+    -------
+    int
+        The allowed number of lags outside the band.
     """
     return int(stats.binom.ppf(1.0 - level, m, p))
 
@@ -339,7 +393,13 @@ class CorrelationTest:
         return float(vals.max()) if vals.size else 0.0
 
     def verdict(self) -> str:
-        """One line: ``"n of m lags outside the 95 % band (max allowed k): PASS"``."""
+        """One line: ``"n of m lags outside the 95 % band (max allowed k): PASS"``.
+
+        Returns
+        -------
+        str
+            The verdict line.
+        """
         if not self.applicable:
             return "n/a (a constant signal, e.g. u^2 of a binary input)"
         word = "PASS" if self.passed else "FAIL"
@@ -350,7 +410,18 @@ class CorrelationTest:
         )
 
     def to_dict(self, arrays: bool = False) -> dict[str, Any]:
-        """JSON-safe plain types; the correlation arrays only when ``arrays`` is true."""
+        """JSON-safe plain types; the correlation arrays only when ``arrays`` is true.
+
+        Parameters
+        ----------
+        arrays : bool
+            Include ``lags`` and ``values``.
+
+        Returns
+        -------
+        dict
+            The fields of the test.
+        """
         out: dict[str, Any] = {
             "name": self.name,
             "description": self.description,
@@ -397,6 +468,11 @@ def correlation_test(
         Formula or words for reports.
     applicable : bool
         False marks an uninformative test (a constant signal); it then passes.
+
+    Returns
+    -------
+    CorrelationTest
+        The verdict with the counts, the bounds and the correlation arrays.
     """
     lags = np.asarray(lags)
     values = np.asarray(values, dtype=float)
@@ -589,17 +665,14 @@ def psd(x: Any, dt: float, nperseg: int | None = None) -> tuple[np.ndarray, np.n
         One-sided PSD in ``units(x)^2 / Hz``.
     """
     x = _vector(x, "signal")
-    if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
-        raise DataError(f"sample time dt must be a positive finite number, got {dt!r}")
+    dt = positive_real(dt, "sample time dt", error=DataError, unit="s")
     n = x.size
     if n < 4:
         raise DataError(f"a PSD needs at least 4 samples, got {n}")
     if nperseg is None:
         nperseg = min(n, max(256, 2 ** math.floor(math.log2(max(n / 8, 1)))))
-    if isinstance(nperseg, bool) or not isinstance(nperseg, (int, np.integer)) or nperseg < 4:
-        raise DataError(f"nperseg must be an integer >= 4, got {nperseg!r}")
-    nperseg = min(int(nperseg), n)
-    f, p = signal.welch(x, fs=1.0 / float(dt), nperseg=nperseg, detrend="constant")
+    nperseg = min(integer(nperseg, "nperseg", error=DataError, minimum=4), n)
+    f, p = signal.welch(x, fs=1.0 / dt, nperseg=nperseg, detrend="constant")
     return f, p
 
 
@@ -654,7 +727,13 @@ class StabilityReport:
         return float(max(radii)) if radii else 0.0
 
     def table(self) -> str:
-        """Pole table: value, radius, damping and frequency, sorted by frequency."""
+        """Pole table: value, radius, damping and frequency, sorted by frequency.
+
+        Returns
+        -------
+        str
+            One line per pole, with a header.
+        """
         order = np.argsort(self.natural_frequency, kind="stable")
         lines = [f"{'pole':>26}  {'|z|':>8}  {'damping':>8}  {'f_n [Hz]':>10}"]
         for i in order:
@@ -666,7 +745,13 @@ class StabilityReport:
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe plain types (complex numbers as ``[re, im]``, inf as ``None``)."""
+        """JSON-safe plain types (complex numbers as ``[re, im]``, inf as ``None``).
+
+        Returns
+        -------
+        dict
+            The fields of the report.
+        """
         return {
             "dt": float(self.dt),
             "stable": bool(self.stable),
@@ -697,8 +782,7 @@ def stability_report(poles: Any, zeros: Any = (), dt: float = 1.0) -> StabilityR
     -------
     StabilityReport
     """
-    if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
-        raise DataError(f"sample time dt must be a positive finite number, got {dt!r}")
+    dt = positive_real(dt, "sample time dt", error=DataError, unit="s")
     p = np.atleast_1d(np.asarray(poles, dtype=complex))
     check_finite(p, "poles")
     if len(zeros) and np.ndim(zeros[0]) == 0:
@@ -828,7 +912,23 @@ class ValidationReport:
         return self.linear_passed and self.nonlinear_passed
 
     def test(self, name: str) -> CorrelationTest:
-        """The correlation test called ``name``."""
+        """The correlation test called ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A test name, e.g. ``"auto e"`` or ``"cross torque-e"`` (linear or nonlinear).
+
+        Returns
+        -------
+        CorrelationTest
+            The test.
+
+        Raises
+        ------
+        KeyError
+            If no test has that name (the message lists the known ones).
+        """
         for t in self.all_tests:
             if t.name == name:
                 return t
@@ -841,7 +941,15 @@ class ValidationReport:
         return self.y - self.y_one_step
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Signals and spectra for plots (all over ``t >= start``)."""
+        """Signals and spectra for plots (all over ``t >= start``).
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``time`` (s), ``u`` (N - start, n_u), ``y``, ``y_one_step``, ``y_simulation``,
+            ``residual_one_step``, ``error_simulation`` (each (N - start,), output units),
+            ``psd_frequency`` (F,) in Hz, ``psd_measured`` and ``psd_model`` (F,).
+        """
         return {
             "time": self.time,
             "u": self.u,
@@ -856,12 +964,32 @@ class ValidationReport:
         }
 
     def correlation_panels(self, nonlinear: bool = False) -> list[tuple]:
-        """``(title, lags, values, bound)`` per test, for :func:`flexid.plots.plot_correlations`."""
+        """The correlation functions as panels for :func:`flexid.plots.plot_correlations`.
+
+        Parameters
+        ----------
+        nonlinear : bool, optional
+            Include the Billings-Voon tests after the linear ones (default False).
+
+        Returns
+        -------
+        list of tuple
+            ``(title, lags, values, bound)`` per test: title ``"name: description"``,
+            ``lags`` (K,) in samples, ``values`` (K,) correlation coefficients and ``bound``
+            the half-width of the 95 % band.
+        """
         tests = self.all_tests if nonlinear else self.correlation_tests
         return [(f"{t.name}: {t.description}", t.lags, t.values, t.bound) for t in tests]
 
     def summary(self) -> str:
-        """A readable multi-line report for a terminal."""
+        """A readable multi-line report for a terminal.
+
+        Returns
+        -------
+        str
+            Fits, error RMSEs and ranges, each correlation test's verdict, stability and
+            spectral peaks.
+        """
         rule = self.initial_rule
         n_eval = self.n_samples - self.start
         lines = [
@@ -910,7 +1038,20 @@ class ValidationReport:
         return "\n".join(lines)
 
     def to_dict(self, arrays: bool = False) -> dict[str, Any]:
-        """JSON-safe plain types; signals, spectra and correlations only if ``arrays``."""
+        """The report in JSON-safe plain types.
+
+        Parameters
+        ----------
+        arrays : bool, optional
+            Also include the signals and spectra (:meth:`arrays`, as ``"arrays"``) and each
+            test's correlation function (default False).
+
+        Returns
+        -------
+        dict
+            The scalar results, the pass flags, the tests (``CorrelationTest.to_dict``),
+            ``stability`` and the channel names; non-finite simulation results are None.
+        """
         out: dict[str, Any] = {
             "n_samples": int(self.n_samples),
             "start": int(self.start),

@@ -2,7 +2,7 @@
 
 A uniform Euler-Bernoulli beam is clamped to a motor hub that rotates in the horizontal
 plane; the hub torque is the input.  The beam is discretised in space by the
-finite-difference method of lines (``plants.md`` section 1.6, Option A): degrees of freedom
+finite-difference method of lines: degrees of freedom
 ``q = [theta, y_1, ..., y_n]`` (hub angle and total transverse displacements of the ``n``
 nodes, ``y_0 = 0`` at the pivot), lumped masses, symmetric ``M`` and ``K``,
 
@@ -39,6 +39,7 @@ import scipy.linalg
 import scipy.optimize
 import scipy.signal
 
+from flexid._validate import integer, positive_int, real
 from flexid.errors import PlantParameterError, check_finite
 
 from . import sensors
@@ -84,28 +85,18 @@ higher modes damped like the last listed one (``BeamParameters(**IDEAL_SENSORS)`
 
 
 def _number(name: str, value, unit: str, *, strict: bool) -> float:
-    if isinstance(value, bool):
-        value = None
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise PlantParameterError(
-            f"beam parameter {name!r} must be a real number in {unit}, got {value!r}"
-        ) from None
-    ok = math.isfinite(value) and (value > 0.0 if strict else value >= 0.0)
-    if not ok:
-        rel = "> 0" if strict else ">= 0"
-        raise PlantParameterError(
-            f"beam parameter {name!r} must be finite and {rel} ({unit}), got {value!r}"
-        )
-    return value
+    """A beam parameter: a finite real number, > 0 if ``strict`` else >= 0."""
+    return real(
+        value, f"beam parameter {name!r}", error=PlantParameterError, minimum=0, low_open=strict,
+        unit=unit,
+    )
 
 
 @dataclass(frozen=True)
 class BeamParameters:
     """Physical parameters of the hub-beam system (SI units); immutable and hashable.
 
-    Defaults are the Sheffield rig values of the HBCSD paper (``plants.md`` section 1.1).
+    Defaults are the Sheffield rig values of the HBCSD paper.
 
     Parameters
     ----------
@@ -236,12 +227,11 @@ class BeamParameters:
                 f"[0, 1), got {self.damping_ratios!r}"
             )
         object.__setattr__(self, "damping_ratios", ratios)
-        n = self.n_sections
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 4 <= n <= 400:
-            raise PlantParameterError(
-                f"beam parameter 'n_sections' must be an integer in [4, 400], got {n!r}"
-            )
-        object.__setattr__(self, "n_sections", int(n))
+        n = integer(
+            self.n_sections, "beam parameter 'n_sections'", error=PlantParameterError,
+            minimum=4, maximum=400,
+        )
+        object.__setattr__(self, "n_sections", n)
         self._check_chain()
 
     def _check_chain(self) -> None:
@@ -263,22 +253,16 @@ class BeamParameters:
                     f"frequency), got {frac!r}"
                 )
             object.__setattr__(self, "anti_alias_fraction", frac)
-        order = self.anti_alias_order
-        if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not (
-            1 <= order <= 8
-        ):
-            raise PlantParameterError(
-                f"beam parameter 'anti_alias_order' must be an integer in [1, 8], got {order!r}"
-            )
-        object.__setattr__(self, "anti_alias_order", int(order))
-        counts = self.encoder_counts
-        if counts is not None:
-            if isinstance(counts, bool) or not isinstance(counts, (int, np.integer)) or counts < 1:
-                raise PlantParameterError(
-                    "beam parameter 'encoder_counts' must be a positive integer (counts per "
-                    f"revolution) or None, got {counts!r}"
-                )
-            object.__setattr__(self, "encoder_counts", int(counts))
+        order = integer(
+            self.anti_alias_order, "beam parameter 'anti_alias_order'",
+            error=PlantParameterError, minimum=1, maximum=8,
+        )
+        object.__setattr__(self, "anti_alias_order", order)
+        counts = integer(
+            self.encoder_counts, "beam parameter 'encoder_counts' (counts per revolution)",
+            error=PlantParameterError, minimum=1, none_ok=True,
+        )
+        object.__setattr__(self, "encoder_counts", counts)
         object.__setattr__(
             self,
             "tachometer_noise",
@@ -342,14 +326,44 @@ class BeamParameters:
         return self.hub_coulomb_friction == 0.0
 
     def replace(self, **changes) -> BeamParameters:
-        """Return a copy with some parameters changed (validated)."""
+        """A copy with some parameters changed.
+
+        Parameters
+        ----------
+        **changes
+            New values of fields (SI units, as in the class), validated as in the
+            constructor.
+
+        Returns
+        -------
+        BeamParameters
+            The new parameters.
+
+        Raises
+        ------
+        PlantParameterError
+            If a new value is invalid.
+        TypeError
+            For a name that is not a field.
+        """
         return dataclasses.replace(self, **changes)
 
     def damping_ratio(self, mode: int, omega: np.ndarray | None = None) -> float:
-        """Damping ratio of flexible mode ``mode`` (1-based).
+        """Damping ratio of one flexible mode.
 
-        ``omega``: the modal frequencies (rad/s, rigid mode first) when the caller has them;
-        the ``"stiffness"`` law needs them beyond ``damping_ratios``.
+        Parameters
+        ----------
+        mode : int
+            Flexible mode number, 1-based (the rigid-body mode is not counted).
+        omega : ndarray, shape (n_sections + 1,), optional
+            Undamped modal frequencies [rad/s], rigid mode first, when the caller has them;
+            the ``"stiffness"`` law needs them beyond ``damping_ratios`` (computed here
+            when omitted).
+
+        Returns
+        -------
+        float
+            The ratio ``zeta``: listed in ``damping_ratios``, else by ``damping_law``.
         """
         listed = len(self.damping_ratios)
         if mode <= listed or self.damping_law == "constant":
@@ -370,13 +384,10 @@ def _params(params: BeamParameters | None) -> BeamParameters:
 
 
 def _check_dt(dt: float) -> float:
-    try:
-        dt = float(dt)
-    except (TypeError, ValueError):
-        raise PlantParameterError(f"sample time 'dt' must be a number in s, got {dt!r}") from None
-    if not (math.isfinite(dt) and 0.0 < dt <= 0.1):
-        raise PlantParameterError(f"sample time 'dt' must be in (0, 0.1] s, got {dt!r}")
-    return dt
+    return real(
+        dt, "sample time 'dt'", error=PlantParameterError, minimum=0, maximum=0.1, low_open=True,
+        unit="s",
+    )
 
 
 # ---- exact continuous solution ----------------------------------------------------------
@@ -419,8 +430,8 @@ def exact_frequencies(params: BeamParameters | None = None, n_modes: int = 3) ->
     """Exact natural frequencies of the continuous hub-beam (Euler-Bernoulli).
 
     Roots ``lambda = beta l`` of the 4 x 4 characteristic determinant of the boundary
-    conditions of ``plants.md`` section 1.2 (pinned at the hub with hub inertia, free end
-    with payload mass and rotary inertia), bracketed by sign changes on a grid of step
+    conditions (pinned at the hub with hub inertia, free end with payload mass and rotary
+    inertia), bracketed by sign changes on a grid of step
     0.005 and refined with Brent's method; ``f = lambda^2 sqrt(EI / (rho A l^4)) / (2 pi)``.
     The rigid-body mode (0 Hz) is not returned.  Damping and friction are ignored.
 
@@ -437,8 +448,7 @@ def exact_frequencies(params: BeamParameters | None = None, n_modes: int = 3) ->
         Frequencies [Hz], ascending.
     """
     p = _params(params)
-    if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
-        raise PlantParameterError(f"n_modes must be an integer >= 1, got {n_modes!r}")
+    n_modes = positive_int(n_modes, "n_modes", error=PlantParameterError)
     rho_a, ell = p.mass_per_length, p.length
     mu_h = p.hub_inertia / (rho_a * ell**3)
     mu_p = p.payload_mass / (rho_a * ell)
@@ -465,7 +475,18 @@ def exact_frequencies(params: BeamParameters | None = None, n_modes: int = 3) ->
 
 # ---- finite-difference model ------------------------------------------------------------
 def node_positions(params: BeamParameters | None = None) -> np.ndarray:
-    """Positions x_i = i l / n of the nodes 0..n along the beam [m], shape (n + 1,)."""
+    """Positions of the finite-difference nodes along the beam.
+
+    Parameters
+    ----------
+    params : BeamParameters, optional
+        The beam (default: the rig's :class:`BeamParameters`).
+
+    Returns
+    -------
+    ndarray, shape (n + 1,)
+        ``x_i = i l / n`` [m] for the nodes ``i = 0..n`` (``n = n_sections``), hub first.
+    """
     p = _params(params)
     return np.linspace(0.0, p.length, p.n_sections + 1)
 
@@ -542,20 +563,33 @@ def _modes(p: BeamParameters) -> tuple[np.ndarray, np.ndarray]:
 
 
 def natural_frequencies(params: BeamParameters | None = None, n_modes: int = 3) -> np.ndarray:
-    """Undamped natural frequencies of the finite-difference model [Hz], shape (n_modes,).
+    """Undamped natural frequencies of the finite-difference model.
 
     From the generalised eigenproblem ``K phi = omega^2 M phi``; the rigid-body mode (0 Hz)
-    is skipped.  ``n_modes`` is at most ``n_sections``.
+    is skipped.
+
+    Parameters
+    ----------
+    params : BeamParameters, optional
+        The beam (default: the rig's :class:`BeamParameters`).
+    n_modes : int, optional
+        Number of flexible modes, in ``[1, n_sections]`` (default 3).
+
+    Returns
+    -------
+    ndarray, shape (n_modes,)
+        Frequencies [Hz] in increasing order.
+
+    Raises
+    ------
+    PlantParameterError
+        If ``n_modes`` is out of range.
     """
     p = _params(params)
-    if (
-        isinstance(n_modes, bool)
-        or not isinstance(n_modes, (int, np.integer))
-        or not 1 <= n_modes <= p.n_sections
-    ):
-        raise PlantParameterError(
-            f"n_modes must be an integer in [1, n_sections={p.n_sections}], got {n_modes!r}"
-        )
+    n_modes = integer(
+        n_modes, "n_modes (at most n_sections)", error=PlantParameterError, minimum=1,
+        maximum=p.n_sections,
+    )
     omega, _ = _modes(p)
     return omega[1 : 1 + n_modes] / (2.0 * math.pi)
 
@@ -636,6 +670,13 @@ def measured_model(
     The state is ``[q; q'; actuator; filters]``.  With ideal sensors this is
     :func:`continuous_model`.
 
+    Parameters
+    ----------
+    params : BeamParameters, optional
+        The beam and its chain (default: the rig's :class:`BeamParameters`).
+    dt : float, optional
+        Sample time [s] the model will be sampled at (default 1e-3).
+
     Returns
     -------
     A : ndarray, shape (n_x, n_x)
@@ -650,11 +691,23 @@ def measured_model(
 
 
 def measure(y: np.ndarray, params: BeamParameters | None = None) -> np.ndarray:
-    """Read sampled outputs (..., 4) through the digital sensors: the encoder's steps.
+    """Read sampled outputs through the digital sensors: the encoder's steps.
 
     The hub angle (column 0) is rounded to multiples of :attr:`BeamParameters.encoder_step`;
     the other columns are returned unchanged (their chain is in :func:`measured_model`, the
-    tachometer's noise in :func:`noise_floor`).  A copy; ``y`` itself is not changed.
+    tachometer's noise in :func:`noise_floor`).
+
+    Parameters
+    ----------
+    y : ndarray, shape (..., 4)
+        Sampled outputs in :data:`OUTPUT_NAMES` order and :data:`OUTPUT_UNITS`.
+    params : BeamParameters, optional
+        The beam (default: the rig's :class:`BeamParameters`).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        The measured outputs (a copy; ``y`` itself is not changed).
     """
     p = _params(params)
     y = np.array(y, dtype=float)
@@ -664,7 +717,19 @@ def measure(y: np.ndarray, params: BeamParameters | None = None) -> np.ndarray:
 
 
 def noise_floor(params: BeamParameters | None = None) -> np.ndarray:
-    """Standard deviation of each output's own sensor noise, shape (4,), output units."""
+    """Standard deviation of each output's own sensor noise.
+
+    Parameters
+    ----------
+    params : BeamParameters, optional
+        The beam (default: the rig's :class:`BeamParameters`).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        In :data:`OUTPUT_UNITS`: only the hub velocity has one (``tachometer_noise``
+        [rad/s]); the others are 0.
+    """
     p = _params(params)
     return np.array([0.0, p.tachometer_noise, 0.0, 0.0])
 
@@ -675,7 +740,13 @@ def continuous_model(
     """Continuous-time state space ``x' = A x + B tau``, ``y = C x + D tau``.
 
     The state is ``x = [q; q']`` with ``q = [theta, y_1, ..., y_n]`` (rad, m; rad/s, m/s).
-    Coulomb friction (if any) is not included.
+    Coulomb friction (if any) is not included, nor is the measurement and actuation chain
+    (see :func:`measured_model`).
+
+    Parameters
+    ----------
+    params : BeamParameters, optional
+        The beam (default: the rig's :class:`BeamParameters`).
 
     Returns
     -------
@@ -692,6 +763,13 @@ class BeamModel:
     """Exact zero-order-hold discretisation of the beam model at one sample time.
 
     Obtain it from :func:`discrete_model` (cached).  The matrices are read-only.
+
+    Parameters
+    ----------
+    params : BeamParameters
+        The beam and its measurement and actuation chain.
+    dt : float
+        Sample time [s], > 0 (not checked here; :func:`discrete_model` checks it).
 
     Attributes
     ----------
@@ -1033,14 +1111,40 @@ class Stepper:
         return self.model.n_states
 
     def friction(self, x: np.ndarray) -> np.ndarray:
-        """Hub friction torque [N m] opposing the motion for states ``x`` (..., n_x)."""
+        """Hub Coulomb friction torque opposing the motion.
+
+        Parameters
+        ----------
+        x : ndarray, shape (..., n_x)
+            States.
+
+        Returns
+        -------
+        ndarray, shape (...)
+            ``tau_c tanh(theta' / coulomb_velocity)`` [N m] (zeros for a linear plant).
+        """
         p = self.params
         if p.is_linear:
             return np.zeros(x.shape[:-1])
         return p.hub_coulomb_friction * np.tanh(x[..., self._vel] / p.coulomb_velocity)
 
     def outputs(self, x: np.ndarray, tau=0.0) -> np.ndarray:
-        """Outputs ``C x + D (tau - friction)`` for states (..., n_x) -> (..., 4)."""
+        """Outputs ``C x + D (tau - friction)`` of states.
+
+        Parameters
+        ----------
+        x : ndarray, shape (..., n_x)
+            States.
+        tau : float or ndarray, shape (...), optional
+            Commanded torque [N m] at the same samples (default 0); it matters only when
+            the output has a direct feed-through (the tip acceleration).
+
+        Returns
+        -------
+        ndarray, shape (..., 4)
+            Outputs in :data:`OUTPUT_NAMES` order and :data:`OUTPUT_UNITS`, before the
+            encoder's steps (:func:`measure`).
+        """
         y = x @ self._c_t
         if self._has_d:
             if self._split:

@@ -19,13 +19,17 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
+from flexid._validate import integer, positive_int, real
 from flexid.envs import beam, sensors
 from flexid.envs._render import Canvas
 from flexid.errors import ActionError, PlantParameterError
+from flexid.plants import Plant, get_plant
 
-__all__ = ["OBSERVATION_NAMES", "FlexibleManipulatorEnv", "FlexibleManipulatorVectorEnv"]
+__all__ = ["OBSERVATION_NAMES", "PLANT", "FlexibleManipulatorEnv", "FlexibleManipulatorVectorEnv"]
 
-OBSERVATION_NAMES: tuple[str, ...] = (*beam.OUTPUT_NAMES, "target_angle")
+PLANT: Plant = get_plant("manipulator")
+"""The registry's record of the plant (names and units of its input and outputs)."""
+OBSERVATION_NAMES: tuple[str, ...] = (*PLANT.output_names, "target_angle")
 """Names of the observation entries, in order."""
 
 _BEAM_FIELDS = tuple(f.name for f in dataclasses.fields(beam.BeamParameters))
@@ -34,17 +38,9 @@ _NOISE_CHUNK = 64  # steps of measurement noise drawn at once per environment
 
 
 def _real(name: str, value, lo: float, hi: float, *, lo_open: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise PlantParameterError(f"{name!r} must be a real number, got {value!r}") from None
-    ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) and v <= hi
-    if not ok:
-        left = "(" if lo_open else "["
-        raise PlantParameterError(
-            f"{name!r} must be finite and in {left}{lo}, {hi}], got {value!r}"
-        )
-    return v
+    return real(
+        value, repr(name), error=PlantParameterError, minimum=lo, maximum=hi, low_open=lo_open
+    )
 
 
 class _Config:
@@ -303,6 +299,7 @@ class FlexibleManipulatorEnv(gymnasium.Env):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
+    plant: ClassVar[Plant] = PLANT
 
     def __init__(
         self,
@@ -343,7 +340,30 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         return obs
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Start an episode at rest at theta = 0; see the class docstring for ``options``."""
+        """Start an episode at rest at theta = 0.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the environment's generator (measurement noise, random targets); None
+            keeps the current generator.
+        options : dict, optional
+            ``{"target_angle": theta_ref}`` (rad, within ``angle_limit``) or
+            ``{"random_target": True}`` (uniform in ``[-target_range, target_range]``);
+            default: the constructor's ``target_angle``.
+
+        Returns
+        -------
+        observation : ndarray, shape (5,)
+            ``[theta, theta', w(l), y''(l), theta_ref]`` as in the class docstring.
+        info : dict
+            ``outputs`` (noise-free outputs, shape (4,)) and ``target_angle`` [rad].
+
+        Raises
+        ------
+        PlantParameterError
+            For an unknown option or a target outside ``[-angle_limit, angle_limit]``.
+        """
         super().reset(seed=seed)
         if seed is not None:
             self._noise = _NoiseStream()
@@ -353,7 +373,32 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         return self._observe(y), {"outputs": y, "target_angle": self.target}
 
     def step(self, action):
-        """Apply a hub torque for one sample time; returns the Gymnasium 5-tuple."""
+        """Apply a hub torque for one sample time.
+
+        Parameters
+        ----------
+        action : array_like, shape (1,) or ()
+            Hub torque [N m]; finite values outside ``[-tau_max, tau_max]`` are clipped.
+
+        Returns
+        -------
+        observation : ndarray, shape (5,)
+            As in :meth:`reset`.
+        reward : float
+            The class docstring's reward, from the noise-free outputs after the step.
+        terminated : bool
+            ``|theta| > angle_limit``.
+        truncated : bool
+            Always False (truncation comes from the registration's ``max_episode_steps``).
+        info : dict
+            ``applied_torque`` [N m], ``clipped``, ``outputs`` (shape (4,)) and
+            ``target_angle`` [rad].
+
+        Raises
+        ------
+        ActionError
+            For a NaN or infinite action or one of the wrong shape.
+        """
         tau, clipped = self._cfg.check_action(action, None)
         self.state = self._cfg.advance(self.state, tau)
         y = self._cfg.outputs(self.state)
@@ -367,7 +412,13 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         return self._observe(y), float(reward), bool(terminated), False, info
 
     def render(self):
-        """Return the current frame (rgb_array mode) or None."""
+        """The current frame, in ``"rgb_array"`` render mode.
+
+        Returns
+        -------
+        ndarray of uint8, shape (500, 500, 3), or None
+            Top view of the hub and the deflected beam; None when ``render_mode`` is None.
+        """
         if self.render_mode == "rgb_array":
             return _render_frame(self._cfg, self.state, self.target)
         return None
@@ -409,6 +460,7 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
         "render_fps": 50,
         "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP,
     }
+    plant: ClassVar[Plant] = PLANT
 
     def __init__(
         self,
@@ -427,20 +479,11 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
         torque_weight: float = 0.01,
         **physics,
     ):
-        if (
-            isinstance(num_envs, bool)
-            or not isinstance(num_envs, (int, np.integer))
-            or num_envs < 1
-        ):
-            raise PlantParameterError(f"'num_envs' must be an integer >= 1, got {num_envs!r}")
-        if max_episode_steps is not None and (
-            isinstance(max_episode_steps, bool)
-            or not isinstance(max_episode_steps, (int, np.integer))
-            or max_episode_steps < 1
-        ):
-            raise PlantParameterError(
-                f"'max_episode_steps' must be None or an integer >= 1, got {max_episode_steps!r}"
-            )
+        num_envs = positive_int(num_envs, "'num_envs'", error=PlantParameterError)
+        max_episode_steps = integer(
+            max_episode_steps, "'max_episode_steps'", error=PlantParameterError, minimum=1,
+            none_ok=True,
+        )
         _check_physics(physics)
         self._cfg = _Config(
             dt, tau_max, noise_std, target_angle, target_range, angle_limit,
@@ -480,7 +523,28 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
         return obs
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
-        """Reset all sub-environments; sub-environment ``i`` gets seed ``seed + i``."""
+        """Reset all sub-environments.
+
+        Parameters
+        ----------
+        seed : int or list of int, optional
+            An int ``s`` seeds sub-environment ``i`` with ``s + i``; a list gives one seed
+            per sub-environment.  None keeps the current generators.
+        options : dict, optional
+            As in :meth:`FlexibleManipulatorEnv.reset`; also used by later autoresets.
+
+        Returns
+        -------
+        observations : ndarray, shape (num_envs, 5)
+            One observation row per sub-environment.
+        infos : dict
+            ``outputs`` (num_envs, 4), noise-free, and ``target_angle`` (num_envs,) [rad].
+
+        Raises
+        ------
+        PlantParameterError
+            For a list of seeds of the wrong length or an invalid option.
+        """
         if seed is not None:
             if isinstance(seed, (int, np.integer)):
                 seeds = [int(seed) + i for i in range(self.num_envs)]
@@ -503,7 +567,33 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
         return self._observe(y), {"outputs": y, "target_angle": self.targets.copy()}
 
     def step(self, actions):
-        """Step all sub-environments with actions of shape (num_envs, 1)."""
+        """Step all sub-environments by one sample time.
+
+        Parameters
+        ----------
+        actions : array_like, shape (num_envs, 1) or (num_envs,)
+            Hub torques [N m]; finite values outside ``[-tau_max, tau_max]`` are clipped.
+            The action of a sub-environment being autoreset is ignored.
+
+        Returns
+        -------
+        observations : ndarray, shape (num_envs, 5)
+            One observation row per sub-environment.
+        rewards : ndarray, shape (num_envs,)
+            Rewards (0 for a sub-environment being autoreset).
+        terminated : ndarray of bool, shape (num_envs,)
+            ``|theta| > angle_limit``.
+        truncated : ndarray of bool, shape (num_envs,)
+            The episode reached ``max_episode_steps``.
+        infos : dict
+            ``applied_torque`` (num_envs,) [N m], ``clipped`` (num_envs,) and ``outputs``
+            (num_envs, 4), noise-free.
+
+        Raises
+        ------
+        ActionError
+            For NaN or infinite actions or actions of the wrong shape.
+        """
         tau, clipped = self._cfg.check_action(actions, self.num_envs)
         done = self.prev_done
         tau = np.where(done, 0.0, tau)
@@ -527,7 +617,14 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
         return self._observe(y), reward, terminated, truncated, infos
 
     def render(self):
-        """Return a tuple of frames, one per sub-environment (rgb_array mode), or None."""
+        """The current frames, in ``"rgb_array"`` render mode.
+
+        Returns
+        -------
+        tuple of ndarray, or None
+            One (500, 500, 3) uint8 frame per sub-environment; None when ``render_mode`` is
+            None.
+        """
         if self.render_mode == "rgb_array":
             return tuple(
                 _render_frame(self._cfg, self.state[i], float(self.targets[i]))
@@ -536,4 +633,16 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
         return None
 
 
-FlexibleManipulatorVectorEnv.__doc__ = (FlexibleManipulatorVectorEnv.__doc__ or "") + _DOC_KWARGS
+# the vector environment takes the same keywords plus its own two, listed first
+FlexibleManipulatorVectorEnv.__doc__ = (FlexibleManipulatorVectorEnv.__doc__ or "") + (
+    _DOC_KWARGS.replace(
+        "    ----------\n",
+        "    ----------\n"
+        "    num_envs : int\n"
+        "        Number of sub-environments, >= 1; default 1.\n"
+        "    max_episode_steps : int or None\n"
+        "        Steps after which a sub-environment is truncated, >= 1; default 2000 (as the\n"
+        "        registration); None: never.\n",
+        1,
+    )
+)

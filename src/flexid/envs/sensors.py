@@ -17,6 +17,7 @@ import math
 import numpy as np
 import scipy.signal
 
+from flexid._validate import integer, positive_real
 from flexid.errors import PlantParameterError
 
 __all__ = [
@@ -35,11 +36,7 @@ StateSpace = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def _corner(name: str, hz: float) -> float:
-    if isinstance(hz, bool) or not isinstance(hz, (int, float, np.floating, np.integer)):
-        raise PlantParameterError(f"{name} must be a frequency in Hz, got {hz!r}")
-    if not (math.isfinite(hz) and hz > 0):
-        raise PlantParameterError(f"{name} must be a finite frequency > 0 Hz, got {hz!r}")
-    return 2.0 * math.pi * float(hz)
+    return 2.0 * math.pi * positive_real(hz, name, error=PlantParameterError, unit="Hz")
 
 
 def first_order_lag(bandwidth: float) -> StateSpace:
@@ -50,7 +47,17 @@ def first_order_lag(bandwidth: float) -> StateSpace:
     Parameters
     ----------
     bandwidth : float
-        -3 dB frequency [Hz].
+        -3 dB frequency [Hz], > 0.
+
+    Returns
+    -------
+    StateSpace
+        ``(A, B, C, D)`` with one state, shapes (1, 1) each.
+
+    Raises
+    ------
+    PlantParameterError
+        If ``bandwidth`` is not a positive finite number.
     """
     w = _corner("actuator bandwidth", bandwidth)
     return (np.array([[-w]]), np.array([[w]]), np.array([[1.0]]), np.zeros((1, 1)))
@@ -65,9 +72,20 @@ def second_order_lowpass(bandwidth: float, zeta: float = math.sqrt(0.5)) -> Stat
     Parameters
     ----------
     bandwidth : float
-        Natural frequency [Hz].
+        Natural frequency [Hz], > 0.
     zeta : float
-        Damping ratio, > 0.
+        Damping ratio, > 0 (not checked).
+
+    Returns
+    -------
+    StateSpace
+        ``(A, B, C, D)`` with two states (position, rate), shapes (2, 2), (2, 1), (1, 2),
+        (1, 1).
+
+    Raises
+    ------
+    PlantParameterError
+        If ``bandwidth`` is not a positive finite number.
     """
     w = _corner("sensor bandwidth", bandwidth)
     a = np.array([[0.0, 1.0], [-w * w, -2.0 * zeta * w]])
@@ -79,13 +97,29 @@ def butterworth(order: int, cutoff: float) -> StateSpace:
 
     Realised as a cascade of first- and second-order sections (real state space, no
     polynomial of high degree), unit gain at DC.
+
+    Parameters
+    ----------
+    order : int
+        Filter order, in [1, 8].
+    cutoff : float
+        -3 dB frequency [Hz], > 0.
+
+    Returns
+    -------
+    StateSpace
+        ``(A, B, C, D)`` with ``order`` states, single input and output.
+
+    Raises
+    ------
+    PlantParameterError
+        If ``order`` or ``cutoff`` is out of range.
     """
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 8:
-        raise PlantParameterError(
-            f"anti-alias filter order must be an integer in [1, 8], got {order!r}"
-        )
+    order = integer(
+        order, "anti-alias filter order", error=PlantParameterError, minimum=1, maximum=8
+    )
     w = _corner("anti-alias cutoff", cutoff)
-    _, poles, _ = scipy.signal.buttap(int(order))
+    _, poles, _ = scipy.signal.buttap(order)
     sections: list[StateSpace] = []
     for p in poles:
         if p.imag > 1e-12:
@@ -100,7 +134,21 @@ def butterworth(order: int, cutoff: float) -> StateSpace:
 
 
 def series(first: StateSpace, second: StateSpace) -> StateSpace:
-    """``second`` driven by the output of ``first``; the state is ``[x_first; x_second]``."""
+    """Two systems in series: ``second`` driven by the output of ``first``.
+
+    Parameters
+    ----------
+    first : StateSpace
+        The first system, ``n1`` states, ``m`` inputs, ``p1`` outputs.
+    second : StateSpace
+        The second system, ``n2`` states, ``p1`` inputs, ``p`` outputs.
+
+    Returns
+    -------
+    StateSpace
+        ``(A, B, C, D)`` from the inputs of ``first`` to the outputs of ``second``; the
+        state is ``[x_first; x_second]`` (``n1 + n2`` states).
+    """
     a1, b1, c1, d1 = first
     a2, b2, c2, d2 = second
     n1, n2 = a1.shape[0], a2.shape[0]
@@ -114,9 +162,21 @@ def series(first: StateSpace, second: StateSpace) -> StateSpace:
 
 
 def total_noise(std: np.ndarray, floor: np.ndarray) -> np.ndarray:
-    """Standard deviations of added noise ``std`` and a sensor's own ``floor``, independent.
+    """Standard deviation of added noise and a sensor's own noise, independent.
 
     Added in quadrature; where the floor is 0 the result is ``std`` itself, bit for bit.
+
+    Parameters
+    ----------
+    std : ndarray, shape (p,)
+        Standard deviation of the added measurement noise per output (output units).
+    floor : ndarray, shape (p,)
+        Standard deviation of each sensor's own noise (output units, >= 0).
+
+    Returns
+    -------
+    ndarray, shape (p,)
+        ``sqrt(std^2 + floor^2)`` where ``floor > 0``, else ``std``.
     """
     return np.where(floor > 0, np.hypot(std, floor), std)
 
@@ -125,6 +185,18 @@ def quantise(x: np.ndarray, step: float) -> np.ndarray:
     """Round to the nearest multiple of ``step`` (an encoder's count times its resolution).
 
     Mid-tread: zero stays zero, and the error is within ``+-step/2``.
+
+    Parameters
+    ----------
+    x : array_like
+        Values to quantise (any shape, e.g. angles in rad).
+    step : float
+        Resolution, > 0, in the units of ``x``.
+
+    Returns
+    -------
+    ndarray
+        ``round(x / step) * step``, same shape as ``x`` (halves round to even).
     """
     return np.round(np.asarray(x, dtype=float) / step) * step
 
@@ -134,6 +206,19 @@ def filter_outputs(system: StateSpace, filters: list[StateSpace | None]) -> Stat
 
     The state is ``[x_system; x_filter_0; x_filter_1; ...]`` (filters in output order), so the
     system's own states keep their indices.
+
+    Parameters
+    ----------
+    system : StateSpace
+        The system, ``n`` states, ``m`` inputs, ``p`` outputs.
+    filters : list of StateSpace or None
+        One entry per output (``p``): a single-input, single-output filter, or None.
+
+    Returns
+    -------
+    StateSpace
+        ``(A, B, C, D)`` with ``m`` inputs, ``p`` outputs and ``n`` plus the filters'
+        states.
     """
     a, b, c, d = system
     n_sys = a.shape[0]

@@ -22,12 +22,27 @@ from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
 from ..errors import ActionError, PlantParameterError
+from ..plants import Plant, get_plant
 from . import sensors
 from .twin_rotor_physics import TwinRotorParameters, batch_stepper, scalar_stepper
 
-__all__ = ["TwinRotorEnv", "TwinRotorVectorEnv"]
+__all__ = [
+    "ACTION_NAMES",
+    "OBSERVATION_NAMES",
+    "OBSERVATION_UNITS",
+    "PLANT",
+    "TwinRotorEnv",
+    "TwinRotorVectorEnv",
+]
 
 _FIELDS = tuple(f.name for f in fields(TwinRotorParameters))
+
+PLANT: Plant = get_plant("twin-rotor")
+"""The registry's record of the plant: the names and units below come from it."""
+OBSERVATION_NAMES: tuple[str, ...] = (*PLANT.output_names, "pitch_setpoint", "yaw_setpoint")
+OBSERVATION_UNITS: tuple[str, ...] = (*PLANT.output_units, "rad", "rad")
+ACTION_NAMES: tuple[str, ...] = PLANT.input_names
+"""The rotors driven by the two action entries (voltages normalised by ``u_max``)."""
 
 
 class _Config:
@@ -80,6 +95,15 @@ class _Config:
         return np.clip(a, -1.0, 1.0) * self.u_max
 
 
+def _in_counts(angle: float, step: float) -> float:
+    """:func:`~flexid.envs.sensors.quantise` of one float, in Python (a NumPy call on two
+    numbers costs more than the rest of a step); the same rounding, halves to even."""
+    try:
+        return round(angle / step) * step
+    except (ValueError, OverflowError):  # nan and inf pass through, as they do in NumPy
+        return angle
+
+
 _DOC = """
     Parameters
     ----------
@@ -97,15 +121,18 @@ _DOC = """
     **physics
         Any :class:`TwinRotorParameters` field, e.g. ``lock_yaw=True``, ``Kgy=0.05``.
 
-    Observation (float64, shape (6,)): pitch, yaw (rad), pitch rate, yaw rate (rad/s), then the
-    pitch and yaw set points.  Pitch and yaw are read in the encoders' steps
-    (``encoder_counts``; ``encoder_counts=None`` reads them exactly).  Action (float64,
-    shape (2,)): main and tail rotor voltages normalised to ``[-1, 1]`` (times ``u_max`` =
-    2.5 V); finite out-of-range actions are clipped to the box (the applied voltages are in
+    Observation (float64, shape (6,)): {observation}: the plant's outputs, then the pitch and
+    yaw set points.  Pitch and yaw are read in the encoders' steps (``encoder_counts``;
+    ``encoder_counts=None`` reads them exactly).  Action (float64, shape (2,)): {action}
+    normalised to ``[-1, 1]`` (times ``u_max`` = 2.5 V); finite out-of-range actions are
+    clipped to the box (the applied voltages are in
     ``info["applied_voltage"]``), non-finite actions raise
     :class:`~flexid.errors.ActionError`.  Reward: ``-((pitch - pitch_ref)^2 + (yaw -
     yaw_ref)^2 + control_weight |u / u_max|^2)`` from the noise-free state.
-"""
+""".replace(
+    "{observation}",
+    ", ".join(f"{n} ({u})" for n, u in zip(OBSERVATION_NAMES, OBSERVATION_UNITS)),
+).replace("{action}", ", ".join(f"{n} ({u})" for n, u in zip(ACTION_NAMES, PLANT.input_units)))
 
 
 class TwinRotorEnv(gymnasium.Env):
@@ -116,6 +143,7 @@ class TwinRotorEnv(gymnasium.Env):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
+    plant: ClassVar[Plant] = PLANT
 
     def __init__(
         self,
@@ -152,9 +180,10 @@ class TwinRotorEnv(gymnasium.Env):
 
     def _observe(self, psi: float, dpsi: float, phi: float, dphi: float) -> np.ndarray:
         cfg = self._cfg
+        step = cfg.encoder_step
+        if step:
+            psi, phi = _in_counts(psi, step), _in_counts(phi, step)
         obs = np.array((psi, phi, dpsi, dphi, cfg.pitch_ref, cfg.yaw_ref))
-        if cfg.encoder_step:
-            obs[:2] = sensors.quantise(obs[:2], cfg.encoder_step)
         if cfg.noisy:
             obs[:4] += self.np_random.standard_normal(4) * cfg.noise
         return obs
@@ -228,6 +257,7 @@ class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
         "render_fps": 10,
         "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP,
     }
+    plant: ClassVar[Plant] = PLANT
 
     def __init__(
         self,

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
+from .._validate import positive_int, real
 from ..errors import BudgetError
 
 __all__ = ["Budget"]
@@ -46,27 +44,38 @@ class Budget:
         for name in ("max_fe", "max_iter"):
             value = getattr(self, name)
             if value is not None:
-                if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-                    raise BudgetError(f"{name} must be a positive integer, got {value!r}")
-                if value < 1:
-                    raise BudgetError(f"{name} must be a positive integer, got {value!r}")
-                object.__setattr__(self, name, int(value))
-        if self.max_time is not None and not (
-            isinstance(self.max_time, (int, float)) and self.max_time > 0
-        ):
-            raise BudgetError(
-                f"max_time must be a positive number of seconds, got {self.max_time!r}"
-            )
-        if self.target is not None and not (
-            isinstance(self.target, (int, float)) and not math.isnan(self.target)
-        ):
-            raise BudgetError(f"target must be a number, got {self.target!r}")
+                object.__setattr__(self, name, positive_int(value, name, error=BudgetError))
+        # an infinite max_time or target is no limit: allowed, but NaN is never a limit
+        max_time = real(
+            self.max_time, "max_time", error=BudgetError, minimum=0, low_open=True,
+            allow_inf=True, none_ok=True, unit="s",
+        )
+        object.__setattr__(self, "max_time", max_time)
+        target = real(self.target, "target", error=BudgetError, allow_inf=True, none_ok=True)
+        object.__setattr__(self, "target", target)
         if self.max_fe is None and self.max_iter is None and self.max_time is None:
             raise BudgetError("a budget needs max_fe, max_iter or max_time")
 
     @classmethod
     def coerce(cls, budget: Budget | int | Mapping[str, Any] | None) -> Budget:
-        """Accept a :class:`Budget`, an FE count, or a mapping of its fields."""
+        """Make a :class:`Budget` from any of the accepted spellings.
+
+        Parameters
+        ----------
+        budget : Budget, int or mapping
+            A Budget (returned as is), a maximum number of function evaluations, or a
+            mapping of Budget fields (``max_fe``, ``max_iter``, ``target``, ``max_time`` in s).
+
+        Returns
+        -------
+        Budget
+            The budget.
+
+        Raises
+        ------
+        BudgetError
+            If ``budget`` is None, a mapping has unknown fields, or the values are invalid.
+        """
         if isinstance(budget, Budget):
             return budget
         if budget is None:

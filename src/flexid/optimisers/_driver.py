@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import OptimizeResult
 
+from .._validate import integer
 from ..errors import OptimiserError
 from ._budget import Budget
 from ._history import History, IterationInfo
@@ -196,15 +197,12 @@ class _Run:
 
 def _normalise_seed(seed: Any) -> int:
     """An int seed, drawing fresh entropy for None so the run is still reproducible."""
-    if seed is None:
-        return int(np.random.SeedSequence().entropy)
     if isinstance(seed, np.random.SeedSequence):
         return (
             int(seed.entropy) if isinstance(seed.entropy, int) else int(seed.generate_state(1)[0])
         )
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise OptimiserError(f"seed must be a non-negative integer or None, got {seed!r}")
-    return int(seed)
+    seed = integer(seed, "seed", error=OptimiserError, minimum=0, none_ok=True)
+    return int(np.random.SeedSequence().entropy) if seed is None else seed
 
 
 def _resolve(optimiser: Optimiser | str, params: Mapping[str, Any] | None) -> Optimiser:
@@ -304,6 +302,8 @@ class AskTell:
         Stop rules; default: no FE limit (``max_time`` of one year).
     seed : int, optional
         As in :func:`minimize`.
+    params : mapping, optional
+        Hyper-parameters when ``optimiser`` is a name.
 
     Examples
     --------
@@ -335,7 +335,21 @@ class AskTell:
         self.done = False
 
     def ask(self) -> np.ndarray:
-        """The next population to evaluate, shape ``(P, n)`` (truncated at the FE budget)."""
+        """The next population to evaluate.
+
+        Asking again before :meth:`tell` returns the same population.
+
+        Returns
+        -------
+        ndarray, shape (P, n)
+            Points in the problem's box (original units), truncated so that the FE budget is
+            not exceeded.
+
+        Raises
+        ------
+        OptimiserError
+            If the run has finished (``done``) or the optimiser ended its schedule.
+        """
         if self.done:
             raise OptimiserError("the run has finished; call result()")
         if self._pending is not None:
@@ -352,7 +366,19 @@ class AskTell:
         return self._pending.copy()
 
     def tell(self, F: Any) -> None:
-        """Report the costs of the last asked population, shape ``(P,)``."""
+        """Report the costs of the last asked population.
+
+        Parameters
+        ----------
+        F : array_like, shape (P,)
+            Cost of each row of the last :meth:`ask`, in order; NaN and ``-inf`` count as
+            ``+inf``.
+
+        Raises
+        ------
+        OptimiserError
+            If no population is pending or ``F`` does not hold P values.
+        """
         if self._pending is None:
             raise OptimiserError("tell() without a pending ask()")
         X = self._pending
@@ -374,7 +400,15 @@ class AskTell:
             self.done = True
 
     def result(self) -> OptimizeResult:
-        """The result so far (as :func:`minimize` returns it)."""
+        """End the run and return its result (as :func:`minimize` returns it).
+
+        The optimiser is closed and ``done`` becomes True: no further :meth:`ask`.
+
+        Returns
+        -------
+        OptimizeResult
+            Best point and cost told so far, FE count, history and stop reason.
+        """
         self._generator.close()
         self.done = True
         return self._run.finish()

@@ -97,7 +97,14 @@ class Param:
         )
 
     def range_text(self) -> str:
-        """The allowed values in interval notation, e.g. ``(0, 1]``."""
+        """The allowed values in words or interval notation.
+
+        Returns
+        -------
+        str
+            ``"one of 'a', 'b'"`` for choices, ``"any"`` without bounds, else an interval
+            such as ``"(0, 1]"`` or ``"[1, inf)"``.
+        """
         if self.choices is not None:
             return "one of " + ", ".join(repr(c) for c in self.choices)
         if self.low is None and self.high is None:
@@ -113,10 +120,28 @@ class Param:
         return f"{left}, {right}"
 
     def validate(self, value: Any, owner: str | None = None, given_as: str | None = None) -> Any:
-        """Return ``value`` converted to the parameter's type, or raise HyperParameterError.
+        """Check a value of this hyper-parameter and convert it to the parameter's type.
 
-        ``owner`` is the optimiser name used in the message (default: the declaring class);
-        ``given_as`` the alias the value was passed under, if any (named in the message).
+        Parameters
+        ----------
+        value : object
+            The value given.  With ``none_ok``, None and the strings ``"none"``/``"null"``
+            (any case) mean None.
+        owner : str, optional
+            Optimiser name used in the message (default: the declaring class's).
+        given_as : str, optional
+            The alias the value was passed under, if any (named in the message).
+
+        Returns
+        -------
+        int, float, bool, str or None
+            The value as ``kind`` (an int given for a float parameter becomes a float).
+
+        Raises
+        ------
+        HyperParameterError
+            For a value of the wrong type, NaN or inf, outside the range or choices, or None
+            when ``none_ok`` is False.
         """
         where = f"{owner or self.owner}: hyper-parameter {self.name!r}"
         if given_as is not None and given_as != self.name:
@@ -165,7 +190,14 @@ class Param:
         return value
 
     def describe(self) -> dict[str, Any]:
-        """A plain description: type, default, range, doc (and aliases, when it has any)."""
+        """A plain description of the hyper-parameter.
+
+        Returns
+        -------
+        dict
+            ``type`` (e.g. ``"float or None"``), ``default``, ``range``
+            (:meth:`range_text`), ``doc`` and, when it has any, ``aliases`` (list of str).
+        """
         out = {
             "type": self.kind.__name__ + (" or None" if self.none_ok else ""),
             "default": self.default,
@@ -186,8 +218,8 @@ class Optimiser:
     :class:`~flexid.errors.HyperParameterError`; :meth:`check` may add cross-parameter
     rules.
 
-    Class attributes
-    ----------------
+    Attributes
+    ----------
     name : str
         Registry name.
     auto_iterations : bool
@@ -222,6 +254,11 @@ class Optimiser:
 
         Keys are the canonical names; the aliases a parameter also accepts are in
         :meth:`aliases`.
+
+        Returns
+        -------
+        dict of str to Param
+            ``{canonical name: Param}``; a subclass's declaration overrides its base's.
         """
         spec: dict[str, Param] = {}
         for klass in reversed(cls.__mro__):
@@ -232,7 +269,12 @@ class Optimiser:
 
     @classmethod
     def aliases(cls) -> dict[str, str]:
-        """The other names hyper-parameters accept: ``{alias: canonical name}``.
+        """The other names hyper-parameters accept.
+
+        Returns
+        -------
+        dict of str to str
+            ``{alias: canonical name}`` (empty when no parameter has aliases).
 
         Raises
         ------
@@ -255,6 +297,19 @@ class Optimiser:
     @classmethod
     def canonical_params(cls, params: Mapping[str, Any], owner: str | None = None) -> dict:
         """``params`` keyed by canonical hyper-parameter names (aliases replaced).
+
+        Parameters
+        ----------
+        params : mapping of str to object
+            Hyper-parameter values under their names or aliases.
+        owner : str, optional
+            Optimiser name used in error messages (default: this class's ``name``).
+
+        Returns
+        -------
+        dict
+            ``{canonical name: value}`` in the order of ``params``; the values are not
+            validated.
 
         Raises
         ------

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._validate import positive_int
 from ..errors import OptimiserError
 
 if TYPE_CHECKING:
@@ -99,16 +100,48 @@ class Problem:
         return self.lower.size
 
     def initial_population(self, size: int, seed: Any = None) -> np.ndarray:
-        """``size`` initial points in the box, shape ``(size, n)``.
+        """``size`` initial points in the box.
 
         Uniform in the box unless the problem has a ``sampler``.  The points depend only on
-        the problem and ``seed`` (an int or a ``numpy.random.SeedSequence``), and the first
-        ``k`` rows of a population of size ``m >= k`` equal the population of size ``k``.
+        the problem and ``seed``, and the first ``k`` rows of a population of size
+        ``m >= k`` equal the population of size ``k``.
+
+        Parameters
+        ----------
+        size : int
+            Number of points P.
+        seed : int or numpy.random.SeedSequence, optional
+            Seed of ``numpy.random.default_rng``; None draws fresh entropy (not
+            reproducible).
+
+        Returns
+        -------
+        ndarray, shape (P, n)
+            The points, in the problem's box (original units).
         """
         return self.from_unit(self.initial_unit(size, seed))
 
     def initial_unit(self, size: int, seed: Any = None) -> np.ndarray:
-        """The initial population in the unit box, shape ``(size, n)``."""
+        """The initial population in the unit box.
+
+        Parameters
+        ----------
+        size : int
+            Number of points P.
+        seed : int or numpy.random.SeedSequence, optional
+            Seed of ``numpy.random.default_rng``; None draws fresh entropy (not
+            reproducible).
+
+        Returns
+        -------
+        ndarray, shape (P, n)
+            Points in ``[0, 1]^n``; :meth:`from_unit` maps them to :meth:`initial_population`.
+
+        Raises
+        ------
+        OptimiserError
+            If the problem's ``sampler`` returns the wrong shape or non-finite points.
+        """
         rng = np.random.default_rng(seed)
         if self.sampler is None:
             return rng.random((int(size), self.dim))
@@ -121,11 +154,33 @@ class Problem:
         return np.clip((X - self.lower) / self.width, 0.0, 1.0)
 
     def from_unit(self, Z: np.ndarray) -> np.ndarray:
-        """Points ``lower + Z (upper - lower)`` of the box for points ``Z`` of the unit box."""
+        """Map points of the unit box to the problem's box.
+
+        Parameters
+        ----------
+        Z : ndarray, shape (P, n) or (n,)
+            Points of the unit box ``[0, 1]^n`` (not clipped: points outside map outside).
+
+        Returns
+        -------
+        ndarray, shape (P, n) or (n,)
+            ``lower + Z (upper - lower)``, in the problem's units.
+        """
         return self.lower + Z * self.width
 
     def to_unit(self, X: np.ndarray) -> np.ndarray:
-        """Points of the unit box for points ``X`` of the box (the inverse of ``from_unit``)."""
+        """Map points of the problem's box to the unit box (the inverse of :meth:`from_unit`).
+
+        Parameters
+        ----------
+        X : array_like, shape (P, n) or (n,)
+            Points in the problem's units.
+
+        Returns
+        -------
+        ndarray, shape (P, n) or (n,)
+            ``(X - lower) / (upper - lower)`` (not clipped).
+        """
         return (np.asarray(X, dtype=float) - self.lower) / self.width
 
     def __repr__(self) -> str:
@@ -150,6 +205,16 @@ class SearchSpace:
 
     It never exposes the objective: optimisers only *yield* points to evaluate.  The space
     is the unit box ``[0, 1]^n``; the driver maps the yielded points to the problem's box.
+    The driver builds it; optimisers receive it in :meth:`~Optimiser.search`.
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem of the run.
+    init_seed : numpy.random.SeedSequence
+        Seed of the shared initial population.
+    run : object
+        The driver's run, told of iterations that :meth:`end_iteration` ends.
 
     Attributes
     ----------
@@ -174,17 +239,56 @@ class SearchSpace:
         )
 
     def initial_population(self, size: int) -> np.ndarray:
-        """The shared initial population of this run in the unit box, shape ``(size, n)``."""
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
-            raise OptimiserError(f"population size must be a positive integer, got {size!r}")
+        """The shared initial population of this run in the unit box.
+
+        Parameters
+        ----------
+        size : int
+            Number of points P, >= 1.
+
+        Returns
+        -------
+        ndarray, shape (P, n)
+            Points in ``[0, 1]^n``; the same for every optimiser given the run's seed.
+
+        Raises
+        ------
+        OptimiserError
+            If ``size`` is not a positive integer.
+        """
+        size = positive_int(size, "population size", error=OptimiserError)
         return self._problem.initial_unit(size, self._init_seed)
 
     def uniform(self, size: int, rng: np.random.Generator) -> np.ndarray:
-        """``size`` fresh points uniform in the box drawn from ``rng``, shape ``(size, n)``."""
+        """Fresh points uniform in the unit box.
+
+        Parameters
+        ----------
+        size : int
+            Number of points P.
+        rng : numpy.random.Generator
+            The generator they are drawn from (the optimiser's).
+
+        Returns
+        -------
+        ndarray, shape (P, n)
+            Points in ``[0, 1)^n``.
+        """
         return rng.random((int(size), self.dim))
 
     def clip(self, X: np.ndarray) -> np.ndarray:
-        """``X`` clipped to the box (a new array)."""
+        """Clip points to the unit box.
+
+        Parameters
+        ----------
+        X : ndarray, shape (P, n) or (n,)
+            Points of the search space.
+
+        Returns
+        -------
+        ndarray, shape (P, n) or (n,)
+            ``X`` clipped to ``[0, 1]`` (a new array).
+        """
         return np.clip(X, 0.0, 1.0)
 
     def end_iteration(self, phase: str) -> None:
@@ -192,5 +296,10 @@ class SearchSpace:
 
         Call it only from optimisers with ``auto_iterations = False``; the driver records
         a history row and checks the iteration, target and time stops.
+
+        Parameters
+        ----------
+        phase : str
+            Name of the algorithm's phase, recorded in the history (e.g. ``"chemotaxis"``).
         """
         self._run.end_iteration(phase)

@@ -16,6 +16,15 @@ __all__ = ["BacterialForaging", "chemotactic_step", "swarming_cost", "tumble_dir
 def tumble_directions(rng: np.random.Generator, size: int, dim: int) -> np.ndarray:
     """Passino's tumble: components uniform in [-1, 1], normalised to unit length.
 
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The run's generator (draws ``size * dim`` uniforms).
+    size : int
+        Number of directions ``S``.
+    dim : int
+        Dimension ``n`` of the search space.
+
     Returns
     -------
     ndarray, shape (size, dim)
@@ -29,7 +38,22 @@ def tumble_directions(rng: np.random.Generator, size: int, dim: int) -> np.ndarr
 
 def swarming_cost(X: np.ndarray, d_attract: float, w_attract: float, h_repellant: float,
                   w_repellant: float) -> np.ndarray:
-    """Passino's cell-to-cell term ``J_cc`` of every bacterium, shape (S,) (no FE)."""
+    """Passino's cell-to-cell term ``J_cc`` of every bacterium, shape (S,) (no FE).
+
+    Parameters
+    ----------
+    X : ndarray, shape (S, n)
+        Positions of the bacteria (search-box units).
+    d_attract, w_attract : float
+        Depth and width (1 / units squared) of the attractant term.
+    h_repellant, w_repellant : float
+        Height and width (1 / units squared) of the repellant term.
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        ``J_cc`` of every bacterium, in cost units.
+    """
     d2 = np.sum((X[:, None, :] - X[None, :, :]) ** 2, axis=2)
     return np.sum(-d_attract * np.exp(-w_attract * d2) + h_repellant * np.exp(-w_repellant * d2),
                   axis=1)
@@ -55,8 +79,10 @@ def chemotactic_step(
 
     Parameters
     ----------
-    space, rng
-        The search's space and random generator (the tumble draws ``S x n`` uniforms).
+    space : SearchSpace
+        The search's space.
+    rng : numpy.random.Generator
+        The search's random generator (the tumble draws its directions from it).
     X, J : ndarray, shapes (S, n) and (S,)
         Positions and their costs (``X`` is not modified; ``J`` is not kept).
     T : ndarray, shape (S,)
@@ -71,6 +97,19 @@ def chemotactic_step(
         ``decide(X, J) -> T`` after every batch (BFA: ``J + J_cc``); default ``T = J``.
     evaluated : callable, optional
         ``evaluated(X, J)`` after every batch (HBCSD: personal bests).
+
+    Returns
+    -------
+    X : ndarray, shape (S, n)
+        The new positions, in the unit box.
+    J : ndarray, shape (S,)
+        Their costs.
+
+    Yields
+    ------
+    ndarray, shape (S, n) or (k, n)
+        The tumbled population, then the ``k`` bacteria that swim on; the search sends
+        back their costs, shape (S,) or (k,).
 
     Notes
     -----
@@ -116,12 +155,17 @@ class BacterialForaging(Optimiser):
     first: elimination-dispersal ``l = 1..N_ed`` > reproduction ``k = 1..N_re`` > chemotaxis
     ``j = 1..N_c`` > bacteria.
 
-    Hyper-parameters (defaults: Passino's paper and program)
-    ---------------------------------------------------------
+    Parameters
+    ----------
     population : int
-        Population ``S`` (even), 50 (also accepted as ``bacteria``).
-    n_chemotactic, n_swim, n_reproduction : int
-        ``N_c`` = 100, ``N_s`` = 4, ``N_re`` = 4.
+        Population ``S`` (even), 50 (also accepted as ``bacteria``).  The defaults of all
+        hyper-parameters are those of Passino's paper and program.
+    n_chemotactic : int
+        Chemotactic steps ``N_c`` per reproduction, 100.
+    n_swim : int
+        Swim length ``N_s``, 4.
+    n_reproduction : int
+        Reproduction steps ``N_re``, 4.
     n_elim_disp : int or None
         ``N_ed`` = 2.  ``None`` keeps cycling (reproduction blocks and dispersals) until the
         FE budget; with an int the run ends after Passino's finite schedule even if FE are
@@ -133,9 +177,10 @@ class BacterialForaging(Optimiser):
     swarming : bool
         Add the cell-to-cell term ``J_cc`` (off, as in Passino's program, ``flag = 2``).
     d_attract, w_attract, h_repellant, w_repellant : float
-        ``J_cc`` constants 0.1, 0.2, 0.1, 10.
+        ``J_cc`` attractant depth and width, repellant height and width: 0.1, 0.2, 0.1, 10
+        (widths in 1 / box units squared).
     clip : bool
-        Clip moved bacteria to the box (deviation), False.
+        Clip moved bacteria to the box (an extension of the paper), False.
 
     Notes
     -----
@@ -156,8 +201,8 @@ class BacterialForaging(Optimiser):
     none; each dispersal costs the number of dispersed bacteria.  Paper-style iteration
     count: ``N_c N_re N_ed``.
 
-    Deviations
-    ----------
+    Deviations from Passino's paper and program:
+
     * The start-of-step cost is cached (Passino's program re-evaluates it, ``S`` more FE
       per step); the result is the same.
     * All bacteria move at once (vectorised).  Without ``J_cc`` this has exactly Passino's
@@ -238,14 +283,14 @@ class BacterialForaging(Optimiser):
 register_variant(
     "bfa-paper-manipulator", "bfa",
     "Nasir & Tokhi 2014 section 5, manipulator: N_s=4, N_c=30, N_re=6, N_ed=6, C=0.01; "
-    "S=50 and p_ed=0.25 assumed",
+    "S=50 and p_ed=0.25 assumed.",
     population=50, n_swim=4, n_chemotactic=30, n_reproduction=6, n_elim_disp=6, step_size=0.01,
     p_ed=0.25,
 )
 register_variant(
     "bfa-paper-trs", "bfa",
     "Nasir & Tokhi 2014 section 5, twin rotor: N_s=4, N_c=30, N_re=4, N_ed=4, C=0.0175; "
-    "S=10 and p_ed=0.25 assumed",
+    "S=10 and p_ed=0.25 assumed.",
     population=10, n_swim=4, n_chemotactic=30, n_reproduction=4, n_elim_disp=4, step_size=0.0175,
     p_ed=0.25,
 )

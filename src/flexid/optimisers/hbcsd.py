@@ -23,6 +23,20 @@ def adaptive_weight(F: np.ndarray, c1: float, c2: float) -> np.ndarray:
     ``r = r_u + (r_l - r_u) g`` is eq. 1 of the paper, ``(r_l - r_u) / (1 + c1 / (c2 |f|))
     + r_u``, written so that it is defined at ``f = 0`` (g = 0).  Non-finite costs give
     ``g = 1``.
+
+    Parameters
+    ----------
+    F : ndarray, shape (P,)
+        Costs of the points.
+    c1 : float
+        Law constant ``c1``, in cost units (>= 0).
+    c2 : float
+        Law constant ``c2`` (> 0).
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        The weights ``g``.
     """
     F = np.asarray(F, dtype=float)
     a = c2 * np.abs(F)
@@ -41,21 +55,32 @@ class HBCSD(Optimiser):
     personal bests, with a radius and an angle per point that depend linearly (through a
     saturating weight) on the point's cost.
 
-    Hyper-parameters
-    ----------------
+    Parameters
+    ----------
     population : int
         Bacteria / spiral points ``m``, 50 (also accepted as ``points``).
-    n_chemotactic, n_swim, step_size :
-        ``N_c`` = 100 (0 skips phase 1), ``N_s`` = 4, ``C`` = 0.05.
+    n_chemotactic : int
+        Chemotactic steps ``N_c`` of phase 1, 100 (0 skips phase 1).
+    n_swim : int
+        Swim length ``N_s``, 4.
+    step_size : float
+        Chemotactic step ``C`` (units of the search box), 0.05.
     k_max : int or None
         Spiral iterations; ``None`` (default) continues phase 2 until the FE budget.
-    r_lower, r_upper, c1_r, c2_r : float
-        Radius law: ``r_l`` (large costs), ``r_u`` (small costs), ``c1``, ``c2``.
+    r_lower, r_upper : float
+        Radius ``r_l`` for large costs (0.9) and ``r_u`` for small costs (0.99), in (0, 1].
+    c1_r, c2_r : float
+        Radius law constants ``c1`` (cost units) and ``c2``, 1 and 1.
     angle : float or None
-        Fixed angle (rad), shared by all points (manipulator setting); ``None`` uses the
-        adaptive angle law with ``theta_lower``, ``theta_upper``, ``c1_theta``, ``c2_theta``.
+        Fixed angle (rad), shared by all points (manipulator setting); ``None`` (default)
+        uses the adaptive angle law with ``theta_lower``, ``theta_upper``, ``c1_theta``,
+        ``c2_theta``.
+    theta_lower, theta_upper : float
+        Angle ``theta_l`` for large costs and ``theta_u`` for small costs (rad), pi/4.
+    c1_theta, c2_theta : float
+        Angle law constants ``c1`` (cost units) and ``c2``, 1 and 1.
     clip : bool
-        Clip moved points to the box (deviation), False.
+        Clip moved points to the box (an extension of the paper), False.
 
     Notes
     -----
@@ -79,8 +104,8 @@ class HBCSD(Optimiser):
     iteration.  Iterations (history phases ``"chemotaxis"`` then ``"spiral"``):
     ``N_c + k_max``.
 
-    Deviations and decisions (``algorithms.md`` 3.4)
-    ------------------------------------------------
+    Deviations from the paper and decisions where it is silent:
+
     * Unguided tumble (plain Passino chemotaxis); the start-of-step cost is cached.
     * ``theta_l = theta_1``, ``theta_u = theta_2`` of the paper (unverified, could be
       swapped); the adaptive laws use the cost of the current position, unnormalised, so
@@ -137,7 +162,26 @@ class HBCSD(Optimiser):
         yield from self.spiral(space, Pb, Jb)
 
     def spiral(self, space: SearchSpace, Y: np.ndarray, F: np.ndarray):
-        """The adaptive SDA phase from points ``Y`` with known costs ``F`` (no FE to start)."""
+        """The adaptive SDA phase from points ``Y`` with known costs ``F`` (no FE to start).
+
+        Runs until ``k_max`` iterations (phase ``"spiral"``) or, when ``k_max`` is None,
+        until the driver stops the run.
+
+        Parameters
+        ----------
+        space : SearchSpace
+            The search's space.
+        Y : ndarray, shape (m, n)
+            Starting points in the unit box (not modified).
+        F : ndarray, shape (m,)
+            Their costs.
+
+        Yields
+        ------
+        ndarray, shape (m, n)
+            The points of each spiral iteration; the search sends back their costs, shape
+            (m,).
+        """
         Y, F = Y.copy(), F.copy()
         b = int(np.argmin(F))
         xs, fs = Y[b].copy(), F[b]
@@ -170,7 +214,7 @@ class HBCSD(Optimiser):
 register_variant(
     "hbcsd-paper-manipulator", "hbcsd",
     "Nasir & Tokhi 2014 section 5, manipulator: m=50, N_s=4, C=0.01, N_c=500, k_max=500, "
-    "theta=0.34 fixed, r_l=0.99, r_u=1, c1_r=0.1, c2_r=0.3",
+    "theta=0.34 fixed, r_l=0.99, r_u=1, c1_r=0.1, c2_r=0.3.",
     population=50, n_swim=4, step_size=0.01, n_chemotactic=500, k_max=500, angle=0.34,
     r_lower=0.99, r_upper=1.0, c1_r=0.1, c2_r=0.3,
 )
@@ -178,7 +222,7 @@ register_variant(
     "hbcsd-paper-trs", "hbcsd",
     "Nasir & Tokhi 2014 section 5, twin rotor: m=10, N_s=4, C=0.04, N_c=50, k_max=150, "
     "r_l=0.65, r_u=0.99, c1_r=996, c2_r=0.97, theta_1=1.03, theta_2=1.8, c1=110, c2=0.98; "
-    "theta_l=theta_1 and theta_u=theta_2 assumed",
+    "theta_l=theta_1 and theta_u=theta_2 assumed.",
     population=10, n_swim=4, step_size=0.04, n_chemotactic=50, k_max=150, r_lower=0.65,
     r_upper=0.99, c1_r=996.0, c2_r=0.97, angle=None, theta_lower=1.03, theta_upper=1.8,
     c1_theta=110.0, c2_theta=0.98,

@@ -17,7 +17,12 @@ class RandomSearch(Optimiser):
 
     The first batch is the shared initial population; every later batch is drawn uniformly
     in the box from the run's generator.  The best point ever sampled is the result.
-    ``population`` (also accepted as ``points``) is the batch size.
+
+    Parameters
+    ----------
+    population : int
+        Samples per batch (one batch is one iteration), default 50 (also accepted as
+        ``points``).
     """
 
     name = "random-search"

@@ -17,6 +17,7 @@ import copy
 import importlib
 import importlib.util
 import warnings
+from collections.abc import Callable
 from importlib.metadata import entry_points
 from typing import Any
 
@@ -31,6 +32,7 @@ __all__ = [
     "describe",
     "get",
     "register",
+    "register_prefix",
     "register_variant",
     "reload_plugins",
     "unregister",
@@ -49,10 +51,13 @@ _BUILTIN_MODULES = (
     "cmaes",
     "random_search",
     "scipy_methods",
+    "external",
 )
 
 _REGISTRY: dict[str, type[Optimiser]] = {}
 _SOURCES: dict[str, str] = {}
+# names "prefix:rest" resolved on first use (the optimisers of another library, "ng:NGOpt")
+_PREFIXES: dict[str, Callable[[str], type[Optimiser]]] = {}
 _state = {"builtins": False, "plugins": False}
 
 
@@ -64,6 +69,21 @@ def register(
     cls: type[Optimiser] | None = None, *, name: str | None = None, source: str = "flexid"
 ):
     """Class decorator: register an optimiser under ``name`` (default ``cls.name``).
+
+    Parameters
+    ----------
+    cls : type, optional
+        The :class:`Optimiser` subclass; omitted when the decorator is called with keywords,
+        ``@register(name=...)``.
+    name : str, optional
+        Registry name; default ``cls.name``.
+    source : str
+        Where the optimiser comes from (``"flexid"``, a plugin's distribution), for listings.
+
+    Returns
+    -------
+    type or callable
+        ``cls`` itself, registered; or, without ``cls``, the decorator.
 
     Raises
     ------
@@ -102,7 +122,8 @@ def register_variant(
     base : str or Optimiser subclass
         The algorithm.
     doc : str
-        One line saying where the settings come from.
+        One sentence saying where the settings come from, ending with a period (it is the
+        summary line of the variant's docstring).
     **defaults
         New defaults, validated now against the base's hyper-parameters (an alias of a
         hyper-parameter stands for it).
@@ -121,7 +142,7 @@ def register_variant(
     namespace: dict[str, Any] = {
         "name": name,
         "__module__": base_cls.__module__,
-        "__doc__": (doc or f"{base_cls.name} with other defaults")
+        "__doc__": (doc or f"{base_cls.name} with other defaults.")
         + "\n\n"
         + (base_cls.__doc__ or ""),
         "variant_of": base_cls.name,
@@ -141,7 +162,13 @@ def _identifier(name: str) -> str:
 
 
 def unregister(name: str) -> None:
-    """Remove ``name`` from the registry (for tests and interactive work)."""
+    """Remove ``name`` from the registry (for tests and interactive work).
+
+    Parameters
+    ----------
+    name : str
+        Registered name; an unknown name is ignored.
+    """
     _REGISTRY.pop(name, None)
     _SOURCES.pop(name, None)
 
@@ -203,36 +230,102 @@ def reload_plugins() -> None:
     _load_plugins()
 
 
+def register_prefix(prefix: str, resolver: Callable[[str], type[Optimiser]]) -> None:
+    """Resolve the unregistered names ``prefix:...`` with ``resolver(name)`` on first use.
+
+    Parameters
+    ----------
+    prefix : str
+        The part of the name before the first colon, e.g. ``"ng"`` for ``"ng:NGOpt"``.
+    resolver : callable
+        ``resolver(name)`` registers and returns the optimiser class of ``name``, or raises
+        :class:`~flexid.errors.UnknownOptimiserError` (with suggestions).
+
+    Raises
+    ------
+    RegistryError
+        If the prefix is empty, contains a colon, or already has a resolver.
+    """
+    if not prefix or ":" in prefix or prefix in _PREFIXES:
+        raise RegistryError(f"cannot register the name prefix {prefix!r} (empty, ':' or taken)")
+    _PREFIXES[prefix] = resolver
+
+
 def get(name: str) -> type[Optimiser]:
     """The optimiser class registered under ``name``.
+
+    Parameters
+    ----------
+    name : str
+        Registered optimiser name, or a name a plugin or prefix resolver knows.
+
+    Returns
+    -------
+    type
+        The :class:`Optimiser` subclass.
 
     Raises
     ------
     UnknownOptimiserError
-        If neither a built-in nor a plugin has that name; the message lists the names.
+        If neither a built-in, a plugin nor the resolver of the name's prefix knows the
+        name; the message lists the names (or the resolver's suggestions).
     """
     _load_builtins()
     if name not in _REGISTRY:
         _load_plugins()
     if name not in _REGISTRY:
+        prefix, colon, _ = name.partition(":")
+        if colon and prefix in _PREFIXES:
+            return _PREFIXES[prefix](name)
         raise UnknownOptimiserError(name, available())
     return _REGISTRY[name]
 
 
 def create(name: str, **params: Any) -> Optimiser:
-    """An instance of optimiser ``name`` with validated hyper-parameters ``params``."""
+    """An instance of optimiser ``name`` with validated hyper-parameters ``params``.
+
+    Parameters
+    ----------
+    name : str
+        Registered optimiser name (see :func:`available`).
+    **params
+        Hyper-parameters, by name or alias (see :func:`describe`).
+
+    Returns
+    -------
+    Optimiser
+        The configured instance.
+    """
     return get(name)(**params)
 
 
 def available() -> list[str]:
-    """Names of every registered optimiser, built-ins, variants and plugins, sorted."""
+    """Names of every registered optimiser, built-ins, variants and plugins, sorted.
+
+    Returns
+    -------
+    list of str
+        The registered names.
+    """
     _load_builtins()
     _load_plugins()
     return sorted(_REGISTRY)
 
 
 def describe(name: str) -> dict[str, Any]:
-    """Name, source, reference, summary and hyper-parameters (type, default, range, doc)."""
+    """Name, source, reference, summary and hyper-parameters (type, default, range, doc).
+
+    Parameters
+    ----------
+    name : str
+        Registered optimiser name.
+
+    Returns
+    -------
+    dict
+        ``name``, ``source``, ``variant_of``, ``summary``, ``reference`` and
+        ``hyperparameters`` (name -> type, default, range and description).
+    """
     cls = get(name)
     doc = (cls.__doc__ or "").strip().splitlines()
     params: dict[str, dict] = {k: p.describe() for k, p in cls.hyperparameters().items()}

@@ -16,7 +16,22 @@ __all__ = ["givens_sweep", "plane_rotation", "rotate_rows", "rotation_matrix"]
 
 
 def plane_rotation(n: int, i: int, j: int, theta: float) -> np.ndarray:
-    """The plane rotation ``R_{i,j}(theta)`` (1-based ``i < j``), shape (n, n)."""
+    """The plane rotation ``R_{i,j}(theta)`` (1-based ``i < j``), shape (n, n).
+
+    Parameters
+    ----------
+    n : int
+        Dimension.
+    i, j : int
+        The rotated coordinate plane, 1-based, ``1 <= i < j <= n``.
+    theta : float
+        Angle (rad).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        The rotation matrix.
+    """
     r = np.eye(n)
     c, s = np.cos(theta), np.sin(theta)
     r[i - 1, i - 1] = c
@@ -67,14 +82,40 @@ def givens_sweep(D: np.ndarray, cos, sin) -> np.ndarray:
 
 
 def rotation_matrix(n: int, theta: float) -> np.ndarray:
-    """The composite rotation ``R^(n)(theta)``, shape (n, n) (built once per run)."""
+    """The composite rotation ``R^(n)(theta)``, shape (n, n) (built once per run).
+
+    Parameters
+    ----------
+    n : int
+        Dimension.
+    theta : float
+        Angle of every plane rotation (rad).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        The orthogonal matrix ``R^(n)(theta)``.
+    """
     if n == 1:
         return np.eye(1)
     return givens_sweep(np.eye(n), np.cos(theta), np.sin(theta)).T
 
 
 def rotate_rows(D: np.ndarray, theta) -> np.ndarray:
-    """``R^(n)(theta_i) D[i]`` for every row: one GEMM for a scalar angle, else a sweep."""
+    """``R^(n)(theta_i) D[i]`` for every row: one GEMM for a scalar angle, else a sweep.
+
+    Parameters
+    ----------
+    D : ndarray, shape (m, n)
+        Rows to rotate (offsets from the spiral centre).
+    theta : float or ndarray, shape (m,)
+        One angle for all rows, or one per row (rad).
+
+    Returns
+    -------
+    ndarray, shape (m, n)
+        The rotated rows.
+    """
     D = np.asarray(D, dtype=float)
     if np.ndim(theta) == 0:
         return D @ rotation_matrix(D.shape[1], float(theta)).T

@@ -63,11 +63,10 @@ class ScipyMinimize(Optimiser):
     only one thread runs at a time and the run is deterministic.  Closing the generator
     (budget reached, callback stop, :class:`AskTell` abandoned) unblocks the worker with a
     private exception and joins it; an exception raised by scipy is re-raised in the
-    caller's thread.  The hand-off costs about 0.2-0.5 ms per yielded batch (measured: Nelder-Mead
-    0.34 vs 0.11 ms/FE for plain scipy, Powell 0.62 vs 0.17 ms/FE, 5-D sphere, loaded 2-core
-    machine), negligible next to an ARX simulation.  Replaying scipy from
-    the start with a cache of known values (the thread-free alternative) costs O(k^2)
-    evaluations of scipy's own bookkeeping for k FE and was rejected.
+    caller's thread.  The hand-off adds a fixed cost per yielded batch (two queue
+    transfers), small next to an ARX simulation.  Replaying scipy from the start with a
+    cache of known values (the thread-free alternative) would cost O(k^2) evaluations of
+    scipy's own bookkeeping for k FE.
     """
 
     name = "scipy"
@@ -148,9 +147,9 @@ class ScipyMinimize(Optimiser):
                 thread.join()
 
 
-register_variant("nelder-mead", "scipy", "scipy.optimize Nelder-Mead with restarts",
+register_variant("nelder-mead", "scipy", "scipy.optimize Nelder-Mead with restarts.",
                  method="Nelder-Mead")
-register_variant("powell", "scipy", "scipy.optimize Powell with restarts", method="Powell")
+register_variant("powell", "scipy", "scipy.optimize Powell with restarts.", method="Powell")
 register_variant("l-bfgs-b", "scipy",
-                 "scipy.optimize L-BFGS-B, batched forward-difference gradient, restarts",
+                 "scipy.optimize L-BFGS-B, batched forward-difference gradient, restarts.",
                  method="L-BFGS-B")

@@ -20,8 +20,8 @@ class SpiralDynamics(Optimiser):
     rotating by ``theta`` and shrinking by ``r`` at every iteration; the same spiral map is
     applied to every point.
 
-    Hyper-parameters
-    ----------------
+    Parameters
+    ----------
     population : int
         Number of search points ``m`` (>= 2), default 50 (also accepted as ``points``).
     radius : float
@@ -49,8 +49,8 @@ class SpiralDynamics(Optimiser):
     re-evaluated and counted, as in the papers); ``m (1 + k_max)`` in all.  The history has
     one row per iteration (phase ``"sda"``).
 
-    Deviations
-    ----------
+    Deviations from the paper:
+
     * Elitist centre: equal to the 2011 wording ("best of the current population") while the
       centre is a member of the population, which it is because it is a fixed point of the
       map; it also holds with ``clip=True``.
@@ -92,11 +92,11 @@ class SpiralDynamics(Optimiser):
 
 register_variant(
     "sda-paper-manipulator", "sda",
-    "Nasir & Tokhi 2014 section 5, manipulator: r=0.99, theta=0.381; m=50, k_max=1000 assumed",
+    "Nasir & Tokhi 2014 section 5, manipulator: r=0.99, theta=0.381; m=50, k_max=1000 assumed.",
     population=50, radius=0.99, angle=0.381, k_max=1000,
 )
 register_variant(
     "sda-paper-trs", "sda",
-    "Nasir & Tokhi 2014 section 5, twin rotor: r=0.98, theta=0.72; m=10, k_max=200 assumed",
+    "Nasir & Tokhi 2014 section 5, twin rotor: r=0.98, theta=0.72; m=10, k_max=200 assumed.",
     population=10, radius=0.98, angle=0.72, k_max=200,
 )

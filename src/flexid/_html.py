@@ -1,0 +1,129 @@
+"""Small HTML building blocks for the notebook displays (``_repr_html_``) of flexid's results.
+
+Every piece of text goes through :func:`escape`, so a channel, optimiser or comparison name
+such as ``"<&>"`` is shown as typed and never read as markup.  The displays show the numbers
+of the objects' plain-text ``summary()`` formatted the same way, in tables; the long parts
+(model coefficients, full validation reports) sit in collapsed ``<details>`` blocks.
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .data import IOData
+
+__all__ = ["block", "details", "escape", "iodata_html", "key_values", "paragraph", "table"]
+
+_TABLE = '<table class="flexid">'
+_LEFT = 'style="text-align: left"'
+_RIGHT = 'style="text-align: right"'
+
+
+def escape(value: Any) -> str:
+    """``str(value)`` with ``&``, ``<``, ``>`` and both quotes escaped for HTML."""
+    return html.escape(str(value), quote=True)
+
+
+def table(rows: Sequence[Sequence[Any]], caption: str | None = None, left: int = 1) -> str:
+    """An HTML table whose first row is the header.
+
+    Parameters
+    ----------
+    rows : sequence of sequences
+        The header row, then the body rows; cells are converted with ``str`` and escaped.
+    caption : str, optional
+        A caption above the table.
+    left : int, optional
+        How many leading columns are left-aligned (labels, default 1); the others are
+        right-aligned (numbers), as in flexid's plain-text tables.
+
+    Returns
+    -------
+    str
+        The ``<table>`` element.
+    """
+    parts = [_TABLE]
+    if caption:
+        parts.append(f"<caption {_LEFT}>{escape(caption)}</caption>")
+    head, *body = rows
+    parts.append(
+        "<thead><tr>"
+        + "".join(
+            f"<th {_LEFT if i < left else _RIGHT}>{escape(c)}</th>" for i, c in enumerate(head)
+        )
+        + "</tr></thead><tbody>"
+    )
+    for row in body:
+        parts.append(
+            "<tr>"
+            + "".join(
+                f"<td {_LEFT if i < left else _RIGHT}>{escape(c)}</td>" for i, c in enumerate(row)
+            )
+            + "</tr>"
+        )
+    parts.append("</tbody></table>")
+    return "".join(parts)
+
+
+def key_values(items: Iterable[tuple[str, Any]]) -> str:
+    """A two-column table of labels and values, e.g. the header lines of a ``summary()``."""
+    rows = "".join(
+        f"<tr><th {_LEFT}>{escape(k)}</th><td {_LEFT}>{escape(v)}</td></tr>" for k, v in items
+    )
+    return f"{_TABLE}<tbody>{rows}</tbody></table>"
+
+
+def details(title: str, text: str) -> str:
+    """A collapsed block holding preformatted ``text`` (a plain-text report)."""
+    return f"<details><summary>{escape(title)}</summary><pre>{escape(text)}</pre></details>"
+
+
+def paragraph(text: str) -> str:
+    """One escaped paragraph."""
+    return f"<p>{escape(text)}</p>"
+
+
+def block(title: str, *parts: str) -> str:
+    """The whole display: a bold title over already-built ``parts`` (escaped HTML)."""
+    return (
+        '<div class="flexid-summary">'
+        f"<p><strong>{escape(title)}</strong></p>" + "".join(parts) + "</div>"
+    )
+
+
+def iodata_html(data: IOData) -> str:
+    """The display of a record: the line of its ``repr`` and the statistics of ``describe()``.
+
+    Parameters
+    ----------
+    data : IOData
+        The record.
+
+    Returns
+    -------
+    str
+        HTML with one row per channel (kind, name, unit, mean, std, min, max), formatted as
+        :meth:`IOData.describe` formats them.
+    """
+    rows: list[list[str]] = [["channel", "kind", "unit", "mean", "std", "min", "max"]]
+    for kind, names, units, array in (
+        ("input", data.input_names, data.input_units, data.u),
+        ("output", data.output_names, data.output_units, data.y),
+    ):
+        for j, name in enumerate(names):
+            col = array[:, j]
+            rows.append(
+                [
+                    name,
+                    kind,
+                    units[j],
+                    f"{col.mean():.4g}",
+                    f"{col.std():.4g}",
+                    f"{col.min():.4g}",
+                    f"{col.max():.4g}",
+                ]
+            )
+    return block(repr(data), table(rows, left=3))

@@ -1,0 +1,249 @@
+"""Argument validators shared by the modules of flexid.
+
+Each validator takes the value, the name the message gives it (as the caller should see
+it, e.g. ``"n_samples"`` or ``"beam parameter 'n_sections'"``) and the
+:class:`~flexid.errors.FlexidError` subclass to raise, since each module has its own error
+type.  They return the value converted to a Python ``int`` or ``float``.
+
+The rules are the same everywhere: ``bool`` is never a number (``True`` is a Python ``int``
+but never a sample count or a sample time); NumPy integers are integers; strings are never
+numbers, even when ``float`` would parse them; a real number is finite unless the caller
+allows infinities, and NaN is never accepted.
+
+The types are told apart through :mod:`numbers` (NumPy registers its scalar types there), so
+this module does not import NumPy: :mod:`flexid.config` uses it and stays light.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+from .errors import FlexidError
+
+__all__ = ["integer", "is_integer", "positive_int", "positive_real", "real"]
+
+
+def is_integer(value: Any) -> bool:
+    """True for a Python or NumPy integer that is not a ``bool``.
+
+    Parameters
+    ----------
+    value : object
+        Anything.
+
+    Returns
+    -------
+    bool
+        Whether ``value`` is an ``int`` or ``numpy.integer`` (``bool`` and ``numpy.bool_``
+        excluded).
+    """
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _is_real(value: Any) -> bool:
+    """True for a Python or NumPy real number or a 0-d numeric array, not a ``bool``."""
+    if isinstance(value, numbers.Real):
+        return not isinstance(value, bool)
+    # a 0-d array, e.g. the dt read back from an NPZ file
+    dtype = getattr(value, "dtype", None)
+    return getattr(value, "ndim", None) == 0 and getattr(dtype, "kind", None) in ("i", "u", "f")
+
+
+def _interval(
+    minimum: float | None, maximum: float | None, low_open: bool, high_open: bool
+) -> str:
+    """``">= 1"``, ``"< 8"`` or ``"in (0, 1]"``; empty when there is no bound."""
+    if minimum is not None and maximum is not None:
+        left, right = "(" if low_open else "[", ")" if high_open else "]"
+        return f"in {left}{minimum}, {maximum}{right}"
+    if minimum is not None:
+        return f"{'>' if low_open else '>='} {minimum}"
+    if maximum is not None:
+        return f"{'<' if high_open else '<='} {maximum}"
+    return ""
+
+
+def integer(
+    value: Any,
+    name: str,
+    *,
+    error: type[FlexidError],
+    minimum: int | None = None,
+    maximum: int | None = None,
+    none_ok: bool = False,
+    integral_float: bool = False,
+) -> int | None:
+    """Check that ``value`` is an integer in ``[minimum, maximum]`` and return it as ``int``.
+
+    Parameters
+    ----------
+    value : object
+        The argument to check.
+    name : str
+        How the message names the argument.
+    error : type of FlexidError
+        The exception class to raise.
+    minimum, maximum : int, optional
+        Inclusive bounds; None for no bound.
+    none_ok : bool, optional
+        Accept None (and return it).
+    integral_float : bool, optional
+        Also accept a float with an integer value, such as ``8.0`` (model orders that come
+        from float arrays).
+
+    Returns
+    -------
+    int or None
+        ``int(value)``; None only when ``none_ok`` and ``value`` is None.
+
+    Raises
+    ------
+    FlexidError
+        ``error``, naming the argument, the allowed values and the value given: for a
+        ``bool``, a non-integer (a float or a string included) or a value out of range.
+    """
+    if value is None and none_ok:
+        return None
+    ok = is_integer(value)
+    if not ok and integral_float and _is_real(value):
+        ok = float(value).is_integer()  # False for NaN and the infinities
+    if ok:
+        number = int(value)
+        ok = (minimum is None or number >= minimum) and (maximum is None or number <= maximum)
+    if not ok:
+        bounds = _interval(minimum, maximum, False, False)
+        wanted = f"an integer {bounds}" if bounds else "an integer"
+        if none_ok:
+            wanted += " or None"
+        raise error(f"{name} must be {wanted}, got {value!r}")
+    return number
+
+
+def positive_int(value: Any, name: str, *, error: type[FlexidError]) -> int:
+    """Check that ``value`` is an integer >= 1 and return it as ``int``.
+
+    Parameters
+    ----------
+    value : object
+        The argument to check.
+    name : str
+        How the message names the argument.
+    error : type of FlexidError
+        The exception class to raise.
+
+    Returns
+    -------
+    int
+        ``int(value)``.
+
+    Raises
+    ------
+    FlexidError
+        ``error`` for a ``bool``, a non-integer or a value below 1.
+    """
+    return integer(value, name, error=error, minimum=1)
+
+
+def real(
+    value: Any,
+    name: str,
+    *,
+    error: type[FlexidError],
+    minimum: float | None = None,
+    maximum: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+    allow_inf: bool = False,
+    none_ok: bool = False,
+    unit: str = "",
+) -> float | None:
+    """Check that ``value`` is a real number in an interval and return it as ``float``.
+
+    Parameters
+    ----------
+    value : object
+        The argument to check: a Python or NumPy number, or anything else ``float`` accepts
+        except a string or a ``bool``.
+    name : str
+        How the message names the argument.
+    error : type of FlexidError
+        The exception class to raise.
+    minimum, maximum : float, optional
+        Bounds; None for no bound.
+    low_open, high_open : bool, optional
+        Exclude the bound itself (``minimum=0, low_open=True`` is "> 0").
+    allow_inf : bool, optional
+        Accept ``inf`` and ``-inf`` (still subject to the bounds); NaN is never accepted.
+    none_ok : bool, optional
+        Accept None (and return it).
+    unit : str, optional
+        The unit, named in the message (e.g. ``"s"``, ``"Hz"``).
+
+    Returns
+    -------
+    float or None
+        ``float(value)``; None only when ``none_ok`` and ``value`` is None.
+
+    Raises
+    ------
+    FlexidError
+        ``error``, naming the argument, the allowed values and the value given: for a
+        ``bool``, a string, a non-number, NaN, an infinity (unless ``allow_inf``) or a value
+        out of range.
+    """
+    if value is None and none_ok:
+        return None
+    number = float(value) if _is_real(value) else None
+    ok = number is not None and not math.isnan(number)
+    if ok and not allow_inf:
+        ok = math.isfinite(number)
+    if ok and minimum is not None:
+        ok = number > minimum if low_open else number >= minimum
+    if ok and maximum is not None:
+        ok = number < maximum if high_open else number <= maximum
+    if not ok:
+        if unit:
+            name = f"{name} [{unit}]"
+        if number is None:
+            raise error(f"{name} must be a number, got {value!r}")
+        if minimum == 0 and low_open and maximum is None:
+            wanted = "positive" if allow_inf else "positive and finite"
+        else:
+            interval = _interval(minimum, maximum, low_open, high_open)
+            finite = "" if allow_inf else "finite"
+            wanted = " and ".join(filter(None, [finite, interval])) or "a number"
+        if allow_inf:
+            wanted += " (not NaN)"
+        if none_ok:
+            wanted += ", or None"
+        raise error(f"{name} must be {wanted}, got {value!r}")
+    return number
+
+
+def positive_real(value: Any, name: str, *, error: type[FlexidError], unit: str = "") -> float:
+    """Check that ``value`` is a finite real number > 0 and return it as ``float``.
+
+    Parameters
+    ----------
+    value : object
+        The argument to check.
+    name : str
+        How the message names the argument.
+    error : type of FlexidError
+        The exception class to raise.
+    unit : str, optional
+        The unit, named in the message.
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    FlexidError
+        ``error`` for a ``bool``, a string, a non-number, NaN, an infinity or a value <= 0.
+    """
+    return real(value, name, error=error, minimum=0, low_open=True, unit=unit)
