@@ -21,6 +21,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _table import print_table  # noqa: E402
 
 from flexid.envs import beam  # noqa: E402
 from flexid.envs.manipulator import (  # noqa: E402
@@ -85,12 +86,7 @@ def main() -> None:
         t = _best(run_vec, 3)
         rows.append((f"vector env, {n:3d} envs", f"{n * steps / t:10.0f} env-steps/s"))
 
-    width = max(len(r[0]) for r in rows)
-    print(f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
-    print(f"{'case':<{width}}  result")
-    print("-" * (width + 22))
-    for name, value in rows:
-        print(f"{name:<{width}}  {value}")
+    print_table(rows, f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ from collections.abc import Callable  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
+from _table import print_table  # noqa: E402
 
 import flexid  # noqa: E402
 from flexid.envs.manipulator import (  # noqa: E402
@@ -149,13 +150,8 @@ def main() -> None:
          best["reference_trajectory 800 samples"] / best["simulate 800 samples (fast route)"]),
     )  # fmt: skip
     rows += [(f"ratio {name}", f"{value:12.3f}") for name, value in ratios]
-    width = max(len(r[0]) for r in rows)
-    print(f"best of {args.repeat}; BLAS threads: "
-          f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")  # fmt: skip
-    print(f"{'case':<{width}}  result")
-    print("-" * (width + 26))
-    for name, value in rows:
-        print(f"{name:<{width}}  {value}")
+    print_table(rows, f"best of {args.repeat}; BLAS threads: "
+                      f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -29,6 +29,23 @@ def shifted_rastrigin(shift: np.ndarray):
     return rastrigin
 
 
+N = 10  # the dimension of the optimiser tests' problems
+
+
+def shifted_problems(extent: float):
+    """The optimiser tests' ``N``-D sphere and Rastrigin with their minima 0 at ``shift``.
+
+    Returns ``(shift, sphere, rastrigin)``, ``shift = linspace(-extent, extent, N)``.
+    """
+    shift = np.linspace(-extent, extent, N)
+    return shift, shifted_sphere(shift), shifted_rastrigin(shift)
+
+
+def flat(X):
+    """Zero everywhere: only an optimiser's own dynamics move its points."""
+    return np.zeros(X.shape[0])
+
+
 def rosenbrock(X):
     return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
 
@@ -55,8 +72,18 @@ class Recorder:
         self.batches.append(np.array(X, copy=True))
         return self.f(X)
 
+    @property
+    def points(self) -> np.ndarray:
+        """Every row evaluated, in order, shape ``(rows, n)``."""
+        return np.concatenate(self.batches)
 
-def cube(f, n: int, half: float = 2.0) -> Problem:
+    @property
+    def sizes(self) -> list[int]:
+        """The number of rows of each batch, in order."""
+        return [len(X) for X in self.batches]
+
+
+def box(f, n: int = N, half: float = 2.0) -> Problem:
     """``f`` on the box ``[-half, half]^n``."""
     return Problem(f, -half * np.ones(n), half * np.ones(n))
 
@@ -79,3 +106,17 @@ class FakeSpace:
 
     def end_iteration(self, phase):
         self.phases.append(phase)
+
+
+def drive(opt, space, f, rng) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Run ``opt.search`` to the end of its own schedule; return every batch and its costs."""
+    gen = opt.search(space, rng)
+    X, out = next(gen), []
+    try:
+        while True:
+            F = f(X)
+            out.append((np.array(X, copy=True), F))
+            X = gen.send(F)
+    except StopIteration:
+        pass
+    return out

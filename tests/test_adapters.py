@@ -23,6 +23,7 @@ from flexid.config import OptimiserSpec
 from flexid.errors import OptimiserError, UnknownOptimiserError
 from flexid.optimisers import Problem, available, get, minimize
 from flexid.optimisers.external import installed, library_notes
+from objectives import Recorder
 
 N = 5
 SHIFT = np.linspace(-0.3, 0.4, N)
@@ -34,21 +35,6 @@ pytestmark = pytest.mark.filterwarnings("ignore::UserWarning", "ignore::RuntimeW
 
 def sphere(X):
     return ((X - SHIFT) ** 2).sum(axis=1)
-
-
-class Recorder:
-    """Objective wrapper that keeps every batch it evaluates."""
-
-    def __init__(self, f=sphere):
-        self.f, self.batches = f, []
-
-    def __call__(self, X):
-        self.batches.append(np.array(X, copy=True))
-        return self.f(X)
-
-    @property
-    def rows(self) -> np.ndarray:
-        return np.concatenate(self.batches)
 
 
 def box(f=sphere) -> Problem:
@@ -74,12 +60,12 @@ ADAPTERS = [
 @pytest.mark.parametrize("name", ADAPTERS)
 @pytest.mark.parametrize("budget", [1, 7, 333])
 def test_exact_budget(name, budget):
-    rec = Recorder()
+    rec = Recorder(sphere)
     r = minimize(name, box(rec), budget, seed=4)
-    assert r.nfev == rec.rows.shape[0] == budget and r.stop == "budget"
+    assert r.nfev == rec.points.shape[0] == budget and r.stop == "budget"
     # every point the library asked for is inside the box
-    assert np.all(rec.rows >= -2.0) and np.all(rec.rows <= 2.0)
-    F = sphere(rec.rows)  # the same function on the same rows: exact
+    assert np.all(rec.points >= -2.0) and np.all(rec.points <= 2.0)
+    F = sphere(rec.points)  # the same function on the same rows: exact
     assert r.fun == F.min()
 
 
@@ -88,8 +74,8 @@ def test_deterministic_for_a_seed_whatever_the_global_state(name):
     runs = []
     for seed, global_seed in ((9, 1), (9, 2), (10, 1)):
         np.random.seed(global_seed)  # noqa: NPY002 (the adapters must not read it)
-        rec = Recorder()
-        runs.append((minimize(name, box(rec), 300, seed=seed), rec.rows))
+        rec = Recorder(sphere)
+        runs.append((minimize(name, box(rec), 300, seed=seed), rec.points))
     (a, rows_a), (b, rows_b), (_, rows_c) = runs
     np.testing.assert_array_equal(rows_a, rows_b)
     assert a.fun == b.fun
@@ -108,7 +94,7 @@ def test_deterministic_for_a_seed_whatever_the_global_state(name):
     ],
 )
 def test_first_batch_is_the_shared_initial_population(name, size):
-    rec = Recorder()
+    rec = Recorder(sphere)
     minimize(name, box(rec), size + 10, seed=6)
     shared = box().initial_population(size, seed=np.random.SeedSequence(6).spawn(2)[0])
     # the library receives the unit-box points and hands them back; mapping them to the box
@@ -118,10 +104,10 @@ def test_first_batch_is_the_shared_initial_population(name, size):
 
 @pytest.mark.parametrize("name", [pytest.param("ng:TwoPointsDE", marks=NG)])
 def test_no_initial_points_leaves_the_library_its_own_start(name):
-    rec = Recorder()
+    rec = Recorder(sphere)
     minimize(name, box(rec), 60, seed=6, params={"initial_points": 0})
     shared = box().initial_population(1, seed=np.random.SeedSequence(6).spawn(2)[0])
-    assert not np.array_equal(rec.rows[0], shared[0])
+    assert not np.array_equal(rec.points[0], shared[0])
 
 
 @CMA
@@ -135,7 +121,7 @@ def test_pycma_starts_from_the_best_initial_point():
         starts.append(np.array(x0, copy=True))
         original(self, x0, sigma0, options)
 
-    rec = Recorder()
+    rec = Recorder(sphere)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(cma.CMAEvolutionStrategy, "__init__", spy)
         minimize("cma:CMA-ES", box(rec), 60, seed=2)

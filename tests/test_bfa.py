@@ -14,31 +14,11 @@ import pytest
 from flexid.errors import HyperParameterError
 from flexid.optimisers import create, get, minimize
 from flexid.optimisers.bfa import swarming_cost, tumble_directions
+from helpers import assert_median_beats_random_search
 from numerics import EPS, assert_close_to_terms, route_tolerance
-from objectives import FakeSpace, Recorder, cube, rosenbrock, shifted_rastrigin, shifted_sphere
+from objectives import FakeSpace, Recorder, box, drive, rosenbrock, shifted_problems
 
-N = 10
-SHIFT = np.linspace(-0.5, 0.5, N)
-sphere = shifted_sphere(SHIFT)
-rastrigin = shifted_rastrigin(SHIFT)
-
-
-def box(f, n=N, half=2.0):
-    return cube(f, n, half)
-
-
-def drive(opt, space, f, rng):
-    """Run ``opt.search`` to the end of its own schedule; return every batch and cost."""
-    gen = opt.search(space, rng)
-    X, out = next(gen), []
-    try:
-        while True:
-            F = f(X)
-            out.append((np.array(X, copy=True), F))
-            X = gen.send(F)
-    except StopIteration:
-        pass
-    return out
+SHIFT, sphere, rastrigin = shifted_problems(0.5)
 
 
 def reference_bfa(X, f, S, Nc, Ns, Nre, Ned, ped, C, rng, lower, upper):
@@ -271,16 +251,9 @@ def test_reaches_tolerance_on_shifted_sphere():
     "f, half", [(rastrigin, 5.12), (rosenbrock, 2.0)], ids=["rastrigin", "rosenbrock"]
 )
 def test_clearly_better_than_random_search(f, half):
-    seeds = range(5)
     # Passino's C = 0.1 in the box's units, as a fraction of a side
     p = {"step_size": 0.1 / (2 * half)}
-    ours = np.median(
-        [minimize("bfa", box(f, half=half), 20_000, seed=s, params=p).fun for s in seeds]
-    )
-    rand = np.median(
-        [minimize("random-search", box(f, half=half), 20_000, seed=s).fun for s in seeds]
-    )
-    assert ours < 0.9 * rand
+    assert_median_beats_random_search("bfa", box(f, half=half), 20_000, range(5), 0.9, params=p)
 
 
 def test_population_must_be_even():

@@ -30,16 +30,17 @@ def _run(argv, capsys):
     return status, out.out, out.err
 
 
-def test_identify_json_gives_coefficients_fits_and_timings(tmp_path, capsys):
+def _identify(tmp_path, capsys, *options):
+    """``flexid identify`` on a fresh record with ``options``: must succeed; its stdout."""
     path = _record(tmp_path / "rec.csv")
-    status, out, err = _run(
-        [
-            "identify", str(path), "--na", "2", "--nb", "2", "--nk", "1",
-            "--optimiser", "ls", "--json",
-        ],
-        capsys,
-    )
+    status, out, err = _run(["identify", str(path), *options], capsys)
     assert status == 0, err
+    return out
+
+
+def test_identify_json_gives_coefficients_fits_and_timings(tmp_path, capsys):
+    out = _identify(tmp_path, capsys, "--na", "2", "--nb", "2", "--nk", "1", "--optimiser", "ls",
+                    "--json")
     result = json.loads(out)
     theta = np.array(result["model"]["theta"])
     np.testing.assert_allclose(theta, [-1.5, 0.7, 0.5, 0.25], atol=1e-8)
@@ -48,15 +49,8 @@ def test_identify_json_gives_coefficients_fits_and_timings(tmp_path, capsys):
 
 
 def test_identify_with_an_optimiser(tmp_path, capsys):
-    path = _record(tmp_path / "rec.csv")
-    status, out, err = _run(
-        [
-            "identify", str(path), "--na", "2", "--optimiser", "de", "--budget", "3000",
-            "--seed", "3", "--no-progress",
-        ],
-        capsys,
-    )
-    assert status == 0, err
+    out = _identify(tmp_path, capsys, "--na", "2", "--optimiser", "de", "--budget", "3000",
+                    "--seed", "3", "--no-progress")
     assert "fit" in out.lower() and "de" in out
 
 

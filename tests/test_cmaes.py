@@ -9,70 +9,50 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexid.optimisers import AskTell, Problem, create, minimize
+from flexid.optimisers import AskTell, minimize
 from flexid.optimisers.cmaes import CMAES
+from helpers import assert_absorbed_on_a_face, assert_beats_random_search, assert_defaults
 from numerics import EPS
-from objectives import rosenbrock, shifted_rastrigin, shifted_sphere
+from objectives import N, Recorder, box, rosenbrock, shifted_problems
 
-N = 10
-SHIFT = np.linspace(-1.4, 1.4, N)
-sphere = shifted_sphere(SHIFT)
-rastrigin = shifted_rastrigin(SHIFT)
+SHIFT, sphere, rastrigin = shifted_problems(1.4)
 
 
 def test_registered_defaults():
-    opt = create("cmaes")
-    assert isinstance(opt, CMAES)
-    assert opt.population is None and opt.sigma0 == 0.3
+    assert_defaults("cmaes", CMAES, population=None, sigma0=0.3)
 
 
 def test_default_lambda_and_fe_exact():
-    sizes = []
-
-    def f(X):
-        sizes.append(len(X))
-        return sphere(X)
-
-    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
-    r = minimize("cmaes", p, budget=50 + 10 * 7 + 3, seed=0)
+    rec = Recorder(sphere)
+    r = minimize("cmaes", box(rec, half=5.0), budget=50 + 10 * 7 + 3, seed=0)
     lam = 4 + int(np.floor(3 * np.log(N)))  # = 10
-    assert sizes == [50] + [lam] * 7 + [3]
-    assert r.nfev == sum(sizes)
+    assert rec.sizes == [50] + [lam] * 7 + [3]
+    assert r.nfev == rec.rows
 
 
 def test_shifted_sphere_10d_reaches_1e_12_in_5000_fe():
-    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
     for seed in (0, 1):
-        assert minimize("cmaes", p, budget=5000, seed=seed).fun < 1e-12
+        assert minimize("cmaes", box(sphere, half=5.0), budget=5000, seed=seed).fun < 1e-12
 
 
 def test_rosenbrock_solved_and_rastrigin_beats_random_search():
-    ros = Problem(rosenbrock, -2 * np.ones(N), 2 * np.ones(N))
-    ras = Problem(rastrigin, -5.12 * np.ones(N), 5.12 * np.ones(N))
     for seed in (0, 1):
-        assert minimize("cmaes", ros, budget=10_000, seed=seed).fun < 1e-8
-        ours = minimize("cmaes", ras, budget=5000, seed=seed).fun
-        assert ours < 0.5 * minimize("random-search", ras, budget=5000, seed=seed).fun
+        assert minimize("cmaes", box(rosenbrock), budget=10_000, seed=seed).fun < 1e-8
+    assert_beats_random_search("cmaes", box(rastrigin, half=5.12), 5000, (0, 1), factor=0.5)
 
 
 def test_mean_starts_at_best_initial_point():
-    seen = []
-
-    def f(X):
-        seen.append(X.copy())
-        return sphere(X)
-
-    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
-    minimize("cmaes", p, budget=60, seed=0, params={"sigma0": 1e-9})
-    x_best = seen[0][np.argmin(sphere(seen[0]))]
-    np.testing.assert_allclose(seen[1], np.tile(x_best, (10, 1)), atol=1e-6)
+    rec = Recorder(sphere)
+    minimize("cmaes", box(rec, half=5.0), budget=60, seed=0, params={"sigma0": 1e-9})
+    first, second = rec.batches
+    x_best = first[np.argmin(sphere(first))]
+    np.testing.assert_allclose(second, np.tile(x_best, (10, 1)), atol=1e-6)
 
 
 @pytest.mark.numerics
 def test_internal_invariants_during_a_run():
     """Weights sum to 1 and decrease; C stays symmetric positive definite; B, D match C."""
-    p = Problem(rosenbrock, -2 * np.ones(N), 2 * np.ones(N))
-    at = AskTell("cmaes", p, budget=3000, seed=1)
+    at = AskTell("cmaes", box(rosenbrock), budget=3000, seed=1)
     checked = 0
     while not at.done:
         X = at.ask()
@@ -98,17 +78,7 @@ def test_internal_invariants_during_a_run():
 
 
 def test_bounds_clipped_when_optimum_outside():
-    seen = []
-
-    def f(X):
-        seen.append(X.copy())
-        return ((X - 3.0) ** 2).sum(axis=1)
-
-    p = Problem(f, -np.ones(4), np.ones(4))
-    r = minimize("cmaes", p, budget=3000, seed=0)
-    X = np.concatenate(seen)
-    assert X.min() >= -1 and X.max() <= 1
-    np.testing.assert_allclose(r.x, np.ones(4), atol=1e-6)
+    assert_absorbed_on_a_face("cmaes", 4, 3000, atol=1e-6)
 
 
 def test_nan_costs_do_not_break_it():
@@ -117,6 +87,5 @@ def test_nan_costs_do_not_break_it():
         F[X[:, 0] > 2] = np.nan
         return F
 
-    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
-    r = minimize("cmaes", p, budget=3000, seed=0)
+    r = minimize("cmaes", box(f, half=5.0), budget=3000, seed=0)
     assert np.isfinite(r.fun) and r.fun < 1e-3

@@ -12,38 +12,17 @@ import sqlite3
 import subprocess
 import sys
 import time
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from flexid import ComparisonResult, compare, load_result
 from flexid._compare import run_seed
-from flexid.config import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec
+from flexid.config import OptimiserSpec
 from flexid.errors import ConfigError, HyperParameterError, UnknownOptimiserError
 from flexid.optimisers import Optimiser, Param, register, unregister
 from flexid.store import ResultStore
-
-
-def small_spec(**changes) -> ComparisonSpec:
-    spec = ComparisonSpec(
-        name="small",
-        data=DataSpec(
-            plant="manipulator",
-            signal="uniform",
-            n_samples=600,
-            seed=1,
-            outputs=["tip_acceleration"],
-        ),
-        model=ModelSpec(na=4, nb=4, nk=1),
-        cost=CostSpec(metric="paper", predictor="one-step"),
-        optimisers=(OptimiserSpec("sda", {"points": 10}), OptimiserSpec("random-search")),
-        runs=3,
-        seed=5,
-        budget=600,
-        targets=(10.0, 0.5),
-    )
-    return replace(spec, **changes)
+from helpers import small_spec
 
 
 def test_run_seed_is_stable_and_independent_of_run_count():

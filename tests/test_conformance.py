@@ -43,6 +43,7 @@ from flexid.optimisers import (
     reload_plugins,
     unregister,
 )
+from objectives import Recorder
 
 try:
     import tomllib
@@ -59,21 +60,6 @@ SHIFT = np.linspace(-0.3, 0.4, N)
 
 def sphere(X):
     return ((X - SHIFT) ** 2).sum(axis=1)
-
-
-class Recorder:
-    """Objective wrapper that keeps every batch it evaluates."""
-
-    def __init__(self, f=sphere):
-        self.f, self.batches = f, []
-
-    def __call__(self, X):
-        self.batches.append(np.array(X, copy=True))
-        return self.f(X)
-
-    @property
-    def rows(self) -> np.ndarray:
-        return np.concatenate(self.batches)
 
 
 def box(f=sphere, n=N, half=2.0) -> Problem:
@@ -126,8 +112,8 @@ def test_deterministic_for_a_seed(name):
     state = np.random.get_state()  # noqa: NPY002 (checked, not used)
     runs = []
     for seed in (7, 7, 8):
-        rec = Recorder()
-        runs.append((minimize(name, box(rec), 1000, seed=seed), rec.rows))
+        rec = Recorder(sphere)
+        runs.append((minimize(name, box(rec), 1000, seed=seed), rec.points))
     (a, rows_a), (b, rows_b), (_, rows_c) = runs
     np.testing.assert_array_equal(rows_a, rows_b)
     assert a.fun == b.fun and (a.nfev, a.nit) == (b.nfev, b.nit)
@@ -145,9 +131,9 @@ def test_deterministic_for_a_seed(name):
 @pytest.mark.parametrize("name", NAMES)
 @pytest.mark.parametrize("budget", [1, 7, 333, 1001])
 def test_fe_exact(name, budget):
-    rec = Recorder()
+    rec = Recorder(sphere)
     r = minimize(name, box(rec), budget, seed=3)
-    rows = rec.rows
+    rows = rec.points
     assert r.nfev == rows.shape[0] == budget
     assert r.stop == "budget"
     h = r.history
@@ -162,7 +148,7 @@ def test_fe_exact(name, budget):
 # ------------------------------------------------------------------------------ ask/tell
 @pytest.mark.parametrize("name", NAMES)
 def test_ask_tell_equals_minimize(name):
-    rec = Recorder()
+    rec = Recorder(sphere)
     ref = minimize(name, box(rec), 500, seed=11)
     at = AskTell(name, box(), budget=500, seed=11)
     asked = []
@@ -171,7 +157,7 @@ def test_ask_tell_equals_minimize(name):
         asked.append(X)
         at.tell(sphere(X))
     r = at.result()
-    np.testing.assert_array_equal(np.concatenate(asked), rec.rows)
+    np.testing.assert_array_equal(np.concatenate(asked), rec.points)
     assert r.fun == ref.fun and r.nfev == ref.nfev == 500 and r.nit == ref.nit
     np.testing.assert_array_equal(r.x, ref.x)
     np.testing.assert_array_equal(r.history.fe, ref.history.fe)

@@ -9,35 +9,27 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexid.optimisers import Problem, create, minimize
+from flexid.optimisers import Problem, minimize
 from flexid.optimisers.de import DifferentialEvolution
-from objectives import rosenbrock, shifted_rastrigin, shifted_sphere
+from helpers import assert_beats_random_search, assert_defaults
+from objectives import Recorder, box, flat, rosenbrock, shifted_problems
 
-N = 10
-SHIFT = np.linspace(-1.4, 1.4, N)
-sphere = shifted_sphere(SHIFT)
-rastrigin = shifted_rastrigin(SHIFT)
+SHIFT, sphere, rastrigin = shifted_problems(1.4)
 
 
 def test_registered_defaults():
-    opt = create("de")
-    assert isinstance(opt, DifferentialEvolution)
-    assert (opt.weight, opt.crossover, opt.population) == (0.5, 0.9, 50)
+    assert_defaults("de", DifferentialEvolution, weight=0.5, crossover=0.9, population=50)
 
 
 def test_shifted_sphere_10d_reaches_1e_5_in_10000_fe():
-    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    p = box(sphere, half=5.0)
     for seed in (0, 1):
         assert minimize("de", p, budget=10_000, seed=seed).fun < 1e-5
 
 
 @pytest.mark.parametrize("f, width", [(rastrigin, 5.12), (rosenbrock, 2.0)])
 def test_beats_random_search(f, width):
-    p = Problem(f, -width * np.ones(N), width * np.ones(N))
-    for seed in (0, 1):
-        ours = minimize("de", p, budget=5000, seed=seed).fun
-        rs = minimize("random-search", p, budget=5000, seed=seed).fun
-        assert ours < rs
+    assert_beats_random_search("de", box(f, half=width), 5000, seeds=(0, 1))
 
 
 def test_operators_against_a_loop():
@@ -70,15 +62,10 @@ def test_operators_against_a_loop():
 def test_mutant_uses_three_distinct_others():
     # population of 4: each mutant uses the 3 other members; with CR = 1 and F = 1 the
     # trial is x_r1 + (x_r2 - x_r3), a combination of the others only
-    seen = []
-
-    def f(X):
-        seen.append(X.copy())
-        return np.zeros(len(X))
-
-    p = Problem(f, -100 * np.ones(2), 100 * np.ones(2))
-    minimize("de", p, budget=8, seed=0, params={"population": 4, "crossover": 1.0, "weight": 1.0})
-    X, U = seen
+    rec = Recorder(flat)
+    minimize("de", box(rec, 2, half=100.0), budget=8, seed=0,
+             params={"population": 4, "crossover": 1.0, "weight": 1.0})
+    X, U = rec.batches
     for i in range(4):
         others = [j for j in range(4) if j != i]
         cands = [X[a] + X[b] - X[c] for a in others for b in others for c in others
@@ -92,7 +79,7 @@ def test_mutant_uses_three_distinct_others():
 
 
 def test_dither_changes_the_run_and_stays_deterministic():
-    p = Problem(rastrigin, -5.12 * np.ones(N), 5.12 * np.ones(N))
+    p = box(rastrigin, half=5.12)
     a = minimize("de", p, budget=3000, seed=0, params={"dither": True})
     b = minimize("de", p, budget=3000, seed=0, params={"dither": True})
     c = minimize("de", p, budget=3000, seed=0)

@@ -55,37 +55,7 @@ CHECKED = frozenset(
 )
 
 # name -> codes that still fail there (see the module docstring: this list only shrinks)
-PENDING: dict[str, frozenset[str]] = {
-    "flexid.envs.twin_rotor.TwinRotorEnv": frozenset({"PR02", "PR10"}),
-    "flexid.envs.twin_rotor.TwinRotorVectorEnv": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics": frozenset({"GL06", "GL07"}),
-    "flexid.envs.twin_rotor_physics.BatchStepper.advance": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.BatchStepper.outputs": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.BatchStepper.reset": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.CompiledBatchStepper": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.CompiledBatchStepper.advance": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.CompiledBatchStepper.outputs": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.CompiledBatchStepper.reset": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.CompiledScalarStepper": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.TwinRotorParameters": frozenset({"PR01"}),
-    "flexid.envs.twin_rotor_physics.TwinRotorParameters.to_dict": frozenset({"GL08"}),
-    "flexid.envs.twin_rotor_physics.batch_stepper": frozenset({"PR01", "RT01"}),
-    "flexid.envs.twin_rotor_physics.clip_inputs": frozenset({"PR01", "RT01"}),
-    "flexid.envs.twin_rotor_physics.measure": frozenset({"PR01", "RT01"}),
-    "flexid.envs.twin_rotor_physics.noise_floor": frozenset({"PR01", "RT01"}),
-    "flexid.envs.twin_rotor_physics.pitch_linear_mode": frozenset({"PR01", "RT01"}),
-    "flexid.envs.twin_rotor_physics.scalar_stepper": frozenset({"PR01", "RT01"}),
-    "flexid.envs.twin_rotor_physics.substeps": frozenset({"PR01", "RT01"}),
-    "flexid.envs.twin_rotor_physics.thrust": frozenset({"PR01", "RT01"}),
-    "flexid.plants.Plant.make_parameters": frozenset({"PR01", "RT01"}),
-    "flexid.plants.Plant.measure": frozenset({"PR01", "RT01"}),
-    "flexid.plants.Plant.noise_floor": frozenset({"PR01", "RT01"}),
-    "flexid.plants.Plant.output_names": frozenset({"GL08"}),
-    "flexid.plants.Plant.output_units": frozenset({"GL08"}),
-    "flexid.plants.Plant.physics": frozenset({"RT01"}),
-    "flexid.plants.get_plant": frozenset({"PR01", "RT01"}),
-    "flexid.plants.register_plant": frozenset({"PR01", "RT01"}),
-}
+PENDING: dict[str, frozenset[str]] = {}
 
 
 class FlexidValidator(numpydoc_validate.Validator):

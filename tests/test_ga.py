@@ -12,45 +12,32 @@ import pytest
 from flexid.errors import HyperParameterError
 from flexid.optimisers import Problem, create, minimize
 from flexid.optimisers.ga import GeneticAlgorithm
-from objectives import rosenbrock, shifted_rastrigin, shifted_sphere
+from helpers import assert_beats_random_search, assert_defaults
+from objectives import N, Recorder, box, flat, rosenbrock, shifted_problems
 
-N = 10
-SHIFT = np.linspace(-1.4, 1.4, N)
-sphere = shifted_sphere(SHIFT)
-rastrigin = shifted_rastrigin(SHIFT)
+SHIFT, sphere, rastrigin = shifted_problems(1.4)
 
 
 def test_registered_defaults():
-    opt = create("ga")
-    assert isinstance(opt, GeneticAlgorithm)
-    assert (opt.population, opt.elites, opt.eta_c, opt.eta_m) == (50, 2, 15.0, 20.0)
+    assert_defaults("ga", GeneticAlgorithm, population=50, elites=2, eta_c=15.0, eta_m=20.0)
 
 
 def test_generation_size_is_population_minus_elites():
-    sizes = []
-
-    def f(X):
-        sizes.append(len(X))
-        return sphere(X)
-
-    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
-    minimize("ga", p, budget=20 + 4 * 17, seed=0, params={"population": 20, "elites": 3})
-    assert sizes == [20, 17, 17, 17, 17]
+    rec = Recorder(sphere)
+    minimize("ga", box(rec, half=5.0), budget=20 + 4 * 17, seed=0,
+             params={"population": 20, "elites": 3})
+    assert rec.sizes == [20, 17, 17, 17, 17]
 
 
 def test_shifted_sphere_10d_reaches_1e_2_in_10000_fe():
-    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    p = box(sphere, half=5.0)
     for seed in (0, 1):
         assert minimize("ga", p, budget=10_000, seed=seed).fun < 1e-2
 
 
 @pytest.mark.parametrize("f, width", [(rastrigin, 5.12), (rosenbrock, 2.0)])
 def test_beats_random_search(f, width):
-    p = Problem(f, -width * np.ones(N), width * np.ones(N))
-    for seed in (0, 1):
-        ours = minimize("ga", p, budget=5000, seed=seed).fun
-        rs = minimize("random-search", p, budget=5000, seed=seed).fun
-        assert ours < 0.5 * rs
+    assert_beats_random_search("ga", box(f, half=width), 5000, seeds=(0, 1), factor=0.5)
 
 
 def test_elitism_and_bounds():
@@ -78,16 +65,10 @@ def test_elitism_and_bounds():
 
 def test_sbx_children_are_symmetric_about_parents_mean():
     """Without mutation, SBX keeps each pair's mean: children sums equal parent sums."""
-    seen = []
-
-    def f(X):
-        seen.append(X.copy())
-        return np.zeros(len(X))
-
-    p = Problem(f, -1e3 * np.ones(3), 1e3 * np.ones(3))
-    minimize("ga", p, budget=10 + 10, seed=0,
+    rec = Recorder(flat)
+    minimize("ga", box(rec, 3, half=1e3), budget=10 + 10, seed=0,
              params={"population": 10, "elites": 0, "p_mutation": 0.0})
-    X0, C = seen
+    X0, C = rec.batches
     half = 5
     pair_sum = C[:half] + C[half:]
     # each pair's sum is the sum of two members of the initial population

@@ -17,31 +17,12 @@ import pytest
 from flexid.optimisers import create, get, minimize
 from flexid.optimisers.hbcsd import adaptive_weight
 from flexid.optimisers.rotation import plane_rotation, rotation_matrix
+from helpers import assert_median_beats_random_search
 from numerics import EPS, assert_close_to_terms
-from objectives import FakeSpace, Recorder, cube, rosenbrock, shifted_rastrigin, shifted_sphere
+from objectives import FakeSpace, N, Recorder, box, drive, rosenbrock, shifted_problems
 from route_bounds import spiral_step_bound
 
-N = 10
-SHIFT = np.linspace(-0.5, 0.5, N)
-sphere = shifted_sphere(SHIFT)
-rastrigin = shifted_rastrigin(SHIFT)
-
-
-def box(f, n=N, half=2.0):
-    return cube(f, n, half)
-
-
-def drive(opt, space, f, rng):
-    gen = opt.search(space, rng)
-    X, out = next(gen), []
-    try:
-        while True:
-            F = f(X)
-            out.append(np.array(X, copy=True))
-            X = gen.send(F)
-    except StopIteration:
-        pass
-    return out
+SHIFT, sphere, rastrigin = shifted_problems(0.5)
 
 
 def dense_rotation(n, theta):
@@ -163,7 +144,7 @@ def test_chemotaxis_then_spiral_from_personal_bests():
                  r_lower=0.7, r_upper=0.95, c1_r=3.0, c2_r=1.0, theta_lower=0.5,
                  theta_upper=1.2, c1_theta=2.0, c2_theta=1.0)
     space = FakeSpace(X0, lower, upper)
-    out = drive(opt, space, f, np.random.default_rng(4))
+    out = [X for X, _ in drive(opt, space, f, np.random.default_rng(4))]
     Pb, Jb, rows = reference_hbcsd(X0, f, 8, 3, 0.3, np.random.default_rng(4))
     assert sum(X.shape[0] for X in out) == rows + 5 * m
     assert space.phases == ["chemotaxis"] * 8 + ["spiral"] * 5
@@ -282,12 +263,7 @@ def test_reaches_tolerance_on_shifted_sphere():
     "f, half", [(rastrigin, 5.12), (rosenbrock, 2.0)], ids=["rastrigin", "rosenbrock"]
 )
 def test_clearly_better_than_random_search(f, half):
-    seeds = range(5)
-    ours = np.median([minimize("hbcsd", box(f, half=half), 20_000, seed=s).fun for s in seeds])
-    rand = np.median(
-        [minimize("random-search", box(f, half=half), 20_000, seed=s).fun for s in seeds]
-    )
-    assert ours < 0.8 * rand
+    assert_median_beats_random_search("hbcsd", box(f, half=half), 20_000, range(5), factor=0.8)
 
 
 def test_paper_variants():

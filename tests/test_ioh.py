@@ -16,24 +16,15 @@ import pytest
 
 from flexid import compare, load_result
 from flexid.cli import main
-from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec, SearchSpec
+from flexid.config import ComparisonSpec, SearchSpec
 from flexid.errors import ConfigError, StoreError
 from flexid.report import comparison_ecdf, ecdf_fraction, ecdf_targets, export_ioh, write_report
 from flexid.store import ResultStore
+from helpers import tiny_spec
 
 
 def _spec(name: str, numerator: str) -> ComparisonSpec:
-    return ComparisonSpec(
-        name=name,
-        data=DataSpec(plant="manipulator", signal="uniform", n_samples=400, seed=0,
-                      outputs=["tip_acceleration"]),
-        model=ModelSpec(na=2),
-        search=SearchSpec(numerator=numerator),
-        optimisers=(OptimiserSpec("sda", {"points": 10}), OptimiserSpec("random-search")),
-        runs=2,
-        budget=300,
-        targets=(1.0, 0.1),
-    )
+    return tiny_spec(name, search=SearchSpec(numerator=numerator), targets=(1.0, 0.1))
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,6 @@ import pytest
 pytest.importorskip("matplotlib")
 
 from flexid import compare, identify
-from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.data import IOData
 from flexid.plots import (
     comparison_figures,
@@ -16,6 +15,7 @@ from flexid.plots import (
     plot_correlations,
     plot_pole_zero,
 )
+from helpers import tiny_spec
 from numerics import EPS
 
 
@@ -65,17 +65,7 @@ def test_correlation_panels_show_the_bands():
 
 
 def test_comparison_figures(tmp_path):
-    spec = ComparisonSpec(
-        name="fig",
-        data=DataSpec(plant="manipulator", signal="uniform", n_samples=400, seed=0,
-                      outputs=["tip_acceleration"]),
-        model=ModelSpec(na=2),
-        optimisers=(OptimiserSpec("sda", {"points": 10}), OptimiserSpec("random-search")),
-        runs=2,
-        budget=300,
-        targets=(1.0,),
-    )
-    result = compare(spec, progress=False)
+    result = compare(tiny_spec("fig"), progress=False)
     paths = comparison_figures(result, tmp_path, prefix="c-")
     assert [p.name for p in paths] == ["c-convergence.png", "c-fe_to_target_1.png"]
     assert all(_is_png(p) for p in paths)

@@ -5,27 +5,17 @@ from __future__ import annotations
 import pytest
 
 from flexid import compare
-from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.errors import ConfigError, StoreError
 from flexid.report import write_report
 from flexid.store import ResultStore
+from helpers import tiny_spec
 
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):
     path = tmp_path_factory.mktemp("rep") / "r.sqlite"
-    spec = ComparisonSpec(
-        name="report test",
-        data=DataSpec(plant="manipulator", signal="uniform", n_samples=400, seed=0,
-                      outputs=["tip_acceleration"]),
-        model=ModelSpec(na=2),
-        optimisers=(OptimiserSpec("sda", {"points": 10}), OptimiserSpec("random-search")),
-        runs=2,
-        budget=300,
-        targets=(1.0,),
-    )
     with ResultStore(path) as s:
-        compare(spec, store=s, progress=False)
+        compare(tiny_spec("report test"), store=s, progress=False)
     return path
 
 

@@ -5,7 +5,6 @@ ComparisonResult: well-formed HTML, the numbers of the plain-text summaries, esc
 from __future__ import annotations
 
 import re
-from dataclasses import replace
 from html.parser import HTMLParser
 
 import numpy as np
@@ -13,7 +12,8 @@ import pytest
 
 from flexid import IOData, compare, identify
 from flexid._html import escape, table
-from flexid.config import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec
+from flexid.config import ModelSpec, OptimiserSpec
+from helpers import manipulator_data, small_spec
 
 NASTY = "a<&>b"
 _VOID = {"br", "hr", "img", "meta", "input", "col", "wbr"}
@@ -153,24 +153,14 @@ def test_identification_html_escapes_names(identification):
 # ---------------------------------------------------------------------- ComparisonResult
 @pytest.fixture(scope="module")
 def comparison():
-    spec = ComparisonSpec(
+    spec = small_spec(
         name=f"small {NASTY}",
-        data=DataSpec(
-            plant="manipulator",
-            signal="uniform",
-            n_samples=400,
-            seed=1,
-            outputs=["tip_acceleration"],
-        ),
+        data=manipulator_data(400, 1),
         model=ModelSpec(na=2, nb=2, nk=1),
-        cost=CostSpec(metric="paper", predictor="one-step"),
         optimisers=(OptimiserSpec("random-search"), OptimiserSpec("de")),
-        runs=3,
-        seed=5,
         budget=200,
-        targets=(10.0, 0.5),
     )
-    return compare(replace(spec))
+    return compare(spec)
 
 
 def _text_rows(table_text: str) -> list[list[str]]:

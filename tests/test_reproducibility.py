@@ -155,24 +155,16 @@ def _assert_same_bits(got: Arrays, ref: Arrays) -> None:
             pytest.fail(f"{key}: {differ} entries differ from a fresh process; {detail}")
 
 
-def test_record_independent_of_earlier_longer_record(fresh):
-    a = _paper()
-    b = _prbs()
-    twin = _twin()
-    c = _paper()
-    _assert_same_bits(a, fresh["paper"])
-    _assert_same_bits(b, fresh["prbs"])
-    _assert_same_bits(twin, fresh["twin"])
-    _assert_same_bits(c, fresh["paper"])
-
-
-def test_record_independent_of_call_order(fresh):
-    b = _prbs()
-    a = _paper()
-    b_again = _prbs()
-    _assert_same_bits(a, fresh["paper"])
-    _assert_same_bits(b, fresh["prbs"])
-    _assert_same_bits(b_again, fresh["prbs"])
+@pytest.mark.parametrize(
+    "order",
+    [("paper", "prbs", "twin", "paper"), ("prbs", "paper", "prbs")],
+    ids=["after-a-longer-record", "call-order"],
+)
+def test_record_independent_of_earlier_records(fresh, order):
+    """Recipes run one after another in this process, ``order``, each as in a fresh one."""
+    results = [RECIPES[name]() for name in order]  # all run before any is compared
+    for name, got in zip(order, results, strict=True):
+        _assert_same_bits(got, fresh[name])
 
 
 def test_vector_envs_after_long_generate(fresh):

@@ -14,18 +14,13 @@ import pytest
 from scipy import optimize
 
 from flexid.optimisers import AskTell, Problem, create, describe, minimize
+from helpers import assert_absorbed_on_a_face
+from objectives import Recorder, box, rosenbrock, shifted_sphere
 
 N = 5
 SHIFT = np.linspace(-1.4, 1.4, N)
 METHODS = ["nelder-mead", "powell", "l-bfgs-b"]
-
-
-def sphere(X):
-    return ((X - SHIFT) ** 2).sum(axis=1)
-
-
-def rosenbrock(X):
-    return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
+sphere = shifted_sphere(SHIFT)
 
 
 @pytest.mark.parametrize("name, method", list(zip(METHODS, ["Nelder-Mead", "Powell", "L-BFGS-B"])))
@@ -38,7 +33,7 @@ def test_variants_registered(name, method):
 def test_threads_cleaned_up(name):
     # FE-exactness and determinism: test_conformance.py
     before = threading.active_count()
-    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    p = box(sphere, N, half=5.0)
     for seed in (2, 3):
         assert minimize(name, p, budget=400, seed=seed).nfev == 400
     assert threading.active_count() == before
@@ -47,7 +42,7 @@ def test_threads_cleaned_up(name):
 @pytest.mark.parametrize("name, tol", [("nelder-mead", 1e-6), ("powell", 1e-10),
                                        ("l-bfgs-b", 1e-10)])
 def test_shifted_sphere_5d(name, tol):
-    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    p = box(sphere, N, half=5.0)
     assert minimize(name, p, budget=1500, seed=0).fun < tol
 
 
@@ -121,43 +116,27 @@ def test_lbfgsb_matches_scipy_with_same_gradient():
 
 
 def test_lbfgsb_gradient_is_one_batch_of_n_plus_1():
-    sizes = []
-
-    def f(X):
-        sizes.append(len(X))
-        return sphere(X)
-
-    p = Problem(f, -5 * np.ones(N), 5 * np.ones(N))
-    minimize("l-bfgs-b", p, budget=6 * 10, seed=0)
-    assert sizes == [N + 1] * 10
+    rec = Recorder(sphere)
+    minimize("l-bfgs-b", box(rec, N, half=5.0), budget=6 * 10, seed=0)
+    assert rec.sizes == [N + 1] * 10
 
 
 @pytest.mark.parametrize("name", METHODS)
 def test_restarts_use_the_budget(name):
     """On a sphere scipy converges quickly; restarts keep spending the budget."""
-    p = Problem(sphere, -5 * np.ones(N), 5 * np.ones(N))
+    p = box(sphere, N, half=5.0)
     r = minimize(name, p, budget=1500, seed=1)
     assert r.nfev == 1500 and r.stop == "budget"
 
 
 @pytest.mark.parametrize("name", METHODS)
 def test_points_stay_in_box(name):
-    seen = []
-
-    def f(X):
-        seen.append(X.copy())
-        return ((X - 3.0) ** 2).sum(axis=1)
-
-    p = Problem(f, -np.ones(3), np.ones(3))
-    r = minimize(name, p, budget=600, seed=0)
-    X = np.concatenate(seen)
-    assert X.min() >= -1 and X.max() <= 1
-    np.testing.assert_allclose(r.x, np.ones(3), atol=1e-3)
+    assert_absorbed_on_a_face(name, 3, 600, atol=1e-3)
 
 
 def test_abandoned_ask_tell_run_ends_its_thread():
     # ask/tell equals minimize: test_conformance.py
-    p = Problem(rosenbrock, -2 * np.ones(N), 2 * np.ones(N))
+    p = box(rosenbrock, N)
     before = threading.active_count()
     at = AskTell("nelder-mead", p, seed=4)
     for _ in range(5):

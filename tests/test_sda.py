@@ -15,18 +15,12 @@ import pytest
 
 from flexid.optimisers import create, get, minimize
 from flexid.optimisers.rotation import plane_rotation
+from helpers import assert_median_beats_random_search
 from numerics import EPS, assert_close_to_terms
-from objectives import Recorder, cube, rosenbrock, shifted_rastrigin, shifted_sphere
+from objectives import Recorder, box, rosenbrock, shifted_problems
 from route_bounds import spiral_step_bound
 
-N = 10
-SHIFT = np.linspace(-0.5, 0.5, N)
-sphere = shifted_sphere(SHIFT)
-rastrigin = shifted_rastrigin(SHIFT)
-
-
-def box(f, n=N, half=2.0):
-    return cube(f, n, half)
+SHIFT, sphere, rastrigin = shifted_problems(0.5)
 
 
 def reference_sda(batches, f, r, theta):
@@ -135,12 +129,7 @@ def test_reaches_tolerance_on_shifted_sphere():
     "f, half", [(rastrigin, 5.12), (rosenbrock, 2.0)], ids=["rastrigin", "rosenbrock"]
 )
 def test_clearly_better_than_random_search(f, half):
-    seeds = range(5)
-    ours = np.median([minimize("sda", box(f, half=half), 20_000, seed=s).fun for s in seeds])
-    rand = np.median(
-        [minimize("random-search", box(f, half=half), 20_000, seed=s).fun for s in seeds]
-    )
-    assert ours < 0.6 * rand
+    assert_median_beats_random_search("sda", box(f, half=half), 20_000, range(5), factor=0.6)
 
 
 def test_paper_variants():

@@ -78,16 +78,20 @@ class LoopARX:
                     s += bj * u[k, i]
         return s
 
+    def _output(self, u, t, past):
+        """y(t) from the inputs and the outputs ``past`` (measured, or the model's own)."""
+        s = self._input_part(u, t)
+        for i in range(1, self.a.size):
+            if t - i >= 0:
+                s -= self.a[i] * past[t - i]
+        return s
+
     def predict(self, u, y):
         u = self._u(u)
         y = np.asarray(y, float)
         out = np.zeros(y.size)
         for t in range(y.size):
-            s = self._input_part(u, t)
-            for i in range(1, self.a.size):
-                if t - i >= 0:
-                    s -= self.a[i] * y[t - i]
-            out[t] = s
+            out[t] = self._output(u, t, y)
         return out
 
     def simulate(self, u, y_init=None):
@@ -100,11 +104,7 @@ class LoopARX:
             out[:t0] = np.asarray(y_init, float)[:t0]
         with np.errstate(over="ignore", invalid="ignore"):  # unstable models may overflow
             for t in range(t0, n):
-                s = self._input_part(u, t)
-                for i in range(1, self.a.size):
-                    if t - i >= 0:
-                        s -= self.a[i] * out[t - i]
-                out[t] = s
+                out[t] = self._output(u, t, out)
         return out
 
     def residuals(self, u, y):

@@ -73,19 +73,40 @@ class Plant:
     max_episode_steps: int | None = None
 
     def physics(self) -> Any:
-        """The physics module (imported on first use)."""
+        """The physics module (imported on first use).
+
+        Returns
+        -------
+        module
+            The module named by :attr:`module`.
+        """
         return importlib.import_module(self.module)
 
     @property
     def output_names(self) -> tuple[str, ...]:
+        """Names of the outputs, in the order of ``simulate``'s output columns."""
         return tuple(self.physics().OUTPUT_NAMES)
 
     @property
     def output_units(self) -> tuple[str, ...]:
+        """Units of the outputs, in the order of :attr:`output_names`."""
         return tuple(self.physics().OUTPUT_UNITS)
 
     def make_parameters(self, overrides: Mapping[str, Any] | None = None, *, sensors: str = "lab"):
         """The parameter dataclass with ``overrides``; ``sensors="ideal"`` switches the chain off.
+
+        Parameters
+        ----------
+        overrides : mapping, optional
+            Parameter values that differ from the dataclass defaults, by field name.
+        sensors : {"lab", "ideal"}
+            ``"ideal"`` applies the physics module's ``IDEAL_SENSORS`` values first (a given
+            override still wins).
+
+        Returns
+        -------
+        dataclass instance
+            The plant's parameters.
 
         Raises
         ------
@@ -110,11 +131,35 @@ class Plant:
         return cls(**values)
 
     def measure(self, y: np.ndarray, params: Any) -> np.ndarray:
-        """Sampled outputs (N, n_y) read through the plant's digital sensors."""
+        """Sampled outputs read through the plant's digital sensors.
+
+        Parameters
+        ----------
+        y : ndarray, shape (N, n_y)
+            Simulated outputs, in :attr:`output_units`.
+        params : dataclass instance
+            The plant's parameters (encoder resolution and the like).
+
+        Returns
+        -------
+        ndarray, shape (N, n_y)
+            The outputs as the sensors report them (e.g. quantised angles).
+        """
         return self.physics().measure(y, params)
 
     def noise_floor(self, params: Any) -> np.ndarray:
-        """Each output's own sensor-noise standard deviation, shape (n_y,)."""
+        """Each output's own sensor-noise standard deviation.
+
+        Parameters
+        ----------
+        params : dataclass instance
+            The plant's parameters.
+
+        Returns
+        -------
+        ndarray, shape (n_y,)
+            Standard deviations, in :attr:`output_units`.
+        """
         return self.physics().noise_floor(params)
 
 
@@ -135,6 +180,21 @@ def register_plant(plant: Plant) -> Plant:
 
     Its environment is registered with Gymnasium too: now if :mod:`flexid.envs` is loaded,
     else when it is.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant's record.
+
+    Returns
+    -------
+    Plant
+        ``plant`` itself.
+
+    Raises
+    ------
+    PlantParameterError
+        When a plant of that name is already registered.
     """
     if plant.name in PLANTS:
         raise PlantParameterError(f"a plant named {plant.name!r} is already registered")
@@ -148,6 +208,16 @@ def register_plant(plant: Plant) -> Plant:
 
 def get_plant(name: str) -> Plant:
     """The registered plant ``name``.
+
+    Parameters
+    ----------
+    name : str
+        Registry name, e.g. ``"manipulator"`` or ``"twin-rotor"``.
+
+    Returns
+    -------
+    Plant
+        Its record.
 
     Raises
     ------

@@ -17,11 +17,11 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
-from gymnasium.vector.utils import batch_space
 
-from flexid._validate import integer, positive_int, real
+from flexid._validate import real
 from flexid.envs import beam, sensors
 from flexid.envs._render import Canvas
+from flexid.envs._vector import BatchedVectorEnv
 from flexid.errors import ActionError, PlantParameterError
 from flexid.plants import Plant, get_plant
 
@@ -60,6 +60,12 @@ class _Config:
         render_mode: str | None,
         physics: dict[str, Any],
     ):
+        unknown = set(physics) - set(_BEAM_FIELDS)
+        if unknown:
+            raise PlantParameterError(
+                f"unknown manipulator parameter(s) {sorted(unknown)}; physical parameters are "
+                f"{', '.join(_BEAM_FIELDS)}"
+            )
         self.params = beam.BeamParameters(**physics)
         self.dt = _real("dt", dt, 0.0, 0.1, lo_open=True)
         self.tau_max = _real("tau_max", tau_max, 0.0, 1e3, lo_open=True)
@@ -221,7 +227,41 @@ def _render_frame(cfg: _Config, x: np.ndarray, target: float, size: int = 500) -
     return canvas.frame()
 
 
-_DOC_KWARGS = """
+class FlexibleManipulatorEnv(gymnasium.Env):
+    """Single-link flexible manipulator: regulate the hub angle with little tip vibration.
+
+    **Dynamics.** Linear finite-difference Euler-Bernoulli beam on a motor hub
+    (:mod:`flexid.envs.beam`), exact ZOH at ``dt``; optional smoothed hub Coulomb friction.
+
+    **Action.** Hub torque [N m], ``Box(-tau_max, tau_max, (1,), float64)``.  A scalar is
+    accepted too.  Rule for out-of-range finite actions: the torque is clipped to the action
+    space and the applied torque is reported in ``info["applied_torque"]`` (with
+    ``info["clipped"]``).  NaN/inf or a wrong shape raise :class:`flexid.errors.ActionError`.
+
+    **Observation** (float64, shape (5,)): ``[theta (rad), theta' (rad/s), w(l) (m),
+    y''(l) (m/s^2), theta_ref (rad)]``; the first four are the plant outputs plus
+    measurement noise (``noise_std``), the last is the set point.  The physical entries are
+    unbounded (bounds are the largest finite float64); theta_ref lies in
+    ``[-angle_limit, angle_limit]``.  The tip acceleration is ``C x`` (the lumped FD model has
+    no torque feedthrough).
+
+    **Reward** (per step, from the noise-free outputs after the step)::
+
+        r = -(angle_weight * (theta - theta_ref)^2
+              + tip_weight * w(l)^2
+              + torque_weight * (tau / tau_max)^2)
+
+    with defaults 1, 100 and 0.01: 1 cm of tip deflection costs as much as 0.1 rad of angle
+    error, and a full-scale torque as much as 0.1 rad.
+
+    **Episode.** Starts at rest at theta = 0.  ``reset(seed=..., options=...)`` with options
+    ``{"target_angle": value}`` or ``{"random_target": True}`` (uniform in
+    ``[-target_range, target_range]``).  Terminates when ``|theta| > angle_limit``;
+    truncation after ``max_episode_steps`` (2000 = 2 s at 1 ms) comes from the registration.
+
+    ``info`` holds ``applied_torque`` [N m], ``clipped``, ``outputs`` (noise-free outputs,
+    shape (4,)) and ``target_angle``.
+
     Parameters
     ----------
     render_mode : {None, "rgb_array"}
@@ -259,43 +299,6 @@ _DOC_KWARGS = """
     ------
     PlantParameterError
         For any invalid value (the message names the parameter and its allowed range).
-"""
-
-
-class FlexibleManipulatorEnv(gymnasium.Env):
-    """Single-link flexible manipulator: regulate the hub angle with little tip vibration.
-
-    **Dynamics.** Linear finite-difference Euler-Bernoulli beam on a motor hub
-    (:mod:`flexid.envs.beam`), exact ZOH at ``dt``; optional smoothed hub Coulomb friction.
-
-    **Action.** Hub torque [N m], ``Box(-tau_max, tau_max, (1,), float64)``.  A scalar is
-    accepted too.  Rule for out-of-range finite actions: the torque is clipped to the action
-    space and the applied torque is reported in ``info["applied_torque"]`` (with
-    ``info["clipped"]``).  NaN/inf or a wrong shape raise :class:`flexid.errors.ActionError`.
-
-    **Observation** (float64, shape (5,)): ``[theta (rad), theta' (rad/s), w(l) (m),
-    y''(l) (m/s^2), theta_ref (rad)]``; the first four are the plant outputs plus
-    measurement noise (``noise_std``), the last is the set point.  The physical entries are
-    unbounded (bounds are the largest finite float64); theta_ref lies in
-    ``[-angle_limit, angle_limit]``.  The tip acceleration is ``C x`` (the lumped FD model has
-    no torque feedthrough).
-
-    **Reward** (per step, from the noise-free outputs after the step)::
-
-        r = -(angle_weight * (theta - theta_ref)^2
-              + tip_weight * w(l)^2
-              + torque_weight * (tau / tau_max)^2)
-
-    with defaults 1, 100 and 0.01: 1 cm of tip deflection costs as much as 0.1 rad of angle
-    error, and a full-scale torque as much as 0.1 rad.
-
-    **Episode.** Starts at rest at theta = 0.  ``reset(seed=..., options=...)`` with options
-    ``{"target_angle": value}`` or ``{"random_target": True}`` (uniform in
-    ``[-target_range, target_range]``).  Terminates when ``|theta| > angle_limit``;
-    truncation after ``max_episode_steps`` (2000 = 2 s at 1 ms) comes from the registration.
-
-    ``info`` holds ``applied_torque`` [N m], ``clipped``, ``outputs`` (noise-free outputs,
-    shape (4,)) and ``target_angle``.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 50}
@@ -316,7 +319,6 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         torque_weight: float = 0.01,
         **physics,
     ):
-        _check_physics(physics)
         self._cfg = _Config(
             dt, tau_max, noise_std, target_angle, target_range, angle_limit,
             angle_weight, tip_weight, torque_weight, render_mode, physics,
@@ -424,28 +426,41 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         return None
 
 
-FlexibleManipulatorEnv.__doc__ = (FlexibleManipulatorEnv.__doc__ or "") + _DOC_KWARGS
 
-
-def _check_physics(physics: dict) -> None:
-    unknown = set(physics) - set(_BEAM_FIELDS)
-    if unknown:
-        raise PlantParameterError(
-            f"unknown manipulator parameter(s) {sorted(unknown)}; physical parameters are "
-            f"{', '.join(_BEAM_FIELDS)}"
-        )
-
-
-class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
+class FlexibleManipulatorVectorEnv(
+    BatchedVectorEnv, single_env=FlexibleManipulatorEnv, config_type=_Config
+):
     """``num_envs`` flexible manipulators stepped together with one matrix product.
 
-    Same keyword arguments, spaces (``single_action_space``, ``single_observation_space``),
-    reward and termination as :class:`FlexibleManipulatorEnv`, plus ``num_envs`` and
-    ``max_episode_steps`` (truncation; default 2000, as the registration).  The state is a
-    (num_envs, n_x) array.  Autoreset is Gymnasium's default ``NEXT_STEP`` mode: the step
-    after a termination/truncation resets that sub-environment (its action is ignored) and
-    returns its first observation with reward 0 and ``terminated = truncated = False``;
-    an autoreset reuses the ``options`` of the last :meth:`reset` call.
+    Parameters
+    ----------
+    num_envs : int
+        Number of sub-environments, >= 1; default 1.
+    render_mode : {None, "rgb_array"}
+        ``"rgb_array"``: :meth:`render` returns one :class:`FlexibleManipulatorEnv` frame
+        (500 x 500 x 3 uint8) per sub-environment.
+    max_episode_steps : int or None
+        Steps after which a sub-environment is truncated, >= 1; default 2000 (as the
+        registration); None: never.
+    **kwargs
+        The keyword arguments of :class:`FlexibleManipulatorEnv` (``dt`` [s], ``tau_max``
+        [N m], ``noise_std``, ``target_angle`` [rad], ``target_range`` [rad],
+        ``angle_limit`` [rad], the reward weights and any physical parameter), with the
+        same defaults.
+
+    Raises
+    ------
+    PlantParameterError
+        For any invalid value (the message names the parameter and its allowed range).
+
+    Notes
+    -----
+    Same spaces (``single_action_space``, ``single_observation_space``), reward and
+    termination as :class:`FlexibleManipulatorEnv`.  The state is a (num_envs, n_x) array.
+    Autoreset is Gymnasium's default ``NEXT_STEP`` mode: the step after a
+    termination/truncation resets that sub-environment (its action is ignored) and returns
+    its first observation with reward 0 and ``terminated = truncated = False``; an autoreset
+    reuses the ``options`` of the last :meth:`reset` call.
 
     Seeding rule (as ``SyncVectorEnv``): ``reset(seed=s)`` seeds sub-environment ``i`` with
     ``s + i`` (a list of seeds is used as is); every sub-environment has its own generator,
@@ -455,54 +470,18 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
     (num_envs, 4), noise-free.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": ["rgb_array"],
-        "render_fps": 50,
-        "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP,
-    }
-    plant: ClassVar[Plant] = PLANT
-
     def __init__(
         self,
         num_envs: int = 1,
         render_mode: str | None = None,
         *,
         max_episode_steps: int | None = 2000,
-        dt: float = 1e-3,
-        tau_max: float = 0.3,
-        noise_std=0.0,
-        target_angle: float = 0.5,
-        target_range: float | None = None,
-        angle_limit: float = math.pi / 2,
-        angle_weight: float = 1.0,
-        tip_weight: float = 100.0,
-        torque_weight: float = 0.01,
-        **physics,
-    ):
-        num_envs = positive_int(num_envs, "'num_envs'", error=PlantParameterError)
-        max_episode_steps = integer(
-            max_episode_steps, "'max_episode_steps'", error=PlantParameterError, minimum=1,
-            none_ok=True,
-        )
-        _check_physics(physics)
-        self._cfg = _Config(
-            dt, tau_max, noise_std, target_angle, target_range, angle_limit,
-            angle_weight, tip_weight, torque_weight, render_mode, physics,
-        )  # fmt: skip
-        self.num_envs = int(num_envs)
-        self.max_episode_steps = max_episode_steps
-        self.params = self._cfg.params
-        self.dt = self._cfg.dt
-        self.render_mode = render_mode
-        self.single_action_space, self.single_observation_space = self._cfg.spaces()
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(num_envs, render_mode, max_episode_steps, kwargs)
         nx = self._cfg.n_states
         self.state = np.zeros((self.num_envs, nx))
         self.targets = np.full(self.num_envs, self._cfg.target_angle)
-        self.steps = np.zeros(self.num_envs, dtype=np.int64)
-        self.prev_done = np.zeros(self.num_envs, dtype=bool)
-        self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
         self._noise = [_NoiseStream() for _ in range(self.num_envs)]
         self._options: dict | None = None
 
@@ -545,16 +524,8 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
         PlantParameterError
             For a list of seeds of the wrong length or an invalid option.
         """
-        if seed is not None:
-            if isinstance(seed, (int, np.integer)):
-                seeds = [int(seed) + i for i in range(self.num_envs)]
-            else:
-                seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise PlantParameterError(
-                    f"reset needs one seed per env ({self.num_envs}), got {len(seeds)}"
-                )
-            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        seeds = self._seed(seed)
+        if seeds is not None:
             self._noise = [_NoiseStream() for _ in range(self.num_envs)]
             self._np_random, self._np_random_seed = seeding.np_random(seeds[0])
         if options is not None:
@@ -604,15 +575,7 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
             self._reset_one(int(i))
         y = self._cfg.outputs(self.state)
         reward, terminated = self._cfg.reward(y, self.targets, tau)
-        truncated = (
-            self.steps >= self.max_episode_steps
-            if self.max_episode_steps is not None
-            else np.zeros(self.num_envs, dtype=bool)
-        )
-        reward[done] = 0.0
-        terminated[done] = False
-        truncated[done] = False
-        self.prev_done = terminated | truncated
+        truncated = self._end_step(done, reward, terminated)
         infos = {"applied_torque": tau, "clipped": clipped, "outputs": y}
         return self._observe(y), reward, terminated, truncated, infos
 
@@ -631,18 +594,3 @@ class FlexibleManipulatorVectorEnv(gymnasium.vector.VectorEnv):
                 for i in range(self.num_envs)
             )
         return None
-
-
-# the vector environment takes the same keywords plus its own two, listed first
-FlexibleManipulatorVectorEnv.__doc__ = (FlexibleManipulatorVectorEnv.__doc__ or "") + (
-    _DOC_KWARGS.replace(
-        "    ----------\n",
-        "    ----------\n"
-        "    num_envs : int\n"
-        "        Number of sub-environments, >= 1; default 1.\n"
-        "    max_episode_steps : int or None\n"
-        "        Steps after which a sub-environment is truncated, >= 1; default 2000 (as the\n"
-        "        registration); None: never.\n",
-        1,
-    )
-)

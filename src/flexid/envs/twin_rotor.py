@@ -18,12 +18,12 @@ from typing import Any, ClassVar
 import gymnasium
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import seeding
-from gymnasium.vector.utils import batch_space
 
+from .._validate import positive_real, real
 from ..errors import ActionError, PlantParameterError
 from ..plants import Plant, get_plant
 from . import sensors
+from ._vector import BatchedVectorEnv
 from .twin_rotor_physics import TwinRotorParameters, batch_stepper, scalar_stepper
 
 __all__ = [
@@ -51,7 +51,11 @@ class _Config:
     The numbers the step uses are plain attributes (floats), read once per step.
     """
 
-    def __init__(self, dt, setpoint, noise_std, pitch_limit, control_weight, physics):
+    def __init__(self, render_mode, dt, setpoint, noise_std, pitch_limit, control_weight, physics):
+        if render_mode not in (None, "rgb_array"):
+            raise PlantParameterError(
+                f"render_mode must be None or 'rgb_array', got {render_mode!r}"
+            )
         unknown = sorted(set(physics) - set(_FIELDS))
         if unknown:
             raise PlantParameterError(
@@ -59,9 +63,7 @@ class _Config:
                 f"{', '.join(_FIELDS)}"
             )
         self.params = TwinRotorParameters(**physics)
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-            raise PlantParameterError(f"twin rotor: dt must be > 0 seconds, got {dt!r}")
-        self.dt = float(dt)
+        self.dt = positive_real(dt, "twin rotor: dt", error=PlantParameterError, unit="s")
         sp = np.asarray(setpoint, dtype=float).reshape(-1)
         if sp.shape != (2,) or not np.all(np.isfinite(sp)):
             raise PlantParameterError(f"setpoint must be (pitch, yaw) in rad, got {setpoint!r}")
@@ -73,16 +75,18 @@ class _Config:
         self.noise = noise
         self.noisy = bool(np.any(noise > 0))
         self.encoder_step = self.params.encoder_step
-        if not (math.isfinite(pitch_limit) and pitch_limit > 0):
-            raise PlantParameterError(f"pitch_limit must be > 0 rad, got {pitch_limit!r}")
-        self.pitch_limit = float(pitch_limit)
-        if not (math.isfinite(control_weight) and control_weight >= 0):
-            raise PlantParameterError(f"control_weight must be >= 0, got {control_weight!r}")
-        self.control_weight = float(control_weight)
+        self.pitch_limit = positive_real(
+            pitch_limit, "pitch_limit", error=PlantParameterError, unit="rad"
+        )
+        self.control_weight = real(
+            control_weight, "control_weight", error=PlantParameterError, minimum=0
+        )
         self.u_max = float(self.params.u_max)
+
+    def spaces(self) -> tuple[spaces.Box, spaces.Box]:
+        """The action and observation spaces of one environment."""
         big = np.finfo(np.float64).max
-        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float64)
-        self.observation_space = spaces.Box(-big, big, (6,), np.float64)
+        return spaces.Box(-1.0, 1.0, (2,), np.float64), spaces.Box(-big, big, (6,), np.float64)
 
     def check_action(self, action: Any, batch: int | None) -> np.ndarray:
         """Voltages (V) from normalised actions, shape (2,) or (batch, 2), clipped to the box."""
@@ -104,42 +108,50 @@ def _in_counts(angle: float, step: float) -> float:
         return angle
 
 
-_DOC = """
-    Parameters
-    ----------
-    render_mode : {None, "rgb_array"}
-    dt : float
-        Sample time (s), default 0.1.
-    setpoint : (float, float)
-        Pitch and yaw set point (rad), default (0.2, 0.0).
-    noise_std : float or sequence of 4
-        Gaussian measurement noise on the observed outputs (rad, rad/s), default 0.
-    pitch_limit : float
-        The episode terminates when ``|pitch|`` exceeds it (rad), default 1.2.
-    control_weight : float
-        Weight of the normalised input energy in the reward, default 0.01.
-    **physics
-        Any :class:`TwinRotorParameters` field, e.g. ``lock_yaw=True``, ``Kgy=0.05``.
-
-    Observation (float64, shape (6,)): {observation}: the plant's outputs, then the pitch and
-    yaw set points.  Pitch and yaw are read in the encoders' steps (``encoder_counts``;
-    ``encoder_counts=None`` reads them exactly).  Action (float64, shape (2,)): {action}
-    normalised to ``[-1, 1]`` (times ``u_max`` = 2.5 V); finite out-of-range actions are
-    clipped to the box (the applied voltages are in
-    ``info["applied_voltage"]``), non-finite actions raise
-    :class:`~flexid.errors.ActionError`.  Reward: ``-((pitch - pitch_ref)^2 + (yaw -
-    yaw_ref)^2 + control_weight |u / u_max|^2)`` from the noise-free state.
-""".replace(
-    "{observation}",
-    ", ".join(f"{n} ({u})" for n, u in zip(OBSERVATION_NAMES, OBSERVATION_UNITS)),
-).replace("{action}", ", ".join(f"{n} ({u})" for n, u in zip(ACTION_NAMES, PLANT.input_units)))
-
-
 class TwinRotorEnv(gymnasium.Env):
     """Twin rotor MIMO system: regulate pitch and yaw to a set point.
 
-    The state (``state``, shape (7,), :data:`STATE_NAMES`) is stepped by a
-    :class:`~flexid.envs.twin_rotor_physics.ScalarStepper`.
+    The state (``state``, shape (7,), :data:`~flexid.envs.twin_rotor_physics.STATE_NAMES`) is
+    stepped by a :class:`~flexid.envs.twin_rotor_physics.ScalarStepper`.
+
+    Parameters
+    ----------
+    render_mode : {None, "rgb_array"}
+        ``"rgb_array"``: :meth:`render` returns a side view (pitch) beside a top view (yaw),
+        shape (400, 800, 3) uint8.
+    dt : float
+        Sample time [s], > 0; default 0.1.
+    setpoint : (float, float)
+        Pitch and yaw set points [rad]; default (0.2, 0.0).
+    noise_std : float or sequence of 4 float
+        Standard deviation of Gaussian measurement noise on the observed pitch [rad], yaw
+        [rad], pitch rate [rad/s] and yaw rate [rad/s], >= 0; default 0.
+    pitch_limit : float
+        The episode terminates when ``|pitch|`` exceeds it [rad], > 0; default 1.2.
+    control_weight : float
+        Weight of the normalised input energy in the reward, >= 0; default 0.01.
+    **physics
+        Any :class:`~flexid.envs.twin_rotor_physics.TwinRotorParameters` field, e.g.
+        ``lock_yaw=True``, ``Kgy=0.05``.
+
+    Raises
+    ------
+    PlantParameterError
+        For an invalid value or an unknown physical parameter.
+
+    Notes
+    -----
+    Observation (float64, shape (6,)): {observation}: the plant's outputs, then the pitch and
+    yaw set points.  Pitch and yaw are read in the encoders' steps (``encoder_counts``;
+    ``encoder_counts=None`` reads them exactly).
+
+    Action (float64, shape (2,)): {action} normalised to ``[-1, 1]`` (times ``u_max`` =
+    2.5 V); finite out-of-range actions are clipped to the box (the applied voltages are in
+    ``info["applied_voltage"]``), non-finite actions raise
+    :class:`~flexid.errors.ActionError`.
+
+    Reward: ``-((pitch - pitch_ref)^2 + (yaw - yaw_ref)^2 + control_weight |u / u_max|^2)``
+    from the noise-free state.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -156,16 +168,13 @@ class TwinRotorEnv(gymnasium.Env):
         control_weight: float = 0.01,
         **physics: Any,
     ) -> None:
-        if render_mode not in (None, "rgb_array"):
-            raise PlantParameterError(
-                f"render_mode must be None or 'rgb_array', got {render_mode!r}"
-            )
+        self._cfg = _Config(
+            render_mode, dt, setpoint, noise_std, pitch_limit, control_weight, physics
+        )
         self.render_mode = render_mode
-        self._cfg = _Config(dt, setpoint, noise_std, pitch_limit, control_weight, physics)
         self.params = self._cfg.params
         self.dt = self._cfg.dt
-        self.action_space = self._cfg.action_space
-        self.observation_space = self._cfg.observation_space
+        self.action_space, self.observation_space = self._cfg.spaces()
         self._stepper = scalar_stepper(self.params, self.dt)
         self._x: tuple[float, ...] = (0.0,) * 7
 
@@ -220,7 +229,13 @@ class TwinRotorEnv(gymnasium.Env):
         return _render(self._x, self._cfg.setpoint)
 
 
-TwinRotorEnv.__doc__ = (TwinRotorEnv.__doc__ or "") + "\n" + _DOC
+if TwinRotorEnv.__doc__:  # None under python -OO
+    TwinRotorEnv.__doc__ = TwinRotorEnv.__doc__.replace(
+        "{observation}",
+        ", ".join(f"{n} ({u})" for n, u in zip(OBSERVATION_NAMES, OBSERVATION_UNITS)),
+    ).replace(
+        "{action}", ", ".join(f"{n} ({u})" for n, u in zip(ACTION_NAMES, PLANT.input_units))
+    )
 
 
 def _render(x, setpoint: np.ndarray, size: int = 400) -> np.ndarray:
@@ -242,22 +257,38 @@ def _render(x, setpoint: np.ndarray, size: int = 400) -> np.ndarray:
     return canvas.frame()
 
 
-class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
+class TwinRotorVectorEnv(BatchedVectorEnv, single_env=TwinRotorEnv, config_type=_Config):
     """``num_envs`` twin rotors stepped together (one batch stepper of the physics).
 
-    Same keyword arguments, spaces, reward and termination as :class:`TwinRotorEnv`, plus
-    ``num_envs`` and ``max_episode_steps`` (default 600).  Autoreset: Gymnasium's
-    ``NEXT_STEP`` mode.  ``reset(seed=s)`` seeds sub-environment ``i`` with ``s + i``, so a
-    rollout equals that of single environments seeded the same way.  ``state`` (num_envs, 7)
-    is a copy of the states (:data:`STATE_NAMES`); assign to set them.
-    """
+    Parameters
+    ----------
+    num_envs : int
+        Number of sub-environments, >= 1; default 1.
+    render_mode : {None, "rgb_array"}
+        ``"rgb_array"``: :meth:`render` returns one :class:`TwinRotorEnv` frame per
+        sub-environment, shape (num_envs, 400, 800, 3) uint8.
+    max_episode_steps : int or None
+        Steps after which a sub-environment is truncated, >= 1; default 600 (as the
+        registration); None: never.
+    **kwargs
+        The keyword arguments of :class:`TwinRotorEnv` (``dt`` [s], ``setpoint`` [rad],
+        ``noise_std``, ``pitch_limit`` [rad], ``control_weight`` and any physical parameter),
+        with the same defaults.
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": ["rgb_array"],
-        "render_fps": 10,
-        "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP,
-    }
-    plant: ClassVar[Plant] = PLANT
+    Raises
+    ------
+    PlantParameterError
+        For an invalid argument (``num_envs`` and ``max_episode_steps`` included) or an
+        unknown keyword.
+
+    Notes
+    -----
+    Same spaces, reward and termination as :class:`TwinRotorEnv`.  Autoreset: Gymnasium's
+    ``NEXT_STEP`` mode.  ``reset(seed=s)`` seeds sub-environment ``i`` with ``s + i``, so a
+    rollout equals that of single environments seeded the same way.  ``state``
+    (num_envs, 7) is a copy of the states
+    (:data:`~flexid.envs.twin_rotor_physics.STATE_NAMES`); assign to set them.
+    """
 
     def __init__(
         self,
@@ -265,33 +296,10 @@ class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
         render_mode: str | None = None,
         *,
         max_episode_steps: int | None = 600,
-        dt: float = 0.1,
-        setpoint=(0.2, 0.0),
-        noise_std=0.0,
-        pitch_limit: float = 1.2,
-        control_weight: float = 0.01,
-        **physics: Any,
+        **kwargs: Any,
     ) -> None:
-        if (
-            isinstance(num_envs, bool)
-            or not isinstance(num_envs, (int, np.integer))
-            or num_envs < 1
-        ):
-            raise PlantParameterError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        self._cfg = _Config(dt, setpoint, noise_std, pitch_limit, control_weight, physics)
-        self.num_envs = int(num_envs)
-        self.max_episode_steps = max_episode_steps
-        self.params = self._cfg.params
-        self.dt = self._cfg.dt
-        self.render_mode = render_mode
-        self.single_action_space = self._cfg.action_space
-        self.single_observation_space = self._cfg.observation_space
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        super().__init__(num_envs, render_mode, max_episode_steps, kwargs)
         self._stepper = batch_stepper(self.params, self.dt, self.num_envs)
-        self.steps = np.zeros(self.num_envs, dtype=np.int64)
-        self.prev_done = np.zeros(self.num_envs, dtype=bool)
-        self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
         cfg = self._cfg
         self._terms = np.empty((4, self.num_envs))
         self._refs = np.array([[cfg.pitch_ref], [cfg.yaw_ref]])
@@ -319,15 +327,7 @@ class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
         return obs
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
-        if seed is not None:
-            seeds = (
-                [int(seed) + i for i in range(self.num_envs)]
-                if isinstance(seed, (int, np.integer))
-                else list(seed)
-            )
-            if len(seeds) != self.num_envs:
-                raise PlantParameterError(f"reset needs {self.num_envs} seeds, got {len(seeds)}")
-            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        self._seed(seed)
         self._stepper.reset(np.ones(self.num_envs, dtype=bool))
         self.steps[:] = 0
         self.prev_done[:] = False
@@ -362,16 +362,7 @@ class TwinRotorVectorEnv(gymnasium.vector.VectorEnv):
         terms *= terms
         reward = np.dot(self._minus_ones, terms)
         terminated = np.abs(stepper.angles[0]) > cfg.pitch_limit
-        truncated = (
-            self.steps >= self.max_episode_steps
-            if self.max_episode_steps is not None
-            else np.zeros(self.num_envs, dtype=bool)
-        )
-        if any_done:
-            reward[done] = 0.0
-            terminated[done] = False
-            truncated[done] = False
-        self.prev_done = terminated | truncated
+        truncated = self._end_step(done, reward, terminated)
         return self._observe(), reward, terminated, truncated, {"applied_voltage": u}
 
     def render(self):

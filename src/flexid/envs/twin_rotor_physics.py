@@ -1,8 +1,8 @@
 """Physics of the twin rotor MIMO system (Feedback 33-949S phenomenological model).
 
-Model A of ``plants.md`` section 2.1, seven states ``x = [psi, psi', phi, phi', tau1, tau2,
-M_R]`` (pitch, pitch rate, yaw, yaw rate, main and tail rotor states, main-rotor reaction
-torque on yaw)::
+The phenomenological model of Feedback Instruments' Twin Rotor MIMO System manual (33-949S),
+seven states ``x = [psi, psi', phi, phi', tau1, tau2, M_R]`` (pitch, pitch rate, yaw, yaw
+rate, main and tail rotor states, main-rotor reaction torque on yaw)::
 
     I1 psi''  = M1 - Mg sin(psi) - B1psi psi' - B2psi sgn(psi') - Kgy M1 phi' cos(psi)
     I2 phi''  = M2 - B1phi phi' - B2phi sgn(phi') - M_R
@@ -20,8 +20,8 @@ configuration (vertical channel): yaw and yaw rate stay 0 and the gyroscopic ter
 Outputs, in this order: pitch (rad), yaw (rad), pitch rate (rad/s), yaw rate (rad/s), taken at
 ``t = k dt`` before the input of sample ``k`` acts.
 
-Routes
-------
+Notes
+-----
 :func:`derivatives` is the model: the one statement of the equations, batched over a leading
 axis.  :func:`step_states` (RK4 over one sample) and :func:`reference_trajectory` integrate
 it; they are the reference route.  Two faster routes compute the same RK4 samples, and the
@@ -46,6 +46,13 @@ When the compiled kernels run (:mod:`flexid.kernels`), :class:`CompiledScalarSte
 the RK4 of :func:`step_states` in C, four rotors per SIMD vector, with ``sin``, ``cos`` and
 ``tanh`` as inline polynomials within a few eps of the exact values (absolute error).  They too
 differ from the reference by rounding only.
+
+References
+----------
+Feedback Instruments, *Twin Rotor MIMO System*, manual 33-949S: the model and the default
+parameters.  The parameter table is reproduced by Pandey and Laxmi (2014, optimal control of
+the TRMS by LQR) and by A. K. Agrawal (M.Tech thesis on optimal controller design for the
+TRMS, NIT Rourkela, 2013), which also gives the +-2.5 V input range.
 """
 
 from __future__ import annotations
@@ -59,6 +66,7 @@ from typing import Any
 import numpy as np
 from scipy.special import expit
 
+from .._validate import integer, positive_real, real
 from ..errors import DataError, PlantParameterError, check_finite
 from . import sensors
 
@@ -103,19 +111,65 @@ IDEAL_SENSORS: dict[str, Any] = {"encoder_counts": None}
 _OUTPUT_COLUMNS = [0, 2, 1, 3]  # outputs (pitch, yaw, pitch rate, yaw rate) from a state
 
 
+_POSITIVE = ("I1", "I2", "T11", "T10", "T21", "T20", "Tp", "u_max", "coulomb_velocity",
+             "substep", "Mg")  # fmt: skip
+"""The parameters that must be > 0; the friction coefficients ``B*`` must be >= 0."""
+
+
 @dataclass(frozen=True)
 class TwinRotorParameters:
-    """Parameters of the Feedback 33-949S phenomenological model (``plants.md`` 2.1).
+    """Parameters of the Feedback 33-949S phenomenological model; immutable and hashable.
 
-    Inertias in kg m^2, moments in N m, friction in N m s/rad (viscous) and N m (Coulomb),
-    time constants in s; ``u_max`` in V; ``substep`` in s.
+    The defaults are the manual's values (see the module's References).  The actuators'
+    dynamics are part of the model (the rotors' first-order lags ``T10``, ``T11``, ``T20``,
+    ``T21``), and the angles are counted digitally, so the measurement chain is the encoders';
+    nothing analog is sampled, so there is nothing to alias.  The numbers are stored as
+    ``float``.
 
-    The actuators' dynamics are part of the model (the rotors' first-order lags ``T10``,
-    ``T11``, ``T20``, ``T21``), and the angles are counted digitally, so the measurement
-    chain is the encoders': ``encoder_counts`` counts per revolution of the pitch and yaw
-    encoders (default 4096, a 1,024-line encoder decoded in quadrature; an assumption of the
-    rig class, the manual's resolution was not available), ``None`` for exact angles
-    (:data:`IDEAL_SENSORS`).  Nothing analog is sampled, so there is nothing to alias.
+    Attributes
+    ----------
+    I1, I2 : float
+        Moments of inertia of the beam about the pitch and the yaw axis [kg m^2], > 0.
+    a1, b1 : float
+        Main rotor characteristic ``M1 = a1 tau1 |tau1| + b1 tau1`` [N m per (unit of
+        tau)^2, N m per unit of tau].
+    a2, b2 : float
+        Tail rotor characteristic, as ``a1``, ``b1``.
+    Mg : float
+        Gravity moment of the beam at 90 degrees of pitch [N m], > 0.
+    B1psi, B2psi : float
+        Viscous [N m s/rad] and Coulomb [N m] friction of the pitch axis, >= 0.
+    B1phi, B2phi : float
+        Viscous [N m s/rad] and Coulomb [N m] friction of the yaw axis, >= 0.
+    Kgy : float
+        Gyroscopic coefficient [s/rad].
+    k1, k2 : float
+        Static gains of the main and tail motors [unit of tau per V].
+    T11, T10 : float
+        Main motor lag ``k1 / (T11 s + T10)``: ``T11`` [s] and ``T10`` [-], > 0.
+    T21, T20 : float
+        Tail motor lag ``k2 / (T21 s + T20)``: ``T21`` [s] and ``T20`` [-], > 0.
+    Tp, T0 : float
+        Lag and lead time constants [s] of the reaction torque
+        ``M_R = kc (T0 s + 1) / (Tp s + 1) tau1``; ``Tp`` > 0.
+    kc : float
+        Gain of the main rotor's reaction torque on yaw [N m per unit of tau].
+    u_max : float
+        Motor voltage limit [V], > 0: inputs are clipped to ``+-u_max``.
+    thrust_law : {"signed_square", "square"}
+        ``a tau |tau| + b tau`` (default: a negative voltage gives a negative thrust) or the
+        manual's ``a tau^2 + b tau``.
+    lock_yaw : bool
+        The rig's one-degree-of-freedom configuration: yaw and yaw rate held at 0.
+    coulomb_velocity : float
+        Velocity [rad/s] that smooths ``sgn(v)`` as ``tanh(v / coulomb_velocity)``, > 0.
+    substep : float
+        RK4 substep [s], > 0; a sample is ``round(dt / substep)`` substeps.
+    encoder_counts : int or None
+        Counts per revolution of the pitch and yaw encoders, >= 1 (default 4096, a
+        1,024-line encoder decoded in quadrature: an assumption for this class of rig, the
+        manual's resolution was not available); None reads the angles exactly
+        (:data:`IDEAL_SENSORS`).
     """
 
     I1: float = 6.8e-2
@@ -147,41 +201,34 @@ class TwinRotorParameters:
     encoder_counts: int | None = 4096
 
     def __post_init__(self) -> None:
-        positive = ("I1", "I2", "T11", "T10", "T21", "T20", "Tp", "u_max", "coulomb_velocity",
-                    "substep", "Mg")
+        if self.thrust_law not in THRUST_LAWS:
+            raise PlantParameterError(
+                f"twin rotor: thrust_law must be one of {THRUST_LAWS}, got {self.thrust_law!r}"
+            )
+        if not isinstance(self.lock_yaw, (bool, np.bool_)):
+            raise PlantParameterError(f"twin rotor: lock_yaw must be a bool, got {self.lock_yaw!r}")
+        integer(
+            self.encoder_counts, "twin rotor: encoder_counts (counts per revolution)",
+            error=PlantParameterError, minimum=1, none_ok=True,
+        )
         for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == "thrust_law":
-                if value not in THRUST_LAWS:
-                    raise PlantParameterError(
-                        f"twin rotor: thrust_law must be one of {THRUST_LAWS}, got {value!r}"
-                    )
+            if f.name in ("thrust_law", "lock_yaw", "encoder_counts"):
                 continue
-            if f.name == "encoder_counts":
-                if value is not None and (
-                    isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1
-                ):
-                    raise PlantParameterError(
-                        "twin rotor: encoder_counts must be a positive integer (counts per "
-                        f"revolution) or None, got {value!r}"
-                    )
-                continue
-            if f.name == "lock_yaw":
-                if not isinstance(value, (bool, np.bool_)):
-                    raise PlantParameterError(f"twin rotor: lock_yaw must be a bool, got {value!r}")
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-                value
-            ):
-                raise PlantParameterError(
-                    f"twin rotor: {f.name} must be a finite number, got {value!r}"
-                )
-            if f.name in positive and value <= 0:
-                raise PlantParameterError(f"twin rotor: {f.name} must be > 0, got {value!r}")
-            if f.name.startswith("B") and value < 0:
-                raise PlantParameterError(f"twin rotor: {f.name} must be >= 0, got {value!r}")
+            positive = f.name in _POSITIVE
+            value = real(
+                getattr(self, f.name), f"twin rotor: {f.name}", error=PlantParameterError,
+                minimum=0 if positive or f.name.startswith("B") else None, low_open=positive,
+            )
+            object.__setattr__(self, f.name, value)
 
     def to_dict(self) -> dict[str, Any]:
+        """The parameters as a dict, field name to value (:func:`dataclasses.asdict`).
+
+        Returns
+        -------
+        dict of str to object
+            One entry per field, in the order of the Attributes.
+        """
         return asdict(self)
 
     @property
@@ -191,9 +238,20 @@ class TwinRotorParameters:
 
 
 def measure(y: np.ndarray, params: TwinRotorParameters | None = None) -> np.ndarray:
-    """Read sampled outputs (..., 4) through the encoders: pitch and yaw in whole counts.
+    """Read sampled outputs through the encoders: pitch and yaw in whole counts.
 
-    A copy; the rates (columns 2, 3) are returned unchanged.
+    Parameters
+    ----------
+    y : array_like, shape (..., 4)
+        Outputs :data:`OUTPUT_NAMES` [rad, rad, rad/s, rad/s].
+    params : TwinRotorParameters, optional
+        Their ``encoder_counts`` sets the step; default the defaults.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        A copy of ``y`` with pitch and yaw rounded to the encoder step [rad]; the rates
+        (columns 2, 3) unchanged.
     """
     p = TwinRotorParameters() if params is None else params
     y = np.array(y, dtype=float)
@@ -203,15 +261,36 @@ def measure(y: np.ndarray, params: TwinRotorParameters | None = None) -> np.ndar
 
 
 def noise_floor(params: TwinRotorParameters | None = None) -> np.ndarray:
-    """Standard deviation of each output's own sensor noise, shape (4,): none here."""
+    """Standard deviation of each output's own sensor noise: none for this plant.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters, optional
+        Not used: the encoders add no noise (the interface of every plant takes them).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        Zeros [rad, rad, rad/s, rad/s].
+    """
     return np.zeros(4)
 
 
 def pitch_linear_mode(params: TwinRotorParameters | None = None) -> tuple[float, float]:
-    """Natural frequency (Hz) and damping ratio of pitch linearised at rest.
+    """Natural frequency and damping ratio of pitch linearised at rest.
 
-    ``omega_n = sqrt(Mg / I1)``, ``zeta = B1psi / (2 sqrt(Mg I1))`` (viscous friction only:
-    the Coulomb term has no linearisation at zero speed).
+    Parameters
+    ----------
+    params : TwinRotorParameters, optional
+        Default the defaults.
+
+    Returns
+    -------
+    frequency : float
+        ``sqrt(Mg / I1) / (2 pi)`` [Hz].
+    damping : float
+        ``B1psi / (2 sqrt(Mg I1))`` [-] (viscous friction only: the Coulomb term has no
+        linearisation at zero speed).
     """
     p = params or TwinRotorParameters()
     wn = math.sqrt(p.Mg / p.I1)
@@ -219,23 +298,67 @@ def pitch_linear_mode(params: TwinRotorParameters | None = None) -> tuple[float,
 
 
 def clip_inputs(u: Any, params: TwinRotorParameters | None = None) -> np.ndarray:
-    """Motor voltages clipped to ``+-u_max`` (the documented rule for out-of-range inputs)."""
+    """Motor voltages clipped to ``+-u_max`` (the documented rule for out-of-range inputs).
+
+    Parameters
+    ----------
+    u : array_like
+        Voltages [V], any shape.
+    params : TwinRotorParameters, optional
+        Their ``u_max`` is the limit; default the defaults.
+
+    Returns
+    -------
+    ndarray
+        The voltages [V] as floats, shape of ``u``, clipped to ``[-u_max, u_max]``.
+    """
     p = params or TwinRotorParameters()
     return np.clip(np.asarray(u, dtype=float), -p.u_max, p.u_max)
 
 
 def substeps(params: TwinRotorParameters, dt: float) -> tuple[int, float]:
-    """Number of RK4 substeps per sample and their length (s): ``dt / substep``, rounded."""
+    """Number of RK4 substeps per sample and their length.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters
+        Their ``substep`` [s] is the target length.
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    n_sub : int
+        ``round(dt / substep)``, at least 1.
+    h : float
+        ``dt / n_sub`` [s].
+    """
     n_sub = max(1, round(dt / params.substep))
     return n_sub, dt / n_sub
 
 
-def thrust(tau, a, b, law: str, out: np.ndarray | None = None):
-    """Rotor moment (N m) from the rotor state ``tau``, any shape (``a``, ``b`` broadcast).
+def thrust(tau: Any, a: Any, b: Any, law: str, out: np.ndarray | None = None) -> np.ndarray:
+    """Rotor moment from the rotor state.
 
     ``a tau |tau| + b tau`` for ``law="signed_square"``, ``a tau^2 + b tau`` for ``"square"``,
-    evaluated as ``tau (a |tau| + b)``.  With ``out`` (an array of the result's shape) the
-    same operations run in place, in the same order.
+    evaluated as ``tau (a |tau| + b)`` (``tau (a tau + b)``).
+
+    Parameters
+    ----------
+    tau : array_like
+        Rotor states [model units], any shape.
+    a, b : float or array_like
+        Quadratic [N m per (unit of tau)^2] and linear [N m per unit of tau] coefficients,
+        broadcast against ``tau``.
+    law : {"signed_square", "square"}
+        The thrust law (:data:`THRUST_LAWS`).
+    out : ndarray, optional
+        An array of the result's shape: the same operations run in place, in the same order.
+
+    Returns
+    -------
+    ndarray
+        The moments [N m] (``out`` when given).
     """
     if out is None:
         if law == "signed_square":
@@ -329,9 +452,8 @@ def step_states(x: np.ndarray, u: np.ndarray, p: TwinRotorParameters, dt: float)
 
 
 def _check_dt(dt: Any) -> float:
-    if isinstance(dt, bool) or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise PlantParameterError(f"twin rotor: dt must be > 0 seconds, got {dt!r}")
-    return float(dt)
+    """The sample time [s] as a float, checked to be finite and > 0."""
+    return positive_real(dt, "twin rotor: dt", error=PlantParameterError, unit="s")
 
 
 def _check_inputs(u: Any, p: TwinRotorParameters) -> np.ndarray:
@@ -345,44 +467,52 @@ def _check_inputs(u: Any, p: TwinRotorParameters) -> np.ndarray:
     return clip_inputs(u, p)
 
 
-def _initial_state(x0: Any, p: TwinRotorParameters) -> np.ndarray:
+def _run_arguments(
+    u: Any, params: TwinRotorParameters | None, dt: Any, x0: Any
+) -> tuple[TwinRotorParameters, np.ndarray, float, np.ndarray]:
+    """The checked arguments of a run from rest or ``x0``: ``(params, u, dt, x0)``.
+
+    ``params`` defaults to the defaults, ``u`` becomes clipped (N, 2) voltages, ``x0`` a
+    (7,) state (rest when None; with ``lock_yaw`` its yaw rate must be 0).
+    """
+    p = params or TwinRotorParameters()
+    u = _check_inputs(u, p)
+    dt = _check_dt(dt)
     x = np.zeros(7) if x0 is None else np.asarray(x0, dtype=float).reshape(-1)
     if x.shape != (7,):
         raise DataError(f"x0 must have 7 entries, got {x.size}")
     check_finite(x, "x0", DataError)
     if p.lock_yaw and x[3] != 0:
         raise DataError(f"with lock_yaw the yaw rate x0[3] must be 0, got {x[3]!r}")
-    return x
+    return p, u, dt, x
 
 
 def reference_trajectory(
-    u: Any,
-    params: TwinRotorParameters | None = None,
-    dt: float = 0.1,
-    x0: Any = None,
+    u: Any, params: TwinRotorParameters | None = None, dt: float = 0.1, x0: Any = None
 ) -> np.ndarray:
     """States at the sample times by the reference route (:func:`step_states`, one by one).
+
+    Its arguments are those of :func:`simulate`, checked the same way.
 
     Parameters
     ----------
     u : array_like, shape (N, 2) or (N,)
-        Main and tail rotor voltages (V), clipped to ``+-u_max``; shape (N,) drives the main
-        rotor only.
+        Main and tail rotor voltages [V] held over each sample, clipped to ``+-u_max``;
+        shape (N,) drives the main rotor only.
     params : TwinRotorParameters, optional
+        The model; default the manual's values.
     dt : float
-        Sample time (s), default 0.1.
+        Sample time [s], > 0; default 0.1.
     x0 : array_like, shape (7,), optional
-        Initial state (default rest); with ``lock_yaw`` its yaw rate must be 0.
+        State at ``t = 0`` (default rest); with ``lock_yaw`` its yaw rate must be 0.
 
     Returns
     -------
     ndarray, shape (N + 1, 7)
         States at ``t = k dt``, ``k = 0 .. N``, columns :data:`STATE_NAMES`.
     """
-    p = params or TwinRotorParameters()
-    u = _check_inputs(u, p)
-    dt = _check_dt(dt)
-    x = _initial_state(x0, p)[None, :]
+    p, u, dt, x = _run_arguments(u, params, dt, x0)
+    x = x[None, :]
     out = np.empty((u.shape[0] + 1, 7))
     out[0] = x[0]
     for k in range(u.shape[0]):
@@ -498,8 +628,9 @@ class ScalarStepper:
     Parameters
     ----------
     params : TwinRotorParameters
+        The model; its constants are bound once as Python floats.
     dt : float
-        Sample time (s).
+        Sample time [s], > 0.
 
     Notes
     -----
@@ -616,16 +747,85 @@ class ScalarStepper:
 _CHUNK = 512  # samples whose stage forcing is held at once by ScalarStepper.run
 
 
-class BatchStepper:
+class _BatchRoute:
+    """What the batch routes share: ``B`` twin rotors, their state held inside.
+
+    A route builds what pickling cannot carry (views of its arrays, a module) in
+    ``_bind``, called after ``__init__`` and after unpickling; ``_UNPICKLED`` names those
+    attributes, and ``_angles`` must be one of them.  ``__init__(params, dt, batch)`` keeps
+    the model, the checked sample time, the batch size and the RK4 substeps.
+    """
+
+    _UNPICKLED: tuple[str, ...] = ()
+
+    def __init__(self, params: TwinRotorParameters, dt: float, batch: int) -> None:
+        self.params = params
+        self.dt = _check_dt(dt)
+        self.batch = int(batch)
+        self.n_sub, self._h = substeps(params, self.dt)
+
+    def _bind(self) -> None:
+        raise NotImplementedError
+
+    def __getstate__(self) -> dict[str, Any]:
+        # views do not survive pickling (they come back as copies): rebuild them
+        state = self.__dict__.copy()
+        for key in self._UNPICKLED:
+            del state[key]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind()
+
+    @property
+    def angles(self) -> np.ndarray:
+        """Pitch and yaw (rad), shape (2, B), a read-only view of the state."""
+        return self._angles
+
+    def reset(self, mask: np.ndarray) -> None:
+        """Put the rotors where ``mask`` is true at rest.
+
+        Parameters
+        ----------
+        mask : ndarray of bool, shape (B,)
+            The rotors to reset; the others keep their states.
+        """
+        raise NotImplementedError
+
+    def outputs(self, out: np.ndarray) -> None:
+        """Write the outputs :data:`OUTPUT_NAMES` of every rotor into ``out[:, :4]``.
+
+        Parameters
+        ----------
+        out : ndarray, shape (B, k), k >= 4
+            Receives pitch, yaw, pitch rate and yaw rate [rad, rad, rad/s, rad/s] in its
+            first four columns; the others are left alone.
+        """
+        raise NotImplementedError
+
+    def advance(self, u: np.ndarray) -> None:
+        """Step every rotor over one sample with its voltages held.
+
+        Parameters
+        ----------
+        u : ndarray, shape (B, 2)
+            Main and tail rotor voltages [V], already clipped.
+        """
+        raise NotImplementedError
+
+
+class BatchStepper(_BatchRoute):
     """Fast route for a batch of twin rotors: RK4 samples in NumPy, the state held inside.
 
     Parameters
     ----------
     params : TwinRotorParameters
+        The model; its constants are folded into the stage matrices once.
     dt : float
-        Sample time (s).
+        Sample time [s], > 0.
     batch : int
-        Number of twin rotors ``B``.
+        Number of twin rotors ``B``, each a column of the state rows.
 
     Notes
     -----
@@ -647,14 +847,11 @@ class BatchStepper:
     _START, _SUM, _POINT = 0, 5, 10
     _SIN, _COS, _SW, _SV, _GYRO, _A, _F, _ONE = 15, 16, 17, 18, 19, 20, 21, 22
     _ROWS = 23
+    _UNPICKLED = ("_y", "_angles", "_output_scale", "_plan")
 
     def __init__(self, params: TwinRotorParameters, dt: float, batch: int) -> None:
-        p = params
-        self.params = p
-        self.dt = _check_dt(dt)
-        self.batch = nb = int(batch)
-        n_sub, h = substeps(p, self.dt)
-        self.n_sub = n_sub
+        super().__init__(params, dt, batch)
+        p, nb, n_sub, h = params, self.batch, self.n_sub, self._h
         eps = p.coulomb_velocity
         self._half_eps = 0.5 * eps
         self._lock = bool(p.lock_yaw)
@@ -732,17 +929,6 @@ class BatchStepper:
                 out = nxt[self._SUM : pt + 5]
                 self._plan.append((copy, *terms, self._stage_matrices[s], blk, out))
 
-    def __getstate__(self) -> dict[str, Any]:
-        # views do not survive pickling (they come back as copies): rebuild them
-        state = self.__dict__.copy()
-        for key in ("_y", "_angles", "_output_scale", "_plan"):
-            del state[key]
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._bind()
-
     @property
     def state(self) -> np.ndarray:
         """States (B, 7), :data:`STATE_NAMES` order and units (a copy); assign to set them.
@@ -770,25 +956,14 @@ class BatchStepper:
         self._s[:3] = x[:, 4:].T
 
     def reset(self, mask: np.ndarray) -> None:
-        """Put the rotors where ``mask`` (B,) is true at rest."""
         self._y[:, mask] = 0.0
         self._y[4, mask] = 0.5 * math.pi
         self._s[:3, mask] = 0.0
 
-    @property
-    def angles(self) -> np.ndarray:
-        """Pitch and yaw (rad), shape (2, B), a read-only view of the state."""
-        return self._angles
-
     def outputs(self, out: np.ndarray) -> None:
-        """Write pitch, yaw, pitch rate, yaw rate (rad, rad, rad/s, rad/s) into ``out[:, :4]``.
-
-        ``out`` has shape (B, k), k >= 4.
-        """
         np.multiply(self._y[:4].T, self._output_scale, out=out[:, :4])
 
     def advance(self, u: np.ndarray) -> None:
-        """Step every rotor over one sample with voltages ``u`` (B, 2) (V, clipped) held."""
         s, z, force, nf, n = self._s, self._z, self._force, self._nf, self.n_sub
         s[3:] = u.T
         np.dot(self._matrix, s, out=z)
@@ -840,6 +1015,13 @@ class CompiledScalarStepper(ScalarStepper):
     :func:`_rk4`, with the model's constants divided out once and ``sin``, ``cos`` and
     ``tanh`` as polynomials within a few eps of the exact values (absolute error); with possible
     FMA contraction it differs from the reference route by rounding only.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters
+        The model, handed to the compiled loop as a vector of constants.
+    dt : float
+        Sample time [s], > 0, as for :class:`ScalarStepper`.
     """
 
     def __init__(self, params: TwinRotorParameters, dt: float) -> None:
@@ -877,16 +1059,24 @@ class CompiledScalarStepper(ScalarStepper):
         return out
 
 
-class CompiledBatchStepper:
-    """:class:`BatchStepper`'s interface, the samples run by the compiled RK4."""
+class CompiledBatchStepper(_BatchRoute):
+    """:class:`BatchStepper`'s interface, the samples run by the compiled RK4.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters
+        The model, handed to the compiled loop as a vector of constants.
+    dt : float
+        Sample time [s], > 0: ``round(dt / substep)`` RK4 substeps.
+    batch : int
+        Number of twin rotors ``B``, the rows of the state array.
+    """
+
+    _UNPICKLED = ("_c", "_angles")  # a module does not pickle: the unpickler finds its own
 
     def __init__(self, params: TwinRotorParameters, dt: float, batch: int) -> None:
-        self.params = params
-        self.dt = _check_dt(dt)
-        self.batch = int(batch)
-        n_sub, h = substeps(params, self.dt)
-        self.n_sub = n_sub
-        self._args = (n_sub, h, bool(params.lock_yaw), params.thrust_law == "square")
+        super().__init__(params, dt, batch)
+        self._args = (self.n_sub, self._h, bool(params.lock_yaw), params.thrust_law == "square")
         self._k = _kernel_params(params)
         self._x = np.zeros((self.batch, 7))
         self._u = np.empty((1, self.batch, 2))
@@ -896,15 +1086,6 @@ class CompiledBatchStepper:
         self._c = _compiled()
         self._angles = self._x[:, 0:3:2].T  # pitch and yaw, a view
         self._angles.flags.writeable = False
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        del state["_c"], state["_angles"]
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._bind()
 
     @property
     def state(self) -> np.ndarray:
@@ -918,54 +1099,75 @@ class CompiledBatchStepper:
             self._x[:, 3] = 0.0
 
     def reset(self, mask: np.ndarray) -> None:
-        """Put the rotors where ``mask`` (B,) is true at rest."""
         self._x[mask] = 0.0
 
-    @property
-    def angles(self) -> np.ndarray:
-        """Pitch and yaw (rad), shape (2, B), a read-only view of the state."""
-        return self._angles
-
     def outputs(self, out: np.ndarray) -> None:
-        """Write pitch, yaw, pitch rate, yaw rate into ``out[:, :4]`` (``out`` (B, k))."""
         np.take(self._x, _OUTPUT_COLUMNS, axis=1, out=out[:, :4])
 
     def advance(self, u: np.ndarray) -> None:
-        """Step every rotor over one sample with voltages ``u`` (B, 2) (V, clipped) held."""
         self._u[0] = u
         self._c.twin_rotor_run(self._k, self._x, self._u, None, *self._args)
 
 
 def scalar_stepper(params: TwinRotorParameters, dt: float) -> ScalarStepper:
-    """The fastest available route for one twin rotor: compiled, else :class:`ScalarStepper`."""
+    """The fastest available route for one twin rotor.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters
+        The model of the rotor to step.
+    dt : float
+        Sample time [s] of every step.
+
+    Returns
+    -------
+    ScalarStepper
+        A :class:`CompiledScalarStepper` when the compiled kernels run, else a
+        :class:`ScalarStepper`.
+    """
     if _compiled() is not None:
         return CompiledScalarStepper(params, dt)
     return ScalarStepper(params, dt)
 
 
-def batch_stepper(params: TwinRotorParameters, dt: float, batch: int):
-    """The fastest available route for a batch: compiled, else :class:`BatchStepper`."""
+def batch_stepper(
+    params: TwinRotorParameters, dt: float, batch: int
+) -> BatchStepper | CompiledBatchStepper:
+    """The fastest available route for a batch of twin rotors.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters
+        The model, shared by the whole batch.
+    dt : float
+        Sample time [s], the same for every rotor.
+    batch : int
+        Number of rotors ``B`` stepped together.
+
+    Returns
+    -------
+    BatchStepper or CompiledBatchStepper
+        The compiled stepper when the compiled kernels run, else the NumPy one.
+    """
     if _compiled() is not None:
         return CompiledBatchStepper(params, dt, batch)
     return BatchStepper(params, dt, batch)
 
 
 def simulate(
-    u: Any,
-    params: TwinRotorParameters | None = None,
-    dt: float = 0.1,
-    x0: Any = None,
+    u: Any, params: TwinRotorParameters | None = None, dt: float = 0.1, x0: Any = None
 ) -> np.ndarray:
     """Response of the twin rotor to sampled motor voltages (held over each sample).
 
     Parameters
     ----------
     u : array_like, shape (N, 2)
-        Main and tail rotor voltages (V); clipped to ``+-u_max``.  Shape (N,) drives the main
+        Main and tail rotor voltages [V]; clipped to ``+-u_max``.  Shape (N,) drives the main
         rotor only.
     params : TwinRotorParameters, optional
+        Default :class:`TwinRotorParameters` ``()``.
     dt : float
-        Sample time (s), default 0.1.
+        Sample time [s], > 0; default 0.1.
     x0 : array_like, shape (7,), optional
         Initial state (default rest), columns :data:`STATE_NAMES`; with ``lock_yaw`` its yaw
         rate must be 0.
@@ -980,8 +1182,5 @@ def simulate(
     Computed by the compiled RK4 when the kernels run, else by :class:`ScalarStepper`;
     :func:`reference_trajectory` gives the same samples up to rounding.
     """
-    p = params or TwinRotorParameters()
-    u = _check_inputs(u, p)
-    dt = _check_dt(dt)
-    x = _initial_state(x0, p)
+    p, u, dt, x = _run_arguments(u, params, dt, x0)
     return scalar_stepper(p, dt).run(u, x)[:-1, _OUTPUT_COLUMNS]
