@@ -1,4 +1,4 @@
-"""Assertions and specifications shared by several test modules.
+"""Assertions, specifications and the walk of the public modules shared by several tests.
 
 The optimiser checks compare costs against random search at the same budget and seeds: the
 thresholds (``factor``) are modelling tolerances, far above rounding, and are chosen by the
@@ -7,15 +7,28 @@ calling test.
 
 from __future__ import annotations
 
+import pkgutil
 from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+import flexid
 from flexid.config import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.optimisers import Problem, create, minimize
 from objectives import Recorder, box
+
+
+# ------------------------------------------------------------------------------ public API
+def public_modules(packages_only: bool = False) -> list[str]:
+    """Every module (or package) of flexid whose dotted name has no ``_``-prefixed part."""
+    names = ["flexid"]
+    for info in pkgutil.walk_packages(flexid.__path__, "flexid."):
+        public = not any(part.startswith("_") for part in info.name.split("."))
+        if public and (info.ispkg or not packages_only):
+            names.append(info.name)
+    return sorted(names)
 
 
 # ------------------------------------------------------------------------------ optimisers

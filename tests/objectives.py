@@ -50,17 +50,6 @@ def rosenbrock(X):
     return (100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2).sum(axis=1)
 
 
-def counted(f):
-    """Wrap ``f``; the returned dict's ``"fe"`` counts the rows evaluated."""
-    calls = {"fe": 0}
-
-    def wrapped(X):
-        calls["fe"] += X.shape[0]
-        return f(X)
-
-    return wrapped, calls
-
-
 class Recorder:
     """Objective wrapper that counts rows and keeps every batch."""
 

@@ -26,7 +26,6 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
-import pkgutil
 import warnings
 
 import pytest
@@ -34,8 +33,8 @@ import pytest
 numpydoc_validate = pytest.importorskip("numpydoc.validate")
 numpydoc_docscrape = pytest.importorskip("numpydoc.docscrape")
 
-import flexid  # noqa: E402
 from flexid.optimisers import Optimiser, available, get  # noqa: E402
+from helpers import public_modules  # noqa: E402
 
 # The codes the test holds; the others (no Examples, no See Also, summary wording, ...) are
 # style the project does not require of every name.
@@ -86,15 +85,6 @@ class FlexidValidator(numpydoc_validate.Validator):
                 if name in fields:
                     documented.setdefault(name, entry)
         return documented
-
-
-def public_modules() -> list[str]:
-    """flexid and every module below it whose dotted name has no ``_``-prefixed part."""
-    names = ["flexid"]
-    for info in pkgutil.walk_packages(flexid.__path__, "flexid."):
-        if not any(part.startswith("_") for part in info.name.split(".")):
-            names.append(info.name)
-    return sorted(names)
 
 
 def public_objects() -> dict[str, object]:

@@ -19,6 +19,7 @@ import types
 import pytest
 
 import flexid
+from helpers import public_modules
 
 IDS = ("flexid/FlexibleManipulator-v0", "flexid/TwinRotor-v0")
 
@@ -34,16 +35,6 @@ def run_python(*blocks: str) -> subprocess.CompletedProcess:
     )
     assert run.returncode == 0, run.stderr
     return run
-
-
-def public_modules(packages_only: bool = False) -> list[str]:
-    """Every module (or package) of flexid whose dotted name has no ``_``-prefixed part."""
-    names = ["flexid"]
-    for info in pkgutil.walk_packages(flexid.__path__, "flexid."):
-        public = not any(part.startswith("_") for part in info.name.split("."))
-        if public and (info.ispkg or not packages_only):
-            names.append(info.name)
-    return sorted(names)
 
 
 PUBLIC_MODULES = public_modules()

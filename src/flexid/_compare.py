@@ -97,11 +97,6 @@ class _Context:
         )
 
     @property
-    def cost(self):
-        """The cost on the estimation record (an :class:`~flexid.objective.ARXCost`)."""
-        return self.estimation.cost
-
-    @property
     def theta_ls(self) -> np.ndarray:
         """Least-squares estimate, shape (n_params,)."""
         return self.estimation.theta_ls
@@ -174,7 +169,7 @@ def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
 def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     t0 = time.perf_counter()
     model = ctx.structure.model(ctx.theta_ls, dt=ctx.est.dt)
-    cost = float(ctx.cost(ctx.theta_ls[None, :])[0])
+    cost = ctx.estimation.cost_ls
     record = {
         "label": LEAST_SQUARES,
         "optimiser": LEAST_SQUARES,

@@ -68,7 +68,7 @@ class _GymnasiumFinder:
         if fullname != _GYMNASIUM:
             return None
         for finder in list(sys.meta_path):
-            if finder is self or isinstance(finder, _GymnasiumFinder):
+            if isinstance(finder, _GymnasiumFinder):
                 continue
             find = getattr(finder, "find_spec", None)
             spec = None if find is None else find(fullname, path, target)

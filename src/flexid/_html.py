@@ -49,23 +49,22 @@ def table(rows: Sequence[Sequence[Any]], caption: str | None = None, left: int =
     if caption:
         parts.append(f"<caption {_LEFT}>{escape(caption)}</caption>")
     head, *body = rows
-    parts.append(
-        "<thead><tr>"
-        + "".join(
-            f"<th {_LEFT if i < left else _RIGHT}>{escape(c)}</th>" for i, c in enumerate(head)
-        )
-        + "</tr></thead><tbody>"
-    )
-    for row in body:
-        parts.append(
-            "<tr>"
-            + "".join(
-                f"<td {_LEFT if i < left else _RIGHT}>{escape(c)}</td>" for i, c in enumerate(row)
-            )
-            + "</tr>"
-        )
+    parts.append(f"<thead>{_row('th', head, left)}</thead><tbody>")
+    parts += [_row("td", row, left) for row in body]
     parts.append("</tbody></table>")
     return "".join(parts)
+
+
+def _row(tag: str, cells: Sequence[Any], left: int) -> str:
+    """One ``<tr>`` of ``tag`` cells, the first ``left`` left-aligned, the others right."""
+    return (
+        "<tr>"
+        + "".join(
+            f"<{tag} {_LEFT if i < left else _RIGHT}>{escape(c)}</{tag}>"
+            for i, c in enumerate(cells)
+        )
+        + "</tr>"
+    )
 
 
 def key_values(items: Iterable[tuple[str, Any]]) -> str:
@@ -108,22 +107,6 @@ def iodata_html(data: IOData) -> str:
         HTML with one row per channel (kind, name, unit, mean, std, min, max), formatted as
         :meth:`IOData.describe` formats them.
     """
-    rows: list[list[str]] = [["channel", "kind", "unit", "mean", "std", "min", "max"]]
-    for kind, names, units, array in (
-        ("input", data.input_names, data.input_units, data.u),
-        ("output", data.output_names, data.output_units, data.y),
-    ):
-        for j, name in enumerate(names):
-            col = array[:, j]
-            rows.append(
-                [
-                    name,
-                    kind,
-                    units[j],
-                    f"{col.mean():.4g}",
-                    f"{col.std():.4g}",
-                    f"{col.min():.4g}",
-                    f"{col.max():.4g}",
-                ]
-            )
+    rows: list[Sequence[str]] = [["channel", "kind", "unit", "mean", "std", "min", "max"]]
+    rows += [(name, kind, *stats) for kind, name, *stats in data._channel_stats()]
     return block(repr(data), table(rows, left=3))

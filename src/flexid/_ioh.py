@@ -78,6 +78,7 @@ from typing import Any
 import numpy as np
 
 from ._compare import ComparisonResult, load_result
+from ._json import jsonable
 from .errors import ConfigError, StoreError
 from .statistics import best_at
 from .store import ResultStore
@@ -366,7 +367,7 @@ def _write_algorithm(
                 {
                     "instance": int(r["run"]),
                     "evals": int(r["history"]["fe"][-1]),
-                    "best": {"evals": evals, "y": y if math.isfinite(y) else None},
+                    "best": {"evals": evals, "y": jsonable(y)},
                     "seed": int(r["seed"]),
                 }
             )

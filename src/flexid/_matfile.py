@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from .data import IOData
+from ._validate import is_integer
+from .data import IOData, _median_step
 from .errors import DataError, DataFileError, check_finite
 
 __all__ = ["read_mat"]
@@ -395,11 +396,10 @@ def _step_of(times: np.ndarray, n_samples: int, path: Path, what: str, meta: dic
         raise DataError(
             f"{path}: the time vector {what!r} has {times.size} entries for {n_samples} samples"
         )
-    steps = np.diff(times)
-    step = float(np.median(steps))
+    step, uniform = _median_step(times)
     if not (math.isfinite(step) and step > 0):
         raise DataError(f"{path}: the time vector {what!r} is not increasing")
-    if not np.allclose(steps, step, rtol=1e-3, atol=1e-12):
+    if not uniform:
         meta["dt_note"] = f"time vector {what!r} not uniform; dt is its median step"
     return step
 
@@ -456,7 +456,7 @@ def _gather(
         raise DataError(f"{path}: no {kind}s named")
     blocks, names, lengths = [], [], []
     for item in items:
-        if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+        if is_integer(item):
             source, column = _matrix_variable(path, contents, variable), int(item)
         elif isinstance(item, str):
             match = _COLUMN.match(item)

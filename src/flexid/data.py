@@ -727,18 +727,36 @@ class IOData:
             deviation and range.
         """
         lines = [repr(self)]
+        for kind, name, unit, mean, std, low, high in self._channel_stats():
+            unit = f" [{unit}]" if unit else ""
+            lines.append(f"  {kind:6s} {name}{unit}: mean {mean}, std {std}, range [{low}, {high}]")
+        return "\n".join(lines)
+
+    def _channel_stats(self) -> list[tuple[str, str, str, str, str, str, str]]:
+        """Per channel, inputs first: kind, name, unit, then mean, std, min and max as text.
+
+        The one formatting of the statistics shared by :meth:`describe` and the notebook
+        display, so both show the same numbers.
+        """
+        rows = []
         for kind, names, units, array in (
             ("input", self.input_names, self.input_units, self._u),
             ("output", self.output_names, self.output_units, self._y),
         ):
             for j, name in enumerate(names):
                 col = array[:, j]
-                unit = f" [{units[j]}]" if units[j] else ""
-                lines.append(
-                    f"  {kind:6s} {name}{unit}: mean {col.mean():.4g}, std {col.std():.4g}, "
-                    f"range [{col.min():.4g}, {col.max():.4g}]"
+                rows.append(
+                    (
+                        kind,
+                        name,
+                        units[j],
+                        f"{col.mean():.4g}",
+                        f"{col.std():.4g}",
+                        f"{col.min():.4g}",
+                        f"{col.max():.4g}",
+                    )
                 )
-        return "\n".join(lines)
+        return rows
 
     def _repr_html_(self) -> str:
         """The notebook display: the numbers of :meth:`describe` in an HTML table."""
@@ -787,6 +805,26 @@ def _write_bytes(path: Path, payload: bytes) -> None:
         except OSError:
             pass
         raise DataFileError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+def _median_step(times: np.ndarray) -> tuple[float, bool]:
+    """The median step of a time vector and whether every step is within 0.1 % of it.
+
+    Parameters
+    ----------
+    times : ndarray, shape (N,)
+        Sample instants in seconds, N >= 2.
+
+    Returns
+    -------
+    step : float
+        The median of the N - 1 steps, in seconds (not checked here).
+    uniform : bool
+        Whether all steps are close to it (relative 1e-3, absolute 1e-12 s).
+    """
+    steps = np.diff(times)
+    step = float(np.median(steps))
+    return step, bool(np.allclose(steps, step, rtol=1e-3, atol=1e-12))
 
 
 def _parse_rows(rows: list, width: int, path: Path, first_line: int, columns: list) -> np.ndarray:
@@ -843,9 +881,8 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
     time_cols = [j for j, c in enumerate(columns) if c.lower() in ("t", "time")]
     if dt is None:
         if time_cols and table.shape[0] >= 2:
-            steps = np.diff(table[:, time_cols[0]])
-            dt = float(np.median(steps))
-            if not np.allclose(steps, dt, rtol=1e-3, atol=1e-12):
+            dt, uniform = _median_step(table[:, time_cols[0]])
+            if not uniform:
                 meta["dt_note"] = "time column not uniform; dt is its median step"
         else:
             dt, meta["dt_assumed"] = 1.0, True

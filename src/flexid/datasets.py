@@ -65,6 +65,15 @@ PRESETS: dict[str, dict[str, Any]] = {
     },
 }
 
+
+def _indices(plant: str, kind: str, names: list[str], wanted: list[str]) -> list[int]:
+    """Positions of the channels ``wanted`` among ``names`` (``kind``: "input" or "output")."""
+    for name in wanted:
+        if name not in names:
+            raise UnknownNameError(f"{plant} {kind}", name, names)
+    return [names.index(name) for name in wanted]
+
+
 def _noise_levels(noise_std: Any, clean: np.ndarray) -> np.ndarray:
     """Per-output noise standard deviations from a number, a list or a "1%" string."""
     n_out = clean.shape[1]
@@ -182,21 +191,14 @@ def generate(
     signal_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
     signal_rng = np.random.default_rng(signal_seq)
     input_names, input_units = list(spec.input_names), list(spec.input_units)
-    excited = list(settings.get("inputs") or input_names)
-    for name in excited:
-        if name not in input_names:
-            raise UnknownNameError(f"{plant} input", name, input_names)
+    excited = _indices(plant, "input", input_names, list(settings.get("inputs") or input_names))
     u = np.zeros((n, len(input_names)))
-    for name in excited:
-        u[:, input_names.index(name)] = make_signal(signal, n, dt, rng=signal_rng, **options)
+    for i in excited:
+        u[:, i] = make_signal(signal, n, dt, rng=signal_rng, **options)
     y_all, u = spec.simulate(spec.physics(), u, params, dt)
     y_all = spec.measure(y_all, params)
     output_names, output_units = list(spec.output_names), list(spec.output_units)
-    keep = list(settings.get("outputs") or output_names)
-    for name in keep:
-        if name not in output_names:
-            raise UnknownNameError(f"{plant} output", name, output_names)
-    cols = [output_names.index(name) for name in keep]
+    cols = _indices(plant, "output", output_names, list(settings.get("outputs") or output_names))
     clean = y_all[:, cols]
     levels = _noise_levels(settings.get("noise_std"), clean)
     from .envs.sensors import total_noise  # flexid.envs registers the environments
@@ -205,10 +207,9 @@ def generate(
     noise_rng = np.random.default_rng(noise_seq)
     y = clean + noise_rng.standard_normal(clean.shape) * levels
     if settings.get("inputs"):
-        sel = [input_names.index(name) for name in excited]
-        u = u[:, sel]
-        input_names = [input_names[i] for i in sel]
-        input_units = [input_units[i] for i in sel]
+        u = u[:, excited]
+        input_names = [input_names[i] for i in excited]
+        input_units = [input_units[i] for i in excited]
     from . import __version__
 
     metadata = {
@@ -231,7 +232,7 @@ def generate(
         y,
         dt=dt,
         input_names=input_names,
-        output_names=keep,
+        output_names=[output_names[i] for i in cols],
         input_units=input_units,
         output_units=[output_units[i] for i in cols],
         metadata=metadata,

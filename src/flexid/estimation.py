@@ -114,10 +114,6 @@ class EstimationProblem:
     box_rule : str
         How the box of the ``b`` coefficients (and of ``a`` in the coefficient space) was
         chosen.
-    theta_ls : ndarray, shape (n_params,)
-        Least-squares estimate.
-    cost_ls : float
-        The cost at ``theta_ls``.
     """
 
     structure: ARXStructure
@@ -127,9 +123,17 @@ class EstimationProblem:
     search: SearchSpec
     box: Any
     box_rule: str
-    theta_ls: np.ndarray
-    cost_ls: float
     _oe: Any = field(default=None, repr=False)
+
+    @property
+    def theta_ls(self) -> np.ndarray:
+        """Least-squares estimate, shape (n_params,) (the cost's :attr:`ARXCost.theta_ls`)."""
+        return self.cost.theta_ls
+
+    @property
+    def cost_ls(self) -> float:
+        """The cost at :attr:`theta_ls` (the cost's :attr:`ARXCost.cost_ls`)."""
+        return self.cost.cost_ls
 
     def theta(self, z: Any) -> np.ndarray:
         """ARX coefficients of search vectors.
@@ -311,8 +315,7 @@ def build_problem(
 
     check_search(search)
     objective = ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
-    theta_ls = np.asarray(objective.theta_ls, dtype=float)
-    box = search_box(structure, bounds, theta_ls)
+    box = search_box(structure, bounds, objective.theta_ls)
     na = structure.na
     b_lo, b_hi = box.lower[na:], box.upper[na:]
     param = make_parametrisation(
@@ -370,8 +373,6 @@ def build_problem(
         search=search,
         box=box,
         box_rule=rule,
-        theta_ls=theta_ls,
-        cost_ls=float(objective(theta_ls[None, :])[0]),
     )
 
 

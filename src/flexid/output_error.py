@@ -224,8 +224,10 @@ class _Problem:
         """``theta`` with denominator ``a`` (na,) and the SSE-optimal ``B`` for it.
 
         ``y_sim = free response of A from the initial state + sum_j b_j (1/A) B-regressor_j``
-        is linear in ``b``: one least-squares solve on the filtered regressors.
+        is linear in ``b``: one least-squares solve on the filtered regressors, counted as
+        one Jacobian evaluation (it is the ``b`` part of one).
         """
+        self.njev += 1
         return self.cost.fit_numerator(a)
 
 
@@ -433,7 +435,6 @@ def _random_a(na: int, rng: np.random.Generator) -> np.ndarray:
 # ==================================================================================== solver
 def _run_lm(
     prob: _Problem,
-    cost: ARXCost,
     theta0: np.ndarray,
     kind: str,
     max_nfev: int | None,
@@ -481,7 +482,7 @@ def _run_lm(
     theta = np.asarray(sol.x, dtype=float)
     # one row per call, as a user calls cost(theta): the compiled kernel's rounding may
     # depend on a row's position in a batch, and the guarantees are about cost(theta)
-    cost0, cost1 = float(cost(theta0)[0]), float(cost(theta)[0])
+    cost0, cost1 = float(prob.cost(theta0)[0]), float(prob.cost(theta)[0])
     if not (_admissible(theta[:na], r_max) and cost1 <= cost0):
         # defensive: MINPACK returns its best accepted (stable) point, so this only guards
         # against rounding differences between its SSE and the cost's
@@ -571,16 +572,14 @@ def output_error(
         if na == 0:  # no poles to vary: B given A is the least-squares start again
             break
         a = _perturbed_a(a_ls, rng) if i % 2 == 1 else _random_a(na, rng)
-        prob.njev += 1  # the B refit is the b-part of a Jacobian
         start_list.append(("perturbed" if i % 2 == 1 else "random", prob.refit_b(a)))
     if x0 is not None:
         start_list.append(("x0", _mirror(_as_theta(x0, prob.n, "x0"), na)))
     for i, (kind, th) in enumerate(start_list):
         if not _admissible(th[:na], r_max):
-            prob.njev += 1
             start_list[i] = (kind, prob.refit_b(_capped(th[:na], r_max)))
 
-    runs = [_run_lm(prob, cost, th, kind, max_nfev, tol, r_max) for kind, th in start_list]
+    runs = [_run_lm(prob, th, kind, max_nfev, tol, r_max) for kind, th in start_list]
     best = int(np.argmin([r.cost for r in runs]))
     win = runs[best]
     theta = win.theta.copy()

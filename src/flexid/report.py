@@ -9,7 +9,6 @@ onto it).
 
 from __future__ import annotations
 
-import html
 import math
 import re
 from pathlib import Path
@@ -17,9 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from ._compare import ComparisonResult, load_result
+from ._html import escape, table
 from ._ioh import (
     IOH_LAYOUTS,
     TARGETS_PER_DECADE,
+    _name,
     check_histories,
     comparison_ecdf,
     ecdf_fraction,
@@ -39,19 +40,28 @@ __all__ = [
 
 
 def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9]+", "-", text).strip("-").lower() or "comparison"
+    """The file-name form of a comparison name: the export's folder name, in lower case."""
+    return _name(text).lower()
+
+
+def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """The lines of a Markdown table: the header, the separator, one line per row."""
+    return [_md_row(header), "|" + "---|" * len(header)] + [_md_row(r) for r in rows]
+
+
+def _md_row(cells: list[str]) -> str:
+    return "| " + " | ".join(cells) + " |"
 
 
 def _markdown_table(text_table: str) -> str:
     """Turn one of ComparisonResult's plain-text tables into a Markdown table."""
     lines = [ln for ln in text_table.splitlines() if ln.strip()]
     header = re.split(r"\s{2,}", lines[0].strip())
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    rows = []
     for line in lines[2:]:
         cells = re.split(r"\s{2,}", line.strip())
-        cells += [""] * (len(header) - len(cells))
-        out.append("| " + " | ".join(cells) + " |")
-    return "\n".join(out)
+        rows.append(cells + [""] * (len(header) - len(cells)))
+    return "\n".join(_md_table(header, rows))
 
 
 def _section(result: ComparisonResult, outdir: Path, figures: bool) -> list[str]:
@@ -100,16 +110,15 @@ def _ecdf_lines(result: ComparisonResult, ecdf: dict) -> list[str]:
     easiest, hardest = targets[0] / reference - 1.0, targets[-1] / reference - 1.0
     budget = result.spec.max_fe
     budgets = sorted({max(1, math.ceil(budget / 100)), max(1, math.ceil(budget / 10)), budget})
-    head = ["optimiser", "runs"] + [f"{b} FE" for b in budgets]
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for label, curve in ecdf["curves"].items():
         if not curve["runs"]:
-            out.append("| " + " | ".join([label, "0"] + ["-"] * len(budgets)) + " |")
+            rows.append([label, "0"] + ["-"] * len(budgets))
             continue
         fe, fraction = curve["fe"], curve["fraction"]
         at = fraction[np.searchsorted(fe, np.asarray(budgets, float), side="right") - 1]
-        cells = [label, str(curve["runs"])] + [f"{v * 100:.0f}%" for v in at]
-        out.append("| " + " | ".join(cells) + " |")
+        rows.append([label, str(curve["runs"])] + [f"{v * 100:.0f}%" for v in at])
+    out = _md_table(["optimiser", "runs"] + [f"{b} FE" for b in budgets], rows)
     note = (
         f"Fraction of (run, target) pairs reached within the FE shown, over {len(targets)} "
         f"targets reference x (1 + d), d log-spaced from {easiest:.3g} (the worst first "
@@ -186,7 +195,7 @@ def _to_html(markdown: str) -> str:
             j = i + 1
             block = []
             while j < len(lines) and not lines[j].startswith("```"):
-                block.append(html.escape(lines[j]))
+                block.append(escape(lines[j]))
                 j += 1
             out.append("<pre>" + "\n".join(block) + "</pre>")
             i = j + 1
@@ -196,24 +205,21 @@ def _to_html(markdown: str) -> str:
             while i < len(lines) and lines[i].startswith("|"):
                 rows.append(lines[i])
                 i += 1
-            cells = [[html.escape(c.strip()) for c in r.strip("|").split("|")] for r in rows]
-            table = ["<table><tr>" + "".join(f"<th>{c}</th>" for c in cells[0]) + "</tr>"]
-            for row in cells[2:]:
-                table.append("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>")
-            out.append("".join(table) + "</table>")
+            cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows]
+            out.append(table([cells[0], *cells[2:]]))  # cells[1] is the separator
             continue
         heading = re.match(r"^(#+) (.*)", line)
         image = re.match(r"^!\[(.*)\]\((.*)\)$", line)
         if heading:
             n = len(heading.group(1))
-            out.append(f"<h{n}>{html.escape(heading.group(2))}</h{n}>")
+            out.append(f"<h{n}>{escape(heading.group(2))}</h{n}>")
         elif image:
             out.append(
-                f"<p><img src='{html.escape(image.group(2))}' "
-                f"alt='{html.escape(image.group(1))}'></p>"
+                f"<p><img src='{escape(image.group(2))}' "
+                f"alt='{escape(image.group(1))}'></p>"
             )
         elif line.strip():
-            text = html.escape(line)
+            text = escape(line)
             text = re.sub(r"`([^`]*)`", r"<code>\1</code>", text)
             text = re.sub(r"\*([^*]+)\*", r"<em>\1</em>", text)
             out.append(f"<p>{text}</p>")

@@ -426,7 +426,6 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         return None
 
 
-
 class FlexibleManipulatorVectorEnv(
     BatchedVectorEnv, single_env=FlexibleManipulatorEnv, config_type=_Config
 ):

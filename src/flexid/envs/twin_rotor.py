@@ -94,9 +94,12 @@ class _Config:
         shape = (2,) if batch is None else (batch, 2)
         if a.shape != shape:
             raise ActionError(f"twin rotor: action must have shape {shape}, got {a.shape}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ActionError(f"twin rotor: action must be finite, got {action!r}")
-        return np.clip(a, -1.0, 1.0) * self.u_max
+        u = np.maximum(a, -1.0)  # np.clip, without its Python-level dispatch
+        np.minimum(u, 1.0, out=u)
+        u *= self.u_max
+        return u
 
 
 def _in_counts(angle: float, step: float) -> float:
@@ -335,16 +338,7 @@ class TwinRotorVectorEnv(BatchedVectorEnv, single_env=TwinRotorEnv, config_type=
 
     def step(self, actions):
         cfg = self._cfg
-        a = np.asarray(actions, dtype=float)
-        if a.shape != (self.num_envs, 2):
-            raise ActionError(
-                f"twin rotor: action must have shape {(self.num_envs, 2)}, got {a.shape}"
-            )
-        if not np.isfinite(a).all():
-            raise ActionError(f"twin rotor: action must be finite, got {actions!r}")
-        u = np.maximum(a, -1.0)  # np.clip, without its Python-level dispatch
-        np.minimum(u, 1.0, out=u)
-        u *= cfg.u_max
+        u = cfg.check_action(actions, self.num_envs)
         done = self.prev_done
         any_done = done.any()
         if any_done:

@@ -72,8 +72,6 @@ from . import sensors
 
 __all__ = [
     "IDEAL_SENSORS",
-    "INPUT_NAMES",
-    "INPUT_UNITS",
     "OUTPUT_NAMES",
     "OUTPUT_UNITS",
     "STATE_NAMES",
@@ -97,8 +95,6 @@ __all__ = [
     "thrust",
 ]
 
-INPUT_NAMES = ("main_rotor", "tail_rotor")
-INPUT_UNITS = ("V", "V")
 OUTPUT_NAMES = ("pitch", "yaw", "pitch_rate", "yaw_rate")
 OUTPUT_UNITS = ("rad", "rad", "rad/s", "rad/s")
 STATE_NAMES = ("pitch", "pitch_rate", "yaw", "yaw_rate", "tau1", "tau2", "reaction_torque")
@@ -1008,6 +1004,13 @@ def _kernel_params(p: TwinRotorParameters) -> np.ndarray:
     return np.array([float(getattr(p, n)) for n in names])
 
 
+def _kernel_arguments(p: TwinRotorParameters, dt: float) -> tuple[np.ndarray, tuple]:
+    """The parameter vector and the trailing arguments ``(n_sub, h, lock_yaw, square_law)``
+    of ``twin_rotor_run`` for the sample time ``dt``."""
+    n_sub, h = substeps(p, dt)
+    return _kernel_params(p), (n_sub, h, bool(p.lock_yaw), p.thrust_law == "square")
+
+
 class CompiledScalarStepper(ScalarStepper):
     """:class:`ScalarStepper` with the samples run by the compiled RK4 of ``flexid._kernels``.
 
@@ -1025,11 +1028,12 @@ class CompiledScalarStepper(ScalarStepper):
     """
 
     def __init__(self, params: TwinRotorParameters, dt: float) -> None:
-        super().__init__(params, dt)
+        # not ScalarStepper.__init__: the tables of the Python route are not used here
+        self.params = params
+        self.dt = _check_dt(dt)
         self._c = _compiled()
-        n_sub, h = substeps(params, self.dt)
-        self._args = (n_sub, h, bool(params.lock_yaw), params.thrust_law == "square")
-        self._k = _kernel_params(params)
+        self._k, self._args = _kernel_arguments(params, self.dt)
+        self.n_sub = self._args[0]
         self._x = np.empty((1, 7))
         self._u = np.empty((1, 1, 2))
 
@@ -1076,8 +1080,7 @@ class CompiledBatchStepper(_BatchRoute):
 
     def __init__(self, params: TwinRotorParameters, dt: float, batch: int) -> None:
         super().__init__(params, dt, batch)
-        self._args = (self.n_sub, self._h, bool(params.lock_yaw), params.thrust_law == "square")
-        self._k = _kernel_params(params)
+        self._k, self._args = _kernel_arguments(params, self.dt)
         self._x = np.zeros((self.batch, 7))
         self._u = np.empty((1, self.batch, 2))
         self._bind()

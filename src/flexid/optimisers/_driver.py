@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -77,7 +77,6 @@ class _Run:
         self.stop_reason: str | None = None
         self.t0 = time.perf_counter()
         self.elapsed = 0.0
-        self._generator: Iterator | None = None
         self._manual = not optimiser.auto_iterations
 
     # -- bookkeeping
@@ -120,9 +119,7 @@ class _Run:
                     f"objective returned shape {np.shape(F)} for a population of "
                     f"{X.shape[0]} points; it must return one cost per row"
                 )
-        F = np.where(np.isnan(F), np.inf, F)
-        F[F == -np.inf] = np.inf  # -inf is as meaningless as NaN for a cost
-        return F
+        return _clean_costs(F)
 
     def check_population(self, X: Any) -> np.ndarray:
         X = np.asarray(X, dtype=float)
@@ -142,7 +139,7 @@ class _Run:
                 return X[:room]
         return X
 
-    def absorb(self, X: np.ndarray, F: np.ndarray, full_size: int) -> np.ndarray:
+    def absorb(self, X: np.ndarray, F: np.ndarray, full_size: int) -> None:
         """Count, track the best, record an automatic iteration, and check FE/target stops."""
         self.nfev += X.shape[0]
         self.batches += 1
@@ -168,7 +165,6 @@ class _Run:
             self._record("partial")
         if X.shape[0] < full_size:
             self._stop("budget", f"function-evaluation budget reached ({b.max_fe})")
-        return F
 
     def finish(self, reason: str | None = None, message: str | None = None) -> OptimizeResult:
         if reason is not None:
@@ -193,6 +189,11 @@ class _Run:
             params=self.optimiser.params,
             wall_time=self.elapsed,
         )
+
+
+def _clean_costs(F: np.ndarray) -> np.ndarray:
+    """``F`` with NaN and ``-inf`` as ``+inf`` (a new array): neither means anything as a cost."""
+    return np.where(np.isnan(F) | (F == -np.inf), np.inf, F)
 
 
 def _normalise_seed(seed: Any) -> int:
@@ -275,13 +276,12 @@ def minimize(
             X = run.check_population(X)
             full = X.shape[0]
             X = problem.from_unit(run.truncate(X))
-            F = run.absorb(X, run.evaluate(X), full)
+            F = run.evaluate(X)
+            run.absorb(X, F, full)
             if run.stop_reason is not None:
                 break
             X = generator.send(F)
-    except _StopRun:
-        pass
-    except StopIteration:
+    except (_StopRun, StopIteration):
         pass
     finally:
         generator.close()
@@ -385,7 +385,7 @@ class AskTell:
         F = np.asarray(F, dtype=float).reshape(-1)
         if F.shape != (X.shape[0],):
             raise OptimiserError(f"tell() needs {X.shape[0]} costs, got {F.size}")
-        F = np.where(np.isnan(F) | (F == -np.inf), np.inf, F)
+        F = _clean_costs(F)
         self._pending = None
         run = self._run
         try:
@@ -394,9 +394,7 @@ class AskTell:
                 self.done = True
                 return
             self._next = self._generator.send(F)
-        except _StopRun:
-            self.done = True
-        except StopIteration:
+        except (_StopRun, StopIteration):
             self.done = True
 
     def result(self) -> OptimizeResult:

@@ -224,6 +224,8 @@ class SearchSpace:
         ``n``.
     x0 : ndarray, shape (n,)
         The start point for single-point methods (in the unit box).
+    max_fe : int or None
+        The run's function-evaluation budget (``None`` when the run has no FE limit).
     """
 
     def __init__(self, problem: Problem, init_seed: np.random.SeedSequence, run: _Run) -> None:
@@ -237,6 +239,11 @@ class SearchSpace:
             if problem.x0 is not None
             else self.initial_population(1)[0]
         )
+
+    @property
+    def max_fe(self) -> int | None:
+        """The run's function-evaluation budget, ``None`` when the run has no FE limit."""
+        return self._run.budget.max_fe
 
     def initial_population(self, size: int) -> np.ndarray:
         """The shared initial population of this run in the unit box.

@@ -73,9 +73,10 @@ def chemotactic_step(
 ):
     """One chemotactic step of every bacterium (Passino's tumble and swim), as a generator.
 
-    Shared by BFA and HBCSD: a search runs it with ``X, J = yield from chemotactic_step(...)``.
-    It yields the tumbled population, then each batch of swimming bacteria, marks the end of
-    the iteration (phase ``"chemotaxis"``) and returns the new positions and costs.
+    Shared by BFA and HBCSD: a search runs it with
+    ``X, J, T = yield from chemotactic_step(...)``.  It yields the tumbled population, then
+    each batch of swimming bacteria, marks the end of the iteration (phase ``"chemotaxis"``)
+    and returns the new positions, their costs and their deciding costs.
 
     Parameters
     ----------
@@ -104,6 +105,9 @@ def chemotactic_step(
         The new positions, in the unit box.
     J : ndarray, shape (S,)
         Their costs.
+    T : ndarray, shape (S,)
+        Their deciding costs, ``decide(X, J)`` (``J`` itself without ``decide``): the ``T`` of
+        the next step while the population stays as it is.
 
     Yields
     ------
@@ -142,7 +146,7 @@ def chemotactic_step(
             evaluated(X, J)
         T = J if decide is None else decide(X, J)
     space.end_iteration("chemotaxis")
-    return X, J
+    return X, J, T
 
 
 @register
@@ -262,13 +266,14 @@ class BacterialForaging(Optimiser):
             event += 1
             for _ in range(self.n_reproduction):
                 health = np.zeros(S)
+                T = self._decide(X, J)
                 for _ in range(self.n_chemotactic):
-                    T = self._decide(X, J)
                     health += T
-                    X, J = yield from chemotactic_step(
+                    # the step returns the deciding cost of its end, the next step's start
+                    X, J, T = yield from chemotactic_step(
                         space, rng, X, J, T, C, self.n_swim, self.clip, decide=self._decide
                     )
-                health += self._decide(X, J)
+                health += T
                 keep = np.argsort(health, kind="stable")[: S // 2]
                 X = np.concatenate([X[keep], X[keep]])
                 J = np.concatenate([J[keep], J[keep]])

@@ -88,11 +88,6 @@ def _library_seed(rng: np.random.Generator) -> int:
     return int(rng.integers(0, 2**32 - 1))
 
 
-def _max_fe(space: SearchSpace) -> int | None:
-    """The run's FE budget: nevergrad's NGOpt chooses its algorithm from it."""
-    return space._run.budget.max_fe
-
-
 class _External(Optimiser):
     """Base of the adapters: turns a library exception into an OptimiserError."""
 
@@ -162,16 +157,17 @@ class NevergradOptimiser(_External):
             # it seeds a random state from NumPy's global one, replaced by the run's at once
             param = ng.p.Array(shape=(space.dim,), lower=0.0, upper=1.0)
         param.random_state = np.random.RandomState(_library_seed(rng))
+        # nevergrad's budget is the run's (NGOpt chooses its algorithm from it)
         opt = ng.optimizers.registry[self.ng_name](
-            parametrization=param, budget=_max_fe(space), num_workers=self.num_workers
+            parametrization=param, budget=space.max_fe, num_workers=self.num_workers
         )
         if self.initial_points:
             X0 = space.initial_population(self.initial_points)
             for x in X0[::-1]:  # nevergrad hands suggestions out last in, first out
                 opt.suggest(x)
-            yield from _ng_batch(opt, len(X0))
+            yield from _ng_batch(opt, space, len(X0))
         while True:
-            yield from _ng_batch(opt, self.num_workers)
+            yield from _ng_batch(opt, space, self.num_workers)
 
 
 @contextlib.contextmanager
@@ -191,9 +187,9 @@ def _import_nevergrad() -> Any:
     return nevergrad
 
 
-def _ng_batch(opt: Any, size: int) -> Iterator[np.ndarray]:
+def _ng_batch(opt: Any, space: SearchSpace, size: int) -> Iterator[np.ndarray]:
     candidates = [opt.ask() for _ in range(size)]
-    X = np.clip(np.array([c.value for c in candidates], dtype=float), 0.0, 1.0)
+    X = space.clip(np.array([c.value for c in candidates], dtype=float))
     F = yield X
     for candidate, f in zip(candidates, np.minimum(F, _NG_MAX_LOSS)):
         opt.tell(candidate, float(f))
@@ -283,7 +279,7 @@ class PyCMA(_External):
             es = cma.CMAEvolutionStrategy(x0, self.sigma0, options)
             while not es.stop():
                 solutions = es.ask()
-                F = yield np.clip(np.array(solutions, dtype=float), 0.0, 1.0)
+                F = yield space.clip(np.array(solutions, dtype=float))
                 es.tell(solutions, F.tolist())
             if not self.restarts:
                 return
@@ -373,7 +369,7 @@ class PymooOptimiser(_External):
             todo = [i for i, ind in enumerate(batch) if "F" not in ind.evaluated]
             if todo:
                 stalled = 0
-                problem.costs = yield np.clip(batch[todo].get("X"), 0.0, 1.0)
+                problem.costs = yield space.clip(batch[todo].get("X"))
                 algorithm.evaluator.eval(problem, pop)
             else:
                 stalled += 1

@@ -154,7 +154,7 @@ class HBCSD(Optimiser):
 
         # ---- phase 1: chemotaxis with personal bests
         for _ in range(self.n_chemotactic):
-            X, J = yield from chemotactic_step(
+            X, J, _ = yield from chemotactic_step(
                 space, rng, X, J, J, self.step_size, self.n_swim, self.clip,
                 evaluated=personal_bests,
             )
