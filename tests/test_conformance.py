@@ -8,7 +8,7 @@ is put on ``sys.path``).  Every optimiser:
 * is **deterministic** for a seed (the same rows evaluated, the same result) and leaves
   NumPy's global random state alone;
 * is **FE-exact**: ``nfev`` equals the budget and the objective saw exactly that many rows,
-  and the result is the best row it saw;
+  the result is the best row it saw, and every improving evaluation is logged at its FE;
 * gives the same run through :class:`~flexid.optimisers.AskTell` as through ``minimize``;
 * **rejects bad hyper-parameters** with HyperParameterError (wrong type, None, below
   ``low``, above ``high``, outside ``choices``, unknown name), under a hyper-parameter's
@@ -143,6 +143,15 @@ def test_fe_exact(name, budget):
     F = sphere(rows)
     assert r.fun == F.min()
     np.testing.assert_array_equal(r.x, rows[np.argmin(F)])
+    # every evaluation that lowered the best, at its exact FE count, one row at a time
+    fe, best, low = [], [], np.inf
+    for i, f in enumerate(F, start=1):
+        if f < low:
+            low = f
+            fe.append(i)
+            best.append(f)
+    np.testing.assert_array_equal(r.improvements["fe"], fe)
+    np.testing.assert_array_equal(r.improvements["best"], best)
 
 
 # ------------------------------------------------------------------------------ ask/tell
@@ -162,6 +171,8 @@ def test_ask_tell_equals_minimize(name):
     np.testing.assert_array_equal(r.x, ref.x)
     np.testing.assert_array_equal(r.history.fe, ref.history.fe)
     np.testing.assert_array_equal(r.history.best, ref.history.best)
+    np.testing.assert_array_equal(r.improvements["fe"], ref.improvements["fe"])
+    np.testing.assert_array_equal(r.improvements["best"], ref.improvements["best"])
 
 
 # --------------------------------------------------------------------- hyper-parameters

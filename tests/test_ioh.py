@@ -131,6 +131,12 @@ def test_json_export_reads_back_as_the_store(store, tmp_path):
             for entry in scenario["runs"]:
                 record = runs[entry["instance"]]
                 h = record["history"]
+                # exact to the evaluation: the first (finite) evaluation opens the run, each
+                # row lowers the best, the last is the run's last FE
+                assert h["fe"][0] == 1 and h["fe"][-1] == record["nfev"]
+                assert np.all(np.diff(h["fe"]) > 0) and np.all(np.diff(h["best"][:-1]) < 0)
+                assert entry["best"]["x"] == record["x"]
+                assert len(record["x"]) == scenario["dimension"]
                 # exact: the writer uses the shortest round-trip text of each double
                 assert exported[label]["runs"][entry["instance"]] == list(zip(h["fe"], h["best"]))
                 assert entry["evals"] == record["nfev"] == h["fe"][-1]
@@ -200,22 +206,64 @@ def test_bad_input_raises_before_writing(store, tmp_path):
         export_ioh(empty, tmp_path / "b")
     with pytest.raises(StoreError):
         export_ioh(tmp_path / "missing.sqlite", tmp_path / "c")
-    broken = _store_without_history(store, tmp_path / "broken.sqlite")
+    broken = _store_with(store, tmp_path / "broken.sqlite", lambda r: r.pop("history"))
     with pytest.raises(StoreError, match="no history"):
         export_ioh(broken, tmp_path / "d")
-    assert not any((tmp_path / n).exists() for n in "abcd")
+    # a run recorded without its best search point (an older flexid's store)
+    old = _store_with(store, tmp_path / "old.sqlite", lambda r: r.pop("x"))
+    with pytest.raises(StoreError, match="sda' run 0 has no best search point"):
+        export_ioh(old, tmp_path / "e")
+    assert not any((tmp_path / n).exists() for n in "abcde")
 
 
-def _store_without_history(store: Path, path: Path) -> Path:
-    """A copy of the first comparison whose first sda run lost its history."""
+def test_a_run_whose_first_cost_is_not_finite_still_opens_at_evaluation_1(store, tmp_path):
+    def first_infinite(r):
+        # the first evaluation's cost was +inf: the history starts at the second
+        r["history"] = {"fe": r["history"]["fe"][1:], "best": r["history"]["best"][1:]}
+
+    path = _store_with(store, tmp_path / "inf.sqlite", first_infinite)
+    (folder,) = export_ioh(path, tmp_path / "out")
+    block = _read_json_export(folder)["sda"]["runs"][0]
+    assert block[0] == (1, float("inf")) and block[1][0] > 1
+
+
+def _store_with(store: Path, path: Path, change) -> Path:
+    """A copy of the first comparison with ``change`` applied to its first sda run."""
     with ResultStore(store, readonly=True) as src, ResultStore(path) as dst:
         entry = src.comparisons()[0]
         dst.add_comparison(entry["key"], entry["name"], entry["spec"])
         for r in src.runs(entry["key"]):
             if r["label"] == "sda" and r["run"] == 0:
-                r = {k: v for k, v in r.items() if k != "history"}
+                change(r)
             dst.write_run(entry["key"], r)
     return path
+
+
+def test_iohinspector_reads_the_export_as_the_store(store, tmp_path):
+    """An independent IOHprofiler reader loads every run with the store's numbers."""
+    iohinspector = pytest.importorskip("iohinspector")
+    stored = _stored_runs(store)
+    for folder in export_ioh(store, tmp_path):
+        key = next(k for k in stored if folder.name.endswith(k[:8]))
+        manager = iohinspector.DataManager()
+        manager.add_folder(str(folder))
+        # iohinspector splits a .dat file into runs where evaluations == 1 and joins them
+        # to the JSON's runs in order
+        frame = manager.load(monotonic=False, include_meta_data=True)
+        loaded = {}
+        for row in frame.select(["algorithm_name", "instance", "evaluations", "raw_y"]).rows():
+            loaded.setdefault((row[0], row[1]), []).append((row[2], row[3]))
+        expected = {
+            (label, run): list(zip(r["history"]["fe"], r["history"]["best"]))
+            for label, runs in stored[key].items()
+            for run, r in runs.items()
+        }
+        # the text is the shortest round-trip form of each double: read back bit for bit
+        assert loaded == expected
+        overview = manager.overview
+        assert sorted(overview["best_y"].to_list()) == sorted(
+            r["cost"] for runs in stored[key].values() for r in runs.values()
+        )
 
 
 # ------------------------------------------------------------------ ECDF
@@ -258,7 +306,14 @@ def test_comparison_ecdf_ends_at_the_final_costs(store):
     for label, curve in ecdf["curves"].items():
         ok = [r for r in result.records[label] if r["status"] == "ok"]
         assert curve["runs"] == len(ok)
-        assert curve["fraction"][0] == 0.0 and np.all(np.diff(curve["fraction"]) >= 0)
+        assert curve["fe"][0] == 1 and np.all(np.diff(curve["fraction"]) >= 0)
+        # at FE 1 only the first evaluations count, and the easiest target is the worst of
+        # them over all optimisers: reached at FE 1 by every run
+        firsts = np.array([r["history"]["best"][0] for r in ok])
+        assert all(r["history"]["fe"][0] == 1 for r in ok)
+        at_one = (firsts[:, None] <= targets[None, :]).mean()
+        assert curve["fraction"][0] == pytest.approx(at_one, abs=1e-15)
+        assert curve["fraction"][0] >= 1 / targets.size
         finals = np.array([r["cost"] for r in ok])
         expected = (finals[:, None] <= targets[None, :]).mean()
         # the same comparisons of the same doubles, counted in another order: exact up to
@@ -310,7 +365,7 @@ def test_cli_bad_input_one_line_status_2(case, word, store, tmp_path, capsys):
         target = tmp_path / "empty.sqlite"
         ResultStore(target).close()
     else:
-        target = _store_without_history(store, tmp_path / "broken.sqlite")
+        target = _store_with(store, tmp_path / "broken.sqlite", lambda r: r.pop("history"))
     status, _, err = _run(["report", target, "--format", fmt, "-o", tmp_path / "o"], capsys)
     assert status == 2
     assert len(err.strip().splitlines()) == 1 and word in err

@@ -130,16 +130,19 @@ def _init_worker(payload: Mapping[str, Any]) -> None:
 
 
 # ================================================================================ one run
-def _compact_history(history) -> dict[str, list]:
-    """Change points of the best-so-far step function (exact), plus the first and last rows."""
-    fe = history.fe
-    best = history.best
-    if fe.size == 0:
-        return {"fe": [], "best": []}
-    keep = np.ones(fe.size, dtype=bool)
-    keep[1:] = best[1:] < best[:-1]
-    keep[-1] = True
-    return {"fe": fe[keep].tolist(), "best": [float(b) for b in best[keep]]}
+def _store_history(result) -> dict[str, list]:
+    """The run's best-so-far cost as a step function of FE, exact to the evaluation.
+
+    One row per evaluation that lowered the best cost (its FE count and the new best), then
+    the run's last FE with the final best, as IOHprofiler's on-improvement logger writes a
+    run; a run that never found a finite cost has only the last row.
+    """
+    fe = [int(v) for v in result.improvements["fe"]]
+    best = [float(v) for v in result.improvements["best"]]
+    if result.nfev and (not fe or fe[-1] != result.nfev):
+        fe.append(int(result.nfev))
+        best.append(float(result.fun))
+    return {"fe": fe, "best": best}
 
 
 def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
@@ -223,7 +226,8 @@ def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, An
             nfev=int(result.nfev),
             nit=int(result.nit),
             stop=result.stop,
-            history=_compact_history(result.history),
+            history=_store_history(result),
+            x=[float(v) for v in result.x],
         )
         record.update(_model_numbers(model, ctx))
         record["validation"] = _validation_numbers(model, ctx)

@@ -23,9 +23,9 @@ The JSON has the keys ``version``, ``suite``, ``function_id``, ``function_name``
 ``maximization``, ``algorithm`` (``name``, ``info``), ``experiment_attributes`` (a list of
 one-key objects with string values), ``run_attributes``, ``attributes`` (the data columns)
 and ``scenarios``: one per dimension with ``dimension``, ``path`` (relative to the JSON) and
-``runs``, each run ``{"instance", "evals", "best": {"evals", "y"}, <run attributes>}``.  The
-``.dat`` file has one block per run, each starting with the line ``evaluations raw_y``,
-columns separated by one space.
+``runs``, each run ``{"instance", "evals", "best": {"evals", "y", "x"}, <run
+attributes>}``.  The ``.dat`` file has one block per run, each starting with the line
+``evaluations raw_y``, columns separated by one space.
 
 The ``info`` layout is IOHexperimenter's older ``analyzer::v1`` output as the IOHanalyzer
 data-format page describes it: ``IOHprofiler_f1_<name>.info`` with three lines per
@@ -44,13 +44,17 @@ How flexid maps onto it
   numerator is fitted, ``na + sum(nb)`` when it is searched), minimisation;
 * the instance is the run index of the store (0, 1, ...), the same for every optimiser, as
   run ``r`` of every optimiser starts from the same population; its seed is a run attribute;
-* the rows are the store's history, the change points of the best-so-far cost plus the first
-  and the last row: improvements only, as IOHexperimenter's default ``on_improvement``
-  trigger writes, and each run's block ends with its last FE (IOHanalyzer needs it to count
-  an unsuccessful run's runtime).  The store records the best cost once per iteration, so an
-  improvement is logged at the FE count that ends the batch in which it was found;
-  ``raw_y`` is the best-so-far cost (also on the last line, where IOHexperimenter writes the
-  last evaluated value: the store does not keep it);
+* the rows are the store's history, exact to the evaluation: one row per evaluation that
+  lowered the best-so-far cost, at its FE count (the first is FE 1 whenever the first point's
+  cost is finite), as IOHexperimenter's default ``on_improvement`` trigger writes, and each
+  run's block ends with its last FE (IOHanalyzer needs it to count an unsuccessful run's
+  runtime).  ``raw_y`` is the best-so-far cost (also on the last line, where
+  IOHexperimenter writes the last evaluated value: the store does not keep it).  Readers
+  that split a ``.dat`` file into runs where ``evaluations == 1`` (iohinspector) rely on the
+  first row;
+* ``best`` holds the FE at which the final best was found, its cost and ``x``, the best
+  point in the search space the optimisers saw (not the ARX coefficients it maps to, which
+  the store keeps as ``theta``);
 * failed runs have no history and are left out; the folder's ``README.md`` lists them;
 * the costs are written with Python's shortest round-trip representation, so reading the
   files back gives the stored numbers bit for bit.
@@ -95,9 +99,9 @@ __all__ = [
 IOH_LAYOUTS = ("json", "info")
 FUNCTION_ID = 1
 SUITE = "flexid"
-# The JSON's "version": an IOHexperimenter (python ``ioh``) release of the 0.3 line, whose
-# Analyzer logger writes this layout; IOHanalyzer reads the field to pick its parser.
-IOH_VERSION = "0.3.16"
+# The JSON's "version": the IOHexperimenter (python ``ioh``) release whose Analyzer logger
+# writes this layout, as that logger fills the field; readers use it to pick a parser.
+IOH_VERSION = "0.3.22"
 _JSON_HEADER = "evaluations raw_y"
 _INFO_HEADER = '"function evaluation" "best-so-far f(x)"'
 # Relative-precision targets per decade, as COCO's 51 targets over ten decades.
@@ -114,18 +118,19 @@ def ecdf_targets(
 ) -> np.ndarray:
     """Target costs of the ECDF: ``reference * (1 + d)``, ``d`` log-spaced.
 
-    The precisions ``d`` run from the easiest, the worst (largest) first best cost of any
-    run relative to the reference (``max(initial_best) / reference - 1``), down to the
-    hardest, ``hardest`` (the comparison's smallest relative target), ``per_decade`` to a
-    decade, as COCO places its targets relative to the best known value.  A run's ECDF
-    then starts at 0 and reaches 1 when it gets within ``reference * (1 + hardest)``.
+    The precisions ``d`` run from the easiest, the worst (largest) first cost of any run
+    relative to the reference (``max(initial_best) / reference - 1``), down to the hardest,
+    ``hardest`` (the comparison's smallest relative target), ``per_decade`` to a decade, as
+    COCO places its targets relative to the best known value.  Every run reaches the easiest
+    target with its first evaluation, and a run's ECDF reaches 1 when it gets within
+    ``reference * (1 + hardest)``.
 
     Parameters
     ----------
     reference : float
         Reference cost (> 0), in the cost's units.
     initial_best : sequence of float
-        Best cost after each run's first batch, in the cost's units.
+        Each run's first best cost (that of its first evaluation), in the cost's units.
     hardest : float
         Smallest relative precision (> 0), dimensionless.
     per_decade : int, optional
@@ -221,7 +226,7 @@ def comparison_ecdf(
         ``targets`` (ndarray, target costs), ``reference`` (float), ``curves``:
         ``label -> {"fe": ndarray (K,), "fraction": ndarray (K,), "runs": int}``: the exact
         step function (its value changes only at the FE counts of the runs' histories;
-        ``fe`` starts at 1, where nothing is reached yet).  Only finished runs count (failed
+        ``fe`` starts at 1, the first evaluation).  Only finished runs count (failed
         runs have no history; the cost table lists them).
     """
     histories = {
@@ -252,17 +257,22 @@ def _number(value: float) -> str:
     return repr(float(value))
 
 
-def _dimension(result: ComparisonResult) -> int:
-    """Length of the search vector the optimisers saw."""
-    if result.spec.search.numerator == "fit":
-        return int(result.spec.model.na)
-    theta = result.reference.get("theta")
-    if not theta:
-        raise StoreError(
-            f"comparison {result.key}: the least-squares row has no coefficients, so the "
-            "search-space dimension is unknown"
-        )
-    return len(theta)
+def _dimension(result: ComparisonResult, runs: Mapping[str, Sequence[Mapping]]) -> int:
+    """Length of the search vector the optimisers saw (that of every run's best point)."""
+    where = f"comparison {result.spec.name!r} [{result.key[:8]}]"
+    sizes = set()
+    for label, records in runs.items():
+        for r in records:
+            x = r.get("x")
+            if not x:
+                raise StoreError(
+                    f"{where}: {label!r} run {r['run']} has no best search point (recorded by "
+                    "an older flexid); run the comparison again into a new store to export it"
+                )
+            sizes.add(len(x))
+    if len(sizes) != 1:
+        raise StoreError(f"{where}: the runs' search points differ in length {sorted(sizes)}")
+    return sizes.pop()
 
 
 def _runs_of(result: ComparisonResult, label: str) -> list[dict[str, Any]]:
@@ -343,15 +353,18 @@ def _dat_text(runs: Sequence[Mapping[str, Any]], header: str) -> str:
     for r in runs:
         lines.append(header)
         h = r["history"]
+        if int(h["fe"][0]) != 1:
+            # the first evaluation's cost was not finite (flexid counts it as +inf); the row
+            # is written all the same, as readers start a run at evaluation 1
+            lines.append(f"1 {_number(math.inf)}")
         lines += [f"{int(fe)} {_number(b)}" for fe, b in zip(h["fe"], h["best"])]
     return "\n".join(lines) + "\n"
 
 
 def _write_algorithm(
-    folder: Path, result: ComparisonResult, label: str, runs: list, layout: str
+    folder: Path, result: ComparisonResult, label: str, runs: list, layout: str, dim: int
 ) -> None:
     fname = _name(result.spec.name)
-    dim = _dimension(result)
     data_dir = f"data_f{FUNCTION_ID}_{fname}"
     dat = f"{data_dir}/IOHprofiler_f{FUNCTION_ID}_DIM{dim}.dat"
     (folder / data_dir).mkdir(parents=True)
@@ -367,7 +380,7 @@ def _write_algorithm(
                 {
                     "instance": int(r["run"]),
                     "evals": int(r["history"]["fe"][-1]),
-                    "best": {"evals": evals, "y": jsonable(y)},
+                    "best": {"evals": evals, "y": jsonable(y), "x": jsonable(r["x"])},
                     "seed": int(r["seed"]),
                 }
             )
@@ -409,7 +422,7 @@ def _quote(text: str) -> str:
     return text.replace('"', "'").replace(",", ";")
 
 
-def _readme(result: ComparisonResult, labels: Sequence[str], layout: str) -> str:
+def _readme(result: ComparisonResult, labels: Sequence[str], layout: str, dim: int) -> str:
     failed = [
         f"{label} run {r['run']} ({r.get('error') or 'failed'})"
         for label, records in result.records.items()
@@ -422,7 +435,7 @@ def _readme(result: ComparisonResult, labels: Sequence[str], layout: str) -> str
             "",
             f"Store key `{result.key}`; layout `{layout}`; minimisation; function id "
             f"{FUNCTION_ID} named `{_name(result.spec.name)}`; dimension "
-            f"{_dimension(result)} (the search vector); one folder per optimiser: "
+            f"{dim} (the search vector); one folder per optimiser: "
             + ", ".join(f"`{_name(label)}`" for label in labels)
             + ".",
             "",
@@ -431,9 +444,9 @@ def _readme(result: ComparisonResult, labels: Sequence[str], layout: str) -> str
             f"t in {list(result.spec.targets)}.  IOHanalyzer has no target field: enter these "
             "values as the targets there.",
             "",
-            "Rows: the best-so-far cost at each FE count where it improved (at the end of "
-            "the batch that found it), and each run's last FE.  Instance = run index; the "
-            "seed is a run attribute.",
+            "Rows: the best-so-far cost at each evaluation that improved it (exact FE "
+            "count, FE 1 first), and each run's last FE.  Instance = run index; the seed is "
+            "a run attribute; `best.x` is the best point in the search space.",
             "",
             "Failed runs (not exported): " + ("; ".join(failed) if failed else "none") + ".",
             "",
@@ -494,7 +507,8 @@ def export_ioh(
     ConfigError
         For an unknown layout or a store without comparisons.
     StoreError
-        For a missing or unreadable store, or a finished run without a history.
+        For a missing or unreadable store, or a finished run without a history or without
+        its best search point.
     """
     if layout not in IOH_LAYOUTS:
         raise ConfigError(f"IOHprofiler layout must be one of {IOH_LAYOUTS}, got {layout!r}")
@@ -509,24 +523,24 @@ def export_ioh(
         per_label = {label: runs for label, runs in per_label.items() if runs}
         if not per_label:
             raise StoreError(f"{where}: no finished optimiser run to export")
-        _dimension(result)
+        dim = _dimension(result, per_label)
         folders = [_name(label) for label in per_label]
         if len(set(folders)) != len(folders):
             raise StoreError(f"{where}: optimiser labels {list(per_label)} collide as folder names")
-        plans.append((result, per_label))
+        plans.append((result, per_label, dim))
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     written = []
-    for result, per_label in plans:
+    for result, per_label, dim in plans:
         final = outdir / f"{_name(result.spec.name)}-{result.key[:8]}"
         staged = Path(tempfile.mkdtemp(prefix=f".{final.name}.tmp-", dir=outdir))
         try:
             for label, runs in per_label.items():
                 folder = staged / _name(label)
                 folder.mkdir()
-                _write_algorithm(folder, result, label, runs, layout)
+                _write_algorithm(folder, result, label, runs, layout, dim)
             (staged / "README.md").write_text(
-                _readme(result, list(per_label), layout), encoding="utf-8"
+                _readme(result, list(per_label), layout, dim), encoding="utf-8"
             )
             _replace_dir(staged, final)
         except BaseException:

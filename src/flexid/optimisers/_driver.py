@@ -8,7 +8,8 @@ that must be the same for every algorithm:
 * the **function-evaluation (FE) count**: every row passed to the objective is one FE; the
   last batch is truncated so a run stops *exactly* at its budget;
 * **cost hygiene**: NaN and infinite costs are treated as ``+inf``;
-* **best-so-far** tracking, **history** (FE, iteration, phase, best cost), timing,
+* **best-so-far** tracking, **history** (FE, iteration, phase, best cost) and the exact
+  FE of every improvement, timing,
   callbacks and the stop rules (FE budget, iterations, target cost, wall time);
 * the **initial population**, which depends only on the problem and the seed, so every
   optimiser given the same seed starts from the same points (a smaller population is the
@@ -73,6 +74,9 @@ class _Run:
         self.best_f = math.inf
         self.best_x = problem.from_unit(self.space.x0)
         self.history = History()
+        # every evaluation that lowered the best cost, at its exact FE count
+        self._improved_fe: list[int] = []
+        self._improved_f: list[float] = []
         self.stop_message: str | None = None
         self.stop_reason: str | None = None
         self.t0 = time.perf_counter()
@@ -141,6 +145,8 @@ class _Run:
 
     def absorb(self, X: np.ndarray, F: np.ndarray, full_size: int) -> None:
         """Count, track the best, record an automatic iteration, and check FE/target stops."""
+        if F.size:
+            self._log_improvements(F)
         self.nfev += X.shape[0]
         self.batches += 1
         if F.size:
@@ -166,6 +172,15 @@ class _Run:
         if X.shape[0] < full_size:
             self._stop("budget", f"function-evaluation budget reached ({b.max_fe})")
 
+    def _log_improvements(self, F: np.ndarray) -> None:
+        """Log each evaluation of the batch ``F`` that lowers the best-so-far cost."""
+        running = np.minimum(np.minimum.accumulate(F), self.best_f)
+        before = np.concatenate(([self.best_f], running[:-1]))
+        k = np.flatnonzero(running < before)
+        if k.size:
+            self._improved_fe.extend((self.nfev + 1 + k).tolist())
+            self._improved_f.extend(running[k].tolist())
+
     def finish(self, reason: str | None = None, message: str | None = None) -> OptimizeResult:
         if reason is not None:
             self._stop(reason, message or reason)
@@ -181,6 +196,10 @@ class _Run:
             nfev=self.nfev,
             nit=self.nit,
             history=self.history,
+            improvements={
+                "fe": np.asarray(self._improved_fe, dtype=np.int64),
+                "best": np.asarray(self._improved_f, dtype=float),
+            },
             message=self.stop_message,
             stop=self.stop_reason,
             success=math.isfinite(self.best_f),
@@ -252,7 +271,10 @@ def minimize(
     -------
     scipy.optimize.OptimizeResult
         ``x`` (best point, shape ``(n,)``), ``fun`` (its cost), ``nfev`` (exact FE used),
-        ``nit`` (iterations), ``history`` (:class:`History`), ``message`` and ``stop``
+        ``nit`` (iterations), ``history`` (:class:`History`, one row per iteration),
+        ``improvements`` (``{"fe": int array, "best": float array}``, shape ``(K,)`` each:
+        every evaluation that lowered the best cost, at its exact FE count, as
+        IOHprofiler's on-improvement logger records it), ``message`` and ``stop``
         (``"budget"``, ``"iterations"``, ``"target"``, ``"time"``, ``"callback"`` or
         ``"converged"`` when the optimiser ended its own schedule), ``success`` (a finite
         cost was found), ``seed``, ``optimiser``, ``params`` and ``wall_time`` (s).
