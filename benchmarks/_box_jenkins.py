@@ -49,7 +49,9 @@ from scipy.optimize import least_squares
 
 from flexid.arx import ARXStructure
 from flexid.objective import ARXCost
+from flexid.output_error import _mirror as _mirror_theta
 from flexid.output_error import output_error
+from flexid.stability import is_stable
 from flexid.validation import residual_tests
 
 __all__ = ["BoxJenkins", "box_jenkins", "selfcheck"]
@@ -57,8 +59,6 @@ __all__ = ["BoxJenkins", "box_jenkins", "selfcheck"]
 # A rejected (unstable) step returns residuals whose sum of squares is this factor times the
 # start's plus the output energy: far above anything reachable from a stable start.
 _REJECT_FACTOR = 1e6
-# Largest root radius of a mirrored polynomial (a root on the circle is its own mirror).
-_MAX_RADIUS = 1.0 - 1e-6
 
 
 # ===================================================================================== model
@@ -197,27 +197,17 @@ def _split(theta: np.ndarray, nb: int, nf: int, nc: int) -> tuple[np.ndarray, ..
 
 
 def _stable(poly: np.ndarray) -> bool:
-    """All roots of the monic ``poly`` (in ``q^-1``) strictly inside the unit circle."""
-    return poly.size <= 1 or bool(np.max(np.abs(np.roots(poly))) < 1.0)
+    """All roots of the monic ``poly`` (in ``q^-1``, leading 1 included) inside the circle."""
+    return bool(is_stable(poly[1:])[0])
 
 
-def _mirror(poly: np.ndarray) -> tuple[np.ndarray, float]:
-    """``poly`` with roots outside the circle mirrored to ``1/conj(r)``; and the radii product.
-
-    ``|e^jw - 1/conj(r)| = |e^jw - r| / |r|``, so dividing a numerator over ``poly`` by the
-    returned product keeps the magnitude response.
-    """
-    if _stable(poly):
-        return poly.copy(), 1.0
-    roots = np.roots(poly)
-    rad = np.abs(roots)
-    out = roots.copy()
-    outside = rad >= 1.0
-    out[outside] = 1.0 / np.conj(roots[outside])
-    gain = float(np.prod(rad[outside]))
-    new_rad = np.abs(out)
-    out = np.where(new_rad > _MAX_RADIUS, out * (_MAX_RADIUS / new_rad), out)
-    return np.real(np.poly(out)), gain
+def _mirror(poly: np.ndarray, num: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Monic ``poly`` with roots outside the circle mirrored, and ``num`` rescaled so that
+    ``|num / poly|`` is unchanged (flexid's output-error start rule, as MATLAB's ``pem``)."""
+    num = np.zeros(0) if num is None else num
+    na = poly.size - 1
+    theta = _mirror_theta(np.concatenate([poly[1:], num]), na)
+    return np.concatenate([[1.0], theta[:na]]), theta[na:]
 
 
 def _shifted(x: np.ndarray, lags: np.ndarray) -> np.ndarray:
@@ -346,8 +336,7 @@ def box_jenkins(
         ARXStructure(nf, nb, nk), (u, y), predictor="simulation", metric="sse", initial="zero"
     )
     oe = output_error(cost, starts=oe_starts, seed=seed)
-    f, gain = _mirror(np.concatenate([[1.0], oe.theta[:nf]]))
-    b = oe.theta[nf:] / gain
+    f, b = _mirror(np.concatenate([[1.0], oe.theta[:nf]]), oe.theta[nf:])
     pem = _PEM(u, y, nb, nf, nc, nd, nk)
     theta_oe = np.concatenate([b, f[1:], np.zeros(nc + nd)])
     _, _, v = pem.signals(theta_oe)

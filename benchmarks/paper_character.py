@@ -158,12 +158,12 @@ def main() -> None:
             f"{preset} ({args.sensors} sensors{note}); plant resonances {np.round(targets, 3)} Hz"
         )
 
-        def record(seed: int, plant: str = plant, preset: str = preset):
+        def record(seed: int, plant: str = plant, preset: str = preset, sensors=args.sensors):
             return generate(
                 plant,
                 preset=preset,
                 seed=seed,
-                sensors=args.sensors,
+                sensors=sensors,
                 plant_params=overrides,
                 signal_options=level,
             )
@@ -181,14 +181,7 @@ def main() -> None:
             rows = []
             for seed in seeds:
                 data = record(seed)
-                model = generate(
-                    plant,
-                    preset=preset,
-                    seed=seed,
-                    sensors="ideal",
-                    plant_params=overrides,
-                    signal_options=level,
-                )
+                model = record(seed, sensors="ideal")
                 if not np.array_equal(data.u, model.u):
                     raise SystemExit("the ideal-sensor record has another input")
                 k = int(2 / 3 * data.y.shape[0])

@@ -146,14 +146,9 @@ class _Run:
     def absorb(self, X: np.ndarray, F: np.ndarray, full_size: int) -> None:
         """Count, track the best, record an automatic iteration, and check FE/target stops."""
         if F.size:
-            self._log_improvements(F)
+            self._improve(X, F)
         self.nfev += X.shape[0]
         self.batches += 1
-        if F.size:
-            i = int(np.argmin(F))
-            if F[i] < self.best_f:
-                self.best_f = float(F[i])
-                self.best_x = X[i].copy()
         b = self.budget
         if b.max_fe is not None and self.nfev >= b.max_fe:
             self._stop("budget", f"function-evaluation budget reached ({b.max_fe})")
@@ -172,14 +167,20 @@ class _Run:
         if X.shape[0] < full_size:
             self._stop("budget", f"function-evaluation budget reached ({b.max_fe})")
 
-    def _log_improvements(self, F: np.ndarray) -> None:
-        """Log each evaluation of the batch ``F`` that lowers the best-so-far cost."""
+    def _improve(self, X: np.ndarray, F: np.ndarray) -> None:
+        """Log each evaluation of the batch that lowers the best cost; keep the new best.
+
+        The last improvement is the batch's first row at its minimum, the row ``argmin``
+        picks.
+        """
         running = np.minimum(np.minimum.accumulate(F), self.best_f)
         before = np.concatenate(([self.best_f], running[:-1]))
         k = np.flatnonzero(running < before)
         if k.size:
             self._improved_fe.extend((self.nfev + 1 + k).tolist())
             self._improved_f.extend(running[k].tolist())
+            self.best_f = float(F[k[-1]])
+            self.best_x = X[k[-1]].copy()
 
     def finish(self, reason: str | None = None, message: str | None = None) -> OptimizeResult:
         if reason is not None:
