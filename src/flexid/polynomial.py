@@ -1,0 +1,1019 @@
+"""The polynomial model family: ARX, ARMAX, output error (OE) and Box-Jenkins (BJ).
+
+``A(q) y(t) = sum_j B_j(q)/F_j(q) u_j(t - nk_j) + C(q)/D(q) e(t)`` in MATLAB's convention
+(``idpoly``): ``A, C, D, F_j`` are monic polynomials in ``q^-1``
+(``A = 1 + a_1 q^-1 + ... + a_na q^-na``), ``B_j = b_j1 + b_j2 q^-1 + ... + b_j,nb_j
+q^-(nb_j - 1)`` multiplies ``u_j(t - nk_j)``.  The named structures fix some polynomials to 1:
+
+=========  ==============================  ===  ===  ===  ===  ===
+structure  MATLAB                          A    B    C    D    F
+=========  ==============================  ===  ===  ===  ===  ===
+ARX        ``arx(data, [na nb nk])``       ✔    ✔    1    1    1
+ARMAX      ``armax(data, [na nb nc nk])``  ✔    ✔    ✔    1    1
+OE         ``oe(data, [nb nf nk])``        1    ✔    1    1    ✔
+BJ         ``bj(data, [nb nc nd nf nk])``  1    ✔    ✔    ✔    ✔
+=========  ==============================  ===  ===  ===  ===  ===
+
+The parameter vector is ``theta = [a, b_1, .., b_m, c, d, f_1, .., f_m]`` (MATLAB's ``getpvec``
+order for ``idpoly``); for ARX it is exactly :class:`flexid.arx.ARXStructure`'s.
+
+Predictors
+----------
+Every predictor of the family is one linear filter of the measured signals,
+``den(q) yhat(t) = num_y(q) y(t) + sum_j num_j(q) u_j(t)``, with ``F = prod_j F_j``:
+
+* **one-step** (the structure's own prediction error, ``e = D/C (A y - sum B_j/F_j u_j)``):
+  ``den = C F``, ``num_y = C F - D A F``, ``num_j = D B_j q^-nk_j prod_(i != j) F_i``;
+* **k steps ahead**: ``yhat_k = y - Hbar_k e`` with ``Hbar_k`` the first ``k`` impulse
+  response coefficients of the noise model ``H = C/(A D)`` (Ljung, eq. 3.31), so
+  ``num_y = C F - Hbar_k D A F`` and ``num_j = Hbar_k D B_j ...``;
+* **simulation** (``k = inf``): ``den = A F``, ``num_y = 0``, ``num_j = B_j q^-nk_j prod_(i
+  != j) F_i``.
+
+:func:`run_predictor` runs any of them under one of three **initial-condition rules**, the
+error always being counted over ``t >= start`` (:attr:`PolynomialStructure.start`, the first
+sample where every term of every predictor uses measured data only):
+
+``"estimate"``
+    the predictor's initial state (its ``n`` past outputs ``yhat(start-1..start-n)``) fitted by
+    least squares to the measured output, as MATLAB ``compare`` and ``pem`` do by default;
+``"zero"``
+    every signal zero before ``t = 0`` and the filter run from rest over the whole record;
+``"measured"``
+    the recursion started at ``t = start`` from the measured outputs
+    ``yhat(t) = y(t), t < start``.
+
+With a lightly damped high-order model the three differ a lot: the measured outputs are not
+the model's state, and the mismatch starts a transient that may not die out within the
+record; ``"estimate"`` removes that transient, ``"zero"`` suits a record that starts at rest.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from scipy import linalg, signal
+
+from ._json import jsonable
+from ._validate import integer, positive_real
+from .errors import DataError, ModelOrderError, UnknownNameError, check_finite
+
+__all__ = [
+    "INITIAL_RULES",
+    "STRUCTURES",
+    "PolynomialModel",
+    "PolynomialStructure",
+    "run_predictor",
+    "structure",
+]
+
+#: The named structures, each with the orders it takes (``nk`` is optional everywhere).
+STRUCTURES: dict[str, tuple[str, ...]] = {
+    "arx": ("na", "nb", "nk"),
+    "armax": ("na", "nb", "nc", "nk"),
+    "oe": ("nb", "nf", "nk"),
+    "bj": ("nb", "nc", "nd", "nf", "nk"),
+}
+_ORDER_NAMES = ("na", "nb", "nc", "nd", "nf", "nk")
+_PER_INPUT = ("nb", "nf", "nk")
+
+#: Initial-condition rules of every predictor and simulation (see the module docstring).
+INITIAL_RULES: dict[str, str] = {
+    "estimate": "initial state estimated by least squares",
+    "zero": "from rest (signals zero before t = 0)",
+    "measured": "started from the measured outputs",
+}
+
+
+def _check_initial(initial: Any) -> str:
+    if initial not in INITIAL_RULES:
+        raise UnknownNameError("initial-condition rule", str(initial), tuple(INITIAL_RULES))
+    return str(initial)
+
+
+def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
+    items = [value] if np.isscalar(value) else list(value)
+    if not items:
+        raise ModelOrderError(f"{what} needs at least one value (one per input)")
+    return tuple(
+        integer(v, f"model order {what}", error=ModelOrderError, minimum=low, integral_float=True)
+        for v in items
+    )
+
+
+def _poly_mul(*polys: np.ndarray) -> np.ndarray:
+    out = np.ones(1)
+    for p in polys:
+        out = np.convolve(out, p)
+    return out
+
+
+def _poly_sub(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    n = max(p.size, q.size)
+    return np.pad(p, (0, n - p.size)) - np.pad(q, (0, n - q.size))
+
+
+def _monic(coefficients: np.ndarray) -> np.ndarray:
+    return np.concatenate([[1.0], coefficients])
+
+
+# ================================================================================ structure
+class PolynomialStructure:
+    """The orders of a polynomial model ``A y = sum B_j/F_j u_j(t - nk_j) + C/D e``.
+
+    Build one with :func:`structure` (by MATLAB name) or the class methods :meth:`arx`,
+    :meth:`armax`, :meth:`oe` and :meth:`bj`; the constructor takes any combination.
+
+    Parameters
+    ----------
+    na, nc, nd : int
+        Orders of ``A``, ``C`` and ``D`` (>= 0).
+    nb, nf, nk : int or sequence of int
+        Per input: number of ``B`` coefficients (>= 0), order of ``F`` (>= 0) and input delay
+        in samples (>= 0).  A single value is used for every input.
+    kind : str, optional
+        The name of the structure (``"arx"``, ``"armax"``, ``"oe"``, ``"bj"``), or
+        ``"polynomial"`` for any other combination; inferred when omitted.
+
+    Attributes
+    ----------
+    n_inputs : int
+    n_params : int
+        ``na + sum(nb) + nc + nd + sum(nf)``.
+    start : int
+        First sample where the one-step predictor and the simulation use measured data only
+        (the degrees of their polynomials in :meth:`PolynomialModel.predictor_polynomials`);
+        errors, fits and tests are counted from it.
+    n_state : int
+        Order of the one-step predictor's denominator ``C F``.
+    n_state_simulation : int
+        Order of the simulation's denominator ``A F``.
+    """
+
+    def __init__(
+        self,
+        na: int = 0,
+        nb: int | Sequence[int] = 1,
+        nc: int = 0,
+        nd: int = 0,
+        nf: int | Sequence[int] = 0,
+        nk: int | Sequence[int] = 1,
+        *,
+        kind: str | None = None,
+    ) -> None:
+        (self.na,) = _orders(na, "na", 0)
+        (self.nc,) = _orders(nc, "nc", 0)
+        (self.nd,) = _orders(nd, "nd", 0)
+        self.nb = _orders(nb, "nb", 0)
+        m = len(self.nb)
+        per_input = {}
+        for name, value in (("nf", nf), ("nk", nk)):
+            t = _orders(value, name, 0)
+            if len(t) == 1 and m > 1:
+                t = t * m
+            if len(t) != m:
+                raise ModelOrderError(
+                    f"nb has {m} value(s) but {name} has {len(t)}; give one per input"
+                )
+            per_input[name] = t
+        self.nf, self.nk = per_input["nf"], per_input["nk"]
+        self.n_inputs = m
+        self.n_params = self.na + sum(self.nb) + self.nc + self.nd + sum(self.nf)
+        if sum(self.nb) == 0:
+            raise ModelOrderError("the model has no B coefficients (every nb is 0)")
+        inferred = self._infer_kind()
+        if kind is None:
+            kind = inferred
+        elif kind not in STRUCTURES and kind != "polynomial":
+            raise UnknownNameError("model structure", str(kind), (*STRUCTURES, "polynomial"))
+        elif kind != inferred and kind != "polynomial":
+            raise ModelOrderError(f"the orders {self._orders_text()} are not a {kind} structure")
+        self.kind = kind
+        sf = sum(self.nf)
+        # degree of each input's numerator in the simulation, delays included
+        lags = [sf - nf + nk + nb - 1 for nb, nf, nk in zip(self.nb, self.nf, self.nk) if nb]
+        self.n_state = self.nc + sf
+        self.n_state_simulation = self.na + sf
+        self.start = max(
+            [self.n_state, max(self.nc, self.nd + self.na) + sf, self.n_state_simulation]
+            + [self.nd + lag for lag in lags]
+        )
+
+    def _infer_kind(self) -> str:
+        has = {k: getattr(self, k) != 0 for k in ("na", "nc", "nd")}
+        has["nf"] = any(self.nf)
+        if not (has["nc"] or has["nd"] or has["nf"]):
+            return "arx"
+        if has["na"] and has["nc"] and not (has["nd"] or has["nf"]):
+            return "armax"
+        if not (has["na"] or has["nc"] or has["nd"]):
+            return "oe"
+        if not has["na"] and has["nf"] and (has["nc"] or has["nd"]):
+            return "bj"
+        return "polynomial"
+
+    # ------------------------------------------------------------------ named constructors
+    @classmethod
+    def arx(cls, na: int, nb: int | Sequence[int], nk: int | Sequence[int] = 1):
+        """ARX ``[na nb nk]``: ``A y = B u(t - nk) + e``.
+
+        Parameters
+        ----------
+        na : int
+        nb, nk : int or sequence of int
+
+        Returns
+        -------
+        PolynomialStructure
+        """
+        return cls(na=na, nb=nb, nk=nk, kind="arx")
+
+    @classmethod
+    def armax(cls, na: int, nb: int | Sequence[int], nc: int, nk: int | Sequence[int] = 1):
+        """ARMAX ``[na nb nc nk]``: ``A y = B u(t - nk) + C e``.
+
+        Parameters
+        ----------
+        na, nc : int
+        nb, nk : int or sequence of int
+
+        Returns
+        -------
+        PolynomialStructure
+        """
+        return cls(na=na, nb=nb, nc=nc, nk=nk, kind="armax" if na and nc else None)
+
+    @classmethod
+    def oe(cls, nb: int | Sequence[int], nf: int | Sequence[int], nk: int | Sequence[int] = 1):
+        """Output error ``[nb nf nk]``: ``y = B/F u(t - nk) + e``.
+
+        Parameters
+        ----------
+        nb, nf, nk : int or sequence of int
+
+        Returns
+        -------
+        PolynomialStructure
+        """
+        return cls(nb=nb, nf=nf, nk=nk)
+
+    @classmethod
+    def bj(
+        cls,
+        nb: int | Sequence[int],
+        nc: int,
+        nd: int,
+        nf: int | Sequence[int],
+        nk: int | Sequence[int] = 1,
+    ):
+        """Box-Jenkins ``[nb nc nd nf nk]``: ``y = B/F u(t - nk) + C/D e``.
+
+        Parameters
+        ----------
+        nb, nf, nk : int or sequence of int
+        nc, nd : int
+
+        Returns
+        -------
+        PolynomialStructure
+        """
+        return cls(nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
+
+    # ------------------------------------------------------------------ description
+    @property
+    def orders(self) -> dict[str, Any]:
+        """The orders the structure's name takes, MATLAB's order (``{"nb": .., "nf": ..}``).
+
+        Per-input orders are ints for one input and lists for several.
+        """
+        names = STRUCTURES.get(self.kind, _ORDER_NAMES)
+        out = {}
+        for name in names:
+            v = getattr(self, name)
+            out[name] = (v[0] if self.n_inputs == 1 else list(v)) if name in _PER_INPUT else v
+        return out
+
+    def _orders_text(self) -> str:
+        return ", ".join(f"{k}={v}" for k, v in self.orders.items())
+
+    @property
+    def has_noise_model(self) -> bool:
+        """True when ``C`` or ``D`` is estimated (the one-step predictor differs from ``A``'s)."""
+        return bool(self.nc or self.nd)
+
+    @property
+    def param_names(self) -> list[str]:
+        """Parameter names in ``theta`` order: ``a1.., b1.., c1.., d1.., f1..``.
+
+        With several inputs the ``b`` and ``f`` names carry a ``[u_i]`` suffix.
+        """
+        names = [f"a{i + 1}" for i in range(self.na)]
+        multi = self.n_inputs > 1
+        for j, nb in enumerate(self.nb):
+            names += [f"b{i + 1}" + (f"[u{j + 1}]" if multi else "") for i in range(nb)]
+        names += [f"c{i + 1}" for i in range(self.nc)]
+        names += [f"d{i + 1}" for i in range(self.nd)]
+        for j, nf in enumerate(self.nf):
+            names += [f"f{i + 1}" + (f"[u{j + 1}]" if multi else "") for i in range(nf)]
+        return names
+
+    def slices(self) -> dict[str, Any]:
+        """Where each polynomial sits in ``theta``.
+
+        Returns
+        -------
+        dict
+            ``"a"``, ``"c"``, ``"d"``: a slice each; ``"b"``, ``"f"``: a list of slices, one
+            per input.
+        """
+        i = 0
+        out: dict[str, Any] = {}
+        out["a"] = slice(i, i + self.na)
+        i += self.na
+        out["b"] = []
+        for nb in self.nb:
+            out["b"].append(slice(i, i + nb))
+            i += nb
+        out["c"] = slice(i, i + self.nc)
+        i += self.nc
+        out["d"] = slice(i, i + self.nd)
+        i += self.nd
+        out["f"] = []
+        for nf in self.nf:
+            out["f"].append(slice(i, i + nf))
+            i += nf
+        return out
+
+    def __repr__(self) -> str:
+        name = self.kind.upper() if self.kind != "polynomial" else "Polynomial"
+        return f"{name}({self._orders_text()})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, PolynomialStructure) and self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def _key(self) -> tuple:
+        return (self.na, self.nb, self.nc, self.nd, self.nf, self.nk)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The structure as a JSON-safe dictionary; :meth:`from_dict` rebuilds it.
+
+        Returns
+        -------
+        dict
+            ``{"structure": kind, "na", "nb", "nc", "nd", "nf", "nk"}`` (per-input orders as
+            lists).
+        """
+        return {
+            "structure": self.kind,
+            "na": self.na,
+            "nb": list(self.nb),
+            "nc": self.nc,
+            "nd": self.nd,
+            "nf": list(self.nf),
+            "nk": list(self.nk),
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> PolynomialStructure:
+        """Rebuild a structure from :meth:`to_dict` (or an ARX ``{"na", "nb", "nk"}``).
+
+        Parameters
+        ----------
+        d : mapping
+            Orders; missing ones are 0 (``nk``: 1).
+
+        Returns
+        -------
+        PolynomialStructure
+        """
+        kind = d.get("structure")
+        kind = None if kind == "polynomial" else kind
+        try:
+            return cls(
+                na=d.get("na", 0),
+                nb=d["nb"],
+                nc=d.get("nc", 0),
+                nd=d.get("nd", 0),
+                nf=d.get("nf", 0),
+                nk=d.get("nk", 1),
+                kind=kind,
+            )
+        except KeyError as exc:
+            raise DataError(f"a model structure needs the key {exc.args[0]!r}") from None
+
+    def check_samples(self, n_samples: int) -> None:
+        """Check that a record of ``n_samples`` leaves more error samples than parameters.
+
+        Parameters
+        ----------
+        n_samples : int
+            Number of samples N of the record.
+
+        Raises
+        ------
+        ModelOrderError
+            If ``N - start <= n_params``.
+        """
+        k = n_samples - self.start
+        if k <= self.n_params:
+            raise ModelOrderError(
+                f"too few samples for {self!r}: {n_samples} samples give {max(k, 0)} "
+                f"error samples for {self.n_params} parameters (need more than "
+                f"{self.start + self.n_params} samples)"
+            )
+
+    def model(self, theta: Any, dt: float = 1.0) -> PolynomialModel:
+        """A model of this structure with the given parameters.
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_params,)
+            In :attr:`param_names` order.
+        dt : float, optional
+            Sample time in seconds.
+
+        Returns
+        -------
+        PolynomialModel
+        """
+        return PolynomialModel(self, theta, dt=dt)
+
+    def arx_structure(self):
+        """The :class:`~flexid.arx.ARXStructure` of an ARX structure (ModelOrderError otherwise).
+
+        Returns
+        -------
+        ARXStructure
+        """
+        from .arx import ARXStructure
+
+        if self.kind != "arx":
+            raise ModelOrderError(f"{self!r} is not an ARX structure")
+        return ARXStructure(self.na, self.nb, self.nk)
+
+
+def structure(name: str, **orders: Any) -> PolynomialStructure:
+    """A structure by its MATLAB name and orders: ``structure("oe", nb=16, nf=16, nk=1)``.
+
+    Parameters
+    ----------
+    name : {"arx", "armax", "oe", "bj"}
+        The structure (case-insensitive).
+    **orders : int or sequence of int
+        The orders that structure takes (:data:`STRUCTURES`); ``nk`` defaults to 1, the
+        others are required.  ``nb``, ``nf`` and ``nk`` take one value per input.
+
+    Returns
+    -------
+    PolynomialStructure
+
+    Raises
+    ------
+    UnknownNameError
+        An unknown structure name.
+    ModelOrderError
+        An order the structure does not have (``nc`` with ``"oe"``), a missing order, or an
+        invalid value.
+    """
+    key = str(name).lower()
+    if key not in STRUCTURES:
+        raise UnknownNameError("model structure", str(name), tuple(STRUCTURES))
+    allowed = STRUCTURES[key]
+    extra = [k for k in orders if k not in allowed and orders[k] is not None]
+    if extra:
+        raise ModelOrderError(
+            f"the {key} structure has no order {', '.join(extra)}; it takes "
+            f"{', '.join(allowed)}"
+        )
+    missing = [k for k in allowed if k != "nk" and orders.get(k) is None]
+    if missing:
+        raise ModelOrderError(
+            f"the {key} structure needs the order(s) {', '.join(missing)} "
+            f"(it takes {', '.join(allowed)})"
+        )
+    given = {k: v for k, v in orders.items() if v is not None}
+    made = PolynomialStructure(**given)
+    # a named structure with a zero order (ARMAX with nc = 0) is still that structure
+    made.kind = key if made.kind in (key, "arx", "oe", "polynomial") else made.kind
+    return made
+
+
+# ================================================================================ predictor
+def run_predictor(
+    den: np.ndarray,
+    num_y: np.ndarray,
+    nums_u: Sequence[np.ndarray],
+    u: np.ndarray,
+    y: np.ndarray,
+    start: int,
+    initial: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Run ``den(q) yhat = num_y(q) y + sum_j num_j(q) u_j`` under an initial-condition rule.
+
+    The reference route (``scipy.signal.lfilter``, one model); the batched costs are checked
+    against it.
+
+    Parameters
+    ----------
+    den : ndarray, shape (n + 1,)
+        Monic denominator in powers of ``q^-1``.
+    num_y : ndarray
+        Numerator of the output (its leading coefficient 0: the predictor is causal).
+    nums_u : sequence of ndarray
+        Numerator of each input, delays included.
+    u : ndarray, shape (N, n_u)
+    y : ndarray, shape (N,)
+        Measured output (used by ``num_y`` and by the rules ``"measured"``/``"estimate"``).
+    start : int
+        First counted sample; at least the degree of every polynomial.
+    initial : {"estimate", "zero", "measured"}
+
+    Returns
+    -------
+    yhat : ndarray, shape (N,)
+        The prediction; under ``"measured"`` and ``"estimate"`` the samples before ``start``
+        are the measured outputs.
+    x0 : ndarray, shape (n,)
+        The past outputs ``yhat(start-1), .., yhat(start-n)`` the recursion started from
+        (zeros under ``"zero"``, where the filter runs from ``t = 0``).
+    """
+    n = den.size - 1
+    degrees = [n, num_y.size - 1, *[p.size - 1 for p in nums_u]]
+    start = max(start, *degrees)  # a k-step predictor reaches further back
+    forced = np.zeros(y.size)
+    if np.any(num_y):
+        forced += signal.lfilter(num_y, [1.0], y)
+    for j, num in enumerate(nums_u):
+        if np.any(num):
+            forced += signal.lfilter(num, [1.0], u[:, j])
+    if initial == "zero" or n == 0:
+        out = signal.lfilter([1.0], den, forced) if n else forced
+        if n == 0 and initial != "zero":
+            out = out.copy()
+            out[:start] = y[:start]
+        return out, np.zeros(n)
+    out = y.astype(float).copy()
+    f = forced[start:]
+    if initial == "measured":
+        x0 = y[start - n : start][::-1].copy()
+    else:  # estimate: the free responses to unit past outputs span the initial state
+        base = signal.lfilter([1.0], den, f)
+        free = np.empty((f.size, n))
+        for i in range(n):
+            past = np.zeros(n)
+            past[i] = 1.0
+            free[:, i] = signal.lfilter(
+                [1.0], den, np.zeros(f.size), zi=signal.lfiltic([1.0], den, past)
+            )[0]
+        x0 = linalg.lstsq(free, y[start:] - base)[0]
+    zi = signal.lfiltic([1.0], den, x0)
+    out[start:] = signal.lfilter([1.0], den, f, zi=zi)[0]
+    return out, x0
+
+
+# ================================================================================ model
+class PolynomialModel:
+    """A polynomial model (ARX, ARMAX, OE, BJ or general) with its parameters.
+
+    Parameters
+    ----------
+    structure : PolynomialStructure
+    theta : array_like, shape (n_params,)
+        In ``structure.param_names`` order.
+    dt : float
+        Sample time in seconds.
+    param_std : array_like, shape (n_params,), optional
+        Standard errors of ``theta``.
+    noise_variance : float, optional
+        Variance of the innovation ``e`` (output units squared).
+    initial_rule : str, optional
+        The initial-condition rule of the cost the model was estimated with (reporting only).
+    """
+
+    def __init__(
+        self,
+        structure: PolynomialStructure,
+        theta: Any,
+        dt: float = 1.0,
+        param_std: Any = None,
+        noise_variance: float | None = None,
+    ) -> None:
+        if not isinstance(structure, PolynomialStructure):
+            raise DataError(
+                f"structure must be a PolynomialStructure, got {type(structure).__name__}"
+            )
+        theta = np.array(theta, dtype=float).reshape(-1)
+        if theta.shape != (structure.n_params,):
+            raise DataError(
+                f"theta has {theta.size} values but {structure!r} has {structure.n_params}"
+            )
+        check_finite(theta, "theta", DataError)
+        self.structure = structure
+        self.theta = theta
+        self.theta.setflags(write=False)
+        self.dt = positive_real(dt, "dt", error=DataError, unit="s")
+        self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
+        self.noise_variance = None if noise_variance is None else float(noise_variance)
+
+    # ------------------------------------------------------------------ polynomials
+    def _part(self, key: str) -> np.ndarray:
+        return _monic(self.theta[self.structure.slices()[key]])
+
+    @property
+    def a(self) -> np.ndarray:
+        """``[1, a_1, .., a_na]``."""
+        return self._part("a")
+
+    @property
+    def c(self) -> np.ndarray:
+        """``[1, c_1, .., c_nc]``."""
+        return self._part("c")
+
+    @property
+    def d(self) -> np.ndarray:
+        """``[1, d_1, .., d_nd]``."""
+        return self._part("d")
+
+    @property
+    def b(self) -> list[np.ndarray]:
+        """Per input ``[b_1 .. b_nb]`` (the first multiplies ``u(t - nk)``)."""
+        return [self.theta[s].copy() for s in self.structure.slices()["b"]]
+
+    @property
+    def f(self) -> list[np.ndarray]:
+        """Per input ``[1, f_1, .., f_nf]``."""
+        return [_monic(self.theta[s]) for s in self.structure.slices()["f"]]
+
+    def _b_delayed(self, j: int) -> np.ndarray:
+        return np.concatenate([np.zeros(self.structure.nk[j]), self.b[j]])
+
+    # ------------------------------------------------------------------ predictors
+    def predictor_polynomials(
+        self, k: float = 1
+    ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """The ``k``-step predictor as one filter ``den yhat = num_y y + sum_j num_j u_j``.
+
+        Parameters
+        ----------
+        k : int or inf
+            Prediction horizon in samples (>= 1); ``inf`` is the simulation.
+
+        Returns
+        -------
+        den : ndarray
+            Monic denominator in powers of ``q^-1``.
+        num_y : ndarray
+            Numerator of the measured output (zero for the simulation).
+        nums_u : list of ndarray
+            Numerator of each input, delays included.
+        """
+        f_all = _poly_mul(*self.f)
+        nums = []
+        for j in range(self.structure.n_inputs):
+            others = [fi for i, fi in enumerate(self.f) if i != j]
+            nums.append(_poly_mul(self._b_delayed(j), *others))
+        if k == np.inf:
+            return _poly_mul(self.a, f_all), np.zeros(1), nums
+        k = integer(k, "prediction horizon k", error=DataError, minimum=1)
+        ad = _poly_mul(self.a, self.d)
+        den = _poly_mul(self.c, f_all)
+        if k == 1:
+            hbar = np.ones(1)
+        else:
+            impulse = np.zeros(k)
+            impulse[0] = 1.0
+            hbar = signal.lfilter(self.c, ad, impulse)
+        num_y = _poly_sub(den, _poly_mul(hbar, ad, f_all))
+        num_y[0] = 0.0  # exactly: both terms are monic
+        nums_u = [_poly_mul(hbar, self.d, n) for n in nums]
+        return den, num_y, nums_u
+
+    def _signals(self, u: Any, y: Any, need_y: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        from .data import IOData
+
+        if isinstance(u, IOData):
+            if y is not None:
+                raise DataError("pass either an IOData or (u, y) arrays, not both")
+            if u.n_outputs != 1:
+                raise DataError(f"the record has {u.n_outputs} outputs; select one first")
+            u, y = u.u, u.y[:, 0]
+        u = np.asarray(u, dtype=float)
+        if u.ndim == 1:
+            u = u[:, None]
+        if u.ndim != 2 or u.shape[1] != self.structure.n_inputs:
+            raise DataError(
+                f"u must have {self.structure.n_inputs} column(s), got shape {u.shape}"
+            )
+        check_finite(u, "u", DataError)
+        if y is None:
+            if need_y:
+                raise DataError("the measured output y is needed (prediction, or the "
+                                "initial-condition rules 'estimate' and 'measured')")
+            return u, None
+        y = np.asarray(y, dtype=float).reshape(-1)
+        if y.size != u.shape[0]:
+            raise DataError(f"u has {u.shape[0]} samples but y has {y.size}")
+        check_finite(y, "y", DataError)
+        if u.shape[0] <= self.structure.start and need_y:
+            raise ModelOrderError(
+                f"a record of {u.shape[0]} samples does not reach past the model's first "
+                f"counted sample (start = {self.structure.start})"
+            )
+        return u, y
+
+    def predict(
+        self, u: Any, y: Any = None, *, k: float = 1, initial: str = "estimate"
+    ) -> np.ndarray:
+        """``k``-step-ahead prediction of the output.
+
+        Parameters
+        ----------
+        u : array_like, shape (N,) or (N, n_u), or IOData
+            Inputs.
+        y : array_like, shape (N,), optional
+            Measured output (omit when ``u`` is an IOData).
+        k : int or inf, optional
+            Horizon in samples (default 1, the one-step predictor the structure is estimated
+            with); ``inf`` gives the simulation.
+        initial : {"estimate", "zero", "measured"}, optional
+            Initial-condition rule (see the module docstring; default ``"estimate"``).
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            The prediction in output units (the samples before ``structure.start`` are the
+            measured outputs under ``"estimate"`` and ``"measured"``).
+        """
+        initial = _check_initial(initial)
+        u, y = self._signals(u, y, need_y=True)
+        den, num_y, nums = self.predictor_polynomials(k)
+        return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
+
+    def residuals(self, u: Any, y: Any = None, *, initial: str = "estimate") -> np.ndarray:
+        """One-step prediction errors ``y - predict(u, y)``: the innovations' estimate.
+
+        Parameters
+        ----------
+        u, y : see :meth:`predict`
+        initial : {"estimate", "zero", "measured"}, optional
+
+        Returns
+        -------
+        ndarray, shape (N,)
+        """
+        u, y = self._signals(u, y, need_y=True)
+        return y - self.predict(u, y, initial=initial)
+
+    def simulate(self, u: Any, y: Any = None, *, initial: str = "zero") -> np.ndarray:
+        """Free-run simulation ``y_sim = sum_j B_j/(A F_j) u_j(t - nk_j)``.
+
+        Parameters
+        ----------
+        u : array_like, shape (N,) or (N, n_u), or IOData
+            Inputs.
+        y : array_like, shape (N,), optional
+            Measured output, needed by ``"estimate"`` and ``"measured"``.
+        initial : {"zero", "estimate", "measured"}, optional
+            Initial-condition rule (default ``"zero"``: from rest).
+
+        Returns
+        -------
+        ndarray, shape (N,)
+        """
+        initial = _check_initial(initial)
+        u, y = self._signals(u, y, need_y=initial != "zero")
+        den, num_y, nums = self.predictor_polynomials(np.inf)
+        if y is None:
+            y = np.zeros(u.shape[0])
+        return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
+
+    # ------------------------------------------------------------------ poles, zeros
+    def poles(self) -> np.ndarray:
+        """Poles of the plant part: the roots of ``A`` and of every ``F_j``.
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        parts = [self.a, *self.f]
+        return np.concatenate([np.roots(p) for p in parts if p.size > 1] or [np.zeros(0)])
+
+    def zeros(self, input: int = 0) -> np.ndarray:
+        """Finite zeros of one input's ``B`` (leading zero coefficients dropped).
+
+        Parameters
+        ----------
+        input : int, optional
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        b = np.trim_zeros(self.b[input], "f")
+        return np.roots(b) if b.size > 1 else np.zeros(0, dtype=complex)
+
+    def noise_poles(self) -> np.ndarray:
+        """Poles of the noise model ``C/(A D)``: the roots of ``A`` and ``D``.
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        return np.concatenate(
+            [np.roots(p) for p in (self.a, self.d) if p.size > 1] or [np.zeros(0)]
+        )
+
+    def noise_zeros(self) -> np.ndarray:
+        """Zeros of the noise model: the roots of ``C`` (inside the unit circle when the
+        predictor is stable).
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        return np.roots(self.c) if self.c.size > 1 else np.zeros(0, dtype=complex)
+
+    @property
+    def max_pole_radius(self) -> float:
+        """Largest modulus of the plant's poles (0.0 without poles)."""
+        p = self.poles()
+        return float(np.abs(p).max()) if p.size else 0.0
+
+    @property
+    def is_stable(self) -> bool:
+        """True if every pole of the plant (``A`` and every ``F_j``) is inside the unit circle."""
+        from .stability import is_stable
+
+        return all(bool(is_stable(p[None, 1:])[0]) for p in (self.a, *self.f) if p.size > 1)
+
+    @property
+    def predictor_stable(self) -> bool:
+        """True if the one-step predictor is stable: ``C`` and every ``F_j`` inside the circle."""
+        from .stability import is_stable
+
+        return all(bool(is_stable(p[None, 1:])[0]) for p in (self.c, *self.f) if p.size > 1)
+
+    # ------------------------------------------------------------------ export
+    def _plant_tf(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        num = self._b_delayed(j)
+        den = _poly_mul(self.a, self.f[j])
+        n = max(num.size, den.size)
+        return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
+
+    def _noise_tf(self) -> tuple[np.ndarray, np.ndarray]:
+        num, den = self.c, _poly_mul(self.a, self.d)
+        n = max(num.size, den.size)
+        return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
+
+    def to_control(self, *, noise: bool = False):
+        """The plant ``B/(A F)`` (or the noise model ``C/(A D)``) as a python-control system.
+
+        Parameters
+        ----------
+        noise : bool, optional
+            Return the noise model ``H = C/(A D)`` (input ``e``, unit variance scale: multiply
+            by ``sqrt(noise_variance)`` for the innovation's level) instead of the plant.
+
+        Returns
+        -------
+        control.TransferFunction
+            Discrete time with sample time ``dt`` (s); 1 output x n_inputs for the plant.
+        """
+        import control
+
+        if noise:
+            return control.tf(*self._noise_tf(), self.dt)
+        parts = [self._plant_tf(j) for j in range(self.structure.n_inputs)]
+        if len(parts) == 1:
+            return control.tf(*parts[0], self.dt)
+        return control.tf([[p[0] for p in parts]], [[p[1] for p in parts]], self.dt)
+
+    def to_dlti(self, input: int = 0, *, noise: bool = False):
+        """One input's plant ``B/(A F)`` (or the noise model) as a SciPy ``dlti``.
+
+        Parameters
+        ----------
+        input : int, optional
+            Input index (ignored with ``noise=True``).
+        noise : bool, optional
+            Return the noise model ``C/(A D)``.
+
+        Returns
+        -------
+        scipy.signal.dlti
+            With sample time ``dt`` (s).
+        """
+        num, den = self._noise_tf() if noise else self._plant_tf(input)
+        num = np.trim_zeros(num, "f")
+        return signal.dlti(num if num.size else [0.0], den, dt=self.dt)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The model as a JSON-safe dictionary; :meth:`from_dict` restores it.
+
+        Returns
+        -------
+        dict
+            The structure's orders (:meth:`PolynomialStructure.to_dict`), ``theta``,
+            ``param_names``, ``dt`` (s), ``param_std``, ``noise_variance``, and the derived
+            ``stable`` and ``max_pole_radius``.
+        """
+        return {
+            **self.structure.to_dict(),
+            "theta": self.theta.tolist(),
+            "param_names": self.structure.param_names,
+            "dt": self.dt,
+            "param_std": None if self.param_std is None else self.param_std.tolist(),
+            "noise_variance": self.noise_variance,
+            "stable": self.is_stable,
+            "max_pole_radius": self.max_pole_radius,
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> PolynomialModel:
+        """Rebuild a model from :meth:`to_dict` (an ARX model's dictionary reads too).
+
+        Parameters
+        ----------
+        d : mapping
+
+        Returns
+        -------
+        PolynomialModel
+        """
+        if "theta" not in d:
+            raise DataError("a model dictionary needs the key 'theta'")
+        return cls(
+            PolynomialStructure.from_dict(d),
+            d["theta"],
+            dt=d.get("dt", 1.0),
+            param_std=d.get("param_std"),
+            noise_variance=d.get("noise_variance"),
+        )
+
+    def to_json(self) -> str:
+        """:meth:`to_dict` as JSON text (no NaN or infinity).
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(jsonable(self.to_dict()), allow_nan=False)
+
+    @classmethod
+    def from_json(cls, text: str) -> PolynomialModel:
+        """Rebuild a model from :meth:`to_json` text.
+
+        Parameters
+        ----------
+        text : str
+
+        Returns
+        -------
+        PolynomialModel
+        """
+        try:
+            return cls.from_dict(json.loads(text))
+        except json.JSONDecodeError as exc:
+            raise DataError(f"not a polynomial model in JSON: {exc}") from None
+
+    def summary(self) -> str:
+        """A readable account: structure, parameters with standard errors, poles, stability.
+
+        Returns
+        -------
+        str
+        """
+        s = self.structure
+        lines = [f"{s!r} model, dt = {self.dt:g} s"]
+        std = self.param_std
+        for i, name in enumerate(s.param_names):
+            extra = f"  +- {std[i]:.3g}" if std is not None else ""
+            lines.append(f"  {name:>8} = {self.theta[i]: .6g}{extra}")
+        if self.noise_variance is not None:
+            lines.append(f"  noise variance = {self.noise_variance:.4g}")
+        p = self.poles()
+        if p.size:
+            lines.append("  poles: " + ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p))
+        lines.append(
+            f"  {'stable' if self.is_stable else 'UNSTABLE'}, "
+            f"largest pole radius {self.max_pole_radius:.6f}"
+        )
+        if s.nc:
+            r = np.abs(self.noise_zeros()).max()
+            lines.append(
+                f"  C {'minimum phase' if r < 1 else 'NOT minimum phase'}, largest root "
+                f"radius {r:.6f}"
+            )
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (
+            f"PolynomialModel({self.structure!r}, "
+            f"theta={np.array2string(self.theta, precision=4)})"
+        )
