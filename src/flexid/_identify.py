@@ -21,15 +21,32 @@ import numpy as np
 from ._json import jsonable
 from ._validate import is_integer, positive_real
 from .arx import ARX, ARXStructure
-from .config import LEAST_SQUARES, OUTPUT_ERROR, CostSpec, SearchSpec
+from .config import (
+    LEAST_SQUARES,
+    OUTPUT_ERROR,
+    PREDICTION_ERROR,
+    REFERENCES,
+    CostSpec,
+    SearchSpec,
+)
 from .data import IOData, load
-from .errors import BudgetError, ConfigError, DataError
-from .estimation import build_problem, model_structure
+from .errors import BudgetError, ConfigError, DataError, ModelOrderError, UnknownNameError
+from .estimation import build_problem, model_structure, resolve_initial
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
+from .polynomial import INITIAL_RULES, STRUCTURES, PolynomialStructure
+from .polynomial import structure as _named_structure
 from .validation import ValidationReport, format_fit, validate
 
-__all__ = ["Identification", "SearchBox", "identify", "prepare_data", "search_box"]
+__all__ = [
+    "Identification",
+    "SearchBox",
+    "identify",
+    "prepare_data",
+    "search_box",
+    "structure_of",
+]
+
 
 
 # ================================================================================ search box
@@ -462,13 +479,92 @@ def _indent(text: str, prefix: str = "  ") -> str:
     return "\n".join(prefix + line if line else line for line in text.splitlines())
 
 
+# ================================================================================ structure
+def _per_input(value: Any, n_inputs: int) -> Any:
+    """A scalar order repeated for every input (``nb``, ``nf``, ``nk``)."""
+    if value is None or n_inputs == 1 or not is_integer(value):
+        return value
+    return [int(value)] * n_inputs
+
+
+def structure_of(
+    structure: str | PolynomialStructure | None,
+    n_inputs: int,
+    **orders: Any,
+) -> ARXStructure | PolynomialStructure:
+    """The model structure of an identification, from a name or object and the orders.
+
+    Parameters
+    ----------
+    structure : str, PolynomialStructure or None
+        ``None`` (ARX from ``na``, ``nb``, ``nk``), a name of
+        :data:`flexid.polynomial.STRUCTURES` with its orders, or a structure (no orders).
+    n_inputs : int
+        Inputs of the record (a scalar ``nb``, ``nf`` or ``nk`` applies to each).
+    **orders : int, sequence of int or None
+        ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (None: not given).
+
+    Returns
+    -------
+    ARXStructure or PolynomialStructure
+        An :class:`~flexid.arx.ARXStructure` for ARX (the paper's path, unchanged),
+        otherwise the polynomial structure.
+
+    Raises
+    ------
+    ModelOrderError
+        Orders the structure does not have, missing orders, or orders that do not match the
+        record's inputs.
+    UnknownNameError
+        An unknown structure name.
+    """
+    given = {k: v for k, v in orders.items() if v is not None}
+    if isinstance(structure, PolynomialStructure):
+        extra = sorted(k for k in given if k != "nk" or given[k] != 1)
+        if extra:
+            raise ModelOrderError(
+                f"give either a structure object or orders, not both (got {', '.join(extra)} "
+                f"with {structure!r})"
+            )
+        made = structure
+    else:
+        name = "arx" if structure is None else str(structure).lower()
+        if name not in STRUCTURES:
+            raise UnknownNameError("model structure", str(structure), tuple(STRUCTURES))
+        if name == "arx":
+            extra = sorted(k for k in given if k not in STRUCTURES["arx"])
+            if extra:
+                hint = "" if structure is not None else " (pass structure='armax', 'oe' or 'bj')"
+                raise ModelOrderError(
+                    f"the arx structure has no order {', '.join(extra)}; it takes na, nb, nk"
+                    + hint
+                )
+            if "na" not in given:
+                raise ModelOrderError("the arx structure needs the order na (and nb, nk)")
+            return model_structure(given["na"], given.get("nb"), given.get("nk", 1), n_inputs)
+        per = {k: _per_input(v, n_inputs) for k, v in given.items()}
+        made = _named_structure(name, **per)
+    if made.n_inputs != n_inputs:
+        raise ModelOrderError(
+            f"the record has {n_inputs} input(s) but {made!r} has {made.n_inputs} "
+            "(one nb, nf and nk per input)"
+        )
+    if made.kind == "arx":
+        return made.arx_structure()
+    return made
+
+
 # ================================================================================ identify
 def identify(
     data: IOData | str | os.PathLike,
-    na: int,
+    na: int | None = None,
     nb: int | Sequence[int] | None = None,
-    nk: int | Sequence[int] = 1,
+    nk: int | Sequence[int] | None = None,
     *,
+    structure: str | PolynomialStructure | None = None,
+    nc: int | None = None,
+    nd: int | None = None,
+    nf: int | Sequence[int] | None = None,
     optimiser: str = "hbcsd",
     params: Mapping[str, Any] | None = None,
     cost: str | CostSpec | None = None,
@@ -491,8 +587,9 @@ def identify(
     search: SearchSpec | None = None,
     callback: Callable | None = None,
     load_options: Mapping[str, Any] | None = None,
+    validate_initial: str = "estimate",
 ) -> Identification:
-    """Identify ``A(q) y(t) = B(q) u(t - nk) + e(t)`` from a record and validate it.
+    """Identify a polynomial model (ARX by default) from a record and validate it.
 
     Parameters
     ----------
@@ -500,13 +597,22 @@ def identify(
         The record (CSV, NPZ, ``.dat`` or MATLAB ``.mat`` when a path; see
         :func:`flexid.data.load`).
     na, nb, nk : int
-        Orders and delay in MATLAB's convention (``nb`` defaults to ``na``; one ``nb``/``nk``
-        per input for several inputs).
+        Orders and delay in MATLAB's convention.  Without ``structure`` they are the ARX
+        model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` (``nb`` defaults to ``na``, ``nk`` to 1;
+        one ``nb``/``nk`` per input for several inputs).
+    structure : {"arx", "armax", "oe", "bj"} or PolynomialStructure, optional
+        The model structure (:mod:`flexid.polynomial`): a name, whose orders are given as
+        ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (only those the structure has, e.g.
+        ``structure="oe", nb=16, nf=16``), or a whole structure (then no orders).
+    nc, nd, nf : int, optional
+        Orders of ``C``, ``D`` and ``F`` (``nf`` one per input) for ``structure``.
     optimiser : str
         A registered optimiser name (``flexid list optimisers``), ``"ls"`` for least
-        squares (the exact optimum of the one-step cost) or ``"oe"`` for the output-error
-        reference of the simulation cost (Levenberg-Marquardt from least squares and a few
-        stable starts, as MATLAB's ``oe``; see :func:`flexid.output_error.output_error`).
+        squares (the exact optimum of the one-step ARX cost; for other structures the ARX
+        least-squares estimate read as the structure, the start of the reference), or
+        ``"pem"`` for the gradient reference of the cost: Levenberg-Marquardt with analytic
+        gradients from several starts (:func:`flexid.pem.pem`; for ARX with the simulation
+        predictor :func:`flexid.output_error.output_error`, also named ``"oe"``).
     params : mapping, optional
         The optimiser's hyper-parameters.
     cost : str or CostSpec, optional
@@ -533,7 +639,9 @@ def identify(
     weight, penalty : float, optional
         Gain ``w`` and stability penalty of the paper cost.
     initial : str, optional
-        Initial conditions of the simulation predictor: ``"measured"`` or ``"zero"``.
+        Initial-condition rule of the cost: ``"estimate"``, ``"zero"``, ``"measured"`` or
+        ``"auto"`` (the default: ``"measured"`` for ARX, ``"estimate"`` otherwise; see
+        :func:`flexid.estimation.resolve_initial`).
 
         ``predictor``, ``weight``, ``penalty`` and ``initial`` override the fields of ``cost``
         (a metric name or a whole :class:`~flexid.config.CostSpec`); what is not given is
@@ -554,6 +662,10 @@ def identify(
         Called after each optimiser iteration (progress bars).
     load_options : mapping, optional
         Options for reading a file (``inputs``, ``outputs``, ``dt``).
+    validate_initial : {"estimate", "zero", "measured"}, optional
+        Initial-condition rule of the validation's predictions and simulations (default
+        ``"estimate"``, the initial state fitted by least squares, as MATLAB ``compare``):
+        every reported fit states it.
 
     Returns
     -------
@@ -566,7 +678,11 @@ def identify(
         For bad data, files, orders, names, hyper-parameters, budgets or bounds.
     """
     t_start = time.perf_counter()
-    if optimiser not in (LEAST_SQUARES, OUTPUT_ERROR):
+    if validate_initial not in INITIAL_RULES:
+        raise UnknownNameError(
+            "validation initial-condition rule", str(validate_initial), tuple(INITIAL_RULES)
+        )
+    if optimiser not in REFERENCES:
         budget = _budget(budget)
     est, val = prepare_data(
         data,
@@ -576,7 +692,8 @@ def identify(
         detrend=detrend,
         load_options=load_options,
     )
-    structure = model_structure(na, nb, nk, est.n_inputs)
+    structure = structure_of(structure, est.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
+    polynomial = isinstance(structure, PolynomialStructure)
     structure.check_samples(est.n_samples)
     structure.check_samples(val.n_samples)
     given = {
@@ -596,7 +713,8 @@ def identify(
     }
     base = cost if isinstance(cost, CostSpec) else CostSpec()
     cost_spec = replace(base, **{k: v for k, v in cost_given.items() if v is not None})
-    predictor, initial = cost_spec.predictor, cost_spec.initial
+    cost_spec = replace(cost_spec, initial=resolve_initial(cost_spec.initial, structure))
+    predictor = cost_spec.predictor
     estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
     objective = estimation.cost
     box = estimation.box
@@ -604,11 +722,22 @@ def identify(
 
     t_opt = time.perf_counter()
     oe = None
-    if optimiser == LEAST_SQUARES:
+    # the gradient reference of the one-step ARX cost is its exact optimum, least squares
+    arx_ls = optimiser == PREDICTION_ERROR and not polynomial and predictor != "simulation"
+    if (optimiser == LEAST_SQUARES or arx_ls) and not polynomial:
         model = structure.least_squares(est.u, est.y[:, 0], dt=est.dt)
         result, used_params, used_seed = None, {}, None
         cost_value = cost_ls
-    elif optimiser == OUTPUT_ERROR:
+    elif optimiser == LEAST_SQUARES:
+        if not np.isfinite(objective.theta_ls).all():
+            raise ConfigError(
+                f"{structure!r} has no least-squares start (its F polynomials differ in "
+                "order); use optimiser='pem'"
+            )
+        model = structure.model(objective.theta_ls, dt=est.dt)
+        result, used_params, used_seed = None, {}, None
+        cost_value = cost_ls
+    elif optimiser in (OUTPUT_ERROR, PREDICTION_ERROR) and not polynomial:
         if predictor != "simulation":
             raise ConfigError(
                 "the output-error reference ('oe') minimises the simulation cost: use "
@@ -619,6 +748,11 @@ def identify(
         model = structure.model(oe.theta, dt=est.dt)
         result, used_params, used_seed = None, {"starts": len(oe.starts)}, seed
         cost_value = float(oe.cost)
+    elif optimiser in (OUTPUT_ERROR, PREDICTION_ERROR):
+        oe = estimation.output_error_reference(seed=0 if seed is None else seed)
+        model = oe.model if oe.model.dt == est.dt else structure.model(oe.theta, dt=est.dt)
+        result, used_params, used_seed = None, {"starts": len(oe.runs)}, seed
+        cost_value = float(oe.cost)
     else:
         result = minimize(
             optimiser, estimation.problem, budget, seed, params=params, callback=callback
@@ -627,8 +761,8 @@ def identify(
         used_params, used_seed = dict(result.params), result.seed
         cost_value = float(result.fun)
     t_val = time.perf_counter()
-    report_est = validate(model, est, max_lag=max_lag, initial=initial)
-    report_val = validate(model, val, max_lag=max_lag, initial=initial)
+    report_est = validate(model, est, max_lag=max_lag, initial=validate_initial)
+    report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
     t_end = time.perf_counter()
     info = {
         "description": (

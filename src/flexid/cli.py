@@ -16,7 +16,7 @@ from typing import Any, NoReturn
 
 from . import __version__
 from ._validate import integer
-from .config import LEAST_SQUARES, OUTPUT_ERROR
+from .config import LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR, REFERENCES, STRUCTURE_NAMES
 from .errors import ConfigError, FlexidError
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
@@ -178,7 +178,13 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         args.file,
         args.na,
         _int_list(args.nb, "--nb"),
-        _int_list(args.nk, "--nk") if args.nk is not None else 1,
+        _int_list(args.nk, "--nk") if args.nk is not None else None,
+        structure=args.structure,
+        nc=args.nc,
+        nd=args.nd,
+        nf=_int_list(args.nf, "--nf"),
+        initial=args.initial,
+        validate_initial=args.validate_initial,
         optimiser=args.optimiser,
         params=_key_values(args.param, "--param"),
         cost=args.cost,
@@ -211,8 +217,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
 
 def _identify_progress(args: argparse.Namespace):
-    references = (LEAST_SQUARES, OUTPUT_ERROR)
-    if args.json or args.no_progress or args.optimiser in references or not sys.stderr.isatty():
+    if args.json or args.no_progress or args.optimiser in REFERENCES or not sys.stderr.isatty():
         return None
     from .progress import ProgressBar
 
@@ -468,16 +473,32 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--output", "-o", required=True, help="output file, .csv or .npz")
     g.set_defaults(func=_cmd_generate)
 
-    i = sub.add_parser("identify", help="identify an ARX model from a record")
+    i = sub.add_parser("identify", help="identify a polynomial model (ARX, ARMAX, OE, BJ)")
     i.add_argument("file", help="record: .csv, .npz, .dat or .mat")
-    i.add_argument("--na", type=int, required=True, help="number of poles (A coefficients)")
-    i.add_argument("--nb", help="B coefficients per input (default: na)")
+    i.add_argument(
+        "--structure",
+        help=f"model structure: {' | '.join(STRUCTURE_NAMES)} (default arx); give its orders",
+    )
+    i.add_argument("--na", type=int, help="order of A (arx, armax)")
+    i.add_argument("--nb", help="B coefficients per input (arx default: na)")
+    i.add_argument("--nc", type=int, help="order of C (armax, bj)")
+    i.add_argument("--nd", type=int, help="order of D (bj)")
+    i.add_argument("--nf", help="order of F per input (oe, bj)")
     i.add_argument("--nk", help="input delay in samples per input (default 1)")
     i.add_argument(
         "--optimiser",
         default="hbcsd",
-        help=f"registered optimiser, {LEAST_SQUARES!r} (least squares) or {OUTPUT_ERROR!r} "
-        "(output-error reference)",
+        help=f"registered optimiser, {LEAST_SQUARES!r} (least squares) or "
+        f"{PREDICTION_ERROR!r} (the gradient reference; {OUTPUT_ERROR!r} for ARX simulation)",
+    )
+    i.add_argument(
+        "--initial",
+        help="initial state of the cost's predictor: auto (default) | estimate | zero | measured",
+    )
+    i.add_argument(
+        "--validate-initial",
+        default="estimate",
+        help="initial state in the validation: estimate (default) | zero | measured",
     )
     i.add_argument(
         "--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter"

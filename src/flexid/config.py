@@ -61,7 +61,10 @@ __all__ = [
     "LEAST_SQUARES",
     "OUTPUT_ERROR",
     "PAPER_SEARCH",
+    "PREDICTION_ERROR",
+    "REFERENCES",
     "SCHEDULE",
+    "STRUCTURE_NAMES",
     "ComparisonSpec",
     "CostSpec",
     "DataSpec",
@@ -80,6 +83,13 @@ SCHEDULE = "schedule"
 LEAST_SQUARES = "ls"
 #: The output-error (simulation cost) reference: an ``optimiser`` name of ``identify``.
 OUTPUT_ERROR = "oe"
+#: The gradient reference of any structure's cost (Levenberg-Marquardt with analytic
+#: gradients, :func:`flexid.pem.pem`): an ``optimiser`` name of ``identify``.
+PREDICTION_ERROR = "pem"
+#: The ``optimiser`` names of the references, which take no FE budget.
+REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR)
+#: The named model structures (their orders: :data:`flexid.polynomial.STRUCTURES`).
+STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
 
 
 @dataclass(frozen=True)
@@ -208,15 +218,17 @@ class CostSpec:
     penalty : float
         Cost added to an unstable candidate (default 1e9); its kind (flat or graded) is
         :attr:`SearchSpec.penalty`.
-    initial : {"measured", "zero"}
-        Initial conditions of the simulation predictor (default ``"measured"``).
+    initial : {"auto", "estimate", "zero", "measured"}
+        Initial-condition rule of the predictor (default ``"auto"``: ``"measured"`` for ARX,
+        the paper's setting, and ``"estimate"`` for the other structures; see
+        :func:`flexid.estimation.resolve_initial`).
     """
 
     metric: str = "paper"
     predictor: str = "one-step"
     weight: float = 1e3
     penalty: float = 1e9
-    initial: str = "measured"
+    initial: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -381,6 +393,10 @@ class ComparisonSpec:
         for t in self.targets:
             if not (isinstance(t, (int, float)) and t > 0):
                 raise ConfigError(f"[run] targets must be positive relative tolerances, got {t!r}")
+        if self.cost.initial == "auto":
+            # a comparison's models are ARX, whose "auto" rule is "measured": resolved here so
+            # the store key of a spec does not depend on how the rule was spelled
+            object.__setattr__(self, "cost", replace(self.cost, initial="measured"))
 
     @property
     def max_fe(self) -> int:

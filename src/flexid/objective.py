@@ -28,7 +28,15 @@ from .errors import DataError, UnknownNameError
 from .kernels import ar_recursion
 from .stability import is_stable, pole_radius_batched
 
-__all__ = ["INITIAL", "METRICS", "PENALTY_KINDS", "PREDICTORS", "ARXCost", "simulate_population"]
+__all__ = [
+    "INITIAL",
+    "METRICS",
+    "PENALTY_KINDS",
+    "PREDICTORS",
+    "ARXCost",
+    "metric_from_sse",
+    "simulate_population",
+]
 
 METRICS = ("paper", "rmse", "nrmse", "sse", "mse")
 PREDICTORS = ("one-step", "simulation")
@@ -64,6 +72,38 @@ def _least_squares_rows(F: np.ndarray, r: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         pass
     return np.stack([linalg.lstsq(F[i].T, r[i])[0] for i in range(F.shape[0])])
+
+
+def metric_from_sse(
+    metric: str, sse: np.ndarray, k: int, weight: float, std_y: float
+) -> np.ndarray:
+    """A cost metric from sums of squared errors over ``k`` samples (the one definition).
+
+    Parameters
+    ----------
+    metric : {"paper", "rmse", "nrmse", "sse", "mse"}
+    sse : ndarray
+        Sums of squared errors (output units squared).
+    k : int
+        Number of error samples.
+    weight : float
+        ``w`` of the paper's cost.
+    std_y : float
+        Standard deviation of the output over the error samples (``nrmse``).
+
+    Returns
+    -------
+    ndarray
+    """
+    if metric == "paper":
+        return np.sqrt(sse) * (weight / k)
+    if metric == "rmse":
+        return np.sqrt(sse / k)
+    if metric == "nrmse":
+        return np.sqrt(sse / k) / (std_y if std_y > 0 else 1.0)
+    if metric == "mse":
+        return sse / k
+    return sse
 
 
 def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
@@ -123,10 +163,12 @@ class ARXCost:
         ``penalty * rho`` instead, where ``rho >= 1`` is the candidate's largest pole radius,
         so every unstable candidate still costs more than any stable one (as with the paper's
         penalty) and among unstable candidates the one nearer the stable region costs less.
-    initial : {"measured", "zero"}
+    initial : {"measured", "zero", "auto"}
         Simulation predictor only: the first ``start`` outputs are the measured ones and
-        the recursion starts at ``t = start`` (``"measured"``), or every signal is zero
-        before ``t = 0`` (``"zero"``).  Either way the error is over ``t >= start``.
+        the recursion starts at ``t = start`` (``"measured"``; ``"auto"`` is the same), or
+        every signal is zero before ``t = 0`` (``"zero"``).  Either way the error is over
+        ``t >= start``.  (The rule ``"estimate"`` is
+        :class:`~flexid.polynomial_cost.PolynomialCost`'s, which covers ARX too.)
 
     Attributes
     ----------
@@ -156,6 +198,8 @@ class ARXCost:
             raise UnknownNameError("predictor", predictor, PREDICTORS)
         if penalty_kind not in PENALTY_KINDS:
             raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
+        if initial == "auto":  # CostSpec's default: ARX's rule is "measured"
+            initial = "measured"
         if initial not in INITIAL:
             raise UnknownNameError("initial condition rule", initial, INITIAL)
         for name, value in (("weight", weight), ("penalty", penalty)):
@@ -206,16 +250,7 @@ class ARXCost:
 
     # ----------------------------------------------------------------------- metrics
     def _from_sse(self, sse: np.ndarray) -> np.ndarray:
-        k = self.K
-        if self.metric == "paper":
-            return np.sqrt(sse) * (self.weight / k)
-        if self.metric == "rmse":
-            return np.sqrt(sse / k)
-        if self.metric == "nrmse":
-            return np.sqrt(sse / k) / (self._std_y if self._std_y > 0 else 1.0)
-        if self.metric == "mse":
-            return sse / k
-        return sse
+        return metric_from_sse(self.metric, sse, self.K, self.weight, self._std_y)
 
     # ----------------------------------------------------------------------- evaluation
     def __call__(self, X: Any) -> np.ndarray:

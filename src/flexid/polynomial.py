@@ -59,6 +59,7 @@ from scipy import linalg, signal
 
 from ._json import jsonable
 from ._validate import integer, positive_real
+from .config import STRUCTURE_NAMES
 from .errors import DataError, ModelOrderError, UnknownNameError, check_finite
 
 __all__ = [
@@ -70,13 +71,19 @@ __all__ = [
     "structure",
 ]
 
-#: The named structures, each with the orders it takes (``nk`` is optional everywhere).
-STRUCTURES: dict[str, tuple[str, ...]] = {
-    "arx": ("na", "nb", "nk"),
-    "armax": ("na", "nb", "nc", "nk"),
-    "oe": ("nb", "nf", "nk"),
-    "bj": ("nb", "nc", "nd", "nf", "nk"),
-}
+#: The named structures (:data:`flexid.config.STRUCTURE_NAMES`), each with the orders it takes
+#: (``nk`` is optional everywhere).
+STRUCTURES: dict[str, tuple[str, ...]] = dict(
+    zip(
+        STRUCTURE_NAMES,
+        (
+            ("na", "nb", "nk"),
+            ("na", "nb", "nc", "nk"),
+            ("nb", "nf", "nk"),
+            ("nb", "nc", "nd", "nf", "nk"),
+        ),
+    )
+)
 _ORDER_NAMES = ("na", "nb", "nc", "nd", "nf", "nk")
 _PER_INPUT = ("nb", "nf", "nk")
 

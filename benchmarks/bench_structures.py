@@ -1,0 +1,95 @@
+"""Benchmark of the structures' batched costs against ARX's, per candidate, in the same run.
+
+The issue's target: an OE(16,16,1) and a BJ(16,2,2,16,1) cost per candidate at most 3x the
+ARX(16,16,1) simulation cost per candidate, N = 1,500.  Data: a lightly damped 16th-order
+system (8 modes, radii 0.99) driven by a random +-0.3 input, coloured output noise;
+population 50, every candidate stable (drawn in the pole space, the default search space).
+
+Rows (microseconds per candidate, and the ratio to the ARX simulation cost of the same kind):
+
+* evaluation at given parameters (``cost(theta)``: what ``numerator = "search"`` costs);
+* with the numerator fitted (variable projection, the default search space:
+  ``ARXCost.fit_numerator`` then ``cost``, against ``PolynomialCost.fitted_costs``);
+
+each under the initial-condition rules the cost has (ARX: ``measured``; the structures:
+``zero``, ``estimate`` and ``measured``).
+
+Run:  python benchmarks/bench_structures.py
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only cost
+
+import numpy as np
+from _table import print_table
+from bench_costs import interleaved_medians
+from scipy import signal
+
+from flexid import kernels
+from flexid.arx import ARXStructure
+from flexid.objective import ARXCost
+from flexid.polynomial import structure
+from flexid.polynomial_cost import PolynomialCost
+from flexid.polynomial_space import PolynomialSpace
+
+N = 1500
+P = 50
+
+
+def record(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    ang = np.array([0.05, 0.15, 0.3, 0.6, 0.9, 1.4, 2.0, 2.6])
+    poles = 0.99 * np.exp(1j * ang)
+    a = np.poly(np.r_[poles, poles.conj()]).real
+    b = rng.normal(size=16) * 0.05
+    u = rng.uniform(-0.3, 0.3, N)
+    noise = signal.lfilter([1.0, 0.5], [1.0, -0.9], 0.01 * rng.standard_normal(N))
+    return u, signal.lfilter(np.r_[0.0, b], a, u) + noise
+
+
+def stable_population(struct, rng: np.random.Generator) -> np.ndarray:
+    space = PolynomialSpace(struct, "poles", "search", b_lower=-0.1, b_upper=0.1, r_max=0.999)
+    Z = space.lower + (space.upper - space.lower) * rng.random((P, space.n_search))
+    return space.to_theta(Z)
+
+
+def main() -> None:
+    rng = np.random.default_rng(0)
+    u, y = record(rng)
+    arx = ARXStructure(16, 16, 1)
+    arx_cost = ARXCost(arx, (u, y), predictor="simulation", metric="rmse")
+    X_arx = stable_population(structure("arx", na=16, nb=16, nk=1), rng)
+    fns = {
+        "ARX(16,16,1) simulation, measured": lambda: arx_cost(X_arx),
+        "ARX(16,16,1) simulation, measured, b fitted": lambda: arx_cost(
+            arx_cost.fit_numerator(X_arx[:, :16])
+        ),
+    }
+    cases = {
+        "OE(16,16,1)": structure("oe", nb=16, nf=16, nk=1),
+        "BJ(16,2,2,16,1)": structure("bj", nb=16, nc=2, nd=2, nf=16, nk=1),
+    }
+    for name, struct in cases.items():
+        X = stable_population(struct, rng)
+        for rule in ("zero", "estimate", "measured"):
+            cost = PolynomialCost(struct, (u, y), metric="rmse", initial=rule)
+            fns[f"{name} one-step, {rule}"] = lambda c=cost, X=X: c(X)
+            fns[f"{name} one-step, {rule}, b fitted"] = lambda c=cost, X=X: c.fitted_costs(X)
+    times = interleaved_medians(fns, rounds=7, budget=0.05)
+    base = times["ARX(16,16,1) simulation, measured"]
+    base_fit = times["ARX(16,16,1) simulation, measured, b fitted"]
+    rows = []
+    for name, t in times.items():
+        ref = base_fit if name.endswith("fitted") else base
+        rows.append((name, f"{t / P * 1e6:8.1f} us/candidate   {t / ref:5.2f}x ARX"))
+    print_table(
+        rows,
+        f"N = {N}, population {P}, kernels {kernels.BACKEND}; ratios against the ARX row of "
+        "the same kind (given parameters, or b fitted)",
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,587 @@
+"""Batched prediction-error costs of the polynomial family (ARMAX, OE, BJ, general).
+
+A population ``X`` of shape ``(P, n_params)`` (``theta`` in
+:class:`~flexid.polynomial.PolynomialStructure` order) in, ``(P,)`` costs out.  Two
+predictors, as for ARX (:class:`flexid.objective.ARXCost`):
+
+* **one-step**: the structure's own prediction error ``e = D/C (A y - sum_j B_j/F_j u_j)``;
+* **simulation**: ``e = y - sum_j B_j/(A F_j) u_j`` (no noise model: a structure with ``C`` or
+  ``D`` is refused).  For OE both are the same.
+
+How a population is evaluated
+    Each candidate's predictor is one filter ``den yhat = num_y y + sum_j num_j u_j``
+    (:meth:`flexid.polynomial.PolynomialModel.predictor_polynomials`).  The numerators of the
+    whole population are batched polynomial products, their action on the record one GEMM
+    against lagged copies of the data, and the recursion ``1/den`` the batched recursion of
+    :func:`flexid.kernels.ar_recursion` (compiled when built).  Initial-condition rules:
+    ``"zero"`` runs from ``t = 0`` at rest; ``"measured"`` starts at ``t = start`` from the
+    measured outputs; ``"estimate"`` starts at ``t = start`` from rest and removes the best
+    least-squares combination of the ``n`` free responses of ``1/den``, which are the shifts
+    ``h(t - start + k)``, ``k = 1..n``, of its impulse response ``h`` (one more recursion).
+
+Variable projection (:meth:`PolynomialCost.fit_numerator`)
+    For fixed ``A, C, D, F`` every predictor is linear in ``B``:
+    ``e = z - sum_ji b_ji g_j(t - nk_j - i)`` with ``z = (D A / C) y`` and
+    ``g_j = (D / (C F_j)) u_j`` (one-step), or ``z = y``, ``g_j = (1 / (A F_j)) u_j``
+    (simulation).  From rest each regressor is a shift of one filtered signal, so ``B``
+    costs ``1 + n_inputs`` recursions and a small least-squares solve per candidate (plus the
+    ``n`` free responses under ``"estimate"``, fitted jointly).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy import linalg
+
+from ._validate import real
+from .config import CostSpec
+from .errors import ConfigError, DataError, UnknownNameError
+from .kernels import ar_recursion
+from .objective import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse
+from .polynomial import INITIAL_RULES, PolynomialStructure
+from .stability import is_stable, pole_radius_batched
+
+__all__ = ["PolynomialCost", "poly_mul_rows"]
+
+_DEFAULT = CostSpec()
+
+
+def poly_mul_rows(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Row-wise polynomial products: ``p`` (P, a) times ``q`` (P, b) -> (P, a + b - 1).
+
+    Parameters
+    ----------
+    p, q : ndarray
+        Coefficients in powers of ``q^-1``, one polynomial per row.
+
+    Returns
+    -------
+    ndarray
+    """
+    if q.shape[1] > p.shape[1]:
+        p, q = q, p
+    out = np.zeros((p.shape[0], p.shape[1] + q.shape[1] - 1))
+    for i in range(q.shape[1]):  # over the shorter polynomial's coefficients, not candidates
+        out[:, i : i + p.shape[1]] += q[:, i : i + 1] * p
+    return out
+
+
+# Rows whose last refinement step moved the solution by more than this (relative) are
+# solved again by SVD: the normal equations square the condition number, and the shifted
+# free responses of a denominator with clustered poles reach kappa ~ 1e7.
+_REFINE_TOL = 1e-9
+
+
+def _least_squares_rows(F: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``argmin_c ||r_p - c F_p||`` for each ``p``: ``F`` (P, n, K), ``r`` (P, K) -> (P, n).
+
+    Normal equations of the column-scaled regressors, refined twice with the residual; rows
+    where the second refinement still moves the solution (ill conditioned) are solved again
+    by SVD, row by row.
+    """
+    n_pop, n, _ = F.shape
+    if n == 0:
+        return np.zeros((n_pop, 0))
+    scale = np.sqrt(np.einsum("pnk,pnk->pn", F, F))
+    scale[scale == 0] = 1.0
+    Fs = F / scale[:, :, None]
+    G = Fs @ Fs.transpose(0, 2, 1)
+    redo = np.zeros(n_pop, dtype=bool)
+    try:
+        c = np.linalg.solve(G, Fs @ r[:, :, None])[:, :, 0]
+        for _ in range(2):
+            resid = r - np.einsum("pnk,pn->pk", Fs, c)
+            step = np.linalg.solve(G, Fs @ resid[:, :, None])[:, :, 0]
+            c += step
+        size = np.abs(c).max(axis=1)
+        redo = ~(np.abs(step).max(axis=1) <= _REFINE_TOL * np.where(size > 0, size, 1.0))
+    except np.linalg.LinAlgError:
+        c = np.zeros((n_pop, n))
+        redo[:] = True
+    for i in np.flatnonzero(redo):
+        c[i] = linalg.lstsq(Fs[i].T, r[i])[0]
+    return c / scale
+
+
+def _monic(x: np.ndarray) -> np.ndarray:
+    return np.hstack([np.ones((x.shape[0], 1)), x])
+
+
+def _lags(x: np.ndarray, n_lags: int, t0: int, n: int) -> np.ndarray:
+    """``(n_lags, n - t0)`` rows ``x(t - l)`` for ``t = t0 .. n-1``, zero before ``t = 0``."""
+    pad = np.concatenate([np.zeros(n_lags), x])
+    return np.stack([pad[n_lags + t0 - lag : n_lags + n - lag] for lag in range(n_lags)])
+
+
+class PolynomialCost:
+    """The cost an optimiser minimises to identify a polynomial model.
+
+    Parameters
+    ----------
+    structure : PolynomialStructure
+        Orders (any structure of the family; ARX is accepted, and equals
+        :class:`~flexid.objective.ARXCost` on the rules both have).
+    data : IOData or (u, y)
+        Estimation record (single output).
+    metric, weight, penalty, penalty_kind : see :class:`~flexid.objective.ARXCost`
+        The error measure and the stability penalty (a candidate with ``A``, ``F_j`` or ``D``
+        not stable, or ``C`` not minimum phase, costs the penalty plus the cost of the zero
+        prediction).
+    predictor : {"one-step", "simulation"}
+        The structure's own prediction error, or the free-run simulation error (structures
+        without ``C`` and ``D`` only).
+    initial : {"estimate", "zero", "measured"}
+        Initial-condition rule (see the module docstring).
+
+    Attributes
+    ----------
+    K : int
+        Error samples ``N - start``.
+    n_params : int
+    theta_ls : ndarray, shape (n_params,)
+        The least-squares start: ARX least squares of orders ``(na + nf, nb, nk)`` read as
+        this structure (``F = A`` for output error; ``C = D = 1``).  NaN when the
+        structure's ``F_j`` have different orders.
+    cost_ls : float
+        This cost at ``theta_ls`` (NaN when ``theta_ls`` is).
+    """
+
+    def __init__(
+        self,
+        structure: PolynomialStructure,
+        data: Any,
+        *,
+        metric: str = _DEFAULT.metric,
+        predictor: str = _DEFAULT.predictor,
+        weight: float = _DEFAULT.weight,
+        penalty: float = _DEFAULT.penalty,
+        initial: str = "estimate",
+        penalty_kind: str = "flat",
+    ) -> None:
+        from .arx import _io_arrays
+
+        if not isinstance(structure, PolynomialStructure):
+            raise ConfigError(
+                f"structure must be a PolynomialStructure, got {type(structure).__name__}"
+            )
+        if metric not in METRICS:
+            raise UnknownNameError("cost metric", metric, METRICS)
+        if predictor not in PREDICTORS:
+            raise UnknownNameError("predictor", predictor, PREDICTORS)
+        if penalty_kind not in PENALTY_KINDS:
+            raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
+        if initial not in INITIAL_RULES:
+            raise UnknownNameError("initial-condition rule", str(initial), tuple(INITIAL_RULES))
+        if predictor == "simulation" and structure.has_noise_model:
+            raise ConfigError(
+                f"{structure!r} has a noise model (nc or nd > 0), which the simulation "
+                "predictor ignores: use predictor='one-step' (its own prediction error), or a "
+                "structure without C and D (oe)"
+            )
+        for name, value in (("weight", weight), ("penalty", penalty)):
+            real(value, name, error=DataError, minimum=0)
+        u, y = _io_arrays(*data) if isinstance(data, tuple) else _io_arrays(data, None)
+        if u.shape[1] != structure.n_inputs:
+            raise DataError(
+                f"the model has {structure.n_inputs} input(s) but the data have {u.shape[1]}"
+            )
+        structure.check_samples(y.size)
+        self.structure = structure
+        self.metric, self.predictor, self.initial = metric, predictor, initial
+        self.weight, self.penalty, self.penalty_kind = float(weight), float(penalty), penalty_kind
+        self.u, self.y = u, y
+        s = structure
+        self.n_params = s.n_params
+        self.start = s.start
+        self.N = y.size
+        self.K = self.N - s.start
+        self._target = y[s.start :]
+        self._std_y = float(np.std(self._target))
+        self._sse_zero = float(self._target @ self._target)
+        self._slices = s.slices()
+        one_step = predictor == "one-step"
+        # the noise filter only exists for the one-step predictor
+        self._nc, self._nd = (s.nc, s.nd) if one_step else (0, 0)
+        # first sample of the recursion: 0 from rest, start otherwise
+        self._t0 = 0 if initial == "zero" else s.start
+        sf = sum(s.nf)
+        self._deg_den = (self._nc if one_step else s.na) + sf
+        # num_y = C F - D A F vanishes for output error (and for the simulation)
+        has_y = one_step and bool(s.na or s.nc or s.nd)
+        self._deg_y = max(self._nc, self._nd + s.na) + sf if has_y else 0
+        self._deg_u = [
+            self._nd + sf - nf + nk + nb - 1 for nb, nf, nk in zip(s.nb, s.nf, s.nk)
+        ]
+        t0 = self._t0
+        self._ylags = _lags(y, self._deg_y + 1, t0, self.N)
+        self._ulags = [_lags(u[:, j], d + 1, t0, self.N) for j, d in enumerate(self._deg_u)]
+        self._state = y[s.start - self._deg_den : s.start][::-1].copy()
+        self.theta_ls = self._least_squares_start()
+        finite = bool(np.isfinite(self.theta_ls).all())
+        self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
+
+    # ------------------------------------------------------------------ parts of theta
+    def _parts(self, X: np.ndarray) -> dict[str, Any]:
+        sl = self._slices
+        return {
+            "a": _monic(X[:, sl["a"]]),
+            "b": [X[:, s] for s in sl["b"]],
+            "c": _monic(X[:, sl["c"]]),
+            "d": _monic(X[:, sl["d"]]),
+            "f": [_monic(X[:, s]) for s in sl["f"]],
+        }
+
+    def _admissible(self, X: np.ndarray) -> np.ndarray:
+        """Rows whose ``A``, ``F_j`` and ``D`` are stable and ``C`` is minimum phase."""
+        sl = self._slices
+        ok = np.ones(X.shape[0], dtype=bool)
+        for part in (sl["a"], sl["c"], sl["d"], *sl["f"]):
+            if part.stop > part.start:
+                ok &= is_stable(X[:, part])
+        return ok
+
+    def _radius(self, X: np.ndarray) -> np.ndarray:
+        sl = self._slices
+        rho = np.zeros(X.shape[0])
+        for part in (sl["a"], sl["c"], sl["d"], *sl["f"]):
+            if part.stop > part.start:
+                rho = np.maximum(rho, pole_radius_batched(X[:, part]))
+        return rho
+
+    def _from_sse(self, sse: np.ndarray) -> np.ndarray:
+        return metric_from_sse(self.metric, sse, self.K, self.weight, self._std_y)
+
+    def _penalised(self, X: np.ndarray) -> np.ndarray:
+        zero = self._from_sse(np.array(self._sse_zero))
+        if self.penalty_kind == "flat":
+            return np.full(X.shape[0], self.penalty + zero)
+        return self.penalty * np.maximum(self._radius(X), 1.0) + zero
+
+    # ------------------------------------------------------------------ predictor filter
+    def _predictor(self, p: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """Batched ``den``, ``num_y`` and ``num_j`` of every candidate's predictor."""
+        f_all = p["f"][0]
+        for fj in p["f"][1:]:
+            f_all = poly_mul_rows(f_all, fj)
+        n_pop = f_all.shape[0]
+        if self.predictor == "one-step" and self._deg_y:
+            den = poly_mul_rows(p["c"], f_all)
+            daf = poly_mul_rows(poly_mul_rows(p["d"], p["a"]), f_all)
+            num_y = np.zeros((n_pop, self._deg_y + 1))
+            num_y[:, : den.shape[1]] += den
+            num_y[:, : daf.shape[1]] -= daf
+            num_y[:, 0] = 0.0  # both monic: exactly zero
+            lead = p["d"]
+        else:  # the simulation, and output error's one-step predictor (the same filter)
+            den = poly_mul_rows(p["a"], f_all)
+            num_y = np.zeros((n_pop, 1))
+            lead = np.ones((n_pop, 1))
+        nums = []
+        s = self.structure
+        for j in range(s.n_inputs):
+            num = np.zeros((n_pop, s.nk[j] + s.nb[j]))
+            num[:, s.nk[j] :] = p["b"][j]
+            num = poly_mul_rows(lead, num)
+            for i, fi in enumerate(p["f"]):
+                if i != j:
+                    num = poly_mul_rows(num, fi)
+            nums.append(num)
+        return den, num_y, nums
+
+    def _forced(self, num_y: np.ndarray, nums: list[np.ndarray]) -> np.ndarray:
+        forced = num_y @ self._ylags[: num_y.shape[1]]
+        for num, lags in zip(nums, self._ulags):
+            forced += num @ lags[: num.shape[1]]
+        return forced
+
+    # ------------------------------------------------------------------ evaluation
+    def __call__(self, X: Any) -> np.ndarray:
+        """Costs of a population.
+
+        Parameters
+        ----------
+        X : array_like, shape (P, n_params) or (n_params,)
+
+        Returns
+        -------
+        ndarray, shape (P,)
+            Non-finite rows cost ``+inf``; inadmissible ones (see ``penalty``) the penalty
+            plus the cost of the zero prediction.
+        """
+        X = np.asarray(X, dtype=float)
+        if X.ndim == 1:
+            X = X[None, :]
+        if X.ndim != 2 or X.shape[1] != self.n_params:
+            raise DataError(f"the population must have shape (P, {self.n_params}), got {X.shape}")
+        out = np.full(X.shape[0], np.inf)
+        finite = np.isfinite(X).all(axis=1)
+        ok = finite.copy()
+        ok[finite] = self._admissible(X[finite])
+        bad = finite & ~ok
+        if bad.any():
+            out[bad] = self._penalised(X[bad])
+        if ok.any():
+            out[ok] = self._from_sse(self.sse(X[ok]))
+        return out
+
+    def sse(self, X: np.ndarray) -> np.ndarray:
+        """Sums of squared prediction errors of admissible rows ``X`` (P, n_params).
+
+        Parameters
+        ----------
+        X : ndarray, shape (P, n_params)
+            Candidates with stable ``A``, ``F_j``, ``D`` and minimum-phase ``C``.
+
+        Returns
+        -------
+        ndarray, shape (P,)
+            Over ``t >= start``, in output units squared.
+        """
+        return np.einsum("pk,pk->p", *(2 * (self.prediction_errors(X),)))
+
+    def prediction_errors(self, X: np.ndarray) -> np.ndarray:
+        """Prediction errors ``y - yhat`` of admissible rows ``X`` (P, n_params) -> (P, K)."""
+        den, num_y, nums = self._predictor(self._parts(X))
+        forced = self._forced(num_y, nums)
+        n = den.shape[1] - 1
+        if self.initial == "measured":
+            yhat, _ = ar_recursion(den[:, 1:], forced, self._state[:n])
+            return self._target - yhat
+        yhat, _ = ar_recursion(den[:, 1:], forced, np.zeros(n))
+        e = self._target - yhat[:, self.start - self._t0 :]
+        if self.initial == "estimate" and n:
+            free = self._free_responses(den)
+            e = e - np.einsum("pnk,pn->pk", free, _least_squares_rows(free, e))
+        return e
+
+    def _free_responses(self, den: np.ndarray) -> np.ndarray:
+        """``(P, n, K)`` basis of the free responses of ``1/den`` from ``t = start``.
+
+        The free responses from ``t = start`` are the impulse responses of ``N(q)/den(q)``
+        with ``deg N < n`` (the initial state acts as an input on the first ``n`` samples).
+        The shifts ``q^-k / den`` span them but are numerically dependent for lightly damped
+        high orders (condition numbers above 1e16 measured at order 16), so the basis is
+        the backward prediction-error filters ``B_m(q) / den(q)``, ``m = 0..n-1``, with
+        ``B_m`` the reversed step-down (Levinson) polynomial of order ``m``: their impulse
+        responses are orthogonal over ``t >= 0`` (Szego polynomials of the weight
+        ``1/|den|^2``), and nearly so over the record, so the least-squares fit of the
+        initial state is well conditioned.
+        """
+        n_pop, n = den.shape[0], den.shape[1] - 1
+        forcing = np.zeros((n_pop, n, self.K))
+        cur = den
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            for m in range(n, 0, -1):  # step-down over the orders, batched over candidates
+                k = cur[:, m : m + 1]
+                cur = ((cur - k * cur[:, ::-1]) / (1.0 - k * k))[:, :m]
+                forcing[:, m - 1, :m] = cur[:, ::-1]  # B_(m-1): A_(m-1) reversed
+        # A denominator whose poles are stable but stacked at the radius cap can round to
+        # |k_m| = 1 (a product of factors each at r_max): those rows take the plain shifts,
+        # which span the same space (the least squares then falls back to SVD).
+        bad = ~np.isfinite(forcing[:, :, : n]).all(axis=(1, 2))
+        if bad.any():
+            shifts = np.zeros((n, self.K))
+            shifts[np.arange(n), np.arange(n)] = 1.0
+            forcing[bad] = shifts
+        g, _ = ar_recursion(
+            np.repeat(den[:, 1:], n, axis=0), forcing.reshape(n_pop * n, self.K), np.zeros(n)
+        )
+        return g.reshape(n_pop, n, self.K)
+
+    # ------------------------------------------------------------------ variable projection
+    def fit_numerator(self, X: Any) -> np.ndarray:
+        """Replace each row's ``B`` by the one that minimises this cost (variable projection).
+
+        Parameters
+        ----------
+        X : array_like, shape (P, n_params) or (n_params,)
+            Candidates; their ``B`` entries are ignored.  Inadmissible rows keep the ``B`` of
+            :attr:`theta_ls` (their cost is the penalty whatever ``B`` is).
+
+        Returns
+        -------
+        ndarray, shape like ``X``
+        """
+        X = np.array(X, dtype=float)
+        single = X.ndim == 1
+        X = np.atleast_2d(X)
+        if X.shape[1] != self.n_params:
+            raise DataError(f"the population must have shape (P, {self.n_params}), got {X.shape}")
+        b_cols = np.concatenate([np.arange(self.n_params)[s] for s in self._slices["b"]])
+        fallback = np.nan_to_num(self.theta_ls[b_cols])
+        X[:, b_cols] = fallback
+        ok = np.isfinite(X).all(axis=1)
+        ok[ok] = self._admissible(X[ok])
+        if ok.any():
+            X[np.flatnonzero(ok)[:, None], b_cols] = self._fitted_b(X[ok])[0]
+        return X[0] if single else X
+
+    def fitted_costs(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Costs of the rows of ``X`` with their best ``B``, and those ``theta`` (one pass).
+
+        Parameters
+        ----------
+        X : array_like, shape (P, n_params)
+            Candidates; their ``B`` entries are ignored.
+
+        Returns
+        -------
+        cost : ndarray, shape (P,)
+        theta : ndarray, shape (P, n_params)
+            ``X`` with the fitted ``B`` (see :meth:`fit_numerator`).
+        """
+        X = np.array(X, dtype=float)
+        b_cols = np.concatenate([np.arange(self.n_params)[s] for s in self._slices["b"]])
+        X[:, b_cols] = np.nan_to_num(self.theta_ls[b_cols])
+        cost = np.full(X.shape[0], np.inf)
+        ok = np.isfinite(X).all(axis=1)
+        ok[ok] = self._admissible(X[ok])
+        bad = np.isfinite(X).all(axis=1) & ~ok
+        if bad.any():
+            cost[bad] = self._penalised(X[bad])
+        if ok.any():
+            b, sse = self._fitted_b(X[ok])
+            X[np.flatnonzero(ok)[:, None], b_cols] = b
+            cost[ok] = self._from_sse(sse)
+        return cost, X
+
+    def _fitted_b(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Best ``B`` (P, sum nb) of admissible rows and the SSE it leaves (P,)."""
+        if self.initial == "measured":
+            return self._fitted_b_measured(X)
+        p = self._parts(X)
+        s = self.structure
+        n_pop = X.shape[0]
+        one_step = self.predictor == "one-step"
+        n0 = self.N  # regressors from rest over the whole record, then cut to t >= start
+        if one_step:
+            num_z = poly_mul_rows(p["d"], p["a"])
+            den_z = p["c"]
+            z_lags = _lags(self.y, num_z.shape[1], 0, n0)
+            z, _ = ar_recursion(den_z[:, 1:], num_z @ z_lags, np.zeros(den_z.shape[1] - 1))
+            z = z[:, self.start :]
+            lead = p["d"]
+        else:
+            # simulation: z = y, the A of the structure joins every F_j
+            z = np.broadcast_to(self._target, (n_pop, self.K))
+            lead = np.ones((n_pop, 1))
+        blocks = []
+        for j in range(s.n_inputs):
+            den_g = poly_mul_rows(p["c"] if one_step else p["a"], p["f"][j])
+            g, _ = ar_recursion(
+                den_g[:, 1:], lead @ _lags(self.u[:, j], lead.shape[1], 0, n0),
+                np.zeros(den_g.shape[1] - 1),
+            )
+            gp = np.hstack([np.zeros((n_pop, s.nk[j] + s.nb[j])), g])
+            # column i: g(t - nk - i) for t >= start
+            cols = [
+                gp[:, s.nb[j] - i + self.start : s.nb[j] - i + self.start + self.K]
+                for i in range(s.nb[j])
+            ]
+            blocks.append(np.stack(cols, axis=1) if cols else np.zeros((n_pop, 0, self.K)))
+        nb_total = sum(s.nb)
+        regs = np.concatenate(blocks, axis=1)
+        if self.initial == "estimate":
+            den, _, _ = self._predictor({**p, "b": [np.zeros((n_pop, nb)) for nb in s.nb]})
+            if den.shape[1] > 1:
+                regs = np.concatenate([regs, self._free_responses(den)], axis=1)
+        coef = _least_squares_rows(regs, np.ascontiguousarray(z))
+        resid = z - np.einsum("pnk,pn->pk", regs, coef)
+        return coef[:, :nb_total], np.einsum("pk,pk->p", resid, resid)
+
+    def _fitted_b_measured(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Variable projection under ``"measured"``: one recursion per ``b`` coefficient.
+
+        The recursion starts at ``t = start`` from the measured outputs, so a shifted
+        regressor is not a shift of another one (their transients differ).
+        """
+        s = self.structure
+        n_pop = X.shape[0]
+        group = sum(s.nb) + 1  # per candidate: the free part, then one row per b
+        Xb = np.repeat(X, group, axis=0)
+        b_all = np.concatenate([np.arange(self.n_params)[sl] for sl in self._slices["b"]])
+        Xb[:, b_all] = 0.0
+        for r, col in enumerate(b_all, start=1):
+            Xb[r::group, col] = 1.0
+        den, num_y, nums = self._predictor(self._parts(Xb))
+        unit = np.ones(Xb.shape[0], dtype=bool)
+        unit[::group] = False
+        num_y[unit] = 0.0  # the b regressors: input part only, from rest
+        forced = self._forced(num_y, nums)
+        n = den.shape[1] - 1
+        state = np.zeros((Xb.shape[0], n))
+        state[::group] = self._state[:n]  # only the free part starts from data
+        y, _ = ar_recursion(den[:, 1:], forced, state)
+        y = y.reshape(n_pop, group, self.K)
+        z = self._target - y[:, 0]
+        regs = y[:, 1:]
+        coef = _least_squares_rows(regs, np.ascontiguousarray(z))
+        resid = z - np.einsum("pnk,pn->pk", regs, coef)
+        return coef, np.einsum("pk,pk->p", resid, resid)
+
+    # ------------------------------------------------------------------ least-squares start
+    def _least_squares_start(self) -> np.ndarray:
+        from .arx import ARXStructure
+
+        s = self.structure
+        theta = np.full(self.n_params, np.nan)
+        if len(set(s.nf)) > 1:
+            return theta
+        nf = s.nf[0]
+        try:
+            arx = ARXStructure(s.na + nf, s.nb, s.nk).least_squares(self.u, self.y)
+        except Exception:  # rank deficient or too short: no least-squares start
+            return theta
+        a = arx.theta[: s.na + nf]
+        sl = self._slices
+        theta[:] = 0.0
+        if s.na and nf:
+            theta[sl["a"]] = a[: s.na]  # a split of AF is arbitrary: A gets the leading part
+            for f in sl["f"]:
+                theta[f] = a[s.na :]
+        elif s.na:
+            theta[sl["a"]] = a
+        else:
+            for f in sl["f"]:
+                theta[f] = a
+        b_cols = np.concatenate([np.arange(self.n_params)[x] for x in sl["b"]])
+        theta[b_cols] = arx.theta[s.na + nf :]
+        return theta
+
+    # ------------------------------------------------------------------ reporting
+    def residuals(self, theta: Any) -> np.ndarray:
+        """Prediction errors of one admissible candidate over ``t >= start``.
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_params,)
+
+        Returns
+        -------
+        ndarray, shape (K,)
+        """
+        theta = np.asarray(theta, dtype=float).reshape(1, -1)
+        return self.prediction_errors(theta)[0]
+
+    def describe(self) -> str:
+        """One line naming the metric, penalty, structure, predictor, rule and ``K``.
+
+        Returns
+        -------
+        str
+        """
+        pen = f"penalty {self.penalty:g}" if self.penalty_kind == "flat" else "graded penalty"
+        if self.metric == "paper":
+            name = f"paper cost (eq. 5-6, w={self.weight:g}, {pen})"
+        else:
+            name = f"{self.metric.upper()} (stability {pen})"
+        what = "prediction error" if self.predictor == "one-step" else "simulation error"
+        return (
+            f"{name}, {self.structure!r} {self.predictor} {what}, initial state "
+            f"{self.initial}, K={self.K}"
+        )
+
+    def __repr__(self) -> str:
+        return f"PolynomialCost({self.describe()})"
