@@ -214,10 +214,10 @@ def test_every_registered_optimiser_identifies_every_structure_with_valid_candid
     data = IOData(u, y[:, None], dt=0.01)
     for s in (structure("oe", nb=2, nf=2), structure("bj", nb=2, nc=1, nd=1, nf=2)):
         est = build_problem(data, s, CostSpec(metric="rmse"), SearchSpec())
-        seen = []
+        seen: list[np.ndarray] = []
 
-        def spy(Z, f=est.problem.objective):
-            seen.append(est.parametrisation.to_theta(Z))
+        def spy(Z, f=est.problem.objective, space=est.parametrisation, seen=seen):
+            seen.append(space.to_theta(Z))
             return f(Z)
 
         est.problem.objective = spy
