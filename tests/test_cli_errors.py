@@ -207,7 +207,7 @@ def _unstable_report(n: int = 300):
     u = rng.uniform(-1, 1, n)
     y = np.convolve(u, [0.0, 0.5, 0.3])[:n] + 0.01 * rng.standard_normal(n)
     model = ARXStructure(1, 1, 1).model([-1.5, 0.5], dt=0.01)
-    return validate(model, IOData(u, y, dt=0.01))
+    return validate(model, IOData(u, y, dt=0.01), initial="measured")
 
 
 def test_validation_summary_prints_a_huge_negative_fit_as_below_floor():
@@ -226,7 +226,8 @@ def test_identify_summary_and_cli_print_a_diverged_fit_as_below_floor(tmp_path, 
     args = dict(optimiser="random-search", bounds=(1.6, 1.7), budget=50, seed=0,
                 parametrisation="coefficients", penalty_kind="flat", init="uniform")
     ident = identify(path, 1, 1, **args)
-    assert ident.validation.fit_simulation < -1e20
+    # the unstable free run grows as 1.65^t: far below the floor under any initial rule
+    assert ident.validation.fit_simulation < -1e9
     text = ident.summary()
     assert text.count("< -999 %") == 2  # estimation and validation records
     assert not re.search(r"\d{12,}", text)

@@ -441,7 +441,9 @@ def test_validate_numbers_match_independent_computation():
     u, y = _arx_221_data(n=600, seed=9)
     model = _fit_arx(u, y, 2, 2, 1)
     start = model.structure.start
-    rep = validate(model, IOData(u, y, dt=0.01, input_names="torque"), max_lag=10)
+    rep = validate(
+        model, IOData(u, y, dt=0.01, input_names="torque"), max_lag=10, initial="measured"
+    )
     y1 = model.predict(u, y)
     ys = model.simulate(u, y_init=y[:start])
     assert rep.start == start == 2
@@ -470,7 +472,7 @@ def test_validate_noise_free_is_perfect():
     model = LoopARX([1.0, -0.8, 0.2], [[0.5, 0.1]], [2])
     u = rng.normal(size=400)
     y = model.simulate(u)
-    rep = validate(model, (u, y), max_lag=10)
+    rep = validate(model, (u, y), max_lag=10, initial="measured")
     # the prediction and the free run are the loop that made y (same operations in the same
     # order on the same numbers): exact on any machine
     assert rep.fit_one_step == 100.0
@@ -507,7 +509,7 @@ def test_summary_and_to_dict():
     assert f"{rep.correlation_tests[0].n_outside} of 12 lags outside the 95 % band" in text
     assert "PASS" in text or "FAIL" in text
     assert f"{rep.stability.max_pole_radius:.5f}" in text
-    assert "Hz" in text and "first 2 measured output(s)" in text
+    assert "Hz" in text and "[initial state estimated by least squares]" in text
     d = rep.to_dict()
     json.dumps(d, allow_nan=False)
     assert "arrays" not in d and "values" not in d["correlation_tests"][0]
