@@ -443,6 +443,23 @@ class PolynomialEstimationProblem(EstimationProblem):
     :class:`~flexid.polynomial_cost.PolynomialCost` and ``parametrisation`` a
     :class:`~flexid.polynomial_space.PolynomialSpace`; the reference is the prediction-error
     method (:func:`flexid.pem.pem`), Levenberg-Marquardt from several starts.
+
+    Attributes
+    ----------
+    structure : PolynomialStructure
+        Model orders.
+    cost : PolynomialCost
+        The cost on the estimation record, in the structure's parameters ``theta``.
+    parametrisation : PolynomialSpace
+        The map from the search box to ``theta``.
+    problem : Problem
+        What the optimisers minimise, with the shared initial population.
+    search : SearchSpec
+        The settings it was built from.
+    box : SearchBox
+        Unbounded except for the rule (the polynomials are searched in their own spaces).
+    box_rule : str
+        How the box of the ``b`` coefficients was chosen (``numerator="search"``).
     """
 
     def theta(self, z: Any) -> np.ndarray:

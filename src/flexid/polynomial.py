@@ -17,9 +17,9 @@ BJ         ``bj(data, [nb nc nd nf nk])``  1    ✔    ✔    ✔    ✔
 The parameter vector is ``theta = [a, b_1, .., b_m, c, d, f_1, .., f_m]`` (MATLAB's ``getpvec``
 order for ``idpoly``); for ARX it is exactly :class:`flexid.arx.ARXStructure`'s.
 
-Predictors
-----------
-Every predictor of the family is one linear filter of the measured signals,
+Notes
+-----
+**Predictors.**  Every predictor of the family is one linear filter of the measured signals,
 ``den(q) yhat(t) = num_y(q) y(t) + sum_j num_j(q) u_j(t)``, with ``F = prod_j F_j``:
 
 * **one-step** (the structure's own prediction error, ``e = D/C (A y - sum B_j/F_j u_j)``):
@@ -599,8 +599,6 @@ class PolynomialModel:
         Standard errors of ``theta``.
     noise_variance : float, optional
         Variance of the innovation ``e`` (output units squared).
-    initial_rule : str, optional
-        The initial-condition rule of the cost the model was estimated with (reporting only).
     """
 
     def __init__(

@@ -342,7 +342,18 @@ class PolynomialCost:
         return np.einsum("pk,pk->p", *(2 * (self.prediction_errors(X),)))
 
     def prediction_errors(self, X: np.ndarray) -> np.ndarray:
-        """Prediction errors ``y - yhat`` of admissible rows ``X`` (P, n_params) -> (P, K)."""
+        """Prediction errors ``y - yhat`` of admissible candidates.
+
+        Parameters
+        ----------
+        X : ndarray, shape (P, n_params)
+            Candidates with stable ``A``, ``F_j``, ``D`` and minimum-phase ``C``.
+
+        Returns
+        -------
+        ndarray, shape (P, K)
+            Over ``t >= start``, in output units, under the cost's initial-condition rule.
+        """
         den, num_y, nums = self._predictor(self._parts(X))
         forced = self._forced(num_y, nums)
         n = den.shape[1] - 1
