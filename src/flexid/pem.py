@@ -1,0 +1,1113 @@
+"""The prediction-error reference of polynomial models (MATLAB ``pem``, ``oe``, ``armax``, ``bj``).
+
+For a :class:`~flexid.polynomial.PolynomialStructure`
+``A y = sum_j B_j/F_j u_j(t - nk_j) + C/D e``, :func:`pem` minimises the sum of squared
+one-step prediction errors
+
+    ``e(t) = D/C (A y(t) - sum_j B_j/F_j u_j(t - nk_j))``,  ``t >= structure.start``,
+
+by Gauss-Newton/Levenberg-Marquardt (MINPACK, ``scipy.optimize.least_squares(method="lm")``)
+with analytic Jacobians, from several starts, and returns the best result: what a user of
+MATLAB's ``pem``/``oe``/``armax``/``bj`` runs, and the gradient reference an optimiser's result
+on the same cost is compared with.  :func:`oe`, :func:`armax` and :func:`bj` take MATLAB's
+orders.
+
+Notes
+-----
+* **Initial conditions** (the meaning of :func:`flexid.polynomial.run_predictor`, which is the
+  reference for one ``theta``):
+
+  ``"zero"``
+      every filter from rest at ``t = 0``: ``e`` is the cascade ``D/C (A y - sum_j w_j)``,
+      ``w_j = B_j/F_j u_j(t - nk_j)``, each filter started from rest (equal, as exact
+      arithmetic, to the combined predictor ``den = C F`` run from rest, ``F = prod_j F_j``);
+  ``"measured"``
+      the combined recursion started at ``start`` from the measured outputs, i.e. ``e(t) = 0``
+      before ``start`` and ``C F e(t) = N(t)`` after, with the FIR part
+      ``N = D A F y - sum_j D B_j q^-nk_j prod_(i != j) F_i u_j``;
+  ``"estimate"``
+      the predictor's initial state fitted by least squares: a free response of ``1/(C F)``
+      over ``t >= start`` is added to the from-rest error and chosen to minimise the sum of
+      squares.  Those responses are spanned by the shifts ``h(t - k)``, ``k = 0..n-1``
+      (``n = structure.n_state``), of the impulse response ``h`` of ``1/(C F)``; the ``n``
+      coefficients are eliminated by variable projection, ``e = (I - Pi_H) e_zero``, and the
+      Jacobian is the exact (Golub-Pereyra) derivative of that projection.
+
+* **Jacobians** (Ljung, *System Identification*, 2nd ed., sec. 10.3).  Under ``"zero"``:
+  ``de/da_i = (D/C) y(t-i)``, ``de/db_ji = -(D/(C F_j)) u_j(t - nk_j - i + 1)``,
+  ``de/dc_i = -(1/C) e(t-i)``, ``de/dd_i = (1/C) v(t-i)`` with ``v = A y - sum_j w_j``, and
+  ``de/df_ji = (D/(C F_j)) w_j(t-i)``: the columns of one polynomial are delayed copies of one
+  filtered signal, one ``lfilter`` call each.  Under ``"measured"``, differentiating
+  ``C F e = 1[t >= start] N`` gives ``C F de = 1[t >= start] dN - d(C F) e``; the forcing
+  columns are again delayed copies of a few FIR-filtered signals, filtered by ``1/(C F)`` in
+  one call.  Each is checked against central differences in the tests.
+* **Stability.**  ``A``, every ``F_j`` and ``D`` are kept stable and ``C`` minimum phase
+  (every root strictly inside the unit circle, and of radius ``<= r_max``): starts with roots
+  outside are mirrored to ``1/conj(r)`` as ``pem`` does (``B`` divided by the product of the
+  mirrored radii of ``A`` or ``F_j`` so the magnitude response is unchanged), and a
+  Levenberg-Marquardt step that leaves that set is rejected by returning a residual far
+  worse than the start's, exactly as in :mod:`flexid.output_error` (so LM raises its damping;
+  the Jacobian is only evaluated at accepted points).
+* **Starts.**  Least squares ARX of orders ``(na, nb, nk)`` (or ``(max nf, nb, nk)`` for
+  ``F``, one denominator per input refitted on the partial residual when the ``nf_j``
+  differ); 30 Steiglitz-McBride iterations for ``F`` (per input, each on its partial
+  residual); for ARMAX the joint Hannan-Rissanen regression; ``C`` and ``D`` from
+  Hannan-Rissanen on the plant residual ``v`` of each of those; then ``starts`` extras from
+  ``numpy.random.default_rng(seed)``, alternately the first start's roots perturbed and
+  uniformly drawn stable roots.  ``B`` of every start is the exact optimum of the from-rest
+  error given the other polynomials (the error is linear in ``B``).  An ARX structure's error
+  is linear in every parameter, so it gets no extras (every start converges to least
+  squares).
+* **The cap.**  A cap is a safeguard, not a target: when the best point has a root within
+  ``1e-6`` of ``r_max < 1``, LM continues from it with the cap lifted to
+  ``1 - (1 - r_max)/100`` and then to the unit circle itself (roots strictly inside), and the
+  better stable point is kept.  The result reports whether its final point still sits on
+  the cap in force (:attr:`PEMResult.on_cap`) and whether it is a first-order local minimum
+  (:attr:`PEMResult.local_minimum`).
+* **Convergence.**  On a large-residual (misspecified) fit Gauss-Newton converges only
+  linearly, and MINPACK's ``ftol`` test may stop it with the relative gradient still above
+  :data:`OPTIMALITY_THRESHOLD` although the SSE has settled to ~1e-11; an interior final
+  point that fails the gradient test gets one more run with the tolerances ``tol * 1e-5``
+  (``"polish"`` in :attr:`PEMResult.runs`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import linalg, signal
+from scipy.optimize import least_squares
+
+from ._validate import integer, real
+from .arx import _io_arrays
+from .errors import ConfigError, DataError
+from .output_error import (
+    _REJECT_FACTOR,
+    _SM_ITERATIONS,
+    _admissible,
+    _capped,
+    _mirror,
+    _perturbed_a,
+    _random_a,
+)
+from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
+from .polynomial import structure as _named_structure
+from .stability import pole_radius_batched
+
+__all__ = [
+    "OPTIMALITY_THRESHOLD",
+    "PEMResult",
+    "PEMRun",
+    "armax",
+    "bj",
+    "oe",
+    "pem",
+    "prediction_errors",
+    "prediction_jacobian",
+]
+
+#: Threshold of :attr:`PEMResult.optimality` for :attr:`PEMResult.local_minimum`: at a
+#: MINPACK stop with ``tol = 1e-10`` on the test systems it is below 2e-8, and a point
+#: stopped on the cap or by the budget is orders of magnitude above it.
+OPTIMALITY_THRESHOLD = 1e-6
+# A root counts as on the cap within this radius distance.
+_CAP_TOLERANCE = 1e-6
+# The continuation run of a final point that fails the gradient test uses tol times this
+# factor, not below the floor (MINPACK refuses tolerances under machine epsilon).
+_POLISH_FACTOR = 1e-5
+_POLISH_FLOOR = 1e-15
+# Singular values of the initial-state basis below this fraction of the largest are rank
+# deficiency (a predictor denominator whose trailing coefficient is ~0), not a direction.
+_RANK_TOLERANCE = 1e-12
+
+
+# =================================================================================== results
+@dataclass
+class PEMRun:
+    """One Levenberg-Marquardt run of :func:`pem`.
+
+    Attributes
+    ----------
+    kind : str
+        Where it started: ``"least-squares"``, ``"steiglitz-mcbride"``,
+        ``"hannan-rissanen"``, ``"perturbed"``, ``"random"``, ``"x0"``; or a continuation
+        of the best point: ``"cap r_max=<value>"`` (the cap lifted) or ``"polish"`` (tighter
+        tolerances, when the gradient test failed at an interior point).
+    theta0 : ndarray, shape (n_params,)
+        The (admissible) start.
+    theta : ndarray, shape (n_params,)
+        Where the run ended (admissible).
+    sse0, sse : float
+        Sum of squared prediction errors at ``theta0`` and ``theta`` (output units squared).
+    nfev, njev : int
+        Residual and Jacobian evaluations of this run.
+    message : str
+        The optimiser's stopping message.
+    """
+
+    kind: str
+    theta0: np.ndarray
+    theta: np.ndarray
+    sse0: float
+    sse: float
+    nfev: int
+    njev: int
+    message: str
+
+
+@dataclass
+class PEMResult:
+    """Outcome of :func:`pem`.
+
+    Attributes
+    ----------
+    model : PolynomialModel
+        The estimate, with ``param_std`` from ``sigma^2 (J'J)^-1`` (``J`` the Jacobian of the
+        prediction errors with respect to ``theta`` at the estimate) and ``noise_variance =
+        sigma^2 = sse / (K - n_params)``.
+    theta : ndarray, shape (n_params,)
+        ``model.theta`` (``structure.param_names`` order).
+    sse : float
+        Sum of squared one-step prediction errors over ``t >= structure.start`` under
+        ``initial`` (output units squared).
+    K : int
+        Number of error samples, ``N - structure.start``.
+    initial : str
+        The initial-condition rule of the cost.
+    optimality : float
+        First-order optimality ``||J' e|| / (||J||_F ||e||)`` at ``theta`` (0 when ``e = 0``).
+    local_minimum : bool
+        ``optimality < OPTIMALITY_THRESHOLD`` (1e-6) and not :attr:`on_cap`.
+    on_cap : bool
+        A root of ``A``, an ``F_j``, ``D`` or ``C`` within 1e-6 of :attr:`r_cap`.
+    r_cap : float
+        The root-radius cap in force at the end: ``r_max``, or a lifted one (up to 1, the
+        unit circle, roots strictly inside) when the best point sat on ``r_max``.
+    max_radius : float
+        Largest root radius of ``A``, the ``F_j``, ``D`` and ``C``.
+    runs : list of PEMRun
+        Every run, starts first, then any continuation with a lifted cap.
+    best_start : int
+        Index into ``runs`` of the run that produced ``theta``.
+    nfev, njev : int
+        Residual and Jacobian evaluations over all runs.
+    wall_time : float
+        Seconds, start to finish.
+    message : str
+        Which start won, why its run stopped, and any cap lifting.
+    stable : bool
+        ``model.is_stable``: every root of ``A`` and the ``F_j`` strictly inside the circle.
+    predictor_stable : bool
+        ``model.predictor_stable``: ``C`` and the ``F_j`` strictly inside the circle.
+    """
+
+    model: PolynomialModel
+    theta: np.ndarray
+    sse: float
+    K: int
+    initial: str
+    optimality: float
+    local_minimum: bool
+    on_cap: bool
+    r_cap: float
+    max_radius: float
+    runs: list[PEMRun] = field(repr=False)
+    best_start: int
+    nfev: int
+    njev: int
+    wall_time: float
+    message: str
+    stable: bool
+    predictor_stable: bool
+
+
+# =================================================================================== helpers
+def _poly_mul(*polys: np.ndarray) -> np.ndarray:
+    out = np.ones(1)
+    for p in polys:
+        out = np.convolve(out, p)
+    return out
+
+
+def _fir(b: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``b(q) x`` from rest, shape of ``x`` (axis 0)."""
+    if not np.any(b):
+        return np.zeros_like(x, dtype=float)
+    return signal.lfilter(b, [1.0], x, axis=0)
+
+
+def _iir(b: np.ndarray, a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``b(q)/a(q) x`` from rest along axis 0 (``a`` monic)."""
+    if not np.any(b):
+        return np.zeros_like(x, dtype=float)
+    return signal.lfilter(b, a, x, axis=0)
+
+
+def _lagged(g: np.ndarray, lo: int, hi: int, start: int) -> np.ndarray:
+    """Columns ``g(t - lag)``, ``lag = lo..hi``, rows ``t = start..N-1``: shape (K, hi-lo+1).
+
+    Every lag is at most ``start`` (the structure's first counted sample reaches back no
+    further), so no sample before ``t = 0`` is needed.
+    """
+    n = g.size
+    if hi < lo:
+        return np.zeros((n - start, 0))
+    windows = np.lib.stride_tricks.sliding_window_view(g[start - hi : n - lo], hi - lo + 1)
+    return windows[:, ::-1].copy()
+
+
+def _delayed(x: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """Columns ``x(t - lag)``, ``lag = lo..hi``, for every ``t >= 0`` (zero before 0)."""
+    return _lagged(np.concatenate([np.zeros(hi), x]), lo, hi, hi)
+
+
+def _lstsq(phi: np.ndarray, target: np.ndarray) -> np.ndarray | None:
+    if phi.shape[1] == 0:
+        return np.zeros(0)
+    try:
+        sol = linalg.lstsq(phi, target)[0]
+    except (linalg.LinAlgError, ValueError):
+        return None
+    return sol if np.isfinite(sol).all() else None
+
+
+# =================================================================================== problem
+class _Problem:
+    """Prediction errors and analytic Jacobians of one structure on one record."""
+
+    def __init__(self, s: PolynomialStructure, u: np.ndarray, y: np.ndarray, initial: str):
+        self.s = s
+        self.u = u
+        self.y = y
+        self.initial = initial
+        self.start = s.start
+        self.N = y.size
+        self.K = self.N - self.start
+        self.m = s.n_inputs
+        self.sl = s.slices()
+        self.n = s.n_params
+        self.energy = float(y[self.start :] @ y[self.start :])
+        self.nfev = 0
+        self.njev = 0
+        # (slice, order) of every polynomial whose roots are constrained
+        self.rooted = [(self.sl["a"], s.na), (self.sl["c"], s.nc), (self.sl["d"], s.nd)]
+        self.rooted += [(sl, nf) for sl, nf in zip(self.sl["f"], s.nf)]
+        self.rooted = [(sl, k) for sl, k in self.rooted if k]
+
+    # ------------------------------------------------------------------ polynomials
+    def parts(self, theta: np.ndarray):
+        """Monic ``a, c, d``, delayed ``b_j`` and monic ``f_j`` of ``theta``."""
+        one = np.ones(1)
+        sl = self.sl
+        a = np.concatenate([one, theta[sl["a"]]])
+        c = np.concatenate([one, theta[sl["c"]]])
+        d = np.concatenate([one, theta[sl["d"]]])
+        # an input without B coefficients and delay keeps a zero numerator (not an empty one)
+        b = [
+            np.concatenate([np.zeros(max(nk, 1 - (s.stop - s.start))), theta[s]])
+            for nk, s in zip(self.s.nk, sl["b"])
+        ]
+        f = [np.concatenate([one, theta[s]]) for s in sl["f"]]
+        return a, b, c, d, f
+
+    def admissible(self, theta: np.ndarray, r_max: float) -> bool:
+        """Every constrained polynomial strictly stable with root radii ``<= r_max``."""
+        return all(_admissible(theta[sl], r_max) for sl, _ in self.rooted)
+
+    def max_radius(self, theta: np.ndarray) -> float:
+        radii = [float(pole_radius_batched(theta[sl][None, :])[0]) for sl, _ in self.rooted]
+        return max(radii, default=0.0)
+
+    def predictor_ok(self, theta: np.ndarray) -> bool:
+        """``C`` and every ``F_j`` strictly stable: the predictor filters by ``1/(C F)``."""
+        parts = [self.sl["c"], *self.sl["f"]]
+        return all(_admissible(theta[sl], 1.0) for sl in parts)
+
+    # ------------------------------------------------------------------ errors
+    def errors(self, theta: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        if self.initial == "zero":
+            return self._zero(theta, jac)
+        if self.initial == "measured":
+            return self._measured(theta, jac)
+        return self._estimate(theta, jac)
+
+    def _zero(self, theta: np.ndarray, jac: bool):
+        s, st, u, y = self.s, self.start, self.u, self.y
+        a, b, c, d, f = self.parts(theta)
+        w = [_iir(b[j], f[j], u[:, j]) for j in range(self.m)]
+        v = _fir(a, y) - np.sum(w, axis=0)
+        e_full = _iir(d, c, v)
+        if not jac:
+            return e_full[st:], None
+        cols = []
+        if s.na:
+            cols.append(_lagged(_iir(d, c, y), 1, s.na, st))
+        # the b and f columns of input j share the filter D/(C F_j): one call for both
+        g_uw = [
+            _iir(d, np.convolve(c, f[j]), np.stack([u[:, j], w[j]], axis=1)) for j in range(self.m)
+        ]
+        for j, (nb, nk) in enumerate(zip(s.nb, s.nk)):
+            cols.append(-_lagged(g_uw[j][:, 0], nk, nk + nb - 1, st))
+        if s.nc or s.nd:
+            g_ev = _iir(np.ones(1), c, np.stack([e_full, v], axis=1))
+            cols.append(-_lagged(g_ev[:, 0], 1, s.nc, st))
+            cols.append(_lagged(g_ev[:, 1], 1, s.nd, st))
+        for j, nf in enumerate(s.nf):
+            cols.append(_lagged(g_uw[j][:, 1], 1, nf, st))
+        return e_full[st:], np.hstack(cols)
+
+    def _measured(self, theta: np.ndarray, jac: bool):
+        s, st, u, y, m = self.s, self.start, self.u, self.y, self.m
+        a, b, c, d, f = self.parts(theta)
+        f_all = _poly_mul(*f)
+        den = np.convolve(c, f_all)
+
+        def f_without(*skip: int) -> np.ndarray:
+            return _poly_mul(*[f[i] for i in range(m) if i not in skip])
+
+        # B_j q^-nk_j prod_(i != j) F_i u_j, the plant part of F v
+        bu = [_fir(np.convolve(b[j], f_without(j)), u[:, j]) for j in range(m)]
+        fv = _fir(np.convolve(a, f_all), y) - np.sum(bu, axis=0)
+        forcing = _fir(d, fv)
+        e = signal.lfilter([1.0], den, forcing[st:])
+        if not jac:
+            return e, None
+        e_full = np.concatenate([np.zeros(st), e])
+        cols = []
+        if s.na:
+            cols.append(_lagged(_fir(np.convolve(d, f_all), y), 1, s.na, st))
+        for j, (nb, nk) in enumerate(zip(s.nb, s.nk)):
+            g = _fir(np.convolve(d, f_without(j)), u[:, j])
+            cols.append(-_lagged(g, nk, nk + nb - 1, st))
+        if s.nc:
+            cols.append(-_lagged(_fir(f_all, e_full), 1, s.nc, st))
+        if s.nd:
+            cols.append(_lagged(fv, 1, s.nd, st))
+        for j, nf in enumerate(s.nf):
+            if not nf:
+                continue
+            g = _fir(_poly_mul(d, a, f_without(j)), y)
+            for i in range(m):
+                if i != j:
+                    g -= _fir(_poly_mul(d, b[i], f_without(i, j)), u[:, i])
+            g -= _fir(np.convolve(c, f_without(j)), e_full)
+            cols.append(_lagged(g, 1, nf, st))
+        return e, signal.lfilter([1.0], den, np.hstack(cols), axis=0)
+
+    def _estimate(self, theta: np.ndarray, jac: bool):
+        r, jr = self._zero(theta, jac)
+        n, st, N = self.s.n_state, self.start, self.N
+        if n == 0:
+            return r, jr
+        _, _, c, _, f = self.parts(theta)
+        den = np.convolve(c, _poly_mul(*f))
+        impulse = np.zeros(N)
+        impulse[0] = 1.0
+        h = signal.lfilter([1.0], den, impulse)
+        basis = _lagged(h, 0, n - 1, st)  # column k: h(t - k), a free response for t >= start
+        left, sv, vt = linalg.svd(basis, full_matrices=False)
+        keep = sv > sv[0] * _RANK_TOLERANCE
+        left, sv, vt = left[:, keep], sv[keep], vt[keep]
+        coef = left.T @ r
+        e = r - left @ coef
+        if not jac:
+            return e, None
+        x = vt.T @ (coef / sv)  # the initial-state coefficients H^+ r
+        g_all = jr.copy()
+        rho = np.zeros((n, self.n))
+        # only C and the F_j move the basis: d h / d p_i = -g_p(t - i), g_p the impulse
+        # response of 1/(den p)
+        moving = [(self.sl["c"], c), *zip(self.sl["f"], f)]
+        for sl, p in moving:
+            order = p.size - 1
+            if not order:
+                continue
+            g = signal.lfilter([1.0], np.convolve(den, p), impulse)
+            # (dH x)(t) = -sum_k x_k g(t - i - k) = -s(t - i)
+            g_all[:, sl] += _lagged(_fir(x, g), 1, order, st)
+            # (dH' e)_k = -sum_t g(t - i - k) e(t): lags i + k = 1 .. order + n - 1
+            top = order + n - 1
+            padded = np.concatenate([np.zeros(max(top - st, 0)), g])
+            corr = _lagged(padded, 1, top, st + max(top - st, 0)).T @ e
+            idx = np.arange(n)[:, None] + np.arange(order)[None, :]
+            rho[:, sl] = corr[idx]
+        # d e = P_perp (dr - dH x) - (H^+)' dH' e  (Golub & Pereyra 1973)
+        proj = g_all - left @ (left.T @ g_all)
+        return e, proj + left @ ((vt @ rho) / sv[:, None])
+
+    # ------------------------------------------------------------------ linear pieces
+    def refit_b(self, theta: np.ndarray) -> np.ndarray:
+        """``theta`` with ``B`` the least-squares optimum of the from-rest error given the
+        other polynomials (``e = D A/C y - sum_j B_j D/(C F_j) u_j`` is linear in ``B``)."""
+        s, st = self.s, self.start
+        a, _, c, d, f = self.parts(theta)
+        target = _iir(np.convolve(d, a), c, self.y)[st:]
+        cols = []
+        for j, (nb, nk) in enumerate(zip(s.nb, s.nk)):
+            g = _iir(d, np.convolve(c, f[j]), self.u[:, j])
+            cols.append(_lagged(g, nk, nk + nb - 1, st))
+        sol = _lstsq(np.hstack(cols), target)
+        out = theta.copy()
+        if sol is not None:
+            i = 0
+            for sl in self.sl["b"]:
+                k = sl.stop - sl.start
+                out[sl] = sol[i : i + k]
+                i += k
+        return out
+
+    def plant_residual(self, theta: np.ndarray) -> np.ndarray:
+        """``v = A y - sum_j B_j/F_j u_j`` over ``t >= start`` (from rest)."""
+        a, b, _, _, f = self.parts(theta)
+        w = [_iir(b[j], f[j], self.u[:, j]) for j in range(self.m)]
+        return (_fir(a, self.y) - np.sum(w, axis=0))[self.start :]
+
+
+# =================================================================================== starts
+def _mirror_all(prob: _Problem, theta: np.ndarray) -> np.ndarray:
+    """Roots outside the circle mirrored to ``1/conj(r)``: ``A`` with every ``B`` and each
+    ``F_j`` with its ``B_j`` gain-corrected (output_error's rule), ``C`` and ``D`` alone."""
+    sl = prob.sl
+    out = theta.copy()
+    na = prob.s.na
+    if na:
+        b_all = np.concatenate([out[s] for s in sl["b"]])
+        new = _mirror(np.concatenate([out[sl["a"]], b_all]), na)
+        out[sl["a"]] = new[:na]
+        i = na
+        for s in sl["b"]:
+            k = s.stop - s.start
+            out[s] = new[i : i + k]
+            i += k
+    for s_f, s_b, nf in zip(sl["f"], sl["b"], prob.s.nf):
+        if nf:
+            new = _mirror(np.concatenate([out[s_f], out[s_b]]), nf)
+            out[s_f], out[s_b] = new[:nf], new[nf:]
+    for key in ("c", "d"):
+        if out[sl[key]].size:
+            out[sl[key]] = _mirror(out[sl[key]], out[sl[key]].size)
+    return out
+
+
+def _make_admissible(prob: _Problem, theta: np.ndarray, r_max: float) -> np.ndarray:
+    """Mirror, then pull roots above ``r_max`` in to it (``B`` refitted if any moved)."""
+    out = _mirror_all(prob, theta)
+    moved = False
+    for sl, _ in prob.rooted:
+        if not _admissible(out[sl], r_max):
+            out[sl] = _capped(out[sl], r_max)
+            moved = True
+    return prob.refit_b(out) if moved else out
+
+
+def _arx_fit(prob: _Problem, y: np.ndarray, u: np.ndarray, na: int, nb, nk):
+    """Least-squares ``y = -sum a_i y(t-i) + sum_j B_j u_j(t - nk_j) + e`` over ``t >= start``:
+    ``a`` (na,) and a list of ``b_j``, or None when the fit breaks down."""
+    st = prob.start
+    cols = [-_lagged(y, 1, na, st)]
+    cols += [_lagged(u[:, j], k, k + n - 1, st) for j, (n, k) in enumerate(zip(nb, nk))]
+    sol = _lstsq(np.hstack(cols), y[st:])
+    if sol is None:
+        return None
+    bs, i = [], na
+    for n in nb:
+        bs.append(sol[i : i + n])
+        i += n
+    return sol[:na], bs
+
+
+def _hannan_rissanen(v: np.ndarray, nc: int, nd: int) -> tuple[np.ndarray, np.ndarray]:
+    """``c`` (nc,), ``d`` (nd,) of ``D v = C e`` by Hannan-Rissanen (roots mirrored inside).
+
+    A long AR model of ``v`` (order ``max(20, 3 (nc + nd))``, at most a quarter of the
+    record) gives an innovation estimate ``e_hat``; ``v(t) = -sum d_i v(t-i) + sum c_i
+    e_hat(t-i) + e(t)`` is then linear least squares (Hannan & Rissanen, Biometrika 69, 1982).
+    """
+    k = v.size
+    m = max(1, min(max(20, 3 * (nc + nd)), k // 4))
+    lag_v = _delayed(v, 1, m)
+    a_long = _lstsq(lag_v[m:], -v[m:])
+    if a_long is None:
+        return np.zeros(nc), np.zeros(nd)
+    e_hat = v + lag_v @ a_long
+    e_hat[:m] = 0.0
+    phi = np.hstack([-_delayed(v, 1, nd), _delayed(e_hat, 1, nc)])
+    k0 = m + max(nc, nd)
+    par = _lstsq(phi[k0:], v[k0:])
+    if par is None:
+        return np.zeros(nc), np.zeros(nd)
+    d = _mirror(par[:nd], nd) if nd else np.zeros(0)
+    c = _mirror(par[nd:], nc) if nc else np.zeros(0)
+    return c, d
+
+
+def _with_noise_model(prob: _Problem, theta: np.ndarray, r_max: float) -> np.ndarray:
+    """``theta`` (admissible) with ``C``, ``D`` from Hannan-Rissanen on its plant residual
+    and ``B`` refitted given them."""
+    s = prob.s
+    theta = _make_admissible(prob, theta, r_max)
+    if s.nc or s.nd:
+        c, d = _hannan_rissanen(prob.plant_residual(theta), s.nc, s.nd)
+        theta = theta.copy()
+        theta[prob.sl["c"]], theta[prob.sl["d"]] = c, d
+    return _make_admissible(prob, prob.refit_b(theta), r_max)
+
+
+def _steiglitz_mcbride(prob: _Problem, theta: np.ndarray, iterations: int) -> np.ndarray | None:
+    """Steiglitz-McBride for the ``F_j``, per input on its partial residual (backfitting).
+
+    For each input: ``y_j = y - sum_(l != j) B_l/F_l u_l``; ``u_j`` and ``y_j`` filtered by
+    the current ``1/F_j``; ARX ``(nf_j, nb_j, nk_j)`` refitted by least squares (Steiglitz &
+    McBride, IEEE TAC 10(4), 1965; Ljung sec. 10.4).  With one input this is
+    :func:`flexid.output_error._steiglitz_mcbride`.  ``None`` if it breaks down.
+    """
+    s, u, y = prob.s, prob.u, prob.y
+    f = prob.parts(theta)[4]
+    b = [theta[sl].copy() for sl in prob.sl["b"]]
+
+    def sim(j: int) -> np.ndarray:
+        return _iir(np.concatenate([np.zeros(s.nk[j]), b[j]]), f[j], u[:, j])
+
+    for _ in range(iterations):
+        for j in range(prob.m):
+            y_j = y - sum((sim(i) for i in range(prob.m) if i != j), np.zeros_like(y))
+            uf = signal.lfilter([1.0], f[j], u[:, j : j + 1], axis=0)
+            fit = _arx_fit(
+                prob, signal.lfilter([1.0], f[j], y_j), uf, s.nf[j], [s.nb[j]], [s.nk[j]]
+            )
+            if fit is None:
+                return None
+            new = _mirror(np.concatenate([fit[0], fit[1][0]]), s.nf[j])
+            if not np.isfinite(new).all():
+                return None
+            f[j] = np.concatenate([[1.0], new[: s.nf[j]]])
+            b[j] = new[s.nf[j] :]
+    out = theta.copy()
+    for j in range(prob.m):
+        out[prob.sl["f"][j]] = f[j][1:]
+        out[prob.sl["b"][j]] = b[j]
+    return out
+
+
+def _armax_hannan_rissanen(prob: _Problem) -> np.ndarray | None:
+    """ARMAX ``A y = B u + C e`` jointly by Hannan-Rissanen: ``e_hat`` from a long ARX fit,
+    then ``y = -sum a_i y(t-i) + B u + sum c_i e_hat(t-i) + e`` by least squares."""
+    s, u, y, st = prob.s, prob.u, prob.y, prob.start
+    m = max(1, min(max(20, 3 * (s.na + s.nc)), prob.K // (4 * (1 + prob.m))))
+    cols = [-_delayed(y, 1, m)] + [
+        _delayed(u[:, j], s.nk[j], s.nk[j] + m - 1) for j in range(prob.m)
+    ]
+    phi = np.hstack(cols)
+    k0 = max(st, m + max(s.nk))
+    par = _lstsq(phi[k0:], y[k0:])
+    if par is None:
+        return None
+    e_hat = y - phi @ par
+    e_hat[:k0] = 0.0
+    cols = [-_delayed(y, 1, s.na)]
+    cols += [_delayed(u[:, j], k, k + n - 1) for j, (n, k) in enumerate(zip(s.nb, s.nk))]
+    cols.append(_delayed(e_hat, 1, s.nc))
+    k1 = k0 + s.nc
+    par = _lstsq(np.hstack(cols)[k1:], y[k1:])
+    if par is None:
+        return None
+    theta = np.zeros(prob.n)
+    theta[prob.sl["a"]] = par[: s.na]
+    i = s.na
+    for sl in prob.sl["b"]:
+        k = sl.stop - sl.start
+        theta[sl] = par[i : i + k]
+        i += k
+    theta[prob.sl["c"]] = par[i:]
+    return theta
+
+
+def _plant_starts(prob: _Problem) -> list[tuple[str, np.ndarray]]:
+    """Least squares, Steiglitz-McBride and (ARMAX) Hannan-Rissanen plant starts."""
+    s = prob.s
+    out: list[tuple[str, np.ndarray]] = []
+    theta = np.zeros(prob.n)
+    if s.na or not any(s.nf):
+        fit = _arx_fit(prob, prob.y, prob.u, s.na, s.nb, s.nk)
+        if fit is not None:
+            theta[prob.sl["a"]] = fit[0]
+            for sl, bj in zip(prob.sl["b"], fit[1]):
+                theta[sl] = bj
+            out.append(("least-squares", theta))
+    else:
+        top = max(s.nf)
+        fit = _arx_fit(prob, prob.y, prob.u, top, s.nb, s.nk)
+        if fit is not None:
+            a = _mirror(fit[0], top) if top else fit[0]
+            for j, nf in enumerate(s.nf):
+                theta[prob.sl["b"][j]] = fit[1][j]
+                theta[prob.sl["f"][j]] = a[:nf] if nf == top else 0.0
+            if any(nf not in (0, top) for nf in s.nf):
+                # one pass of per-input least squares on the partial residuals of the
+                # common-denominator fit gives each F_j its own order
+                one_pass = _steiglitz_mcbride(prob, _mirror_all(prob, theta), 1)
+                theta = one_pass if one_pass is not None else theta
+            out.append(("least-squares", theta))
+            sm = _steiglitz_mcbride(prob, _make_admissible(prob, theta, 1.0), _SM_ITERATIONS)
+            if sm is not None:
+                out.append(("steiglitz-mcbride", sm))
+    if s.na and s.nc and not s.nd and not any(s.nf):
+        hr = _armax_hannan_rissanen(prob)
+        if hr is not None:
+            out.append(("hannan-rissanen", hr))
+    return out
+
+
+def _extra_start(
+    prob: _Problem, base: np.ndarray, rng: np.random.Generator, perturbed: bool, r_max: float
+) -> np.ndarray:
+    """``base`` with every constrained polynomial's roots perturbed (or drawn afresh), ``B``
+    refitted; drawn roots get ``C``, ``D`` from Hannan-Rissanen."""
+    theta = base.copy()
+    noise = (prob.sl["c"], prob.sl["d"])
+    for sl, order in prob.rooted:
+        if perturbed:
+            theta[sl] = _perturbed_a(theta[sl], rng)
+        elif sl not in noise:
+            theta[sl] = _random_a(order, rng)
+        else:
+            theta[sl] = 0.0
+    if perturbed:
+        return _make_admissible(prob, prob.refit_b(theta), r_max)
+    return _with_noise_model(prob, prob.refit_b(theta), r_max)
+
+
+# =================================================================================== solver
+def _run_lm(
+    prob: _Problem,
+    theta0: np.ndarray,
+    kind: str,
+    max_nfev: int | None,
+    tol: float,
+    r_max: float,
+) -> PEMRun:
+    """Levenberg-Marquardt (MINPACK) from an admissible start, rejecting other steps."""
+    nfev0, njev0 = prob.nfev, prob.njev
+    r0 = prob.errors(theta0, False)[0]
+    prob.nfev += 1
+    sse0 = float(r0 @ r0)
+    bad_sse = _REJECT_FACTOR * (sse0 + prob.energy) + 1.0
+    bad = np.full(prob.K, np.sqrt(bad_sse / prob.K))
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        prob.nfev += 1
+        if not (np.isfinite(x).all() and prob.admissible(x, r_max)):
+            return bad
+        r = prob.errors(x, False)[0]
+        return r if np.isfinite(r).all() else bad
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        prob.njev += 1
+        if not prob.admissible(x, r_max):  # never happens: LM differentiates accepted points
+            return np.zeros((prob.K, prob.n))
+        return prob.errors(x, True)[1]
+
+    sol = least_squares(
+        fun,
+        theta0,
+        jac=jac,
+        method="lm",
+        x_scale="jac",
+        ftol=tol,
+        xtol=tol,
+        gtol=tol,
+        max_nfev=max_nfev,
+    )
+    theta = np.asarray(sol.x, dtype=float)
+    sse = np.inf
+    if prob.admissible(theta, r_max):
+        r = prob.errors(theta, False)[0]
+        sse = float(r @ r)
+    if not sse <= sse0:  # defensive: MINPACK returns its best accepted (admissible) point
+        theta, sse = theta0.copy(), sse0
+    return PEMRun(
+        kind=kind,
+        theta0=theta0,
+        theta=theta,
+        sse0=sse0,
+        sse=sse,
+        nfev=prob.nfev - nfev0,
+        njev=prob.njev - njev0,
+        message=str(sol.message),
+    )
+
+
+def _optimality(e: np.ndarray, jac: np.ndarray) -> float:
+    """``||J' e|| / (||J||_F ||e||)``, 0 when ``e`` or ``J`` vanishes."""
+    norm = float(np.linalg.norm(jac) * np.linalg.norm(e))
+    return float(np.linalg.norm(jac.T @ e) / norm) if norm > 0 else 0.0
+
+
+def _lifted_caps(r_max: float) -> list[float]:
+    """The caps tried, in turn, while the best point sits on the current one."""
+    if r_max >= 1.0:
+        return []
+    return [1.0 - (1.0 - r_max) / 100.0, 1.0]
+
+
+# =================================================================================== checks
+def _check_structure(structure: Any) -> PolynomialStructure:
+    from .arx import ARXStructure
+
+    if isinstance(structure, ARXStructure):
+        return PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
+    if not isinstance(structure, PolynomialStructure):
+        raise ConfigError(
+            "structure must be a PolynomialStructure (flexid.polynomial.structure(...)) or an "
+            f"ARXStructure, got {type(structure).__name__}"
+        )
+    return structure
+
+
+def _check_initial(initial: Any) -> str:
+    if not isinstance(initial, str) or initial not in INITIAL_RULES:
+        raise ConfigError(
+            f"initial must be one of {', '.join(map(repr, INITIAL_RULES))}, got {initial!r}"
+        )
+    return initial
+
+
+def _signals(s: PolynomialStructure, u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+    u, y = _io_arrays(u, y)
+    if u.shape[1] != s.n_inputs:
+        raise DataError(f"u has {u.shape[1]} column(s) but {s!r} has {s.n_inputs} input(s)")
+    s.check_samples(y.size)
+    return u, y
+
+
+def _data(data: Any, s: PolynomialStructure) -> tuple[np.ndarray, np.ndarray, float]:
+    from .data import IOData
+
+    if isinstance(data, IOData):
+        u, y = _signals(s, data, None)
+        return u, y, float(data.dt)
+    if isinstance(data, tuple) and len(data) == 2:
+        u, y = _signals(s, *data)
+        return u, y, 1.0
+    raise DataError(f"data must be an IOData or a (u, y) tuple, got {type(data).__name__}")
+
+
+def _theta(theta: Any, s: PolynomialStructure, what: str) -> np.ndarray:
+    arr = np.array(theta, dtype=float).reshape(-1) if np.ndim(theta) <= 1 else None
+    if arr is None or arr.shape != (s.n_params,):
+        raise DataError(f"{what} must have shape ({s.n_params},) for {s!r}")
+    if not np.isfinite(arr).all():
+        raise DataError(f"{what} has non-finite values")
+    return arr
+
+
+def _problem(structure: Any, theta: Any, u: Any, y: Any, initial: Any):
+    s = _check_structure(structure)
+    initial = _check_initial(initial)
+    theta = _theta(theta, s, "theta")
+    u, y = _signals(s, u, y)
+    prob = _Problem(s, u, y, initial)
+    if not prob.predictor_ok(theta):
+        raise DataError(
+            "theta's predictor is unstable (a root of C or of an F_j on or outside the unit "
+            "circle): the prediction errors filter by 1/(C F)"
+        )
+    return prob, theta
+
+
+# =================================================================================== public
+def prediction_errors(
+    structure: PolynomialStructure, theta: Any, u: Any, y: Any, initial: str
+) -> np.ndarray:
+    """One-step prediction errors ``e = D/C (A y - sum_j B_j/F_j u_j(t - nk_j))``.
+
+    The reference route (``scipy.signal.lfilter``), under an initial-condition rule (see the
+    module docstring); equal to ``y - yhat`` of :func:`flexid.polynomial.run_predictor` with
+    ``model.predictor_polynomials(1)`` over ``t >= structure.start``.
+
+    Parameters
+    ----------
+    structure : PolynomialStructure
+    theta : array_like, shape (n_params,)
+        Parameters in ``structure.param_names`` order; ``C`` and every ``F_j`` stable.
+    u : array_like, shape (N,) or (N, n_u), or IOData
+        Inputs (input units); an IOData carries ``y`` too (then ``y`` is None).
+    y : array_like, shape (N,), or None
+        Measured output (output units).
+    initial : {"estimate", "zero", "measured"}
+        Initial-condition rule.
+
+    Returns
+    -------
+    ndarray, shape (K,)
+        ``e(t)``, ``t = start .. N-1`` (output units), ``K = N - structure.start``.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown ``initial`` or a ``structure`` that is not one.
+    DataError
+        For bad signals, a wrongly shaped or non-finite ``theta``, or an unstable predictor.
+    ModelOrderError
+        When the record is too short for the structure.
+    """
+    prob, theta = _problem(structure, theta, u, y, initial)
+    return prob.errors(theta, False)[0]
+
+
+def prediction_jacobian(
+    structure: PolynomialStructure, theta: Any, u: Any, y: Any, initial: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Prediction errors and their analytic Jacobian with respect to ``theta``.
+
+    Parameters
+    ----------
+    structure : PolynomialStructure
+    theta : array_like, shape (n_params,)
+        Parameters; ``C`` and every ``F_j`` stable.
+    u : array_like, shape (N,) or (N, n_u), or IOData
+        Inputs.
+    y : array_like, shape (N,), or None
+        Measured output (None when ``u`` is an IOData).
+    initial : {"estimate", "zero", "measured"}
+        Initial-condition rule.
+
+    Returns
+    -------
+    e : ndarray, shape (K,)
+        :func:`prediction_errors` (output units).
+    J : ndarray, shape (K, n_params)
+        ``d e / d theta`` (output units per parameter unit): the filtered-signal formulas of
+        the module docstring; under ``"estimate"`` the exact derivative of the projected
+        error (the initial state re-fitted at every ``theta``).
+
+    Raises
+    ------
+    ConfigError
+        For an unknown ``initial`` or a ``structure`` that is not one.
+    DataError
+        For bad signals, a wrongly shaped or non-finite ``theta``, or an unstable predictor.
+    ModelOrderError
+        When the record is too short for the structure.
+    """
+    prob, theta = _problem(structure, theta, u, y, initial)
+    return prob.errors(theta, True)
+
+
+def pem(
+    data: Any,
+    structure: PolynomialStructure,
+    *,
+    initial: str = "estimate",
+    starts: int = 4,
+    seed: int | np.random.Generator = 0,
+    r_max: float = 1.0,
+    max_nfev: int | None = None,
+    tol: float = 1e-10,
+    x0: Any = None,
+) -> PEMResult:
+    """Prediction-error estimate of a polynomial model: the best stable Levenberg-Marquardt fit.
+
+    Minimises the sum of squared one-step prediction errors of ``structure`` over
+    ``t >= structure.start`` (see the module docstring for the rules, Jacobians, starts and
+    stability handling).
+
+    Parameters
+    ----------
+    data : IOData or tuple of (u, y)
+        Single-output record: ``u`` shape (N,) or (N, n_u), ``y`` shape (N,); an IOData's
+        ``dt`` (s) goes to the model (1.0 for a tuple).
+    structure : PolynomialStructure
+        From :func:`flexid.polynomial.structure` (an :class:`~flexid.arx.ARXStructure` is
+        accepted too).
+    initial : {"estimate", "zero", "measured"}, optional
+        Initial-condition rule of the prediction errors (default ``"estimate"``, MATLAB's).
+    starts : int, optional
+        Number of random/perturbed starts besides least squares, Steiglitz-McBride and
+        Hannan-Rissanen (>= 0; ignored for ARX, whose error is linear in ``theta``).
+    seed : int or numpy.random.Generator, optional
+        Seed of ``numpy.random.default_rng`` for those starts.
+    r_max : float, optional
+        Largest root radius of ``A``, the ``F_j``, ``D`` and ``C`` at an accepted step, in
+        (0, 1]; 1 keeps them strictly inside the circle.  Lifted when the best point sits on
+        it (module docstring).
+    max_nfev : int, optional
+        Residual-evaluation budget of each run (default MINPACK's ``100 * n_params``).
+    tol : float, optional
+        ``ftol``, ``xtol`` and ``gtol`` of each run, in (0, 1).
+    x0 : array_like, shape (n_params,), optional
+        One more start (mirrored, capped when needed).
+
+    Returns
+    -------
+    PEMResult
+
+    Raises
+    ------
+    ConfigError
+        For an unknown ``initial``, a ``structure`` that is not one, or a bad ``starts``,
+        ``seed``, ``r_max``, ``max_nfev`` or ``tol``.
+    DataError
+        For bad data or a bad ``x0``.
+    ModelOrderError
+        When the record is too short for the structure.
+    """
+    t_begin = time.perf_counter()
+    s = _check_structure(structure)
+    initial = _check_initial(initial)
+    starts = integer(starts, "starts", error=ConfigError, minimum=0)
+    if not isinstance(seed, np.random.Generator):
+        seed = integer(seed, "seed", error=ConfigError, minimum=0)
+    r_max = real(r_max, "r_max", error=ConfigError, minimum=0, maximum=1, low_open=True)
+    max_nfev = integer(max_nfev, "max_nfev", error=ConfigError, minimum=1, none_ok=True)
+    tol = real(tol, "tol", error=ConfigError, minimum=0, maximum=1, low_open=True, high_open=True)
+    u, y, dt = _data(data, s)
+    x0 = None if x0 is None else _theta(x0, s, "x0")
+    rng = np.random.default_rng(seed)
+    prob = _Problem(s, u, y, initial)
+
+    start_list = [(k, _with_noise_model(prob, th, r_max)) for k, th in _plant_starts(prob)]
+    if not start_list:  # every linear fit broke down (rank-deficient data): start from B only
+        start_list = [("least-squares", _make_admissible(prob, np.zeros(prob.n), r_max))]
+    if s.kind != "arx" and prob.rooted:
+        base = start_list[0][1]
+        for i in range(starts):
+            perturbed = i % 2 == 0
+            start_list.append(
+                (
+                    "perturbed" if perturbed else "random",
+                    _extra_start(prob, base, rng, perturbed, r_max),
+                )
+            )
+    if x0 is not None:
+        start_list.append(("x0", _make_admissible(prob, x0, r_max)))
+
+    runs = [_run_lm(prob, th, kind, max_nfev, tol, r_max) for kind, th in start_list]
+    best = int(np.argmin([r.sse for r in runs]))
+    message = f"best of {len(runs)} start(s): {runs[best].kind} ({runs[best].message})"
+    cap = r_max
+    for lifted in _lifted_caps(r_max):
+        if prob.max_radius(runs[best].theta) < cap - _CAP_TOLERANCE:
+            break
+        run = _run_lm(prob, runs[best].theta, f"cap r_max={lifted:g}", max_nfev, tol, lifted)
+        runs.append(run)
+        message += f"; on the cap {cap:g}, continued with the cap {lifted:g}"
+        cap = lifted
+        if run.sse < runs[best].sse:
+            best = len(runs) - 1
+            message += f" (SSE {run.sse0:.6g} -> {run.sse:.6g})"
+
+    theta = runs[best].theta.copy()
+    e, jac = prob.errors(theta, True)
+    if (
+        _optimality(e, jac) >= OPTIMALITY_THRESHOLD
+        and prob.max_radius(theta) < cap - _CAP_TOLERANCE
+    ):
+        # Gauss-Newton converges only linearly on a large-residual (misspecified) fit, and
+        # MINPACK's ftol test can stop it while the gradient is still well above the
+        # threshold: continue once with tighter tolerances
+        polish_tol = max(tol * _POLISH_FACTOR, _POLISH_FLOOR)
+        run = _run_lm(prob, theta, "polish", max_nfev, polish_tol, cap)
+        runs.append(run)
+        if run.sse <= runs[best].sse:
+            best = len(runs) - 1
+            theta = run.theta.copy()
+            e, jac = prob.errors(theta, True)
+            message += f"; polished with tol {polish_tol:g}"
+    sse = float(e @ e)
+    k, d = prob.K, prob.n
+    sigma2 = sse / (k - d)
+    _, sv, vt = linalg.svd(jac, full_matrices=False)
+    inv_sq = np.zeros_like(sv)
+    ok = sv > sv[0] * 1e-14 if sv.size else sv.astype(bool)
+    inv_sq[ok] = 1.0 / sv[ok] ** 2
+    param_std = np.sqrt(sigma2 * np.sum(vt.T**2 * inv_sq, axis=1))
+    optimality = _optimality(e, jac)
+    max_radius = prob.max_radius(theta)
+    on_cap = bool(prob.rooted) and max_radius >= cap - _CAP_TOLERANCE
+    model = PolynomialModel(s, theta, dt=dt, param_std=param_std, noise_variance=sigma2)
+    return PEMResult(
+        model=model,
+        theta=theta,
+        sse=sse,
+        K=k,
+        initial=initial,
+        optimality=optimality,
+        local_minimum=bool(optimality < OPTIMALITY_THRESHOLD and not on_cap),
+        on_cap=on_cap,
+        r_cap=cap,
+        max_radius=max_radius,
+        runs=runs,
+        best_start=best,
+        nfev=prob.nfev,
+        njev=prob.njev,
+        wall_time=time.perf_counter() - t_begin,
+        message=message,
+        stable=model.is_stable,
+        predictor_stable=model.predictor_stable,
+    )
+
+
+def oe(data: Any, nb: Any, nf: Any, nk: Any = 1, **options: Any) -> PEMResult:
+    """Output-error model ``y = sum_j B_j/F_j u_j(t - nk_j) + e`` (MATLAB ``oe(data, [nb nf nk])``).
+
+    Parameters
+    ----------
+    data : IOData or tuple of (u, y)
+        See :func:`pem`.
+    nb, nf, nk : int or sequence of int
+        Per input: number of ``B`` coefficients, order of ``F``, delay (samples).
+    **options
+        Keywords of :func:`pem` (``initial``, ``starts``, ``seed``, ``r_max``, ...).
+
+    Returns
+    -------
+    PEMResult
+    """
+    return pem(data, _named_structure("oe", nb=nb, nf=nf, nk=nk), **options)
+
+
+def armax(data: Any, na: int, nb: Any, nc: int, nk: Any = 1, **options: Any) -> PEMResult:
+    """ARMAX model ``A y = sum_j B_j u_j(t - nk_j) + C e`` (MATLAB ``armax(data, [na nb nc nk])``).
+
+    Parameters
+    ----------
+    data : IOData or tuple of (u, y)
+        See :func:`pem`.
+    na, nc : int
+        Orders of ``A`` and ``C``.
+    nb, nk : int or sequence of int
+        Per input: number of ``B`` coefficients and delay (samples).
+    **options
+        Keywords of :func:`pem`.
+
+    Returns
+    -------
+    PEMResult
+    """
+    return pem(data, _named_structure("armax", na=na, nb=nb, nc=nc, nk=nk), **options)
+
+
+def bj(data: Any, nb: Any, nc: int, nd: int, nf: Any, nk: Any = 1, **options: Any) -> PEMResult:
+    """Box-Jenkins model ``y = sum_j B_j/F_j u_j(t - nk_j) + C/D e``
+    (MATLAB ``bj(data, [nb nc nd nf nk])``).
+
+    Parameters
+    ----------
+    data : IOData or tuple of (u, y)
+        See :func:`pem`.
+    nb, nf, nk : int or sequence of int
+        Per input: number of ``B`` coefficients, order of ``F``, delay (samples).
+    nc, nd : int
+        Orders of ``C`` and ``D``.
+    **options
+        Keywords of :func:`pem`.
+
+    Returns
+    -------
+    PEMResult
+    """
+    return pem(data, _named_structure("bj", nb=nb, nc=nc, nd=nd, nf=nf, nk=nk), **options)
