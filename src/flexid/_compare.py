@@ -24,13 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from ._identify import prepare_data
+from ._identify import prepare_data, structure_of
 from ._json import jsonable
 from ._validate import positive_int
 from .config import LEAST_SQUARES, ComparisonSpec, OptimiserSpec
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
-from .estimation import build_problem, check_search, choose_reference, model_structure
+from .estimation import build_problem, check_search, choose_reference
 from .optimisers import Budget, get, minimize
 from .statistics import rank_sum_against_best, summarise
 from .store import ResultStore
@@ -87,7 +87,7 @@ class _Context:
         self.val = val
         m = spec.model
         try:
-            self.structure = model_structure(m.na, m.nb, m.nk, est.n_inputs)
+            self.structure = structure_of(m.structure, est.n_inputs, **m.orders())
         except ModelOrderError as exc:
             raise ConfigError(f"[model]: {exc}") from None
         self.structure.check_samples(est.n_samples)
@@ -95,6 +95,11 @@ class _Context:
         self.estimation = build_problem(
             est, self.structure, spec.cost, spec.search, bounds=spec.bounds
         )
+        if not np.isfinite(self.theta_ls).all():  # the least-squares row every comparison has
+            raise ConfigError(
+                f"[model]: {self.structure!r} has no least-squares start (its F polynomials "
+                "differ in order): give every input the same nf"
+            )
 
     @property
     def theta_ls(self) -> np.ndarray:
@@ -146,7 +151,7 @@ def _store_history(result) -> dict[str, list]:
 
 
 def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
-    report = validate(model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.cost.initial)
+    report = validate(model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.validate_initial)
     err = report.error_range_one_step
     return {
         "fit_one_step": float(report.fit_one_step),
@@ -193,11 +198,14 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     if oe is not None:
         # the simulation cost's own optimum (least squares is not): the reference of targets
         oe_model = ctx.structure.model(oe.theta, dt=ctx.est.dt)
+        n_params = len(oe.theta)
         record["output_error"] = {
             "cost": float(oe.cost),
             "theta": [float(v) for v in oe.theta],
             "stable": bool(oe.stable),
-            "nfev_equivalent": int(oe.nfev_equivalent),
+            "nfev_equivalent": int(
+                getattr(oe, "nfev_equivalent", oe.nfev + oe.njev * n_params)
+            ),
             "wall_time": float(oe.wall_time),
             "validation": _validation_numbers(oe_model, ctx),
         }
@@ -362,11 +370,14 @@ class ComparisonResult:
             )
         elif choice[1] == "least squares":
             self.reference_cost = choice[0]
-            self.reference_note = (
-                "least squares (the exact optimum of the one-step cost)"
-                if self.spec.cost.predictor == "one-step"
-                else "least squares (the one-step optimum; not the optimum of this cost)"
-            )
+            if self.spec.model.structure != "arx":
+                self.reference_note = "the ARX least-squares estimate read as the structure"
+            elif self.spec.cost.predictor == "one-step":
+                self.reference_note = "least squares (the exact optimum of the one-step cost)"
+            else:
+                self.reference_note = (
+                    "least squares (the one-step optimum; not the optimum of this cost)"
+                )
         else:
             self.reference_cost = choice[0]
             self.reference_note = (
@@ -486,8 +497,9 @@ class ComparisonResult:
             ("data", s.data.describe()),
             (
                 "model",
-                f"ARX(na={m.na}, nb={m.nb if m.nb is not None else m.na}, nk={m.nk}), "
-                f"cost {s.cost.metric}, {s.cost.predictor} predictor",
+                f"{m.describe()}, cost {s.cost.metric}, {s.cost.predictor} predictor, "
+                f"initial state {s.cost.initial}; validated with initial state "
+                f"{s.validate_initial}",
             ),
             ("search", _search_text(s.search)),
             ("budget", f"{s.budget_label()} per run, {s.runs} runs per optimiser, seed {s.seed}"),

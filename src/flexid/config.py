@@ -185,22 +185,78 @@ class DataSpec:
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """ARX orders in MATLAB's convention (``nb`` defaults to ``na``).
+    """The model structure and its orders, in MATLAB's convention.
 
     Attributes
     ----------
-    na : int
-        Number of ``A`` coefficients (poles), default 8.
+    na : int or None
+        Number of ``A`` coefficients (poles); ARX's default is 8, the other structures have
+        none unless they take it (``armax``).
     nb : int, list of int or None
-        Number of ``B`` coefficients, for every input or one per input; None (default)
-        means ``na``.
+        Number of ``B`` coefficients, for every input or one per input; for ARX None
+        (default) means ``na``.
     nk : int or list of int
         Input delay in samples, for every input or one per input (default 1).
+    structure : {"arx", "armax", "oe", "bj"}
+        The structure (default ``"arx"``, the paper's); its orders are those of
+        :data:`flexid.polynomial.STRUCTURES`.
+    nc, nd : int or None
+        Orders of ``C`` and ``D`` (``armax``, ``bj``).
+    nf : int, list of int or None
+        Order of ``F``, for every input or one per input (``oe``, ``bj``).
     """
 
-    na: int = 8
+    na: int | None = None
     nb: Any = None
     nk: Any = 1
+    structure: str = "arx"
+    nc: int | None = None
+    nd: int | None = None
+    nf: Any = None
+
+    def __post_init__(self) -> None:
+        if self.structure not in STRUCTURE_NAMES:
+            from .errors import UnknownNameError
+
+            raise UnknownNameError("[model] structure", str(self.structure), STRUCTURE_NAMES)
+        if self.structure == "arx" and self.na is None:
+            object.__setattr__(self, "na", 8)  # the paper's order
+
+    def orders(self) -> dict[str, Any]:
+        """The orders given, by name (None left out).
+
+        Returns
+        -------
+        dict
+        """
+        names = ("na", "nb", "nc", "nd", "nf", "nk")
+        return {k: getattr(self, k) for k in names if getattr(self, k) is not None}
+
+    def key_material(self) -> dict[str, Any]:
+        """The fields that determine a comparison's numbers; an ARX spec's as before the
+        structures existed (so its store key is unchanged).
+
+        Returns
+        -------
+        dict
+        """
+        d = asdict(self)
+        if self.structure == "arx":
+            return {k: d[k] for k in ("na", "nb", "nk")}
+        return d
+
+    def describe(self) -> str:
+        """The structure and orders in MATLAB's words, e.g. ``"OE(nb=16, nf=16, nk=1)"``.
+
+        Returns
+        -------
+        str
+        """
+        if self.structure == "arx":
+            nb = self.nb if self.nb is not None else self.na
+            return f"ARX(na={self.na}, nb={nb}, nk={self.nk})"
+        text = ", ".join(f"{k}={v}" for k, v in self.orders().items())
+        return f"{self.structure.upper()}({text})"
 
 
 @dataclass(frozen=True)
@@ -349,6 +405,9 @@ class ComparisonSpec:
         ``<= reference_cost * (1 + t)`` (default ``(0.1, 0.01, 0.001)``).
     max_lag : int
         Largest lag, in samples, of the validation correlation tests (default 25).
+    validate_initial : {"estimate", "zero", "measured"}
+        Initial-condition rule of the validation's simulations and predictions (``initial``
+        in the ``[validation]`` table; default ``"estimate"``, MATLAB ``compare``'s).
 
     Raises
     ------
@@ -372,11 +431,18 @@ class ComparisonSpec:
     schedule_cap: int = 2_000_000
     targets: tuple[float, ...] = (0.1, 0.01, 0.001)
     max_lag: int = 25
+    validate_initial: str = "estimate"
 
     def __post_init__(self) -> None:
         _check_int(self, "runs", "[run] runs", low=1)
         _check_int(self, "seed", "[run] seed", low=0)
         _check_int(self, "max_lag", "[validation] max_lag", low=1)
+        if self.validate_initial not in ("estimate", "zero", "measured"):
+            from .errors import UnknownNameError
+
+            raise UnknownNameError(
+                "[validation] initial", str(self.validate_initial), ("estimate", "zero", "measured")
+            )
         _check_int(self, "schedule_cap", "[run] schedule_cap", low=1)
         if self.budget != SCHEDULE:
             _check_int(self, "budget", "[run] budget", low=1)
@@ -394,9 +460,10 @@ class ComparisonSpec:
             if not (isinstance(t, (int, float)) and t > 0):
                 raise ConfigError(f"[run] targets must be positive relative tolerances, got {t!r}")
         if self.cost.initial == "auto":
-            # a comparison's models are ARX, whose "auto" rule is "measured": resolved here so
-            # the store key of a spec does not depend on how the rule was spelled
-            object.__setattr__(self, "cost", replace(self.cost, initial="measured"))
+            # resolved here so the store key of a spec does not depend on how the rule was
+            # spelled ("auto" is "measured" for ARX, as before, and "estimate" otherwise)
+            rule = "measured" if self.model.structure == "arx" else "estimate"
+            object.__setattr__(self, "cost", replace(self.cost, initial=rule))
 
     @property
     def max_fe(self) -> int:
@@ -410,12 +477,12 @@ class ComparisonSpec:
         -------
         dict
             ``data``, ``model``, ``cost``, ``search`` (as dicts), ``bounds``, ``seed``,
-            ``budget``, ``schedule_cap`` (None unless the budget is ``"schedule"``) and
-            ``max_lag``.
+            ``budget``, ``schedule_cap`` (None unless the budget is ``"schedule"``),
+            ``max_lag`` and ``validate_initial``.
         """
         return {
             "data": asdict(self.data),
-            "model": asdict(self.model),
+            "model": self.model.key_material(),
             "cost": asdict(self.cost),
             "search": asdict(self.search),
             "bounds": self.bounds,
@@ -423,6 +490,7 @@ class ComparisonSpec:
             "budget": self.budget,
             "schedule_cap": self.schedule_cap if self.budget == SCHEDULE else None,
             "max_lag": self.max_lag,
+            "validate_initial": self.validate_initial,
         }
 
     @property
@@ -577,7 +645,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
     except TypeError as exc:
         raise ConfigError(f"{source}: {exc}") from None
     run = _take(top.get("run", {}), _RUN_KEYS, "run")
-    validation = _take(top.get("validation", {}), ("max_lag",), "validation")
+    validation = _take(top.get("validation", {}), ("max_lag", "initial"), "validation")
     if "optimisers" in top:
         optimisers = _optimiser_specs(top["optimisers"], "[[optimisers]]")
     else:
@@ -598,6 +666,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         "search": search_spec,
         "bounds": bounds,
         "max_lag": validation.get("max_lag", 25),
+        "validate_initial": validation.get("initial", "estimate"),
     }
     specs = []
     if "comparison" in top:
