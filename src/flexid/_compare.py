@@ -264,6 +264,10 @@ def _run_task_in_worker(task: tuple) -> dict[str, Any]:
 
 
 # ================================================================================ result
+#: The tables' row of the gradient reference (Levenberg-Marquardt with analytic gradients).
+_REFERENCE_ROW = "reference (LM)"
+
+
 @dataclass
 class ComparisonResult:
     """The runs of a comparison and their statistics.
@@ -380,8 +384,11 @@ class ComparisonResult:
                 )
         else:
             self.reference_cost = choice[0]
+            name = choice[1]
+            if self.spec.model.structure != "arx":
+                name = "prediction-error reference (Levenberg-Marquardt, analytic gradients)"
             self.reference_note = (
-                f"{choice[1]}, from least squares and stable starts; least squares "
+                f"{name}, from least squares and stable starts; least squares "
                 f"{_f(ref['cost'])}"
             )
         self.stats = {
@@ -421,6 +428,13 @@ class ComparisonResult:
             + ["-"] * len(targets)
             + ["-", f"{ref.get('wall_time', 0):.3f}"]
         )
+        oe = ref.get("output_error")
+        if oe:
+            rows.append(
+                [_REFERENCE_ROW, "-", _f(oe["cost"]), "-", _f(oe["cost"])]
+                + ["-"] * len(targets)
+                + ["-", f"{oe.get('wall_time', 0):.3f}"]
+            )
         for label, s in self.stats.items():
             runs = f"{s['ok']}" + (f" ({s['failed']} failed)" if s["failed"] else "")
             if not s["ok"]:
@@ -470,6 +484,19 @@ class ComparisonResult:
                 "yes" if self.reference.get("stable") else "NO",
             ]
         )
+        oe = self.reference.get("output_error")
+        if oe and "validation" in oe:
+            v = oe["validation"]
+            rows.append(
+                [
+                    _REFERENCE_ROW,
+                    _fit(v["fit_one_step"]),
+                    _fit(v["fit_simulation"]),
+                    f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
+                    "yes" if v["correlation_passed"] else "no",
+                    "yes" if oe.get("stable") else "NO",
+                ]
+            )
         for label, s in self.stats.items():
             if not s["ok"]:
                 rows.append([label] + ["-"] * (len(head) - 1))

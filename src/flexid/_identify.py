@@ -250,14 +250,14 @@ class Identification:
 
     Attributes
     ----------
-    model : ARX
-        The identified model.
+    model : ARX or PolynomialModel
+        The identified model (:class:`~flexid.arx.ARX` for the ARX structure).
     optimiser : str
         Optimiser name (``"ls"`` for least squares, ``"oe"`` for the output-error
         reference).
     params : dict
         The optimiser's hyper-parameters.
-    cost : ARXCost
+    cost : ARXCost or PolynomialCost
         The cost that was minimised (on the estimation record).
     cost_value : float
         Cost of ``model`` under it.
@@ -279,8 +279,9 @@ class Identification:
     search : dict
         The search space (:meth:`flexid.estimation.EstimationProblem.to_dict` plus a
         ``description``).
-    output_error : OEResult or None
-        The Levenberg-Marquardt result when ``optimiser`` is ``"oe"``, else None.
+    output_error : OEResult, PEMResult or None
+        The Levenberg-Marquardt result when ``optimiser`` is ``"oe"`` or ``"pem"``, else
+        None.
     """
 
     model: ARX
@@ -313,9 +314,13 @@ class Identification:
 
     def _title(self) -> str:
         s = self.model.structure
-        return (
-            f"ARX(na={s.na}, nb={list(s.nb)}, nk={list(s.nk)}) identified by {self.optimiser}"
-            + (f" (seed {self.seed})" if self.seed is not None else "")
+        name = (
+            repr(s)
+            if isinstance(s, PolynomialStructure)
+            else f"ARX(na={s.na}, nb={list(s.nb)}, nk={list(s.nk)})"
+        )
+        return f"{name} identified by {self.optimiser}" + (
+            f" (seed {self.seed})" if self.seed is not None else ""
         )
 
     def _items(self) -> list[tuple[str, str]]:
@@ -329,13 +334,18 @@ class Identification:
             items.append(("search space", self.search.get("description", "")))
         if self.output_error is not None:
             oe = self.output_error
-            items.append(
-                (
-                    "search",
-                    f"Levenberg-Marquardt from {len(oe.starts)} starts, "
-                    f"{oe.nfev} residual + {oe.njev} Jacobian evaluations",
-                )
+            text = (
+                f"Levenberg-Marquardt from {len(oe.runs)} starts, "
+                f"{oe.nfev} residual + {oe.njev} Jacobian evaluations"
             )
+            if hasattr(oe, "optimality"):
+                where = (
+                    "a local minimum"
+                    if oe.local_minimum
+                    else ("on the pole-radius cap" if oe.on_cap else "not a local minimum")
+                )
+                text += f"; first-order optimality {oe.optimality:.2g}: {where}"
+            items.append(("search", text))
         if self.result is not None:
             items.append(
                 (
@@ -344,10 +354,15 @@ class Identification:
                 )
             )
         ratio = self.cost_value / self.cost_ls if self.cost_ls > 0 else float("nan")
+        ls_name = (
+            "ARX least squares read as the structure"
+            if isinstance(self.model.structure, PolynomialStructure)
+            else "least squares"
+        )
         items.append(
             (
                 "final cost",
-                f"{self.cost_value:.6g}  (least squares {self.cost_ls:.6g}, ratio {ratio:.4g})",
+                f"{self.cost_value:.6g}  ({ls_name} {self.cost_ls:.6g}, ratio {ratio:.4g})",
             )
         )
         items.append(
@@ -412,11 +427,7 @@ class Identification:
         m = self.model
         return jsonable(
             {
-                "structure": {
-                    "na": m.structure.na,
-                    "nb": list(m.structure.nb),
-                    "nk": list(m.structure.nk),
-                },
+                "structure": _structure_dict(m.structure),
                 "optimiser": self.optimiser,
                 "params": self.params,
                 "seed": self.seed,
@@ -441,6 +452,18 @@ class Identification:
                 "data": self.data_info,
             }
         )
+
+
+def _structure_dict(structure: Any) -> dict[str, Any]:
+    """The structure's name and orders (an ARX structure's as before, with its name)."""
+    if isinstance(structure, PolynomialStructure):
+        return structure.to_dict()
+    return {
+        "structure": "arx",
+        "na": structure.na,
+        "nb": list(structure.nb),
+        "nk": list(structure.nk),
+    }
 
 
 _REPORT_ROWS = (
@@ -746,7 +769,7 @@ def identify(
             )
         oe = estimation.output_error_reference(seed=0 if seed is None else seed)
         model = structure.model(oe.theta, dt=est.dt)
-        result, used_params, used_seed = None, {"starts": len(oe.starts)}, seed
+        result, used_params, used_seed = None, {"starts": len(oe.runs)}, seed
         cost_value = float(oe.cost)
     elif optimiser in (OUTPUT_ERROR, PREDICTION_ERROR):
         oe = estimation.output_error_reference(seed=0 if seed is None else seed)

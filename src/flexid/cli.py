@@ -309,6 +309,10 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 na=args.na,
                 nb=_int_list(args.nb, "--nb"),
                 nk=_int_list(args.nk, "--nk") if args.nk is not None else 1,
+                structure=args.structure,
+                nc=args.nc,
+                nd=args.nd,
+                nf=_int_list(args.nf, "--nf"),
                 cost=CostSpec(**_cost_overrides(args)),
                 search=SearchSpec(**_search_overrides(args)),
             )
@@ -535,8 +539,15 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--runs", type=int, help="runs (seeds) per optimiser")
     c.add_argument("--budget", type=int, help="function evaluations per run")
     c.add_argument("--seed", type=int, help="comparison seed")
-    c.add_argument("--na", type=int, help="model order (built-in comparison)")
+    c.add_argument(
+        "--structure",
+        help=f"model structure: {' | '.join(STRUCTURE_NAMES)} (built-in comparison; default arx)",
+    )
+    c.add_argument("--na", type=int, help="order of A (built-in comparison)")
     c.add_argument("--nb", help="B coefficients (built-in comparison)")
+    c.add_argument("--nc", type=int, help="order of C (armax, bj; built-in comparison)")
+    c.add_argument("--nd", type=int, help="order of D (bj; built-in comparison)")
+    c.add_argument("--nf", help="order of F (oe, bj; built-in comparison)")
     c.add_argument("--nk", help="input delay (built-in comparison)")
     c.add_argument("--cost", help="paper (default) | rmse | nrmse | sse | mse")
     c.add_argument("--predictor", help="one-step (default) | simulation")

@@ -755,6 +755,10 @@ def default_spec(
     nk: Any = 1,
     cost: CostSpec | None = None,
     search: SearchSpec | None = None,
+    structure: str | None = None,
+    nc: int | None = None,
+    nd: int | None = None,
+    nf: Any = None,
 ) -> ComparisonSpec:
     """The built-in comparison: the paper's experiment on a simulated plant, small by default.
 
@@ -781,6 +785,14 @@ def default_spec(
         The cost (default :class:`CostSpec`).
     search : SearchSpec, optional
         The search space (default :class:`SearchSpec`).
+    structure : {"arx", "armax", "oe", "bj"}, optional
+        The model structure (default ARX, the paper's); its orders are ``na``, ``nb``,
+        ``nc``, ``nd``, ``nf``, ``nk`` as that structure takes them (``na`` defaults to the
+        plant's order only for ARX).
+    nc, nd : int, optional
+        Orders of ``C`` and ``D``.
+    nf : int or list of int, optional
+        Order of ``F``.
 
     Returns
     -------
@@ -798,12 +810,14 @@ def default_spec(
     if plant not in presets:
         raise UnknownNameError("plant", plant, presets)
     preset, order = presets[plant]
-    na = order if na is None else na
+    structure = structure or "arx"
+    if structure == "arx" and na is None:
+        na = order
     names = list(optimisers) if optimisers else list(DEFAULT_OPTIMISERS)
     return ComparisonSpec(
         name=f"{plant}-default",
         data=DataSpec(plant=plant, preset=preset, seed=0),
-        model=ModelSpec(na=na, nb=nb, nk=nk),
+        model=ModelSpec(na=na, nb=nb, nk=nk, structure=structure, nc=nc, nd=nd, nf=nf),
         cost=cost or CostSpec(),
         search=search or SearchSpec(),
         optimisers=tuple(OptimiserSpec(n) for n in names),

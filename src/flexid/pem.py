@@ -202,6 +202,10 @@ class PEMResult:
         ``model.is_stable``: every root of ``A`` and the ``F_j`` strictly inside the circle.
     predictor_stable : bool
         ``model.predictor_stable``: ``C`` and the ``F_j`` strictly inside the circle.
+    cost : float
+        The value of an optimiser's cost at ``theta`` when the reference was run for one
+        (:meth:`flexid.estimation.PolynomialEstimationProblem.output_error_reference`);
+        NaN otherwise.
     """
 
     model: PolynomialModel
@@ -222,6 +226,12 @@ class PEMResult:
     message: str
     stable: bool
     predictor_stable: bool
+    cost: float = float("nan")
+
+    @property
+    def nfev_equivalent(self) -> int:
+        """``nfev + njev * n_params``: a Jacobian is ``n_params`` sensitivity filters."""
+        return int(self.nfev + self.njev * self.theta.size)
 
 
 # =================================================================================== helpers
