@@ -773,7 +773,13 @@ def identify(
         cost_value = float(oe.cost)
     elif optimiser in (OUTPUT_ERROR, PREDICTION_ERROR):
         oe = estimation.output_error_reference(seed=0 if seed is None else seed)
-        model = oe.model if oe.model.dt == est.dt else structure.model(oe.theta, dt=est.dt)
+        model = type(oe.model)(
+            structure,
+            oe.theta,
+            dt=est.dt,
+            param_std=oe.model.param_std,
+            noise_variance=oe.model.noise_variance,
+        )
         result, used_params, used_seed = None, {"starts": len(oe.runs)}, seed
         cost_value = float(oe.cost)
     else:
