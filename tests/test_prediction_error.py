@@ -1,4 +1,4 @@
-"""Tests of the prediction-error reference (:mod:`flexid.pem`).
+"""Tests of the prediction-error reference (:mod:`flexid.prediction_error`).
 
 The known systems are simulated here with ``scipy.signal.lfilter`` from rest, driven by seeded
 white noise: ``A y = sum_j B_j/F_j u_j(t - nk_j) + C/D e`` with unit-variance inputs and an
@@ -21,7 +21,8 @@ from flexid.arx import ARXStructure
 from flexid.errors import ConfigError, DataError, ModelOrderError
 from flexid.objective import ARXCost
 from flexid.output_error import output_error
-from flexid.pem import (
+from flexid.polynomial import PolynomialStructure, run_predictor, structure
+from flexid.prediction_error import (
     OPTIMALITY_THRESHOLD,
     PEMResult,
     armax,
@@ -31,7 +32,6 @@ from flexid.pem import (
     prediction_errors,
     prediction_jacobian,
 )
-from flexid.polynomial import PolynomialStructure, run_predictor, structure
 from flexid.stability import is_stable, pole_radius_batched
 
 ROBOT_ARM = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "robot_arm.csv"
@@ -100,7 +100,7 @@ def _reference_errors(s, theta, u, y, initial):
 
 
 def _cascade(s, theta, u, y):
-    """``D/C (A y - sum_j B_j/F_j u_j)`` from rest, grouped differently from flexid.pem's
+    """``D/C (A y - sum_j B_j/F_j u_j)`` from rest, grouped differently from the module's
     cascade: ``(D A / C) y - sum_j (D B_j / (C F_j)) u_j``."""
     m = s.model(theta)
     e = signal.lfilter(np.convolve(m.d, m.a), m.c, y)

@@ -1,4 +1,4 @@
-"""flexid: flexible-plant simulators, ARX identification with pluggable optimisers, fair comparison.
+"""flexid: flexible-plant simulators, identification with pluggable optimisers, fair comparison.
 
 The names here are the front door; each is imported from its module on first use, so
 ``import flexid`` stays quick (it does not import Gymnasium).
@@ -6,7 +6,12 @@ The names here are the front door; each is imported from its module on first use
 Data and models
     :class:`IOData`, :func:`load`, :func:`save`, :func:`generate`, :class:`ARX`,
     :class:`ARXStructure`, :class:`ARXCost`, :func:`is_stable`, :func:`validate`,
-    :class:`ValidationReport`
+    :class:`ValidationReport`; the polynomial family (ARX, ARMAX, OE, BJ):
+    :func:`structure`, :class:`PolynomialStructure`, :class:`PolynomialModel`,
+    :class:`PolynomialCost`
+References
+    :func:`pem` and MATLAB's :func:`oe`, :func:`armax`, :func:`bj` (Levenberg-Marquardt on
+    the prediction errors, analytic gradients)
 Identification
     :func:`identify` -> :class:`Identification`; the search box (:class:`SearchBox`,
     :func:`search_box`), search space (:class:`SearchSpec`) and cost (:class:`CostSpec`)
@@ -64,6 +69,15 @@ _LAZY = {
     "is_stable": "stability",
     "validate": "validation",
     "ValidationReport": "validation",
+    "structure": "polynomial",
+    "PolynomialStructure": "polynomial",
+    "PolynomialModel": "polynomial",
+    "PolynomialCost": "polynomial_cost",
+    # references
+    "pem": "prediction_error",
+    "oe": "prediction_error",
+    "armax": "prediction_error",
+    "bj": "prediction_error",
     # identification (the function lives in a private module: no module shares its name)
     "identify": "_identify",
     "Identification": "_identify",

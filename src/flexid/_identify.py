@@ -634,8 +634,8 @@ def identify(
         squares (the exact optimum of the one-step ARX cost; for other structures the ARX
         least-squares estimate read as the structure, the start of the reference), or
         ``"pem"`` for the gradient reference of the cost: Levenberg-Marquardt with analytic
-        gradients from several starts (:func:`flexid.pem.pem`; for ARX with the simulation
-        predictor :func:`flexid.output_error.output_error`, also named ``"oe"``).
+        gradients from several starts (:func:`flexid.prediction_error.pem`; for ARX with the
+        simulation predictor :func:`flexid.output_error.output_error`, also named ``"oe"``).
     params : mapping, optional
         The optimiser's hyper-parameters.
     cost : str or CostSpec, optional

@@ -84,7 +84,7 @@ LEAST_SQUARES = "ls"
 #: The output-error (simulation cost) reference: an ``optimiser`` name of ``identify``.
 OUTPUT_ERROR = "oe"
 #: The gradient reference of any structure's cost (Levenberg-Marquardt with analytic
-#: gradients, :func:`flexid.pem.pem`): an ``optimiser`` name of ``identify``.
+#: gradients, :func:`flexid.prediction_error.pem`): an ``optimiser`` name of ``identify``.
 PREDICTION_ERROR = "pem"
 #: The ``optimiser`` names of the references, which take no FE budget.
 REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR)

@@ -442,7 +442,7 @@ class PolynomialEstimationProblem(EstimationProblem):
     As :class:`EstimationProblem`, with ``cost`` a
     :class:`~flexid.polynomial_cost.PolynomialCost` and ``parametrisation`` a
     :class:`~flexid.polynomial_space.PolynomialSpace`; the reference is the prediction-error
-    method (:func:`flexid.pem.pem`), Levenberg-Marquardt from several starts.
+    method (:func:`flexid.prediction_error.pem`), Levenberg-Marquardt from several starts.
 
     Attributes
     ----------
@@ -508,7 +508,7 @@ class PolynomialEstimationProblem(EstimationProblem):
         }
 
     def output_error_reference(self, *, starts: int = 4, seed: int = 0):
-        """The prediction-error reference (:func:`flexid.pem.pem`) of this cost.
+        """The prediction-error reference (:func:`flexid.prediction_error.pem`) of this cost.
 
         Levenberg-Marquardt on the structure's prediction errors (with this cost's predictor
         and initial-condition rule) from least squares, Steiglitz-McBride and
@@ -524,7 +524,7 @@ class PolynomialEstimationProblem(EstimationProblem):
         PEMResult
         """
         if self._oe is None or self._oe[0] != (starts, seed):
-            from .pem import pem
+            from .prediction_error import pem
 
             cost = self.cost
             ref = pem(

@@ -1,0 +1,1092 @@
+"""Order and structure selection (MATLAB ``arxstruc``/``selstruc``, ``aic``, ``fpe``).
+
+:func:`select` fits every candidate of a grid of polynomial structures (ARX, ARMAX, OE, BJ;
+:mod:`flexid.polynomial`) on the estimation part of a record, validates each on the held-out
+part (:func:`flexid.validation.validate`), scores each by the information criteria, and
+recommends one.  The result is a :class:`Selection`.
+
+Notes
+-----
+**Fitting.**  ARX candidates are fitted by least squares; the regressor matrix of the largest
+orders in the grid is built once and every candidate is a QR solve of its own columns over
+its own rows ``t >= start``, which is exactly what :meth:`flexid.arx.ARXStructure.least_squares`
+computes for that order alone (the ``arxstruc`` trick of sharing one regressor matrix; unlike
+``arxstruc``, each order keeps all the samples it can use).  The other structures are fitted
+by :func:`flexid.pem.pem` (Levenberg-Marquardt from ``2 + starts`` starts).
+
+**Criteria** (Ljung, *System Identification*, 2nd ed., sec. 16.4), with ``V = SSE / K`` the
+mean squared one-step prediction error on the estimation part, ``K = N - start`` the number of
+error samples of the candidate (``N`` in the formulas is ``K``) and ``d`` the number of
+estimated parameters (initial states, estimated under ``initial="estimate"``, are not
+counted, as in MATLAB):
+
+* ``AIC = K log V + 2 d``; MATLAB's *normalized* AIC (``aic(sys, "nAIC")``, the value
+  ``arxstruc``/``selstruc`` plot) is ``log V + 2 d / K`` (``aic_normalized``);
+* ``FPE = V (1 + d/K) / (1 - d/K)`` (Akaike's final prediction error);
+* ``MDL = BIC = K log V + d log K`` (Rissanen; Schwarz), normalized ``log V + d log(K) / K``.
+
+The ranking by AIC and MDL uses the normalized values.  With one ``K`` for all candidates the
+two forms rank alike; here ``K`` varies a little with the orders (``start`` does), and then
+the raw form ``K log V`` depends on the output's units (a change of unit adds ``K log c``,
+different for each candidate) while the normalized one does not.
+
+**Recommendation.**  An information criterion only weighs the one-step loss against the
+number of parameters: on coloured noise (any output-error situation: white noise *added to
+the output*) an ARX model keeps lowering its one-step loss by modelling the noise colour, so
+AIC, FPE and MDL pick over-fitted ARX orders whose simulation is poor.  The recommendation
+(:attr:`Selection.best`) is therefore the candidate with the best held-out *simulation* fit
+among those that pass every residual correlation test (:attr:`ValidationReport.passed
+<flexid.validation.ValidationReport.passed>`: whiteness, input cross-correlation and the
+Billings-Voon tests) and are stable, where a candidate whose held-out simulation error
+``||y - y_sim||`` is within ``parsimony`` (relative, default 1 %) of the best one's counts as
+equally good and the fewest parameters win.  When no candidate passes, the recommendation
+falls back to the best candidate by ``criterion`` (a stable one if any) and
+:attr:`Selection.note` says so.
+
+**Default grids** (:data:`DEFAULT_GRIDS`, ``nk`` from :func:`select`'s ``nk``):
+
+* ARX: ``na = nb`` in 1..20 (least squares, about 1 s with the validations);
+* OE: ``nb = nf`` in 1, 2, 3, 4, 6, 8, 12, 16 (about twice as dense per octave as
+  powers of two; order ``nf = 2 m`` holds ``m`` lightly damped modes);
+* ARMAX: ``na = nb`` in 1..8 with ``nc`` in 1..2;
+* BJ: ``nb = nf`` in 1..8 with ``nc = nd`` in 1..2.
+
+On the simulated flexible manipulator (``flexid.generate("manipulator",
+preset="paper-manipulator")``, 2,300 samples, 1,533 for estimation) the default
+``structures=("arx", "oe")`` takes about 30 s on one core, most of it in the misspecified OE
+orders 8 and 12, where Levenberg-Marquardt converges slowly; OE(16, 16, 1) is the order that
+passes every test there.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from itertools import product
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from scipy import linalg
+
+from ._json import jsonable
+from ._validate import integer, real
+from .errors import (
+    ConfigError,
+    DataError,
+    FlexidError,
+    ModelOrderError,
+    UnknownNameError,
+)
+from .polynomial import (
+    INITIAL_RULES,
+    STRUCTURES,
+    PolynomialModel,
+    PolynomialStructure,
+    structure,
+)
+from .validation import format_fit
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .data import IOData
+    from .validation import ValidationReport
+
+__all__ = [
+    "CRITERIA",
+    "DEFAULT_GRIDS",
+    "Candidate",
+    "Selection",
+    "arx_grid",
+    "default_grid",
+    "select",
+]
+
+#: The ranking criteria of :func:`select` and what each ranks by.
+CRITERIA: dict[str, str] = {
+    "aic": "normalized AIC, log V + 2 d / K (smallest first)",
+    "fpe": "FPE, V (1 + d/K) / (1 - d/K) (smallest first)",
+    "mdl": "normalized MDL/BIC, log V + d log(K) / K (smallest first)",
+    "bic": "normalized MDL/BIC, log V + d log(K) / K (smallest first; = mdl)",
+    "simulation": "held-out simulation fit (largest first)",
+}
+
+_OE_ORDERS = (1, 2, 3, 4, 6, 8, 12, 16)
+
+#: The default order grid of each structure (without ``nk``, which :func:`select` adds).
+DEFAULT_GRIDS: dict[str, tuple[dict[str, int], ...]] = {
+    "arx": tuple({"na": n, "nb": n} for n in range(1, 21)),
+    "armax": tuple({"na": n, "nb": n, "nc": c} for n in range(1, 9) for c in (1, 2)),
+    "oe": tuple({"nb": n, "nf": n} for n in _OE_ORDERS),
+    "bj": tuple({"nb": n, "nc": c, "nd": c, "nf": n} for n in range(1, 9) for c in (1, 2)),
+}
+
+_ORDER_KEYS = frozenset(k for orders in STRUCTURES.values() for k in orders)
+
+
+# ================================================================================ results
+@dataclass
+class Candidate:
+    """One fitted and validated candidate of :func:`select`.
+
+    Attributes
+    ----------
+    structure : PolynomialStructure
+        The orders.
+    n_params : int
+        ``d``, the number of estimated parameters.
+    K : int
+        Error samples of the estimation loss, ``N_est - structure.start``.
+    sse : float
+        Sum of squared one-step prediction errors on the estimation part (output units
+        squared); NaN when the fit failed.
+    fit_simulation, fit_one_step : float
+        Held-out NRMSE fits in % (validation part, ``initial`` rule); ``-inf`` for a
+        diverging simulation, NaN when the fit failed.
+    passed : bool
+        Every residual correlation test passes (linear and Billings-Voon).
+    linear_passed : bool
+        The whiteness and input cross-correlation tests pass.
+    stable : bool
+        Every pole of the plant part inside the unit circle.
+    local_minimum : bool
+        The estimate is a first-order local minimum (always true for least squares).
+    fit_time : float
+        Seconds spent fitting (for ARX: the candidate's own QR solve).
+    validation_time : float
+        Seconds spent validating.
+    model : PolynomialModel or None
+        The fitted model (None when the fit failed).
+    report : ValidationReport or None
+        The held-out validation (None when the fit or the validation failed).
+    error : str or None
+        Why the candidate could not be fitted or validated (a rank-deficient regression,
+        say); such a candidate is ranked last and never recommended.
+    """
+
+    structure: PolynomialStructure
+    n_params: int
+    K: int
+    sse: float = math.nan
+    fit_simulation: float = math.nan
+    fit_one_step: float = math.nan
+    passed: bool = False
+    linear_passed: bool = False
+    stable: bool = False
+    local_minimum: bool = False
+    fit_time: float = 0.0
+    validation_time: float = 0.0
+    model: PolynomialModel | None = field(default=None, repr=False)
+    report: ValidationReport | None = field(default=None, repr=False)
+    error: str | None = None
+
+    @property
+    def kind(self) -> str:
+        """The structure's name: ``"arx"``, ``"armax"``, ``"oe"``, ``"bj"`` or ``"polynomial"``."""
+        return self.structure.kind
+
+    @property
+    def orders(self) -> dict[str, Any]:
+        """The orders, MATLAB's order (``{"nb": 2, "nf": 2, "nk": 1}``)."""
+        return self.structure.orders
+
+    @property
+    def label(self) -> str:
+        """``"OE(nb=2, nf=2, nk=1)"``."""
+        return repr(self.structure)
+
+    @property
+    def loss(self) -> float:
+        """``V = SSE / K``, the mean squared one-step prediction error (output units squared)."""
+        return self.sse / self.K
+
+    @property
+    def aic(self) -> float:
+        """``K log V + 2 d``."""
+        return self.K * _log(self.loss) + 2.0 * self.n_params
+
+    @property
+    def aic_normalized(self) -> float:
+        """MATLAB's normalized AIC, ``log V + 2 d / K``."""
+        return _log(self.loss) + 2.0 * self.n_params / self.K
+
+    @property
+    def fpe(self) -> float:
+        """Akaike's final prediction error ``V (1 + d/K) / (1 - d/K)`` (output units squared)."""
+        r = self.n_params / self.K
+        return self.loss * (1.0 + r) / (1.0 - r)
+
+    @property
+    def mdl(self) -> float:
+        """Rissanen's MDL (Schwarz's BIC), ``K log V + d log K``."""
+        return self.K * _log(self.loss) + self.n_params * math.log(self.K)
+
+    @property
+    def mdl_normalized(self) -> float:
+        """``log V + d log(K) / K``."""
+        return _log(self.loss) + self.n_params * math.log(self.K) / self.K
+
+    @property
+    def ok(self) -> bool:
+        """The candidate was fitted and validated (no :attr:`error`)."""
+        return self.error is None
+
+    def score(self, criterion: str) -> float:
+        """The value ranked by ``criterion``, smaller is better.
+
+        Parameters
+        ----------
+        criterion : {"aic", "fpe", "mdl", "bic", "simulation"}
+            See :data:`CRITERIA`.
+
+        Returns
+        -------
+        float
+            The normalized AIC or MDL, the FPE, or minus the held-out simulation fit; ``inf``
+            for a failed candidate (and a diverging simulation under ``"simulation"``).
+
+        Raises
+        ------
+        UnknownNameError
+            For an unknown criterion.
+        """
+        criterion = _check_criterion(criterion)
+        if not self.ok:
+            return math.inf
+        value = {
+            "aic": self.aic_normalized,
+            "fpe": self.fpe,
+            "mdl": self.mdl_normalized,
+            "bic": self.mdl_normalized,
+            "simulation": -self.fit_simulation,
+        }[criterion]
+        return value if not math.isnan(value) else math.inf
+
+    def to_dict(self) -> dict[str, Any]:
+        """The candidate's numbers as a JSON-safe dictionary.
+
+        Returns
+        -------
+        dict
+            ``structure`` (name), ``orders``, ``label``, ``n_params``, ``K``, ``sse``,
+            ``loss``, ``aic``, ``aic_normalized``, ``fpe``, ``mdl``, ``mdl_normalized``,
+            ``fit_simulation``, ``fit_one_step``, ``passed``, ``linear_passed``, ``stable``,
+            ``local_minimum``, ``fit_time``, ``validation_time`` (s), ``error`` and
+            ``theta`` (None when the fit failed).  Non-finite numbers are None.
+        """
+        return jsonable(
+            {
+                "structure": self.kind,
+                "orders": self.orders,
+                "label": self.label,
+                "n_params": self.n_params,
+                "K": self.K,
+                "sse": self.sse,
+                "loss": self.loss,
+                "aic": self.aic,
+                "aic_normalized": self.aic_normalized,
+                "fpe": self.fpe,
+                "mdl": self.mdl,
+                "mdl_normalized": self.mdl_normalized,
+                "fit_simulation": self.fit_simulation,
+                "fit_one_step": self.fit_one_step,
+                "passed": self.passed,
+                "linear_passed": self.linear_passed,
+                "stable": self.stable,
+                "local_minimum": self.local_minimum,
+                "fit_time": self.fit_time,
+                "validation_time": self.validation_time,
+                "error": self.error,
+                "theta": None if self.model is None else self.model.theta,
+            }
+        )
+
+
+def _log(v: float) -> float:
+    if math.isnan(v):
+        return math.nan
+    return math.log(v) if v > 0 else -math.inf
+
+
+@dataclass
+class Selection:
+    """The outcome of :func:`select`.
+
+    Attributes
+    ----------
+    candidates : list of Candidate
+        Every candidate, in grid order.
+    best : Candidate or None
+        The recommendation (see the module notes); None only when no candidate could be
+        fitted.
+    criterion : str
+        The ranking criterion (:data:`CRITERIA`).
+    note : str
+        How the recommendation was reached (and when it is only a fallback, why).
+    initial : str
+        The initial-condition rule of the fits and validations.
+    max_lag : int
+        Largest lag of the correlation tests.
+    n_estimation, n_validation : int
+        Samples of the estimation and validation parts.
+    dt : float
+        Sample time in seconds.
+    parsimony : float
+        Relative tolerance on the held-out simulation error within which fewer parameters
+        win.
+    wall_time : float
+        Seconds, start to finish.
+    """
+
+    candidates: list[Candidate]
+    best: Candidate | None
+    criterion: str
+    note: str
+    initial: str = "estimate"
+    max_lag: int = 25
+    n_estimation: int = 0
+    n_validation: int = 0
+    dt: float = 1.0
+    parsimony: float = 0.01
+    wall_time: float = 0.0
+
+    @property
+    def best_model(self) -> PolynomialModel | None:
+        """The recommended model (None when no candidate could be fitted)."""
+        return None if self.best is None else self.best.model
+
+    def ranked(self, criterion: str | None = None) -> list[Candidate]:
+        """The candidates sorted by a criterion, best first (failed candidates last).
+
+        Parameters
+        ----------
+        criterion : {"aic", "fpe", "mdl", "bic", "simulation"}, optional
+            Default: :attr:`criterion`.
+
+        Returns
+        -------
+        list of Candidate
+            Ties keep the grid order.
+
+        Raises
+        ------
+        UnknownNameError
+            For an unknown criterion.
+        """
+        criterion = _check_criterion(self.criterion if criterion is None else criterion)
+        return sorted(self.candidates, key=lambda c: c.score(criterion))
+
+    def _title(self) -> str:
+        n_passed = sum(c.passed for c in self.candidates)
+        return (
+            f"Structure selection: {len(self.candidates)} candidates, {n_passed} pass every "
+            f"correlation test"
+        )
+
+    def _items(self) -> list[tuple[str, str]]:
+        kinds = sorted({c.kind for c in self.candidates})
+        return [
+            (
+                "data",
+                f"{self.n_estimation} samples for estimation, {self.n_validation} held out "
+                f"for validation, dt = {self.dt:g} s",
+            ),
+            ("structures", ", ".join(k.upper() for k in kinds)),
+            ("ranked by", f"{self.criterion}: {CRITERIA[self.criterion]}"),
+            (
+                "validation",
+                f"initial state {self.initial}, correlation tests up to lag {self.max_lag}",
+            ),
+            (
+                "recommended",
+                "none" if self.best is None else
+                f"{self.best.label}, held-out simulation fit "
+                f"{format_fit(self.best.fit_simulation)} %",
+            ),
+            ("time", f"{self.wall_time:.2f} s"),
+        ]
+
+    def _rows(self) -> list[list[str]]:
+        head = [
+            "rank",
+            "candidate",
+            "d",
+            "V",
+            "AIC/K",
+            "FPE",
+            "MDL/K",
+            "fit sim %",
+            "fit 1-step %",
+            "tests",
+            "stable",
+            "time s",
+            "",
+        ]
+        rows = [head]
+        for i, c in enumerate(self.ranked(), start=1):
+            mark = "<- recommended" if c is self.best else ""
+            if not c.ok:
+                rows.append(
+                    [str(i), c.label, str(c.n_params)] + ["-"] * 9 + [f"failed: {c.error}"]
+                )
+                continue
+            tests = "pass" if c.passed else ("fail BV" if c.linear_passed else "fail")
+            rows.append(
+                [
+                    str(i),
+                    c.label,
+                    str(c.n_params),
+                    _g(c.loss),
+                    f"{c.aic_normalized:.4f}",
+                    _g(c.fpe),
+                    f"{c.mdl_normalized:.4f}",
+                    format_fit(c.fit_simulation),
+                    format_fit(c.fit_one_step),
+                    tests,
+                    "yes" if c.stable else "NO",
+                    f"{c.fit_time + c.validation_time:.2f}",
+                    mark,
+                ]
+            )
+        return rows
+
+    def table(self) -> str:
+        """The candidates as a plain-text table, sorted by :attr:`criterion`.
+
+        Returns
+        -------
+        str
+            One row per candidate: rank, structure and orders, ``d``, ``V``, the normalized
+            AIC and MDL (``AIC/K``, ``MDL/K``), FPE, held-out simulation and one-step fits,
+            the correlation tests (``pass``; ``fail BV``: only the Billings-Voon tests fail;
+            ``fail``), stability, fit + validation time, and the recommendation marked.
+        """
+        return _format_table(self._rows())
+
+    def summary(self) -> str:
+        """A readable account: what was compared, the table, and the recommendation's note.
+
+        Returns
+        -------
+        str
+            The header lines, :meth:`table` and :attr:`note`.
+        """
+        lines = [self._title()]
+        lines += [f"  {label:<11}: {value}" for label, value in self._items()]
+        lines += ["", self.table(), "", self.note]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        """The notebook display: the header, the table and the note of :meth:`summary`."""
+        from . import _html
+
+        return _html.block(
+            self._title(),
+            _html.key_values(self._items()),
+            _html.table(self._rows(), left=2),
+            _html.paragraph(self.note),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The selection as a JSON-safe dictionary.
+
+        Returns
+        -------
+        dict
+            ``criterion``, ``note``, ``initial``, ``max_lag``, ``n_estimation``,
+            ``n_validation``, ``dt`` (s), ``parsimony``, ``wall_time`` (s), ``best`` (the
+            index of the recommendation in ``candidates``, or None), ``best_model``
+            (:meth:`PolynomialModel.to_dict <flexid.polynomial.PolynomialModel.to_dict>` or
+            None), ``ranking`` (candidate indices sorted by the criterion) and
+            ``candidates`` (:meth:`Candidate.to_dict` each, grid order).  Non-finite numbers
+            are None.
+        """
+        index = {id(c): i for i, c in enumerate(self.candidates)}
+        return jsonable(
+            {
+                "criterion": self.criterion,
+                "note": self.note,
+                "initial": self.initial,
+                "max_lag": self.max_lag,
+                "n_estimation": self.n_estimation,
+                "n_validation": self.n_validation,
+                "dt": self.dt,
+                "parsimony": self.parsimony,
+                "wall_time": self.wall_time,
+                "best": None if self.best is None else index[id(self.best)],
+                "best_model": None if self.best_model is None else self.best_model.to_dict(),
+                "ranking": [index[id(c)] for c in self.ranked()],
+                "candidates": [c.to_dict() for c in self.candidates],
+            }
+        )
+
+
+def _g(value: float) -> str:
+    return "-" if value is None or math.isnan(value) else f"{value:.4g}"
+
+
+def _format_table(rows: list[list[str]]) -> str:
+    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
+    lines = []
+    for n, row in enumerate(rows):
+        cells = [
+            str(c).ljust(w) if i in (1, len(row) - 1) else str(c).rjust(w)
+            for i, (c, w) in enumerate(zip(row, widths))
+        ]
+        lines.append("  ".join(cells).rstrip())
+        if n == 0:
+            lines.append("  ".join("-" * w for w in widths).rstrip())
+    return "\n".join(lines)
+
+
+# ================================================================================ grids
+def default_grid(name: str, nk: int | Sequence[int] = 1) -> list[dict[str, Any]]:
+    """The default order grid of a structure (:data:`DEFAULT_GRIDS`) with the delay ``nk``.
+
+    Parameters
+    ----------
+    name : {"arx", "armax", "oe", "bj"}
+        The structure.
+    nk : int or sequence of int, optional
+        Input delay in samples (one per input), added to every entry.
+
+    Returns
+    -------
+    list of dict
+        One dictionary of orders per candidate, e.g. ``{"nb": 2, "nf": 2, "nk": 1}``.
+
+    Raises
+    ------
+    UnknownNameError
+        For an unknown structure name.
+    """
+    key = _check_name(name)
+    return [{**entry, "nk": nk} for entry in DEFAULT_GRIDS[key]]
+
+
+def _check_name(name: Any) -> str:
+    key = str(name).lower() if isinstance(name, str) else None
+    if key not in STRUCTURES:
+        raise UnknownNameError("model structure in structures", str(name), tuple(STRUCTURES))
+    return key
+
+
+def _check_criterion(criterion: Any) -> str:
+    if not isinstance(criterion, str) or criterion.lower() not in CRITERIA:
+        raise UnknownNameError("selection criterion", str(criterion), tuple(CRITERIA))
+    return criterion.lower()
+
+
+def _product_grid(spec: Mapping[str, Any], where: str) -> list[dict[str, Any]]:
+    """``{"nb": range(1, 4), "nf": [2, 3], "nk": 1}`` -> the product of the values."""
+    unknown = [k for k in spec if k not in _ORDER_KEYS]
+    if unknown:
+        raise ModelOrderError(
+            f"{where} has unknown order name(s) {', '.join(map(repr, unknown))}; order names "
+            f"are {', '.join(sorted(_ORDER_KEYS))}"
+        )
+    names = list(spec)
+    values = []
+    for k in names:
+        v = spec[k]
+        items = [v] if np.isscalar(v) else list(v)
+        if not items:
+            raise ModelOrderError(f"{where}: the values of {k} are empty")
+        values.append(items)
+    return [dict(zip(names, combo)) for combo in product(*values)]
+
+
+def _entries(grid: Any, where: str) -> list[dict[str, Any]]:
+    """A grid given as a list of dicts or a product mapping, as a list of dicts."""
+    if isinstance(grid, Mapping):
+        return _product_grid(grid, where)
+    if isinstance(grid, (str, bytes)) or not isinstance(grid, Iterable):
+        raise ModelOrderError(
+            f"{where} must be a list of dicts of orders or a mapping order name -> values, "
+            f"got {type(grid).__name__}"
+        )
+    out = []
+    for i, entry in enumerate(grid):
+        if not isinstance(entry, Mapping):
+            raise ModelOrderError(
+                f"{where}[{i}] must be a dict of orders such as {{'nb': 2, 'nf': 2}}, got "
+                f"{entry!r}"
+            )
+        out.append(dict(entry))
+    if not out:
+        raise ModelOrderError(f"{where} is empty")
+    return out
+
+
+def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
+    """The grid of each named structure (``nk`` not filled in yet)."""
+    if orders is None:
+        return {name: [dict(e) for e in DEFAULT_GRIDS[name]] for name in names}
+    if isinstance(orders, Mapping) and orders:
+        keys = [str(k).lower() if isinstance(k, str) else k for k in orders]
+        if all(k in STRUCTURES for k in keys):
+            per = dict(zip(keys, orders.values()))
+            extra = [k for k in per if k not in names]
+            if extra:
+                raise ModelOrderError(
+                    f"orders has a grid for {', '.join(map(repr, extra))}, which is not in "
+                    f"structures {tuple(names)}"
+                )
+            return {
+                name: _entries(per[name], f"orders[{name!r}]")
+                if name in per
+                else [dict(e) for e in DEFAULT_GRIDS[name]]
+                for name in names
+            }
+        if any(k in STRUCTURES for k in keys):
+            raise ModelOrderError(
+                "orders mixes structure names and order names; give either a mapping "
+                "structure -> grid or a mapping order name -> values"
+            )
+    entries = _entries(orders, "orders")
+    return {name: [dict(e) for e in entries] for name in names}
+
+
+def _candidate_structures(
+    structures: Any, orders: Any, nk: Any, n_inputs: int
+) -> list[PolynomialStructure]:
+    """Every candidate's structure, checked (orders, inputs), duplicates removed."""
+    if isinstance(structures, (str, PolynomialStructure)) or not isinstance(
+        structures, Iterable
+    ):
+        structures = (structures,)
+    structures = list(structures)
+    if not structures:
+        raise ConfigError(f"structures is empty; give names from {tuple(STRUCTURES)}")
+    from .arx import ARXStructure
+
+    names: list[str] = []
+    fixed: list[PolynomialStructure] = []
+    for s in structures:
+        if isinstance(s, PolynomialStructure):
+            fixed.append(s)
+        elif isinstance(s, ARXStructure):
+            fixed.append(PolynomialStructure.arx(s.na, s.nb, s.nk))
+        else:
+            key = _check_name(s)
+            if key not in names:
+                names.append(key)
+    made: list[PolynomialStructure] = []
+    for name, entries in _grids(names, orders).items():
+        for i, entry in enumerate(entries):
+            entry = {"nk": nk, **entry}
+            try:
+                made.append(structure(name, **entry))
+            except ModelOrderError as exc:
+                raise ModelOrderError(
+                    f"orders entry {i} of {name} ({_entry_text(entry)}): {exc}"
+                ) from None
+    out: list[PolynomialStructure] = []
+    for s in [*made, *fixed]:
+        if s.n_inputs != n_inputs:
+            raise ModelOrderError(
+                f"{s!r} has {s.n_inputs} input(s) but the record has {n_inputs}; give nb, nf "
+                "and nk one value per input (or one value for all)"
+            )
+        if s not in out:
+            out.append(s)
+    return out
+
+
+def _entry_text(entry: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in entry.items())
+
+
+# ================================================================================ ARX grid
+def arx_grid(
+    u: Any, y: Any, structures: Sequence[PolynomialStructure], dt: float = 1.0
+) -> list[PolynomialModel | FlexidError]:
+    """Least-squares ARX fits of many orders from one shared regressor matrix.
+
+    The regressor matrix of the largest orders (``-y(t-1) .. -y(t-na_max)`` and each input's
+    lags ``0 .. max(nk + nb - 1)``, zero before ``t = 0``) is built once; each order is the
+    QR solve of its own columns over its own rows ``t >= start``, the same numbers as
+    :meth:`flexid.arx.ARXStructure.least_squares` for that order alone.
+
+    Parameters
+    ----------
+    u : array_like, shape (N,) or (N, n_u)
+        Inputs.
+    y : array_like, shape (N,)
+        Output.
+    structures : sequence of PolynomialStructure
+        ARX structures (``structure.kind == "arx"``), each with ``n_u`` inputs and fewer
+        parameters than its ``N - start`` equations.
+    dt : float, optional
+        Sample time in seconds, given to the models.
+
+    Returns
+    -------
+    list
+        Per structure, a :class:`~flexid.polynomial.PolynomialModel` with ``param_std`` and
+        ``noise_variance = SSE / (K - d)`` as :meth:`~flexid.arx.ARXStructure.least_squares`
+        gives them, or the :class:`~flexid.errors.DataError` raised for a rank-deficient
+        regression (an input that does not excite that order).
+
+    Raises
+    ------
+    ModelOrderError
+        For a structure that is not ARX, has the wrong number of inputs, or does not fit in
+        the record.
+    DataError
+        For bad signals.
+    """
+    from .arx import _io_arrays
+
+    u, y = _io_arrays(u, y)
+    n, m = u.shape[0], u.shape[1]
+    for s in structures:
+        if s.kind != "arx" or s.nc or s.nd or any(s.nf):
+            raise ModelOrderError(f"arx_grid takes ARX structures only, got {s!r}")
+        if s.n_inputs != m:
+            raise ModelOrderError(f"{s!r} has {s.n_inputs} input(s) but u has {m} column(s)")
+        s.check_samples(n)
+    if not structures:
+        return []
+    na_max = max(s.na for s in structures)
+    last = [max((s.nk[j] + s.nb[j] - 1 for s in structures if s.nb[j]), default=-1)
+            for j in range(m)]
+    pad = max([na_max, *last, 0])
+    yp = np.concatenate([np.zeros(pad), y])
+    up = np.vstack([np.zeros((pad, m)), u])
+    cols = [-yp[pad - i : pad - i + n] for i in range(1, na_max + 1)]
+    offsets = []
+    for j in range(m):
+        offsets.append(len(cols))
+        cols += [up[pad - k : pad - k + n, j] for k in range(last[j] + 1)]
+    phi_all = np.column_stack(cols)
+    out: list[PolynomialModel | FlexidError] = []
+    for s in structures:
+        index = list(range(s.na))
+        for j in range(m):
+            index += [offsets[j] + k for k in range(s.nk[j], s.nk[j] + s.nb[j])]
+        try:
+            out.append(_least_squares(s, phi_all[s.start :, index], y[s.start :], dt))
+        except DataError as exc:
+            out.append(exc)
+    return out
+
+
+def _least_squares(
+    s: PolynomialStructure, phi: np.ndarray, target: np.ndarray, dt: float
+) -> PolynomialModel:
+    """:meth:`ARXStructure.least_squares`'s computation on given regressors."""
+    q, r = linalg.qr(phi, mode="economic")
+    diag = np.abs(np.diag(r))
+    if diag.size and diag.min() <= diag.max() * 1e-13:
+        raise DataError(
+            f"the regressors are rank deficient (the input is not persistently exciting for "
+            f"{s!r})"
+        )
+    theta = linalg.solve_triangular(r, q.T @ target)
+    resid = target - phi @ theta
+    k = target.shape[0]
+    sigma2 = float(resid @ resid) / (k - s.n_params)
+    rinv = linalg.solve_triangular(r, np.eye(s.n_params))
+    std = np.sqrt(sigma2 * np.sum(rinv * rinv, axis=1))
+    return PolynomialModel(s, theta, dt=dt, param_std=std, noise_variance=sigma2)
+
+
+# ================================================================================ select
+def _as_record(data: Any, what: str) -> Any:
+    from .data import IOData
+
+    if isinstance(data, tuple) and len(data) == 2:
+        return IOData(*data)
+    if isinstance(data, (IOData, str, os.PathLike)):
+        return data
+    raise DataError(
+        f"{what} must be an IOData, a (u, y) tuple or a path, got {type(data).__name__}"
+    )
+
+
+def _progress(progress: Any, total: int) -> Callable[[Candidate | None], None]:
+    if callable(progress) and not isinstance(progress, bool):
+        return lambda c: None if c is None else progress(c)
+    if not progress or total == 0:
+        return lambda c: None
+    from .progress import ProgressBar
+
+    bar = ProgressBar(total, "select")
+
+    def update(c: Candidate | None) -> None:
+        if c is None:
+            bar.close()
+        else:
+            bar.update(1, f"{c.label} fit {format_fit(c.fit_simulation)} %")
+
+    return update
+
+
+def select(
+    data: IOData | tuple | str | os.PathLike,
+    structures: Any = ("arx", "oe"),
+    orders: Any = None,
+    *,
+    nk: int | Sequence[int] = 1,
+    split: float | int | None = None,
+    validation: IOData | tuple | str | os.PathLike | None = None,
+    initial: str = "estimate",
+    criterion: str = "simulation",
+    max_lag: int = 25,
+    starts: int = 2,
+    seed: int = 0,
+    parsimony: float = 0.01,
+    progress: bool | Callable[[Candidate], Any] = False,
+) -> Selection:
+    """Fit, validate and rank a grid of polynomial structures, and recommend one.
+
+    Every candidate is fitted on the estimation part (ARX by least squares from one shared
+    regressor matrix, the others by :func:`flexid.pem.pem`), validated on the held-out part
+    (:func:`flexid.validation.validate`: simulation and one-step fits, residual correlation
+    tests, stability) and scored by AIC, FPE and MDL (see the module notes).  The
+    recommendation is the best held-out simulation fit among the candidates that pass every
+    correlation test and are stable (fewest parameters among those within ``parsimony`` of
+    it); an information criterion alone is not used for it, since on coloured noise it picks
+    over-fitted ARX orders.
+
+    Parameters
+    ----------
+    data : IOData, (u, y) tuple or path
+        Single-output record (``u`` shape (N,) or (N, n_u), ``y`` shape (N,)); a path is read
+        with :func:`flexid.data.load`.
+    structures : str, PolynomialStructure or sequence of them, optional
+        Structure names from :data:`flexid.polynomial.STRUCTURES` (``"arx"``, ``"armax"``,
+        ``"oe"``, ``"bj"``; each gets its grid from ``orders``), and/or
+        :class:`~flexid.polynomial.PolynomialStructure` objects (each one candidate as it
+        is).  Default ``("arx", "oe")``.
+    orders : list of dict or mapping, optional
+        The grid.  None: :data:`DEFAULT_GRIDS`.  A list of dicts of orders
+        (``[{"nb": 16, "nf": 16}, ...]``) applies to every named structure; a mapping
+        order name -> values (``{"nb": range(1, 5), "nf": range(1, 5)}``; a scalar is one
+        value) is the product of the values; a mapping structure name -> either of those
+        gives each structure its grid (structures it leaves out keep their default grid).
+    nk : int or sequence of int, optional
+        Input delay in samples (one per input) of every grid entry without its own ``nk``.
+    split : float or int, optional
+        Estimation share in (0, 1) (default 2/3, the first part) or the sample index where
+        the validation part starts.
+    validation : IOData, (u, y) tuple or path, optional
+        A separate validation record; then all of ``data`` is for estimation.
+    initial : {"estimate", "zero", "measured"}, optional
+        Initial-condition rule (:data:`flexid.polynomial.INITIAL_RULES`) of the prediction
+        errors minimised by PEM and of the validation's predictors (default ``"estimate"``,
+        MATLAB's).
+    criterion : {"simulation", "aic", "fpe", "mdl", "bic"}, optional
+        What :meth:`Selection.table` sorts by and the fallback recommendation uses when no
+        candidate passes (default the held-out simulation fit; ``"bic"`` is ``"mdl"``).
+    max_lag : int, optional
+        Largest lag of the correlation tests (>= 1); the validation part must hold
+        ``start + 2 max_lag + 2`` samples for every candidate.
+    starts : int, optional
+        Extra random/perturbed starts of each PEM fit (>= 0, see :func:`flexid.pem.pem`).
+    seed : int, optional
+        Seed of those starts (>= 0); every PEM fit uses it, so a candidate's result does not
+        depend on the rest of the grid.
+    parsimony : float, optional
+        Relative tolerance (>= 0) on the held-out simulation error ``||y - y_sim||``: among
+        the passing, stable candidates, those within ``(1 + parsimony)`` times the best
+        one's error count as equally good and the fewest parameters win (0: the best fit,
+        whatever its size).  Default 0.01.
+    progress : bool or callable, optional
+        Show a progress bar on stderr (True), or call ``progress(candidate)`` after each
+        candidate.
+
+    Returns
+    -------
+    Selection
+        Every candidate's numbers, the recommendation and a note on how it was reached.
+
+    Raises
+    ------
+    UnknownNameError
+        An unknown structure name, ``criterion`` or ``initial`` rule (the message lists the
+        valid ones).
+    ModelOrderError
+        Before any fit: a grid entry with an order its structure does not have (``nc`` for
+        OE), a missing or invalid order, the wrong number of per-input orders, or orders
+        the estimation or validation part is too short for.
+    ConfigError
+        A bad ``max_lag``, ``starts``, ``seed`` or ``parsimony``, empty ``structures``, or
+        both ``split`` and ``validation``.
+    DataError, DataFileError
+        Unusable data (several outputs, NaN, an unreadable file).
+    """
+    t_begin = time.perf_counter()
+    from ._identify import prepare_data
+    from .data import IOData
+    from .pem import pem
+    from .validation import validate
+
+    criterion = _check_criterion(criterion)
+    if not isinstance(initial, str) or initial not in INITIAL_RULES:
+        raise UnknownNameError("initial-condition rule", str(initial), tuple(INITIAL_RULES))
+    max_lag = integer(max_lag, "max_lag", error=ConfigError, minimum=1)
+    starts = integer(starts, "starts", error=ConfigError, minimum=0)
+    seed = integer(seed, "seed", error=ConfigError, minimum=0)
+    parsimony = real(parsimony, "parsimony", error=ConfigError, minimum=0)
+    if split is not None and validation is not None:
+        raise ConfigError("give split or validation, not both (with validation, all of data "
+                          "is for estimation)")
+    est, val = prepare_data(
+        _as_record(data, "data"),
+        split=split,
+        validation=None if validation is None else _as_record(validation, "validation"),
+    )
+    assert isinstance(est, IOData) and isinstance(val, IOData)
+    if val.n_inputs != est.n_inputs:
+        raise DataError(
+            f"the validation record has {val.n_inputs} input(s), the estimation record "
+            f"{est.n_inputs}"
+        )
+
+    # every grid entry is checked before any fit
+    candidates_s = _candidate_structures(structures, orders, nk, est.n_inputs)
+    for s in candidates_s:
+        try:
+            s.check_samples(est.n_samples)
+        except ModelOrderError as exc:
+            raise ModelOrderError(f"the estimation part is too short: {exc}") from None
+        room = val.n_samples - s.start
+        if room < 2 * max_lag + 2:
+            raise ModelOrderError(
+                f"the validation part ({val.n_samples} samples) is too short for {s!r} with "
+                f"max_lag={max_lag}: it needs start + 2*max_lag + 2 = "
+                f"{s.start + 2 * max_lag + 2} samples; lower the orders or max_lag"
+            )
+
+    bar = _progress(progress, len(candidates_s))
+    u, y = est.u, est.y[:, 0]
+    fitted: dict[int, tuple[PolynomialModel | FlexidError, float, bool]] = {}
+    arx = [i for i, s in enumerate(candidates_s) if s.kind == "arx" and not any(s.nf)]
+    if arx:
+        t0 = time.perf_counter()
+        models = arx_grid(u, y, [candidates_s[i] for i in arx], dt=est.dt)
+        share = (time.perf_counter() - t0) / len(arx)
+        for i, m in zip(arx, models):
+            fitted[i] = (m, share, True)
+
+    candidates: list[Candidate] = []
+    try:
+        for i, s in enumerate(candidates_s):
+            if i in fitted:
+                model, fit_time, local = fitted[i]
+                sse = math.nan
+                if isinstance(model, PolynomialModel):
+                    k = est.n_samples - s.start
+                    sse = float(model.noise_variance) * (k - s.n_params)
+            else:
+                t0 = time.perf_counter()
+                try:
+                    res = pem(est, s, initial=initial, starts=starts, seed=seed)
+                    model, sse, local = res.model, res.sse, res.local_minimum
+                except FlexidError as exc:
+                    model, sse, local = exc, math.nan, False
+                fit_time = time.perf_counter() - t0
+            c = Candidate(
+                structure=s,
+                n_params=s.n_params,
+                K=est.n_samples - s.start,
+                fit_time=fit_time,
+                local_minimum=bool(local),
+            )
+            if isinstance(model, FlexidError):
+                c.error = str(model)
+            else:
+                c.model, c.sse, c.stable = model, float(sse), bool(model.is_stable)
+                t0 = time.perf_counter()
+                try:
+                    rep = validate(model, val, max_lag=max_lag, initial=initial)
+                except FlexidError as exc:
+                    c.error = f"validation failed: {exc}"
+                else:
+                    c.report = rep
+                    c.fit_simulation = float(rep.fit_simulation)
+                    c.fit_one_step = float(rep.fit_one_step)
+                    c.passed, c.linear_passed = bool(rep.passed), bool(rep.linear_passed)
+                c.validation_time = time.perf_counter() - t0
+            candidates.append(c)
+            bar(c)
+    finally:
+        bar(None)
+
+    best, note = _recommend(candidates, criterion, parsimony)
+    return Selection(
+        candidates=candidates,
+        best=best,
+        criterion=criterion,
+        note=note,
+        initial=initial,
+        max_lag=max_lag,
+        n_estimation=est.n_samples,
+        n_validation=val.n_samples,
+        dt=float(est.dt),
+        parsimony=parsimony,
+        wall_time=time.perf_counter() - t_begin,
+    )
+
+
+def _recommend(
+    candidates: list[Candidate], criterion: str, parsimony: float
+) -> tuple[Candidate | None, str]:
+    """The recommendation and the note explaining it (module notes, "Recommendation")."""
+    ok = [c for c in candidates if c.ok]
+    if not ok:
+        return None, "No candidate could be fitted and validated; see the errors in the table."
+    by_criterion = min(ok, key=lambda c: c.score(criterion))
+    eligible = [
+        c for c in ok if c.passed and c.stable and math.isfinite(c.fit_simulation)
+    ]
+    if eligible:
+        top = max(eligible, key=lambda c: c.fit_simulation)
+        limit = (1.0 + parsimony) * (100.0 - top.fit_simulation)
+        close = [c for c in eligible if 100.0 - c.fit_simulation <= limit]
+        best = min(close, key=lambda c: (c.n_params, -c.fit_simulation))
+        note = (
+            f"Recommended {best.label}: held-out simulation fit "
+            f"{format_fit(best.fit_simulation)} %, the best of the {len(eligible)} of "
+            f"{len(candidates)} candidates that pass every correlation test and are stable"
+        )
+        if best is not top:
+            note += (
+                f" within {parsimony:.3g} (relative) of the best error, with the fewest "
+                f"parameters ({top.label} fits {format_fit(top.fit_simulation)} % with "
+                f"{top.n_params} parameters against {best.n_params})"
+            )
+        note += "."
+        if by_criterion is not best and criterion != "simulation":
+            note += (
+                f" {criterion.upper()} alone would pick {by_criterion.label} (held-out "
+                f"simulation fit {format_fit(by_criterion.fit_simulation)} %, correlation "
+                f"tests {'pass' if by_criterion.passed else 'fail'})."
+            )
+        return best, note
+    stable = [c for c in ok if c.stable]
+    pool = stable or ok
+    best = min(pool, key=lambda c: c.score(criterion))
+    linear = [c for c in ok if c.linear_passed and c.stable]
+    note = (
+        f"No candidate passes every correlation test while stable: falling back to the best "
+        f"{'stable ' if stable else ''}candidate by {criterion} ({CRITERIA[criterion]}), "
+        f"{best.label}, held-out simulation fit {format_fit(best.fit_simulation)} %.  Its "
+        "residuals are not white or not independent of the input, so the model misses "
+        "dynamics (or the noise is not what the structure assumes): try higher orders, "
+        "another structure or another delay nk."
+    )
+    if linear:
+        lin = max(linear, key=lambda c: c.fit_simulation)
+        note += (
+            f"  {len(linear)} candidate(s) pass the linear tests and fail only Billings-Voon "
+            f"(a nonlinearity?); the best of them is {lin.label} "
+            f"({format_fit(lin.fit_simulation)} %)."
+        )
+    return best, note
