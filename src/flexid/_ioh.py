@@ -337,7 +337,14 @@ def _algorithm_info(result: ComparisonResult, label: str) -> str:
 def _attributes(result: ComparisonResult) -> list[tuple[str, str]]:
     from . import __version__
 
+    spec = result.spec
     return [
+        ("model", spec.model.describe()),
+        (
+            "cost",
+            f"{spec.cost.metric}, {spec.cost.predictor} predictor, initial state "
+            f"{spec.cost.initial}",
+        ),
         ("reference_cost", _number(result.reference_cost)),
         ("reference", result.reference_note),
         ("target_rule", "reference x (1 + t), t > 0 (minimisation)"),

@@ -12,7 +12,7 @@ orders in the grid is built once and every candidate is a QR solve of its own co
 its own rows ``t >= start``, which is exactly what :meth:`flexid.arx.ARXStructure.least_squares`
 computes for that order alone (the ``arxstruc`` trick of sharing one regressor matrix; unlike
 ``arxstruc``, each order keeps all the samples it can use).  The other structures are fitted
-by :func:`flexid.pem.pem` (Levenberg-Marquardt from ``2 + starts`` starts).
+by :func:`flexid.prediction_error.pem` (Levenberg-Marquardt from ``2 + starts`` starts).
 
 **Criteria** (Ljung, *System Identification*, 2nd ed., sec. 16.4), with ``V = SSE / K`` the
 mean squared one-step prediction error on the estimation part, ``K = N - start`` the number of
@@ -153,7 +153,8 @@ class Candidate:
     local_minimum : bool
         The estimate is a first-order local minimum (always true for least squares).
     fit_time : float
-        Seconds spent fitting (for ARX: the candidate's own QR solve).
+        Seconds spent fitting (for ARX: its QR solve and an equal share of building the
+        shared regressor matrix).
     validation_time : float
         Seconds spent validating.
     model : PolynomialModel or None
@@ -740,8 +741,17 @@ def arx_grid(
     DataError
         For bad signals.
     """
+    return [fit[0] for fit in _arx_fits(u, y, structures, dt)]
+
+
+def _arx_fits(
+    u: Any, y: Any, structures: Sequence[PolynomialStructure], dt: float
+) -> list[tuple[PolynomialModel | FlexidError, float, float]]:
+    """:func:`arx_grid` with each fit's SSE and seconds (its solve plus a share of the
+    regressor matrix)."""
     from .arx import _io_arrays
 
+    t_build = time.perf_counter()
     u, y = _io_arrays(u, y)
     n, m = u.shape[0], u.shape[1]
     for s in structures:
@@ -753,8 +763,10 @@ def arx_grid(
     if not structures:
         return []
     na_max = max(s.na for s in structures)
-    last = [max((s.nk[j] + s.nb[j] - 1 for s in structures if s.nb[j]), default=-1)
-            for j in range(m)]
+    last = [
+        max((s.nk[j] + s.nb[j] - 1 for s in structures if s.nb[j]), default=-1)
+        for j in range(m)
+    ]
     pad = max([na_max, *last, 0])
     yp = np.concatenate([np.zeros(pad), y])
     up = np.vstack([np.zeros((pad, m)), u])
@@ -764,22 +776,25 @@ def arx_grid(
         offsets.append(len(cols))
         cols += [up[pad - k : pad - k + n, j] for k in range(last[j] + 1)]
     phi_all = np.column_stack(cols)
-    out: list[PolynomialModel | FlexidError] = []
+    share = (time.perf_counter() - t_build) / len(structures)
+    out: list[tuple[PolynomialModel | FlexidError, float, float]] = []
     for s in structures:
+        t0 = time.perf_counter()
         index = list(range(s.na))
         for j in range(m):
             index += [offsets[j] + k for k in range(s.nk[j], s.nk[j] + s.nb[j])]
         try:
-            out.append(_least_squares(s, phi_all[s.start :, index], y[s.start :], dt))
+            model, sse = _least_squares(s, phi_all[s.start :, index], y[s.start :], dt)
         except DataError as exc:
-            out.append(exc)
+            model, sse = exc, math.nan
+        out.append((model, sse, share + time.perf_counter() - t0))
     return out
 
 
 def _least_squares(
     s: PolynomialStructure, phi: np.ndarray, target: np.ndarray, dt: float
-) -> PolynomialModel:
-    """:meth:`ARXStructure.least_squares`'s computation on given regressors."""
+) -> tuple[PolynomialModel, float]:
+    """:meth:`ARXStructure.least_squares`'s computation on given regressors, and the SSE."""
     q, r = linalg.qr(phi, mode="economic")
     diag = np.abs(np.diag(r))
     if diag.size and diag.min() <= diag.max() * 1e-13:
@@ -790,10 +805,11 @@ def _least_squares(
     theta = linalg.solve_triangular(r, q.T @ target)
     resid = target - phi @ theta
     k = target.shape[0]
-    sigma2 = float(resid @ resid) / (k - s.n_params)
+    sse = float(resid @ resid)
+    sigma2 = sse / (k - s.n_params)
     rinv = linalg.solve_triangular(r, np.eye(s.n_params))
     std = np.sqrt(sigma2 * np.sum(rinv * rinv, axis=1))
-    return PolynomialModel(s, theta, dt=dt, param_std=std, noise_variance=sigma2)
+    return PolynomialModel(s, theta, dt=dt, param_std=std, noise_variance=sigma2), sse
 
 
 # ================================================================================ select
@@ -846,7 +862,7 @@ def select(
     """Fit, validate and rank a grid of polynomial structures, and recommend one.
 
     Every candidate is fitted on the estimation part (ARX by least squares from one shared
-    regressor matrix, the others by :func:`flexid.pem.pem`), validated on the held-out part
+    regressor matrix, the others by :func:`flexid.prediction_error.pem`), validated on the held-out part
     (:func:`flexid.validation.validate`: simulation and one-step fits, residual correlation
     tests, stability) and scored by AIC, FPE and MDL (see the module notes).  The
     recommendation is the best held-out simulation fit among the candidates that pass every
@@ -888,7 +904,7 @@ def select(
         Largest lag of the correlation tests (>= 1); the validation part must hold
         ``start + 2 max_lag + 2`` samples for every candidate.
     starts : int, optional
-        Extra random/perturbed starts of each PEM fit (>= 0, see :func:`flexid.pem.pem`).
+        Extra random/perturbed starts of each PEM fit (>= 0, see :func:`flexid.prediction_error.pem`).
     seed : int, optional
         Seed of those starts (>= 0); every PEM fit uses it, so a candidate's result does not
         depend on the rest of the grid.
@@ -923,8 +939,7 @@ def select(
     """
     t_begin = time.perf_counter()
     from ._identify import prepare_data
-    from .data import IOData
-    from .pem import pem
+    from .prediction_error import pem
     from .validation import validate
 
     criterion = _check_criterion(criterion)
@@ -942,7 +957,6 @@ def select(
         split=split,
         validation=None if validation is None else _as_record(validation, "validation"),
     )
-    assert isinstance(est, IOData) and isinstance(val, IOData)
     if val.n_inputs != est.n_inputs:
         raise DataError(
             f"the validation record has {val.n_inputs} input(s), the estimation record "
@@ -966,24 +980,15 @@ def select(
 
     bar = _progress(progress, len(candidates_s))
     u, y = est.u, est.y[:, 0]
-    fitted: dict[int, tuple[PolynomialModel | FlexidError, float, bool]] = {}
-    arx = [i for i, s in enumerate(candidates_s) if s.kind == "arx" and not any(s.nf)]
-    if arx:
-        t0 = time.perf_counter()
-        models = arx_grid(u, y, [candidates_s[i] for i in arx], dt=est.dt)
-        share = (time.perf_counter() - t0) / len(arx)
-        for i, m in zip(arx, models):
-            fitted[i] = (m, share, True)
+    arx = [i for i, s in enumerate(candidates_s) if s.kind == "arx"]
+    fitted = dict(zip(arx, _arx_fits(u, y, [candidates_s[i] for i in arx], float(est.dt))))
 
     candidates: list[Candidate] = []
     try:
         for i, s in enumerate(candidates_s):
             if i in fitted:
-                model, fit_time, local = fitted[i]
-                sse = math.nan
-                if isinstance(model, PolynomialModel):
-                    k = est.n_samples - s.start
-                    sse = float(model.noise_variance) * (k - s.n_params)
+                model, sse, fit_time = fitted[i]
+                local = True  # least squares: the global minimum
             else:
                 t0 = time.perf_counter()
                 try:
