@@ -43,7 +43,7 @@ from .objective import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse
 from .polynomial import INITIAL_RULES, PolynomialStructure
 from .stability import is_stable, pole_radius_batched
 
-__all__ = ["PolynomialCost", "poly_mul_rows"]
+__all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows"]
 
 _DEFAULT = CostSpec()
 
@@ -103,6 +103,49 @@ def _least_squares_rows(F: np.ndarray, r: np.ndarray) -> np.ndarray:
     for i in np.flatnonzero(redo):
         c[i] = linalg.lstsq(Fs[i].T, r[i])[0]
     return c / scale
+
+
+def orthogonal_numerators(den: np.ndarray, count: int) -> np.ndarray:
+    """Numerators ``P_m``, ``m = 0..count-1``, whose filters ``P_m(q)/den(q)`` are orthogonal.
+
+    ``P_m`` has degree ``m`` and a unit coefficient at ``q^-m``, so the ``P_m`` span the
+    polynomials of degree below ``count``, as the shifts ``q^-m`` do; but where the shifts
+    ``q^-m/den`` of a lightly damped denominator are numerically dependent (condition
+    numbers above 1e16 at order 16), the ``P_m/den`` are orthonormal for a white input over
+    ``t >= 0`` up to scale: for ``m < n`` ``P_m`` is the reversed step-down (Levinson)
+    polynomial of order ``m`` of ``den`` (backward prediction-error filters, the Szego
+    polynomials of the weight ``1/|den|^2``), and for ``m >= n`` the reversed ``den`` delayed
+    by ``m - n`` (shifts of an all-pass filter).
+
+    Parameters
+    ----------
+    den : ndarray, shape (P, n + 1)
+        Monic denominators, stable.
+    count : int
+        Number of numerators.
+
+    Returns
+    -------
+    ndarray, shape (P, count, count)
+        Row ``m`` holds the coefficients of ``P_m`` in powers of ``q^-1``: lower triangular
+        with a unit diagonal.  Rows whose step-down breaks down in rounding (a product of
+        factors stacked at the radius cap can reach ``|k_m| = 1``) are the plain shifts.
+    """
+    n_pop, n = den.shape[0], den.shape[1] - 1
+    T = np.zeros((n_pop, count, count))
+    cur = den
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for m in range(n, 0, -1):  # step-down over the orders, batched over candidates
+            k = cur[:, m : m + 1]
+            cur = ((cur - k * cur[:, ::-1]) / (1.0 - k * k))[:, :m]
+            if m - 1 < count:
+                T[:, m - 1, :m] = cur[:, ::-1]  # P_(m-1): A_(m-1) reversed
+    for m in range(n, count):
+        T[:, m, m - n : m + 1] = den[:, ::-1]
+    bad = ~np.isfinite(T).all(axis=(1, 2))
+    if bad.any():
+        T[bad] = np.eye(count)
+    return T
 
 
 def _monic(x: np.ndarray) -> np.ndarray:
@@ -382,20 +425,7 @@ class PolynomialCost:
         """
         n_pop, n = den.shape[0], den.shape[1] - 1
         forcing = np.zeros((n_pop, n, self.K))
-        cur = den
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            for m in range(n, 0, -1):  # step-down over the orders, batched over candidates
-                k = cur[:, m : m + 1]
-                cur = ((cur - k * cur[:, ::-1]) / (1.0 - k * k))[:, :m]
-                forcing[:, m - 1, :m] = cur[:, ::-1]  # B_(m-1): A_(m-1) reversed
-        # A denominator whose poles are stable but stacked at the radius cap can round to
-        # |k_m| = 1 (a product of factors each at r_max): those rows take the plain shifts,
-        # which span the same space (the least squares then falls back to SVD).
-        bad = ~np.isfinite(forcing[:, :, : n]).all(axis=(1, 2))
-        if bad.any():
-            shifts = np.zeros((n, self.K))
-            shifts[np.arange(n), np.arange(n)] = 1.0
-            forcing[bad] = shifts
+        forcing[:, :, :n] = orthogonal_numerators(den, n)
         g, _ = ar_recursion(
             np.repeat(den[:, 1:], n, axis=0), forcing.reshape(n_pop * n, self.K), np.zeros(n)
         )
@@ -478,20 +508,22 @@ class PolynomialCost:
             # simulation: z = y, the A of the structure joins every F_j
             z = np.broadcast_to(self._target, (n_pop, self.K))
             lead = np.ones((n_pop, 1))
-        blocks = []
+        blocks, bases = [], []
         for j in range(s.n_inputs):
+            # the b_j regressors span {N(q)/den_g lead u_j(t - nk_j) : deg N < nb_j}: in the
+            # orthogonal numerators' basis, not the shifts, which are numerically dependent
+            # for lightly damped denominators (one recursion per coefficient, not one in all)
             den_g = poly_mul_rows(p["c"] if one_step else p["a"], p["f"][j])
-            g, _ = ar_recursion(
-                den_g[:, 1:], lead @ _lags(self.u[:, j], lead.shape[1], 0, n0),
-                np.zeros(den_g.shape[1] - 1),
+            T = orthogonal_numerators(den_g, s.nb[j])
+            bases.append(T)
+            num = np.stack([poly_mul_rows(T[:, m], lead) for m in range(s.nb[j])], axis=1)
+            width = num.shape[2]
+            lags = _lags(self.u[:, j], s.nk[j] + width, 0, n0)[s.nk[j] :]
+            forcing = (num @ lags).reshape(n_pop * s.nb[j], n0)
+            h, _ = ar_recursion(
+                np.repeat(den_g[:, 1:], s.nb[j], axis=0), forcing, np.zeros(den_g.shape[1] - 1)
             )
-            gp = np.hstack([np.zeros((n_pop, s.nk[j] + s.nb[j])), g])
-            # column i: g(t - nk - i) for t >= start
-            cols = [
-                gp[:, s.nb[j] - i + self.start : s.nb[j] - i + self.start + self.K]
-                for i in range(s.nb[j])
-            ]
-            blocks.append(np.stack(cols, axis=1) if cols else np.zeros((n_pop, 0, self.K)))
+            blocks.append(h.reshape(n_pop, s.nb[j], n0)[:, :, self.start :])
         nb_total = sum(s.nb)
         regs = np.concatenate(blocks, axis=1)
         if self.initial == "estimate":
@@ -500,7 +532,16 @@ class PolynomialCost:
                 regs = np.concatenate([regs, self._free_responses(den)], axis=1)
         coef = _least_squares_rows(regs, np.ascontiguousarray(z))
         resid = z - np.einsum("pnk,pn->pk", regs, coef)
-        return coef[:, :nb_total], np.einsum("pk,pk->p", resid, resid)
+        return self._b_of(coef[:, :nb_total], bases), np.einsum("pk,pk->p", resid, resid)
+
+    def _b_of(self, coef: np.ndarray, bases: list[np.ndarray]) -> np.ndarray:
+        """``b`` (P, sum nb) from coefficients in the orthogonal numerators' basis."""
+        out, i = [], 0
+        for T in bases:
+            nb = T.shape[1]
+            out.append(np.einsum("pmi,pm->pi", T, coef[:, i : i + nb]))
+            i += nb
+        return np.concatenate(out, axis=1) if out else coef
 
     def _fitted_b_measured(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Variable projection under ``"measured"``: one recursion per ``b`` coefficient.
@@ -514,8 +555,20 @@ class PolynomialCost:
         Xb = np.repeat(X, group, axis=0)
         b_all = np.concatenate([np.arange(self.n_params)[sl] for sl in self._slices["b"]])
         Xb[:, b_all] = 0.0
-        for r, col in enumerate(b_all, start=1):
-            Xb[r::group, col] = 1.0
+        # each b regressor is the response to one orthogonal numerator (see _fitted_b)
+        p = self._parts(X)
+        one_step = self.predictor == "one-step"
+        bases = [
+            orthogonal_numerators(
+                poly_mul_rows(p["c"] if one_step else p["a"], p["f"][j]), s.nb[j]
+            )
+            for j in range(s.n_inputs)
+        ]
+        r = 1
+        for j, sl in enumerate(self._slices["b"]):
+            for m in range(s.nb[j]):
+                Xb[r::group, sl] = bases[j][:, m]
+                r += 1
         den, num_y, nums = self._predictor(self._parts(Xb))
         unit = np.ones(Xb.shape[0], dtype=bool)
         unit[::group] = False
@@ -530,7 +583,7 @@ class PolynomialCost:
         regs = y[:, 1:]
         coef = _least_squares_rows(regs, np.ascontiguousarray(z))
         resid = z - np.einsum("pnk,pn->pk", regs, coef)
-        return coef, np.einsum("pk,pk->p", resid, resid)
+        return self._b_of(coef, bases), np.einsum("pk,pk->p", resid, resid)
 
     # ------------------------------------------------------------------ least-squares start
     def _least_squares_start(self) -> np.ndarray:
