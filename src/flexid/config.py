@@ -743,6 +743,16 @@ def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
     return out
 
 
+#: The built-in comparisons: plant -> (preset, ARX order, default model).  The manipulator's
+#: default is output error OE(16,16,1), which passes every validation test on its lab record
+#: where no ARX order does; no linear structure passes on the twin rotor (gravity and Coulomb
+#: friction), so it keeps the paper's ARX(5,5,1).
+_BUILT_IN = {
+    "manipulator": ("paper-manipulator", 8, ModelSpec(structure="oe", nb=16, nf=16, nk=1)),
+    "twin-rotor": ("paper-twin-rotor", 5, ModelSpec(na=5, nb=5, nk=1)),
+}
+
+
 def default_spec(
     *,
     plant: str = "manipulator",
@@ -765,8 +775,9 @@ def default_spec(
     Parameters
     ----------
     plant : {"manipulator", "twin-rotor"}
-        ``"manipulator"`` (ARX(8,8,1) of the end-point acceleration, paper preset) or
-        ``"twin-rotor"`` (ARX(5,5,1) of the pitch, vertical channel, paper preset).
+        ``"manipulator"`` (the end-point acceleration, paper preset; by default output error
+        OE(16,16,1), the structure that passes validation there) or ``"twin-rotor"`` (the
+        pitch, vertical channel, paper preset; by default the paper's ARX(5,5,1)).
     optimisers : sequence of str, optional
         Registry names (default: hbcsd, bfa, sda, pso, de).
     runs : int, optional
@@ -776,19 +787,22 @@ def default_spec(
     seed : int, optional
         Seed of the runs (default 0); the simulated record always uses seed 0.
     na : int, optional
-        Number of ``A`` coefficients (default: 8 manipulator, 5 twin rotor).
+        Number of ``A`` coefficients.  Orders given without ``structure`` are ARX's, with
+        ``na`` defaulting to the paper's order (8 manipulator, 5 twin rotor); with no orders
+        and no structure the plant's default model is used.
     nb : int, list of int or None, optional
         Number of ``B`` coefficients (default ``na``).
     nk : int or list of int, optional
         Input delay in samples (default 1).
     cost : CostSpec, optional
-        The cost (default :class:`CostSpec`).
+        The cost (default :class:`CostSpec`; its ``"auto"`` initial-condition rule becomes
+        ``"zero"`` for structures other than ARX, since the built-in records start at rest).
     search : SearchSpec, optional
         The search space (default :class:`SearchSpec`).
     structure : {"arx", "armax", "oe", "bj"}, optional
-        The model structure (default ARX, the paper's); its orders are ``na``, ``nb``,
-        ``nc``, ``nd``, ``nf``, ``nk`` as that structure takes them (``na`` defaults to the
-        plant's order only for ARX).
+        The model structure; its orders are ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` as
+        that structure takes them.  Default: the plant's own model (see ``plant``), or ARX
+        when ARX orders are given.
     nc, nd : int, optional
         Orders of ``C`` and ``D``.
     nf : int or list of int, optional
@@ -806,19 +820,28 @@ def default_spec(
     """
     from .errors import UnknownNameError
 
-    presets = {"manipulator": ("paper-manipulator", 8), "twin-rotor": ("paper-twin-rotor", 5)}
-    if plant not in presets:
-        raise UnknownNameError("plant", plant, presets)
-    preset, order = presets[plant]
-    structure = structure or "arx"
-    if structure == "arx" and na is None:
-        na = order
+    if plant not in _BUILT_IN:
+        raise UnknownNameError("plant", plant, _BUILT_IN)
+    preset, order, model = _BUILT_IN[plant]
+    orders = {"na": na, "nb": nb, "nc": nc, "nd": nd, "nf": nf}
+    if structure is None and all(v is None for v in orders.values()):
+        spec_model = model  # the plant's own default: a structure that passes validation
+    else:
+        structure = structure or "arx"  # orders without a structure are ARX's, as in identify
+        if structure == "arx" and na is None:
+            orders["na"] = order
+        spec_model = ModelSpec(structure=structure, nk=nk, **orders)
+    cost = cost or CostSpec()
+    if cost.initial == "auto" and spec_model.structure != "arx":
+        # the built-in plants' records start at rest, so "zero" is their exact initial state
+        # (and the cheapest rule: no initial state to fit per candidate)
+        cost = replace(cost, initial="zero")
     names = list(optimisers) if optimisers else list(DEFAULT_OPTIMISERS)
     return ComparisonSpec(
         name=f"{plant}-default",
         data=DataSpec(plant=plant, preset=preset, seed=0),
-        model=ModelSpec(na=na, nb=nb, nk=nk, structure=structure, nc=nc, nd=nd, nf=nf),
-        cost=cost or CostSpec(),
+        model=spec_model,
+        cost=cost,
         search=search or SearchSpec(),
         optimisers=tuple(OptimiserSpec(n) for n in names),
         runs=runs,

@@ -21,6 +21,7 @@ from .statistics import convergence_band
 if TYPE_CHECKING:  # pragma: no cover
     from ._compare import ComparisonResult
     from ._identify import Identification
+    from .selection import Selection
 
 __all__ = [
     "PlottingUnavailable",
@@ -34,6 +35,7 @@ __all__ = [
     "plot_pole_zero",
     "plot_spectra",
     "plot_time_response",
+    "selection_figure",
 ]
 
 
@@ -474,3 +476,173 @@ def comparison_figures(
             _save(plot_fe_to_target(result, t), outdir / f"{prefix}fe_to_target_{t:g}.png")
         )
     return paths
+
+
+# ============================================================================ selection
+_STRUCTURE_STYLE = {
+    "arx": ("tab:blue", "s"),
+    "armax": ("tab:green", "^"),
+    "oe": ("tab:orange", "o"),
+    "bj": ("tab:purple", "D"),
+    "polynomial": ("tab:gray", "v"),
+}
+# fits below this (%) are drawn on the lower edge of the fit panel, as a down-pointing marker
+_FIT_FLOOR = -20.0
+
+
+def selection_figure(selection: Selection, path: str | Path | None = None, *, criterion=True):
+    """Held-out simulation fit against the number of parameters, per structure.
+
+    The left panel is what :func:`flexid.selection.select` recommends from: one line and
+    marker style per structure, filled markers for candidates that pass every residual
+    correlation test and hollow ones for those that fail, a cross over an unstable model,
+    and the recommendation ringed and annotated.  Fits below -20 % (or a diverging
+    simulation) sit on the lower edge as down-pointing markers.  The optional right panel is
+    the normalized AIC (``log V + 2 d / K``) against ``d`` with the same styles, where the
+    information criterion's own choice (its minimum) can be compared with the
+    recommendation.
+
+    Parameters
+    ----------
+    selection : Selection
+        The result of :func:`flexid.selection.select`; candidates that failed to fit are not
+        drawn.
+    path : str or pathlib.Path, optional
+        Write the figure there as a PNG (and close it).
+    criterion : bool, optional
+        Draw the AIC panel (default True).
+
+    Returns
+    -------
+    matplotlib.figure.Figure or pathlib.Path
+        The figure, or ``path`` when one is given.
+    """
+    plt = _plt()
+    from matplotlib.ticker import MaxNLocator
+
+    ncols = 2 if criterion else 1
+    fig, axes = plt.subplots(
+        1, ncols, figsize=(11.0 if criterion else 7.0, 4.6), squeeze=False,
+        width_ratios=[3, 2] if criterion else None,
+    )
+    ax_fit = axes[0, 0]
+    drawn = [c for c in selection.candidates if c.ok]
+    fits = np.array([c.fit_simulation for c in drawn], float)
+    finite = fits[np.isfinite(fits)]
+    low = max(float(finite.min()) if finite.size else 0.0, _FIT_FLOOR)
+    high = float(finite.max()) if finite.size else 100.0
+    pad = 0.06 * max(high - low, 1.0)
+    floor = low - pad
+    kinds = list(dict.fromkeys(c.kind for c in drawn))
+
+    def draw(ax, value):
+        for kind in kinds:
+            color, marker = _STRUCTURE_STYLE.get(kind, _STRUCTURE_STYLE["polynomial"])
+            group = sorted((c for c in drawn if c.kind == kind), key=lambda c: c.n_params)
+            d = np.array([c.n_params for c in group], float)
+            v = np.array([value(c) for c in group], float)
+            if value is _fit:  # clipped fits (and diverging runs) on the lower edge
+                v = np.where(v >= low, v, floor)
+            # the line joins the best value at each d (ARMAX and BJ have several per d)
+            ds = np.unique(d)
+            best = [np.nanmax(v[d == x]) if value is _fit else np.nanmin(v[d == x]) for x in ds]
+            ax.plot(ds, best, "-", color=color, lw=1.2, alpha=0.7, label=kind.upper())
+            for c, x, y in zip(group, d, v):
+                clipped = value is _fit and not (c.fit_simulation >= low)
+                ax.plot(
+                    x,
+                    y,
+                    "v" if clipped else marker,
+                    ms=7,
+                    mec=color,
+                    mew=1.5,
+                    mfc=color if c.passed else "white",
+                    zorder=3,
+                )
+                if not c.stable:
+                    ax.plot(x, y, "x", ms=9, mew=1.5, color="k", zorder=4)
+
+    draw(ax_fit, _fit)
+    ax_fit.set_ylim(floor - pad * 0.5, min(high + pad, 100.0 + pad))
+    ax_fit.set_xlabel("number of parameters d")
+    ax_fit.set_ylabel("held-out simulation fit [%]")
+    ax_fit.set_title("Held-out simulation fit (filled: passes every correlation test)")
+    ax_fit.grid(True, alpha=0.3)
+    # legend entries for the marker meanings, after the structures
+    ax_fit.plot([], [], "o", mec="0.3", mfc="0.3", label="passes tests")
+    ax_fit.plot([], [], "o", mec="0.3", mfc="white", label="fails tests")
+    if any(not c.stable for c in drawn):
+        ax_fit.plot([], [], "x", color="k", mew=1.5, label="unstable")
+    if any(not (c.fit_simulation >= low) for c in drawn):
+        ax_fit.plot([], [], "v", mec="0.3", mfc="white", label=f"fit < {low:.0f} %")
+    ax_fit.legend(loc="lower right", fontsize=8, ncol=2)
+
+    best = selection.best
+    d_all = [c.n_params for c in drawn] or [0]
+    x_mid = 0.5 * (min(d_all) + max(d_all))
+    # labels point at their marker from the side with more room
+    side = 1 if best is not None and best.n_params > x_mid else -1
+    title = (
+        f"Structure selection: {len(selection.candidates)} candidates, "
+        f"{sum(c.passed for c in selection.candidates)} pass every correlation test"
+    )
+    if best is not None and best.ok:
+        y = best.fit_simulation if best.fit_simulation >= low else floor
+        passing = best.passed and best.stable
+        word = "recommended" if passing else "fallback (fails the tests)"
+        ax_fit.plot(best.n_params, y, "o", ms=17, mfc="none", mec="k", mew=2, zorder=5)
+        ax_fit.annotate(
+            word,
+            xy=(best.n_params, y),
+            xytext=(-14 * side, -34),
+            textcoords="offset points",
+            ha="right" if side > 0 else "left",
+            fontsize=9,
+            fontweight="bold",
+            bbox={"boxstyle": "round", "fc": "lightyellow", "ec": "0.5"},
+            arrowprops={"arrowstyle": "->", "color": "k", "lw": 1.2},
+            zorder=6,
+        )
+        title += (
+            f"\n{word}: {best.label}, held-out simulation fit "
+            f"{best.fit_simulation:.2f} %, d = {best.n_params}"
+        )
+    if criterion:
+        ax_ic = axes[0, 1]
+        draw(ax_ic, _aic)
+        if best is not None and best.ok:
+            ax_ic.plot(best.n_params, _aic(best), "o", ms=17, mfc="none", mec="k", mew=2)
+        scored = [c for c in drawn if np.isfinite(_aic(c))]
+        if scored:
+            low_aic = min(scored, key=_aic)
+            if low_aic is not best:
+                left = 1 if low_aic.n_params > x_mid else -1
+                ax_ic.annotate(
+                    f"AIC minimum:\n{low_aic.label}",
+                    xy=(low_aic.n_params, _aic(low_aic)),
+                    xytext=(-14 * left, 30),
+                    textcoords="offset points",
+                    ha="right" if left > 0 else "left",
+                    fontsize=8,
+                    bbox={"boxstyle": "round", "fc": "white", "ec": "0.5"},
+                    arrowprops={"arrowstyle": "->", "color": "0.3"},
+                )
+        ax_ic.set_xlabel("number of parameters d")
+        ax_ic.set_ylabel("normalized AIC, log V + 2d/K")
+        ax_ic.set_title("Information criterion (estimation data)")
+        ax_ic.grid(True, alpha=0.3)
+        ax_ic.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax_fit.xaxis.set_major_locator(MaxNLocator(integer=True))
+    fig.suptitle(title)
+    fig.tight_layout()
+    if path is not None:
+        return _save(fig, Path(path))
+    return fig
+
+
+def _fit(c) -> float:
+    return c.fit_simulation
+
+
+def _aic(c) -> float:
+    return c.aic_normalized
