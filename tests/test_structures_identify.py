@@ -216,3 +216,18 @@ def test_cli_compare_with_a_bad_structure_writes_nothing(tmp_path, capsys):
     )
     assert status == 2 and "no order nc" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_cli_select_recommends_the_true_structure_and_refuses_bad_orders(record_csv, capsys):
+    status, out, err = _cli(
+        ["select", record_csv, "--structures", "oe", "--orders", "nb=1,2", "--orders",
+         "nf=1,2", "--json", "--no-progress"],
+        capsys,
+    )
+    assert status == 0, err
+    d = json.loads(out)
+    best = d["candidates"][d["best"]]  # "best" indexes the candidates
+    assert best["label"] == "OE(nb=2, nf=2, nk=1)" and best["passed"]
+    status, out, err = _cli(["select", record_csv, "--structures", "oe", "--orders", "nq=1"],
+                            capsys)
+    assert status == 2 and out == "" and len(err.strip().splitlines()) == 1, err

@@ -9,6 +9,8 @@ Data and models
     :class:`ValidationReport`; the polynomial family (ARX, ARMAX, OE, BJ):
     :func:`structure`, :class:`PolynomialStructure`, :class:`PolynomialModel`,
     :class:`PolynomialCost`
+Structure selection
+    :func:`select` (AIC, FPE, MDL and the held-out tests over a grid of structures)
 References
     :func:`pem` and MATLAB's :func:`oe`, :func:`armax`, :func:`bj` (Levenberg-Marquardt on
     the prediction errors, analytic gradients)
@@ -73,6 +75,7 @@ _LAZY = {
     "PolynomialStructure": "polynomial",
     "PolynomialModel": "polynomial",
     "PolynomialCost": "polynomial_cost",
+    "select": "selection",
     # references
     "pem": "prediction_error",
     "oe": "prediction_error",

@@ -218,7 +218,7 @@ def prepare_data(
         data = data.select(outputs=[output])
     if data.n_outputs != 1:
         raise DataError(
-            f"the record has {data.n_outputs} outputs {list(data.output_names)}; ARX models here "
+            f"the record has {data.n_outputs} outputs {list(data.output_names)}; the models here "
             "have one output: choose it (output=... or --output NAME)"
         )
     if validation is not None:

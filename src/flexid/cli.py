@@ -360,6 +360,61 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _order_grid(items: Sequence[str] | None) -> dict[str, list[int]] | None:
+    """``["nb=4,8,16", "nf=4,8,16"]`` -> ``{"nb": [4, 8, 16], "nf": [4, 8, 16]}``."""
+    if not items:
+        return None
+    grid: dict[str, list[int]] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--orders must look like NAME=V1,V2,..., got {item!r}")
+        grid[key.strip()] = _int_list(text, f"--orders {key.strip()}")
+    return grid
+
+
+def _cmd_select(args: argparse.Namespace) -> int:
+    from .data import load
+    from .selection import select
+
+    if (args.file is None) == (args.plant is None):
+        raise ConfigError("give a record file or --plant (a simulated record), not both")
+    if args.plant is not None:
+        from .config import default_spec
+        from .datasets import generate
+
+        preset = default_spec(plant=args.plant).data.preset  # the built-in comparison's record
+        data = generate(args.plant, preset=preset, seed=args.data_seed)
+    else:
+        given = (("inputs", _columns(args.inputs)), ("outputs", _columns(args.outputs)))
+        options = {k: v for k, v in (*given, ("dt", args.dt)) if v is not None}
+        data = load(args.file, **options)
+    if args.output is not None:
+        data = data.select(outputs=[_columns(args.output)[0]])
+    grid = _order_grid(args.orders)
+    result = select(
+        data,
+        structures=tuple(_names(args.structures) or ("arx", "oe")),
+        orders=grid,
+        nk=_int_list(args.nk, "--nk") if args.nk is not None else 1,
+        initial=args.initial,
+        criterion=args.criterion,
+        max_lag=args.max_lag,
+        progress=not (args.json or args.no_progress) and sys.stderr.isatty(),
+    )
+    if args.figure:
+        from .plots import selection_figure
+
+        selection_figure(result, args.figure)
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
+    else:
+        print(result.summary())
+        if args.figure:
+            print(f"figure: {args.figure}")
+    return 0
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from .report import write_report
 
@@ -561,6 +616,34 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true", help="print machine-readable results")
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
     c.set_defaults(func=_cmd_compare)
+
+    se = sub.add_parser(
+        "select", help="choose a structure and its orders (AIC, FPE, MDL, held-out tests)"
+    )
+    se.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
+    se.add_argument("--plant", help="select on a simulated record of this plant instead")
+    se.add_argument("--data-seed", type=int, default=0, help="seed of the simulated record")
+    se.add_argument(
+        "--structures", help=f"comma-separated: {', '.join(STRUCTURE_NAMES)} (default arx,oe)"
+    )
+    se.add_argument(
+        "--orders",
+        action="append",
+        metavar="NAME=V1,V2,..",
+        help="a grid of one order (repeatable: a product grid), e.g. nb=8,16 nf=8,16",
+    )
+    se.add_argument("--nk", help="input delay in samples (default 1)")
+    se.add_argument("--criterion", default="simulation", help="simulation | aic | fpe | mdl")
+    se.add_argument("--initial", default="estimate", help="estimate | zero | measured")
+    se.add_argument("--inputs", help="input columns (names or 0-based indices)")
+    se.add_argument("--outputs", help="output columns (names or 0-based indices)")
+    se.add_argument("--output", help="which output to model when there are several")
+    se.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
+    se.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
+    se.add_argument("--figure", help="write the selection figure (PNG) here")
+    se.add_argument("--json", action="store_true", help="print a machine-readable result")
+    se.add_argument("--no-progress", action="store_true", help="no progress bar")
+    se.set_defaults(func=_cmd_select)
 
     r = sub.add_parser("report", help="write a Markdown/HTML report of a result store")
     r.add_argument("store", help="SQLite result store")
