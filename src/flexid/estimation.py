@@ -492,21 +492,6 @@ class PolynomialEstimationProblem(EstimationProblem):
             text += f"; {self.box_rule}"
         return text
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe description of the search.
-
-        Returns
-        -------
-        dict
-        """
-        return {
-            "parametrisation": self.parametrisation.to_dict(),
-            "penalty": self.search.penalty,
-            "init": self.search.init,
-            "numerator": self.search.numerator,
-            "box_rule": self.box_rule,
-        }
-
     def output_error_reference(self, *, starts: int = 4, seed: int = 0):
         """The prediction-error reference (:func:`flexid.prediction_error.pem`) of this cost.
 

@@ -276,22 +276,38 @@ class PolynomialCost:
             "f": [_monic(X[:, s]) for s in sl["f"]],
         }
 
+    def _root_parts(self) -> list[slice]:
+        """The slices of ``A``, ``C``, ``D`` and each ``F_j`` that hold coefficients."""
+        sl = self._slices
+        return [part for part in (sl["a"], sl["c"], sl["d"], *sl["f"]) if part.stop > part.start]
+
     def _admissible(self, X: np.ndarray) -> np.ndarray:
         """Rows whose ``A``, ``F_j`` and ``D`` are stable and ``C`` is minimum phase."""
-        sl = self._slices
         ok = np.ones(X.shape[0], dtype=bool)
-        for part in (sl["a"], sl["c"], sl["d"], *sl["f"]):
-            if part.stop > part.start:
-                ok &= is_stable(X[:, part])
+        for part in self._root_parts():
+            ok &= is_stable(X[:, part])
         return ok
 
     def _radius(self, X: np.ndarray) -> np.ndarray:
-        sl = self._slices
         rho = np.zeros(X.shape[0])
-        for part in (sl["a"], sl["c"], sl["d"], *sl["f"]):
-            if part.stop > part.start:
-                rho = np.maximum(rho, pole_radius_batched(X[:, part]))
+        for part in self._root_parts():
+            rho = np.maximum(rho, pole_radius_batched(X[:, part]))
         return rho
+
+    def _screen(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Costs of the rows that need no prediction, and which rows do.
+
+        Returns ``(cost, ok)``: ``+inf`` for non-finite rows, the penalty for inadmissible
+        ones, and ``ok`` marking the admissible rows, whose cost the caller fills in.
+        """
+        cost = np.full(X.shape[0], np.inf)
+        finite = np.isfinite(X).all(axis=1)
+        ok = finite.copy()
+        ok[finite] = self._admissible(X[finite])
+        bad = finite & ~ok
+        if bad.any():
+            cost[bad] = self._penalised(X[bad])
+        return cost, ok
 
     def _from_sse(self, sse: np.ndarray) -> np.ndarray:
         return metric_from_sse(self.metric, sse, self.K, self.weight, self._std_y)
@@ -358,13 +374,7 @@ class PolynomialCost:
             X = X[None, :]
         if X.ndim != 2 or X.shape[1] != self.n_params:
             raise DataError(f"the population must have shape (P, {self.n_params}), got {X.shape}")
-        out = np.full(X.shape[0], np.inf)
-        finite = np.isfinite(X).all(axis=1)
-        ok = finite.copy()
-        ok[finite] = self._admissible(X[finite])
-        bad = finite & ~ok
-        if bad.any():
-            out[bad] = self._penalised(X[bad])
+        out, ok = self._screen(X)
         if ok.any():
             out[ok] = self._from_sse(self.sse(X[ok]))
         return out
@@ -476,12 +486,7 @@ class PolynomialCost:
         X = np.array(X, dtype=float)
         b_cols = np.concatenate([np.arange(self.n_params)[s] for s in self._slices["b"]])
         X[:, b_cols] = np.nan_to_num(self.theta_ls[b_cols])
-        cost = np.full(X.shape[0], np.inf)
-        ok = np.isfinite(X).all(axis=1)
-        ok[ok] = self._admissible(X[ok])
-        bad = np.isfinite(X).all(axis=1) & ~ok
-        if bad.any():
-            cost[bad] = self._penalised(X[bad])
+        cost, ok = self._screen(X)
         if ok.any():
             b, sse = self._fitted_b(X[ok])
             X[np.flatnonzero(ok)[:, None], b_cols] = b
