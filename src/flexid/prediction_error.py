@@ -95,6 +95,7 @@ from .output_error import (
 )
 from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
 from .polynomial import structure as _named_structure
+from .polynomial_cost import orthogonal_numerators
 from .stability import pole_radius_batched
 
 __all__ = [
@@ -409,44 +410,57 @@ class _Problem:
 
     def _estimate(self, theta: np.ndarray, jac: bool):
         r, jr = self._zero(theta, jac)
-        n, st, N = self.s.n_state, self.start, self.N
+        n, K = self.s.n_state, self.K
         if n == 0:
             return r, jr
         _, _, c, _, f = self.parts(theta)
         den = np.convolve(c, _poly_mul(*f))
-        impulse = np.zeros(N)
+        impulse = np.zeros(K)
         impulse[0] = 1.0
-        h = signal.lfilter([1.0], den, impulse)
-        basis = _lagged(h, 0, n - 1, st)  # column k: h(t - k), a free response for t >= start
-        left, sv, vt = linalg.svd(basis, full_matrices=False)
-        keep = sv > sv[0] * _RANK_TOLERANCE
-        left, sv, vt = left[:, keep], sv[keep], vt[keep]
-        coef = left.T @ r
-        e = r - left @ coef
+        # The free responses from t = start are the responses of N(q)/den to an impulse at
+        # start, deg N < n.  The shifts q^-k/den span them but are numerically dependent for
+        # lightly damped orders (condition numbers above 1e16 at order 16), so the projection
+        # uses the orthogonal numerators' basis (nearly orthogonal) and its QR.
+        T = orthogonal_numerators(den[None, :], n)[0]
+        basis = np.stack([signal.lfilter(T[m], den, impulse) for m in range(n)], axis=1)
+        q, _ = np.linalg.qr(basis)
+        w = q @ (q.T @ r)  # the fitted free response
+        e = r - w
         if not jac:
             return e, None
-        x = vt.T @ (coef / sv)  # the initial-state coefficients H^+ r
+        # Golub & Pereyra with the shift basis H(theta) = [q^-k/den impulse]:
+        # d e = P_perp (dr - dH x) - (H^+)' dH' e, with H x = w, so that
+        # dH x / d p_i = -q^-i (1/p) w for a coefficient p_i of a factor p of den (C or F_j)
         g_all = jr.copy()
-        rho = np.zeros((n, self.n))
-        # only C and the F_j move the basis: d h / d p_i = -g_p(t - i), g_p the impulse
-        # response of 1/(den p)
+        h = signal.lfilter([1.0], den, impulse)
+        shifts = np.stack([np.concatenate([np.zeros(k), h[: K - k]]) for k in range(n)], axis=1)
+        r_h = q.T @ shifts  # H = Q R_H on the counted samples
+        second = np.zeros((K, self.n))
         moving = [(self.sl["c"], c), *zip(self.sl["f"], f)]
         for sl, p in moving:
             order = p.size - 1
             if not order:
                 continue
-            g = signal.lfilter([1.0], np.convolve(den, p), impulse)
-            # (dH x)(t) = -sum_k x_k g(t - i - k) = -s(t - i)
-            g_all[:, sl] += _lagged(_fir(x, g), 1, order, st)
-            # (dH' e)_k = -sum_t g(t - i - k) e(t): lags i + k = 1 .. order + n - 1
+            filtered = signal.lfilter([1.0], p, w)
+            for i in range(1, order + 1):
+                g_all[:, sl.start + i - 1] += np.concatenate([np.zeros(i), filtered[: K - i]])
+            # (dH_i' e)_k = -sum_t phi(t - i - k) e(t), phi the impulse response of 1/(den p)
+            phi = signal.lfilter([1.0], np.convolve(den, p), impulse)
             top = order + n - 1
-            padded = np.concatenate([np.zeros(max(top - st, 0)), g])
-            corr = _lagged(padded, 1, top, st + max(top - st, 0)).T @ e
-            idx = np.arange(n)[:, None] + np.arange(order)[None, :]
-            rho[:, sl] = corr[idx]
-        # d e = P_perp (dr - dH x) - (H^+)' dH' e  (Golub & Pereyra 1973)
-        proj = g_all - left @ (left.T @ g_all)
-        return e, proj + left @ ((vt @ rho) / sv[:, None])
+            corr = np.array([phi[: K - lag] @ e[lag:] for lag in range(top + 1)])
+            idx = np.arange(n)[:, None] + np.arange(1, order + 1)[None, :]
+            v = corr[idx]  # (n, order): -(dH_i' e)_k
+            try:
+                with np.errstate(all="ignore"):
+                    z = np.linalg.solve(r_h.T, v)
+            except np.linalg.LinAlgError:  # R_H singular in rounding: drop the term
+                z = None
+            if z is not None and np.isfinite(z).all():
+                second[:, sl] = q @ z  # -(H^+)' dH' e  (H^+' = Q R_H^-T)
+            # else the term is dropped (Kaufman's variant): J' e, the gradient, is unchanged,
+            # since the term lies in span(H), orthogonal to e
+        proj = g_all - q @ (q.T @ g_all)
+        return e, proj + second
 
     # ------------------------------------------------------------------ linear pieces
     def refit_b(self, theta: np.ndarray) -> np.ndarray:
