@@ -68,7 +68,7 @@ def test_reference_recovers_a_known_system_within_its_standard_errors(kind):
 
 
 @pytest.mark.parametrize("optimiser", ["de", "cmaes"])
-@pytest.mark.parametrize("kind", ["oe", "bj"])
+@pytest.mark.parametrize("kind", ["armax", "oe", "bj"])
 def test_de_and_cmaes_reach_the_references_minimum_at_an_equal_budget(kind, optimiser):
     s, truth = CASES[kind]
     data = _record(kind, seed=1)
