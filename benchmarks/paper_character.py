@@ -10,12 +10,12 @@ Run with ``--sensors ideal`` for the plants read without their measurement chain
 
 ``--structure oe`` or ``bj`` fits an output-error or Box-Jenkins model instead
 (:func:`flexid.prediction_error.pem`, the prediction-error reference, from rest:
-``nb = nf = n``, ``nk = 1``, and ``nc``/``nd`` from ``--nc``/``--nd``).  Its held-out numbers are computed with the filters
-run from rest at the start of the record over the training two thirds into the held-out
-third (the model's state at the split is the one the known past left), on every held-out
-sample: one-step fit of the predictor ``y - D/C (y - B/F u)``, simulation fit of ``B/F u``,
-the correlation tests of the held-out prediction errors against ``u``, and the resonances
-of ``B/F``.
+``nb = nf = n``, ``nk = 1``, and ``nc``/``nd`` from ``--nc``/``--nd``).  Its held-out
+numbers are computed with the filters run from rest at the start of the record over the
+training two thirds into the held-out third (the model's state at the split is the one the
+known past left), on every held-out sample: one-step fit of the predictor
+``y - D/C (y - B/F u)``, simulation fit of ``B/F u``, the correlation tests of the held-out
+prediction errors against ``u``, and the resonances of ``B/F``.
 
     python benchmarks/paper_character.py [--sensors lab|ideal] [--seeds 5] [--orders 8,16,32]
     python benchmarks/paper_character.py --structure oe|bj [--nc 2,4,8] [--orders 16]
@@ -92,7 +92,7 @@ def run_pem(
     from flexid.polynomial import structure
     from flexid.prediction_error import pem
 
-    train, test = data.split(2 / 3)
+    train, _ = data.split(2 / 3)
     m = train.n_samples
     u, y = data.u, data.y[:, 0]
     s = structure("bj", nb=n, nc=nc, nd=nd, nf=n) if nc or nd else structure("oe", nb=n, nf=n)
