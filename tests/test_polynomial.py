@@ -272,3 +272,11 @@ def test_bad_model_input_gets_a_typed_error():
         m.simulate(np.zeros((50, 2)))
     with pytest.raises(DataError, match="prediction horizon"):
         m.predict(np.zeros(50), np.zeros(50), k=0)
+
+
+def test_a_named_structure_keeps_its_name_with_a_zero_order():
+    """ARMAX with nc = 0 is still ARMAX (and reads back as such); OE takes no A."""
+    s = structure("armax", na=2, nb=2, nc=0)
+    assert s.kind == "armax" and PolynomialStructure.from_dict(s.to_dict()).kind == "armax"
+    with pytest.raises(ModelOrderError, match="the oe structure has no order na"):
+        PolynomialStructure(na=1, nb=1, nf=1, kind="oe")

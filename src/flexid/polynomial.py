@@ -196,8 +196,17 @@ class PolynomialStructure:
             kind = inferred
         elif kind not in STRUCTURES and kind != "polynomial":
             raise UnknownNameError("model structure", str(kind), (*STRUCTURES, "polynomial"))
-        elif kind != inferred and kind != "polynomial":
-            raise ModelOrderError(f"the orders {self._orders_text()} are not a {kind} structure")
+        elif kind != "polynomial":
+            # a named structure may have zero orders (ARMAX with nc = 0 is still named so),
+            # but no polynomial it does not take
+            nonzero = [k for k in ("na", "nc", "nd") if getattr(self, k)]
+            nonzero += ["nf"] if any(self.nf) else []
+            extra = [k for k in nonzero if k not in STRUCTURES[kind]]
+            if extra:
+                raise ModelOrderError(
+                    f"the {kind} structure has no order {', '.join(extra)}; it takes "
+                    f"{', '.join(STRUCTURES[kind])}"
+                )
         self.kind = kind
         sf = sum(self.nf)
         # degree of each input's numerator in the simulation, delays included
@@ -251,7 +260,7 @@ class PolynomialStructure:
         -------
         PolynomialStructure
         """
-        return cls(na=na, nb=nb, nc=nc, nk=nk, kind="armax" if na and nc else None)
+        return cls(na=na, nb=nb, nc=nc, nk=nk, kind="armax")
 
     @classmethod
     def oe(cls, nb: int | Sequence[int], nf: int | Sequence[int], nk: int | Sequence[int] = 1):
@@ -265,7 +274,7 @@ class PolynomialStructure:
         -------
         PolynomialStructure
         """
-        return cls(nb=nb, nf=nf, nk=nk)
+        return cls(nb=nb, nf=nf, nk=nk, kind="oe")
 
     @classmethod
     def bj(
@@ -287,7 +296,7 @@ class PolynomialStructure:
         -------
         PolynomialStructure
         """
-        return cls(nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
+        return cls(nb=nb, nc=nc, nd=nd, nf=nf, nk=nk, kind="bj")
 
     # ------------------------------------------------------------------ description
     @property
@@ -505,10 +514,7 @@ def structure(name: str, **orders: Any) -> PolynomialStructure:
             f"(it takes {', '.join(allowed)})"
         )
     given = {k: v for k, v in orders.items() if v is not None}
-    made = PolynomialStructure(**given)
-    # a named structure with a zero order (ARMAX with nc = 0) is still that structure
-    made.kind = key if made.kind in (key, "arx", "oe", "polynomial") else made.kind
-    return made
+    return PolynomialStructure(**given, kind=key)
 
 
 # ================================================================================ predictor
