@@ -9,7 +9,8 @@ Rows (microseconds per candidate, and the ratio to the ARX simulation cost of th
 
 * evaluation at given parameters (``cost(theta)``: what ``numerator = "search"`` costs);
 * with the numerator fitted (variable projection, the default search space:
-  ``ARXCost.fit_numerator`` then ``cost``, against ``PolynomialCost.fitted_costs``);
+  ``ARXCost.fit_numerator`` then ``cost``, against ``PolynomialCost.fitted_costs``), for
+  candidates drawn in the pole space and for candidates next to the plant's own poles;
 
 each under the initial-condition rules the cost has (ARX: ``measured``; the structures:
 ``zero``, ``estimate`` and ``measured``).
@@ -39,10 +40,13 @@ N = 1500
 P = 50
 
 
+ANGLES = np.array([0.05, 0.15, 0.3, 0.6, 0.9, 1.4, 2.0, 2.6])
+_POLES = 0.99 * np.exp(1j * ANGLES)
+A_TRUE = np.poly(np.r_[_POLES, _POLES.conj()]).real  # the plant's denominator
+
+
 def record(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    ang = np.array([0.05, 0.15, 0.3, 0.6, 0.9, 1.4, 2.0, 2.6])
-    poles = 0.99 * np.exp(1j * ang)
-    a = np.poly(np.r_[poles, poles.conj()]).real
+    a = A_TRUE
     b = rng.normal(size=16) * 0.05
     u = rng.uniform(-0.3, 0.3, N)
     noise = signal.lfilter([1.0, 0.5], [1.0, -0.9], 0.01 * rng.standard_normal(N))
@@ -77,6 +81,18 @@ def main() -> None:
             cost = PolynomialCost(struct, (u, y), metric="rmse", initial=rule)
             fns[f"{name} one-step, {rule}"] = lambda c=cost, X=X: c(X)
             fns[f"{name} one-step, {rule}, b fitted"] = lambda c=cost, X=X: c.fitted_costs(X)
+    # where a search ends: F near the plant's own lightly damped denominator, the case in
+    # which shifted regressors are numerically dependent (the orthogonal basis is used)
+    oe = cases["OE(16,16,1)"]
+    X = np.zeros((P, oe.n_params))
+    X[:, 16:] = A_TRUE[1:] + 1e-7 * rng.standard_normal((P, 16))
+    for rule in ("zero", "estimate"):
+        cost = PolynomialCost(oe, (u, y), metric="rmse", initial=rule)
+        ok = cost._admissible(X)
+        near = X[ok]
+        fns[f"OE(16,16,1) near the plant's poles, {rule}, b fitted"] = (
+            lambda c=cost, X=near: c.fitted_costs(X)
+        )
     times = interleaved_medians(fns, rounds=7, budget=0.05)
     base = times["ARX(16,16,1) simulation, measured"]
     base_fit = times["ARX(16,16,1) simulation, measured, b fitted"]
