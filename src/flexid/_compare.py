@@ -26,6 +26,7 @@ import numpy as np
 
 from ._identify import prepare_data, structure_of
 from ._json import jsonable
+from ._table import text_table
 from ._validate import positive_int
 from .config import LEAST_SQUARES, ComparisonSpec, OptimiserSpec
 from .data import IOData
@@ -414,7 +415,7 @@ class ComparisonResult:
             runs, median, IQR and best cost, median FE to each target with the success rate,
             the Holm-corrected rank-sum p-value and the median wall time in seconds.
         """
-        return _format_table(self._cost_rows())
+        return text_table(self._cost_rows())
 
     def _cost_rows(self) -> list[list[str]]:
         targets = self.spec.targets
@@ -461,7 +462,7 @@ class ComparisonResult:
             one-step and simulation fits (%), the one-step error range, the correlation-test
             pass rate and the share of stable models.
         """
-        return _format_table(self._validation_rows())
+        return text_table(self._validation_rows())
 
     def _validation_rows(self) -> list[list[str]]:
         head = [
@@ -639,20 +640,6 @@ def _p(value: float | None) -> str:
     if value is None or math.isnan(value):
         return "-"
     return f"{value:.2g}" + ("*" if value < 0.05 else "")
-
-
-def _format_table(rows: list[list[str]]) -> str:
-    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
-    lines = []
-    for n, row in enumerate(rows):
-        cells = [
-            str(c).ljust(w) if i == 0 else str(c).rjust(w)
-            for i, (c, w) in enumerate(zip(row, widths))
-        ]
-        lines.append("  ".join(cells).rstrip())
-        if n == 0:
-            lines.append("  ".join("-" * w for w in widths))
-    return "\n".join(lines)
 
 
 # ================================================================================ compare

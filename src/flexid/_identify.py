@@ -31,7 +31,7 @@ from .config import (
 )
 from .data import IOData, load
 from .errors import BudgetError, ConfigError, DataError, ModelOrderError, UnknownNameError
-from .estimation import build_problem, model_structure, resolve_initial
+from .estimation import build_problem, model_structure
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
 from .polynomial import INITIAL_RULES, STRUCTURES, PolynomialStructure
@@ -736,8 +736,7 @@ def identify(
     }
     base = cost if isinstance(cost, CostSpec) else CostSpec()
     cost_spec = replace(base, **{k: v for k, v in cost_given.items() if v is not None})
-    cost_spec = replace(cost_spec, initial=resolve_initial(cost_spec.initial, structure))
-    predictor = cost_spec.predictor
+    predictor = cost_spec.predictor  # build_problem resolves the "auto" initial rule
     estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
     objective = estimation.cost
     box = estimation.box

@@ -71,6 +71,7 @@ __all__ = [
     "ModelSpec",
     "OptimiserSpec",
     "SearchSpec",
+    "auto_initial",
     "default_spec",
     "load_config",
     "spec_from_mapping",
@@ -90,6 +91,26 @@ PREDICTION_ERROR = "pem"
 REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR)
 #: The named model structures (their orders: :data:`flexid.polynomial.STRUCTURES`).
 STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
+
+
+def auto_initial(structure: str) -> str:
+    """The initial-condition rule ``"auto"`` stands for with a structure of this name.
+
+    ``"measured"`` for ARX (the setting of the paper's experiments, kept as it was) and
+    ``"estimate"`` for every other structure: their predictors are recursive, and starting a
+    lightly damped high-order recursion from measured outputs excites a transient that is not
+    the model's (see :mod:`flexid.polynomial`).
+
+    Parameters
+    ----------
+    structure : str
+        A structure's name (:data:`STRUCTURE_NAMES`, or ``"polynomial"``).
+
+    Returns
+    -------
+    str
+    """
+    return "measured" if structure == "arx" else "estimate"
 
 
 @dataclass(frozen=True)
@@ -462,7 +483,7 @@ class ComparisonSpec:
         if self.cost.initial == "auto":
             # resolved here so the store key of a spec does not depend on how the rule was
             # spelled ("auto" is "measured" for ARX, as before, and "estimate" otherwise)
-            rule = "measured" if self.model.structure == "arx" else "estimate"
+            rule = auto_initial(self.model.structure)
             object.__setattr__(self, "cost", replace(self.cost, initial=rule))
 
     @property

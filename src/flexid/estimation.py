@@ -19,7 +19,7 @@ import numpy as np
 
 from ._validate import is_integer
 from .arx import ARXStructure
-from .config import CostSpec, SearchSpec
+from .config import CostSpec, SearchSpec, auto_initial
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, UnknownNameError
 from .objective import ARXCost
@@ -48,12 +48,8 @@ _NUMERATOR_WORDS = {"search": "searched", "fit": "fitted by least squares for ea
 
 
 def resolve_initial(initial: str, structure: Any) -> str:
-    """The initial-condition rule a cost uses: ``"auto"`` resolved for the structure.
-
-    ``"auto"`` is ``"measured"`` for ARX (the setting of the paper's experiments, kept as it
-    was) and ``"estimate"`` for every other structure: their predictors are recursive, and
-    starting a lightly damped high-order recursion from measured outputs excites a transient
-    that is not the model's (see :mod:`flexid.polynomial`).
+    """The initial-condition rule a cost uses: ``"auto"`` resolved for the structure
+    (:func:`flexid.config.auto_initial`).
 
     Parameters
     ----------
@@ -66,8 +62,7 @@ def resolve_initial(initial: str, structure: Any) -> str:
     """
     if initial != "auto":
         return initial
-    arx = not isinstance(structure, PolynomialStructure) or structure.kind == "arx"
-    return "measured" if arx else "estimate"
+    return auto_initial(getattr(structure, "kind", "arx"))  # an ARXStructure has no kind
 
 
 def model_structure(
@@ -555,8 +550,7 @@ def _build_polynomial(
     from .polynomial_space import PolynomialSpace
 
     objective = PolynomialCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
-    b_cols = np.concatenate([np.arange(structure.n_params)[s] for s in structure.slices()["b"]])
-    b_ls = np.nan_to_num(objective.theta_ls[b_cols])
+    b_ls = np.nan_to_num(objective.theta_ls[structure.b_columns])
     if isinstance(bounds, str) and bounds == "auto":
         half = _round_up(2.0 * float(np.max(np.abs(b_ls)))) if b_ls.size else 1.0
         rule = f"b box: |b| <= {half:g} (2 max|b_LS|, rounded up)"

@@ -35,6 +35,7 @@ __all__ = [
     "PREDICTORS",
     "ARXCost",
     "metric_from_sse",
+    "population",
     "simulate_population",
 ]
 
@@ -72,6 +73,31 @@ def _least_squares_rows(F: np.ndarray, r: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         pass
     return np.stack([linalg.lstsq(F[i].T, r[i])[0] for i in range(F.shape[0])])
+
+
+def population(X: Any, n_params: int) -> np.ndarray:
+    """A population as a float ``(P, n_params)`` array (one row for a 1-D ``X``).
+
+    Parameters
+    ----------
+    X : array_like, shape (P, n_params) or (n_params,)
+    n_params : int
+
+    Returns
+    -------
+    ndarray, shape (P, n_params)
+
+    Raises
+    ------
+    DataError
+        For any other shape.
+    """
+    X = np.asarray(X, dtype=float)
+    if X.ndim == 1:
+        X = X[None, :]
+    if X.ndim != 2 or X.shape[1] != n_params:
+        raise DataError(f"the population must have shape (P, {n_params}), got {X.shape}")
+    return X
 
 
 def metric_from_sse(
@@ -265,11 +291,7 @@ class ARXCost:
         ndarray, shape (P,)
             Non-finite rows cost ``+inf``.
         """
-        X = np.asarray(X, dtype=float)
-        if X.ndim == 1:
-            X = X[None, :]
-        if X.ndim != 2 or X.shape[1] != self.n_params:
-            raise DataError(f"the population must have shape (P, {self.n_params}), got {X.shape}")
+        X = population(X, self.n_params)
         if np.isfinite(X.sum()):  # the common case: every row finite, no masking needed
             return self._costs(X)
         out = np.full(X.shape[0], np.inf)

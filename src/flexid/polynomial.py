@@ -336,6 +336,11 @@ class PolynomialStructure:
             names += [f"f{i + 1}" + (f"[u{j + 1}]" if multi else "") for i in range(nf)]
         return names
 
+    @property
+    def b_columns(self) -> np.ndarray:
+        """Indices in ``theta`` of every ``b`` coefficient, inputs in order (int array)."""
+        return np.concatenate([np.arange(s.start, s.stop) for s in self.slices()["b"]])
+
     def slices(self) -> dict[str, Any]:
         """Where each polynomial sits in ``theta``.
 

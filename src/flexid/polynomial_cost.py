@@ -39,7 +39,7 @@ from ._validate import real
 from .config import CostSpec
 from .errors import ConfigError, DataError, UnknownNameError
 from .kernels import ar_recursion
-from .objective import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse
+from .objective import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
 from .polynomial import INITIAL_RULES, PolynomialStructure
 from .stability import is_stable, pole_radius_batched
 
@@ -369,11 +369,7 @@ class PolynomialCost:
             Non-finite rows cost ``+inf``; inadmissible ones (see ``penalty``) the penalty
             plus the cost of the zero prediction.
         """
-        X = np.asarray(X, dtype=float)
-        if X.ndim == 1:
-            X = X[None, :]
-        if X.ndim != 2 or X.shape[1] != self.n_params:
-            raise DataError(f"the population must have shape (P, {self.n_params}), got {X.shape}")
+        X = population(X, self.n_params)
         out, ok = self._screen(X)
         if ok.any():
             out[ok] = self._from_sse(self.sse(X[ok]))
@@ -455,19 +451,10 @@ class PolynomialCost:
         -------
         ndarray, shape like ``X``
         """
-        X = np.array(X, dtype=float)
+        X = np.asarray(X, dtype=float)
         single = X.ndim == 1
-        X = np.atleast_2d(X)
-        if X.shape[1] != self.n_params:
-            raise DataError(f"the population must have shape (P, {self.n_params}), got {X.shape}")
-        b_cols = np.concatenate([np.arange(self.n_params)[s] for s in self._slices["b"]])
-        fallback = np.nan_to_num(self.theta_ls[b_cols])
-        X[:, b_cols] = fallback
-        ok = np.isfinite(X).all(axis=1)
-        ok[ok] = self._admissible(X[ok])
-        if ok.any():
-            X[np.flatnonzero(ok)[:, None], b_cols] = self._fitted_b(X[ok])[0]
-        return X[0] if single else X
+        theta = self.fitted_costs(np.atleast_2d(X))[1]
+        return theta[0] if single else theta
 
     def fitted_costs(self, X: Any) -> tuple[np.ndarray, np.ndarray]:
         """Costs of the rows of ``X`` with their best ``B``, and those ``theta`` (one pass).
@@ -483,8 +470,8 @@ class PolynomialCost:
         theta : ndarray, shape (P, n_params)
             ``X`` with the fitted ``B`` (see :meth:`fit_numerator`).
         """
-        X = np.array(X, dtype=float)
-        b_cols = np.concatenate([np.arange(self.n_params)[s] for s in self._slices["b"]])
+        X = population(X, self.n_params).copy()
+        b_cols = self.structure.b_columns
         X[:, b_cols] = np.nan_to_num(self.theta_ls[b_cols])
         cost, ok = self._screen(X)
         if ok.any():
@@ -558,8 +545,7 @@ class PolynomialCost:
         n_pop = X.shape[0]
         group = sum(s.nb) + 1  # per candidate: the free part, then one row per b
         Xb = np.repeat(X, group, axis=0)
-        b_all = np.concatenate([np.arange(self.n_params)[sl] for sl in self._slices["b"]])
-        Xb[:, b_all] = 0.0
+        Xb[:, s.b_columns] = 0.0
         # each b regressor is the response to one orthogonal numerator (see _fitted_b)
         p = self._parts(X)
         one_step = self.predictor == "one-step"
@@ -615,8 +601,7 @@ class PolynomialCost:
         else:
             for f in sl["f"]:
                 theta[f] = a
-        b_cols = np.concatenate([np.arange(self.n_params)[x] for x in sl["b"]])
-        theta[b_cols] = arx.theta[s.na + nf :]
+        theta[s.b_columns] = arx.theta[s.na + nf :]
         return theta
 
     # ------------------------------------------------------------------ reporting

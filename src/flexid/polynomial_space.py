@@ -86,7 +86,7 @@ class PolynomialSpace:
             upper.append(param.upper)
             title = name.upper() if len(name) == 1 else f"F[u{name[1:]}]"
             labels += [f"{title}: {lab}" for lab in param.labels]
-        b_cols = np.concatenate([np.arange(structure.n_params)[s] for s in slices["b"]])
+        b_cols = structure.b_columns
         self._b_cols = b_cols
         if numerator == "search":
             if b_lower is None or b_upper is None:

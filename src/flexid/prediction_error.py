@@ -93,7 +93,7 @@ from .output_error import (
     _perturbed_a,
     _random_a,
 )
-from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
+from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure, _poly_mul
 from .polynomial import structure as _named_structure
 from .polynomial_cost import orthogonal_numerators
 from .stability import pole_radius_batched
@@ -236,13 +236,6 @@ class PEMResult:
 
 
 # =================================================================================== helpers
-def _poly_mul(*polys: np.ndarray) -> np.ndarray:
-    out = np.ones(1)
-    for p in polys:
-        out = np.convolve(out, p)
-    return out
-
-
 def _fir(b: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``b(q) x`` from rest, shape of ``x`` (axis 0)."""
     if not np.any(b):

@@ -75,6 +75,7 @@ import numpy as np
 from scipy import linalg
 
 from ._json import jsonable
+from ._table import text_table
 from ._validate import integer, real
 from .errors import (
     ConfigError,
@@ -467,7 +468,7 @@ class Selection:
             the correlation tests (``pass``; ``fail BV``: only the Billings-Voon tests fail;
             ``fail``), stability, fit + validation time, and the recommendation marked.
         """
-        return _format_table(self._rows())
+        return text_table(self._rows(), left=(1, -1))
 
     def summary(self) -> str:
         """A readable account: what was compared, the table, and the recommendation's note.
@@ -539,20 +540,6 @@ class Selection:
 
 def _g(value: float) -> str:
     return "-" if value is None or math.isnan(value) else f"{value:.4g}"
-
-
-def _format_table(rows: list[list[str]]) -> str:
-    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
-    lines = []
-    for n, row in enumerate(rows):
-        cells = [
-            str(c).ljust(w) if i in (1, len(row) - 1) else str(c).rjust(w)
-            for i, (c, w) in enumerate(zip(row, widths))
-        ]
-        lines.append("  ".join(cells).rstrip())
-        if n == 0:
-            lines.append("  ".join("-" * w for w in widths).rstrip())
-    return "\n".join(lines)
 
 
 # ================================================================================ grids
