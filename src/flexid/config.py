@@ -403,7 +403,7 @@ class ComparisonSpec:
     data : DataSpec
         Where the record comes from (default: the paper's manipulator preset).
     model : ModelSpec
-        ARX orders.
+        The model structure and its orders.
     cost : CostSpec
         The cost the optimisers minimise.
     search : SearchSpec

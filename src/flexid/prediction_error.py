@@ -69,6 +69,13 @@ Notes
   :data:`OPTIMALITY_THRESHOLD` although the SSE has settled to ~1e-11; an interior final
   point that fails the gradient test gets one more run with the tolerances ``tol * 1e-5``
   (``"polish"`` in :attr:`PEMResult.runs`).
+* **Budget.**  By default each run has MINPACK's ``100 * n_params`` residual evaluations
+  at a time; a run that spends them while its SSE still falls (by more than ``1e-9``
+  relative) continues from where it stopped, up to :data:`_CHUNKS` times that.  Slow
+  valleys are common in over-parametrised structures (a pole pair nearly cancelled by a
+  zero pair moves along an almost flat direction): on the simulated twin rotor's pitch,
+  OE(5,5,1) from least squares needs about 3,000 evaluations to reach its minimum, and a
+  hard budget of 1,000 left it 16 % above it.
 """
 
 from __future__ import annotations
@@ -116,6 +123,10 @@ __all__ = [
 OPTIMALITY_THRESHOLD = 1e-6
 # A root counts as on the cap within this radius distance.
 _CAP_TOLERANCE = 1e-6
+# a run stopped by its evaluation budget continues while its SSE falls by more than this
+# (relative), up to _CHUNKS budgets in all
+_CHUNKS = 10
+_STILL_FALLING = 1e-9
 # The continuation run of a final point that fails the gradient test uses tol times this
 # factor, not below the floor (MINPACK refuses tolerances under machine epsilon).
 _POLISH_FACTOR = 1e-5
@@ -727,17 +738,31 @@ def _run_lm(
             return np.zeros((prob.K, prob.n))
         return prob.errors(x, True)[1]
 
-    sol = least_squares(
-        fun,
-        theta0,
-        jac=jac,
-        method="lm",
-        x_scale="jac",
-        ftol=tol,
-        xtol=tol,
-        gtol=tol,
-        max_nfev=max_nfev,
-    )
+    x, chunks, last = theta0, 0, sse0
+    while True:
+        sol = least_squares(
+            fun,
+            x,
+            jac=jac,
+            method="lm",
+            x_scale="jac",
+            ftol=tol,
+            xtol=tol,
+            gtol=tol,
+            max_nfev=max_nfev or 100 * prob.n,
+        )
+        chunks += 1
+        x = sol.x
+        now = float(sol.fun @ sol.fun)
+        if (
+            sol.status != 0  # 0: the evaluation budget ran out
+            or max_nfev is not None  # a budget the caller gave is a hard one
+            or chunks >= _CHUNKS
+            or not now < last * (1.0 - _STILL_FALLING)
+        ):
+            break
+        last = now
+    message = str(sol.message) + (f" (continued {chunks - 1} time(s))" if chunks > 1 else "")
     theta = np.asarray(sol.x, dtype=float)
     sse = np.inf
     if prob.admissible(theta, r_max):
@@ -753,7 +778,7 @@ def _run_lm(
         sse=sse,
         nfev=prob.nfev - nfev0,
         njev=prob.njev - njev0,
-        message=str(sol.message),
+        message=message,
     )
 
 
@@ -952,7 +977,9 @@ def pem(
         (0, 1]; 1 keeps them strictly inside the circle.  Lifted when the best point sits on
         it (module docstring).
     max_nfev : int, optional
-        Residual-evaluation budget of each run (default MINPACK's ``100 * n_params``).
+        Residual-evaluation budget of each run, a hard one.  Default: MINPACK's
+        ``100 * n_params`` at a time, continued while the SSE still falls, up to ten times
+        that (module docstring, "Budget").
     tol : float, optional
         ``ftol``, ``xtol`` and ``gtol`` of each run, in (0, 1).
     x0 : array_like, shape (n_params,), optional

@@ -427,7 +427,7 @@ class Selection:
             "tests",
             "stable",
             "time s",
-            "",
+            "note",
         ]
         rows = [head]
         for i, c in enumerate(self.ranked(), start=1):
