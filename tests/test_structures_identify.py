@@ -141,6 +141,11 @@ def test_compare_runs_a_structure_and_shows_the_reference_row(tmp_path):
     text = result.summary()
     assert "OE(nb=4, nf=4, nk=1)" in text and "reference (LM)" in text
     assert "validated with initial state estimate" in text
+    # the reference says whether it ended at a first-order minimum (stored with it)
+    oe = result.reference["output_error"]
+    assert isinstance(oe["local_minimum"], bool) and isinstance(oe["on_cap"], bool)
+    note = "did not end at a verified local minimum"
+    assert (note in text) == (not oe["local_minimum"] and oe["cost"] == result.reference_cost)
     (again,) = load_result(tmp_path / "r.sqlite")
     assert again.spec.model == spec.model and again.key == result.key
 

@@ -210,6 +210,9 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
             "wall_time": float(oe.wall_time),
             "validation": _validation_numbers(oe_model, ctx),
         }
+        if hasattr(oe, "local_minimum"):  # the prediction-error reference measures it
+            record["output_error"]["local_minimum"] = bool(oe.local_minimum)
+            record["output_error"]["on_cap"] = bool(oe.on_cap)
     record["wall_time"] = time.perf_counter() - t0
     return record
 
@@ -558,6 +561,13 @@ class ComparisonResult:
     def _notes(self) -> list[str]:
         """The lines after the tables: failed runs and the rank-sum conclusion."""
         lines: list[str] = []
+        oe = self.reference.get("output_error") or {}
+        if oe.get("local_minimum") is False and oe.get("cost") == self.reference_cost:
+            where = "on the pole-radius cap" if oe.get("on_cap") else "short of it"
+            lines.append(
+                f"  The reference (LM) did not end at a verified local minimum ({where}): "
+                "a run below it is news, not an error."
+            )
         failed = {k: v.get("errors") for k, v in self.stats.items() if v.get("failed")}
         for label, errors in failed.items():
             lines.append(f"  {label}: failed runs: {'; '.join(errors or [])}")
