@@ -335,7 +335,7 @@ class Identification:
         if self.output_error is not None:
             oe = self.output_error
             text = (
-                f"Levenberg-Marquardt from {len(oe.runs)} starts, "
+                f"Levenberg-Marquardt, {len(oe.runs)} runs (starts and continuations), "
                 f"{oe.nfev} residual + {oe.njev} Jacobian evaluations"
             )
             if hasattr(oe, "optimality"):
