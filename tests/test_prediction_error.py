@@ -470,3 +470,26 @@ def test_box_jenkins_starts_from_the_output_error_model_on_the_robot_arm() -> No
     assert res.runs[res.best_start].kind in ("output-error", "polish")
     assert by_kind["output-error"].sse < by_kind["least-squares"].sse / 10
     assert res.stable and res.predictor_stable
+
+
+def test_a_hopeless_run_is_abandoned_at_its_best_point(monkeypatch) -> None:
+    # With the thresholds at their extremes (abandon at once, anything above the best run so
+    # far is hopeless), every start that begins above the first run's minimum is abandoned
+    # at its start; the minimum itself is unchanged, since the first run reaches it.
+    from flexid import prediction_error
+
+    s, polys = SYSTEMS["oe"]
+    u, y = _simulate(s, polys, n=800, seed=4)
+    full = pem((u, y), s, initial="zero", starts=4, seed=0)
+    monkeypatch.setattr(prediction_error, "_HOPELESS", 1.0)
+    monkeypatch.setattr(prediction_error, "_ABANDON_AFTER", 0)
+    quick = pem((u, y), s, initial="zero", starts=4, seed=0)
+    abandoned = [r for r in quick.runs if r.message.startswith("abandoned")]
+    assert len(abandoned) >= 3  # the four extra starts begin far above the minimum
+    for run in abandoned:
+        np.testing.assert_array_equal(run.theta, run.theta0)  # its best point: the start
+        assert run.sse == run.sse0 and not run.out_of_budget and run.nfev <= 2
+    assert quick.nfev < full.nfev
+    # the same minimum: both runs that reach it stop at tol 1e-10 on the same cost
+    assert quick.sse == pytest.approx(full.sse, rel=1e-8)
+    assert quick.local_minimum and full.local_minimum
