@@ -34,7 +34,7 @@ from .errors import BudgetError, ConfigError, DataError, ModelOrderError, Unknow
 from .estimation import build_problem, model_structure
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
-from .polynomial import INITIAL_RULES, STRUCTURES, PolynomialStructure
+from .polynomial import STRUCTURES, PolynomialStructure, _check_initial
 from .polynomial import structure as _named_structure
 from .validation import ValidationReport, format_fit, validate
 
@@ -701,10 +701,7 @@ def identify(
         For bad data, files, orders, names, hyper-parameters, budgets or bounds.
     """
     t_start = time.perf_counter()
-    if validate_initial not in INITIAL_RULES:
-        raise UnknownNameError(
-            "validation initial-condition rule", str(validate_initial), tuple(INITIAL_RULES)
-        )
+    _check_initial(validate_initial, "validation initial-condition rule")
     if optimiser not in REFERENCES:
         budget = _budget(budget)
     est, val = prepare_data(

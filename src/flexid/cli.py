@@ -489,6 +489,19 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 # ============================================================================ parser
+def _structure_options(p: argparse.ArgumentParser, default: str, scope: str = "") -> None:
+    """``--structure`` and its orders, alike on every command that takes a model."""
+    tail = f"; {scope}" if scope else ""
+    names = " | ".join(STRUCTURE_NAMES)
+    p.add_argument("--structure", help=f"model structure: {names} ({default}); give its orders")
+    p.add_argument("--na", type=int, help=f"order of A (arx, armax{tail})")
+    p.add_argument("--nb", help=f"B coefficients per input (arx default: na{tail})")
+    p.add_argument("--nc", type=int, help=f"order of C (armax, bj{tail})")
+    p.add_argument("--nd", type=int, help=f"order of D (bj{tail})")
+    p.add_argument("--nf", help=f"order of F per input (oe, bj{tail})")
+    p.add_argument("--nk", help=f"input delay in samples per input (default 1{tail})")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``flexid`` command and its subcommands.
 
@@ -534,16 +547,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("identify", help="identify a polynomial model (ARX, ARMAX, OE, BJ)")
     i.add_argument("file", help="record: .csv, .npz, .dat or .mat")
-    i.add_argument(
-        "--structure",
-        help=f"model structure: {' | '.join(STRUCTURE_NAMES)} (default arx); give its orders",
-    )
-    i.add_argument("--na", type=int, help="order of A (arx, armax)")
-    i.add_argument("--nb", help="B coefficients per input (arx default: na)")
-    i.add_argument("--nc", type=int, help="order of C (armax, bj)")
-    i.add_argument("--nd", type=int, help="order of D (bj)")
-    i.add_argument("--nf", help="order of F per input (oe, bj)")
-    i.add_argument("--nk", help="input delay in samples per input (default 1)")
+    _structure_options(i, "default arx")
     i.add_argument(
         "--optimiser",
         default="hbcsd",
@@ -594,16 +598,11 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--runs", type=int, help="runs (seeds) per optimiser")
     c.add_argument("--budget", type=int, help="function evaluations per run")
     c.add_argument("--seed", type=int, help="comparison seed")
-    c.add_argument(
-        "--structure",
-        help=f"model structure: {' | '.join(STRUCTURE_NAMES)} (built-in comparison; default arx)",
+    _structure_options(
+        c,
+        "built-in comparison; default: the plant's own model, arx when only orders are given",
+        scope="built-in comparison",
     )
-    c.add_argument("--na", type=int, help="order of A (built-in comparison)")
-    c.add_argument("--nb", help="B coefficients (built-in comparison)")
-    c.add_argument("--nc", type=int, help="order of C (armax, bj; built-in comparison)")
-    c.add_argument("--nd", type=int, help="order of D (bj; built-in comparison)")
-    c.add_argument("--nf", help="order of F (oe, bj; built-in comparison)")
-    c.add_argument("--nk", help="input delay (built-in comparison)")
     c.add_argument("--cost", help="paper (default) | rmse | nrmse | sse | mse")
     c.add_argument("--predictor", help="one-step (default) | simulation")
     _add_search_options(c)

@@ -60,7 +60,7 @@ from scipy import linalg, signal
 from ._json import jsonable
 from ._validate import integer, positive_real
 from .config import STRUCTURE_NAMES
-from .errors import DataError, ModelOrderError, UnknownNameError, check_finite
+from .errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
 
 __all__ = [
     "INITIAL_RULES",
@@ -95,10 +95,18 @@ INITIAL_RULES: dict[str, str] = {
 }
 
 
-def _check_initial(initial: Any) -> str:
-    if initial not in INITIAL_RULES:
-        raise UnknownNameError("initial-condition rule", str(initial), tuple(INITIAL_RULES))
-    return str(initial)
+class _UnknownInitialRule(UnknownNameError, ConfigError, DataError):
+    """An unknown initial-condition rule: an :class:`~flexid.errors.UnknownNameError` naming
+    the valid rules, and the :class:`~flexid.errors.ConfigError` of an estimator's option or
+    the :class:`~flexid.errors.DataError` of :func:`flexid.validation.validate`, which is
+    what each of them raises for a bad argument."""
+
+
+def _check_initial(initial: Any, what: str = "initial-condition rule") -> str:
+    """``initial`` if it names a rule of :data:`INITIAL_RULES`, else the error above."""
+    if not isinstance(initial, str) or initial not in INITIAL_RULES:
+        raise _UnknownInitialRule(what, str(initial), tuple(INITIAL_RULES))
+    return initial
 
 
 def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:

@@ -40,7 +40,7 @@ from .config import CostSpec
 from .errors import ConfigError, DataError, UnknownNameError
 from .kernels import ar_recursion
 from .objective import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
-from .polynomial import INITIAL_RULES, PolynomialStructure
+from .polynomial import PolynomialStructure, _check_initial
 from .stability import is_stable, pole_radius_batched
 
 __all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows"]
@@ -215,8 +215,7 @@ class PolynomialCost:
             raise UnknownNameError("predictor", predictor, PREDICTORS)
         if penalty_kind not in PENALTY_KINDS:
             raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
-        if initial not in INITIAL_RULES:
-            raise UnknownNameError("initial-condition rule", str(initial), tuple(INITIAL_RULES))
+        _check_initial(initial)
         if predictor == "simulation" and structure.has_noise_model:
             raise ConfigError(
                 f"{structure!r} has a noise model (nc or nd > 0), which the simulation "

@@ -113,7 +113,7 @@ from .output_error import (
     _perturbed_a,
     _random_a,
 )
-from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure, _poly_mul
+from .polynomial import PolynomialModel, PolynomialStructure, _check_initial, _poly_mul
 from .polynomial import structure as _named_structure
 from .polynomial_cost import orthogonal_numerators
 from .stability import pole_radius_batched
@@ -879,14 +879,6 @@ def _check_structure(structure: Any) -> PolynomialStructure:
             f"ARXStructure, got {type(structure).__name__}"
         )
     return structure
-
-
-def _check_initial(initial: Any) -> str:
-    if not isinstance(initial, str) or initial not in INITIAL_RULES:
-        raise ConfigError(
-            f"initial must be one of {', '.join(map(repr, INITIAL_RULES))}, got {initial!r}"
-        )
-    return initial
 
 
 def _signals(s: PolynomialStructure, u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:

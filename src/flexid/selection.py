@@ -85,10 +85,10 @@ from .errors import (
     UnknownNameError,
 )
 from .polynomial import (
-    INITIAL_RULES,
     STRUCTURES,
     PolynomialModel,
     PolynomialStructure,
+    _check_initial,
     structure,
 )
 from .validation import format_fit
@@ -949,8 +949,7 @@ def select(
     from .validation import validate
 
     criterion = _check_criterion(criterion)
-    if not isinstance(initial, str) or initial not in INITIAL_RULES:
-        raise UnknownNameError("initial-condition rule", str(initial), tuple(INITIAL_RULES))
+    initial = _check_initial(initial)
     max_lag = integer(max_lag, "max_lag", error=ConfigError, minimum=1)
     starts = integer(starts, "starts", error=ConfigError, minimum=0)
     seed = integer(seed, "seed", error=ConfigError, minimum=0)

@@ -103,8 +103,8 @@ from scipy import signal, stats
 from ._json import jsonable
 from ._validate import integer, positive_int, positive_real
 from .data import IOData
-from .errors import DataError, FlexidError, ModelOrderError, UnknownNameError, check_finite
-from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
+from .errors import DataError, FlexidError, ModelOrderError, check_finite
+from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure, _check_initial
 
 __all__ = [
     "CONFIDENCE",
@@ -133,17 +133,6 @@ CONFIDENCE = 0.95
 
 PASS_LEVEL = 0.01
 """False-rejection level of each of the two pass rules (see the module docstring)."""
-
-
-class _UnknownInitialRule(UnknownNameError, DataError):
-    """An unknown ``initial`` rule: an :class:`~flexid.errors.UnknownNameError` naming the
-    valid rules, and a :class:`~flexid.errors.DataError` as :func:`validate` raised before."""
-
-
-def _check_initial(initial: Any) -> str:
-    if not isinstance(initial, str) or initial not in INITIAL_RULES:
-        raise _UnknownInitialRule("initial-condition rule", str(initial), tuple(INITIAL_RULES))
-    return initial
 
 
 # ============================================================================ input checks
