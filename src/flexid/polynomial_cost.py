@@ -30,6 +30,7 @@ Variable projection (:meth:`PolynomialCost.fit_numerator`)
 
 from __future__ import annotations
 
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -68,41 +69,84 @@ def poly_mul_rows(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-# Rows whose last refinement step moved the solution by more than this (relative) are
-# solved again by SVD: the normal equations square the condition number, and the shifted
-# free responses of a denominator with clustered poles reach kappa ~ 1e7.
+# Rows whose refinement step moved the solution by more than this (relative) are refined
+# once more, then solved again by SVD if they still move: the normal equations square the
+# condition number, and the shifted free responses of a denominator with clustered poles
+# reach kappa ~ 1e7.
 _REFINE_TOL = 1e-9
 
 
-def _least_squares_rows(F: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """``argmin_c ||r_p - c F_p||`` for each ``p``: ``F`` (P, n, K), ``r`` (P, K) -> (P, n).
+def _least_squares_rows(blocks: list[np.ndarray], r: np.ndarray) -> list[np.ndarray]:
+    """``argmin_c ||r_p - sum_i c_ip F_ip||`` for each ``p``, the regressors given in blocks.
 
-    Normal equations of the column-scaled regressors, refined twice with the residual; rows
-    where the second refinement still moves the solution (ill conditioned) are solved again
-    by SVD, row by row.
+    Parameters
+    ----------
+    blocks : list of ndarray, shapes (P, n_i, K)
+        Regressor blocks (views are fine: they are never copied or joined).
+    r : ndarray, shape (P, K)
+
+    Returns
+    -------
+    list of ndarray, shapes (P, n_i)
+        The coefficients of each block.
+
+    Normal equations of the column-scaled regressors (the Gram matrix from one matmul per
+    pair of blocks, scaled afterwards), refined with the residual; rows whose first refinement
+    step is not negligible are refined once more, and rows where that step still moves the
+    solution (ill conditioned) are solved again by SVD, row by row.
     """
-    n_pop, n, _ = F.shape
+    sizes = [F.shape[1] for F in blocks]
+    edges = np.cumsum([0, *sizes])
+    n_pop, n = r.shape[0], int(edges[-1])
     if n == 0:
-        return np.zeros((n_pop, 0))
-    scale = np.sqrt(np.einsum("pnk,pnk->pn", F, F))
+        return [np.zeros((n_pop, 0)) for _ in blocks]
+    G = np.empty((n_pop, n, n))
+    for i, Fi in enumerate(blocks):
+        for j in range(i, len(blocks)):
+            Gij = Fi @ blocks[j].transpose(0, 2, 1)
+            G[:, edges[i] : edges[i + 1], edges[j] : edges[j + 1]] = Gij
+            G[:, edges[j] : edges[j + 1], edges[i] : edges[i + 1]] = Gij.transpose(0, 2, 1)
+    scale = np.sqrt(np.einsum("pii->pi", G))
     scale[scale == 0] = 1.0
-    Fs = F / scale[:, :, None]
-    G = Fs @ Fs.transpose(0, 2, 1)
+    inv = 1.0 / scale
+    Gs = G * inv[:, :, None] * inv[:, None, :]
+
+    def take(F: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        return F if rows.size == n_pop else F[rows]  # all rows: no copy
+
+    def correlate(v: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        return np.concatenate([take(F, rows) @ v[:, :, None] for F in blocks], axis=1)[:, :, 0]
+
+    def residual(c: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        out = take(r, rows) - (c[:, None, : edges[1]] @ take(blocks[0], rows))[:, 0]
+        for F, lo, hi in zip(blocks[1:], edges[1:-1], edges[2:]):
+            out -= (c[:, None, lo:hi] @ take(F, rows))[:, 0]
+        return out
+
+    every = np.arange(n_pop)
     redo = np.zeros(n_pop, dtype=bool)
     try:
-        c = np.linalg.solve(G, Fs @ r[:, :, None])[:, :, 0]
+        c = np.linalg.solve(Gs, (correlate(r, every) * inv)[:, :, None])[:, :, 0] * inv
+        rows = every
         for _ in range(2):
-            resid = r - np.einsum("pnk,pn->pk", Fs, c)
-            step = np.linalg.solve(G, Fs @ resid[:, :, None])[:, :, 0]
-            c += step
-        size = np.abs(c).max(axis=1)
-        redo = ~(np.abs(step).max(axis=1) <= _REFINE_TOL * np.where(size > 0, size, 1.0))
+            Gr = Gs[rows]
+            step = np.linalg.solve(
+                Gr, (correlate(residual(c[rows], rows), rows) * inv[rows])[:, :, None]
+            )[:, :, 0] * inv[rows]
+            c[rows] += step
+            size = np.abs(c[rows]).max(axis=1)
+            moved = ~(np.abs(step).max(axis=1) <= _REFINE_TOL * np.where(size > 0, size, 1.0))
+            rows = rows[moved]
+            if not rows.size:
+                break
+        redo[rows] = True
     except np.linalg.LinAlgError:
         c = np.zeros((n_pop, n))
         redo[:] = True
     for i in np.flatnonzero(redo):
-        c[i] = linalg.lstsq(Fs[i].T, r[i])[0]
-    return c / scale
+        A = np.concatenate([F[i] for F in blocks], axis=0)
+        c[i] = linalg.lstsq((A * inv[i][:, None]).T, r[i])[0] * inv[i]
+    return [c[:, lo:hi] for lo, hi in pairwise(edges)]
 
 
 def orthogonal_numerators(den: np.ndarray, count: int) -> np.ndarray:
@@ -412,7 +456,8 @@ class PolynomialCost:
         e = self._target - yhat[:, self.start - self._t0 :]
         if self.initial == "estimate" and n:
             free = self._free_responses(den)
-            e = e - np.einsum("pnk,pn->pk", free, _least_squares_rows(free, e))
+            (x0,) = _least_squares_rows([free], e)
+            e = e - (x0[:, None, :] @ free)[:, 0]
         return e
 
     def _free_responses(self, den: np.ndarray) -> np.ndarray:
@@ -515,15 +560,18 @@ class PolynomialCost:
                 np.repeat(den_g[:, 1:], s.nb[j], axis=0), forcing, np.zeros(den_g.shape[1] - 1)
             )
             blocks.append(h.reshape(n_pop, s.nb[j], n0)[:, :, self.start :])
-        nb_total = sum(s.nb)
-        regs = np.concatenate(blocks, axis=1)
         if self.initial == "estimate":
             den, _, _ = self._predictor({**p, "b": [np.zeros((n_pop, nb)) for nb in s.nb]})
             if den.shape[1] > 1:
-                regs = np.concatenate([regs, self._free_responses(den)], axis=1)
-        coef = _least_squares_rows(regs, np.ascontiguousarray(z))
-        resid = z - np.einsum("pnk,pn->pk", regs, coef)
-        return self._b_of(coef[:, :nb_total], bases), np.einsum("pk,pk->p", resid, resid)
+                blocks.append(self._free_responses(den))
+        z = np.ascontiguousarray(z)
+        coefs = _least_squares_rows(blocks, z)
+        resid = z.copy()
+        for F, c in zip(blocks, coefs):
+            resid -= (c[:, None, :] @ F)[:, 0]
+        return self._b_of(np.concatenate(coefs[: s.n_inputs], axis=1), bases), np.einsum(
+            "pk,pk->p", resid, resid
+        )
 
     def _b_of(self, coef: np.ndarray, bases: list[np.ndarray]) -> np.ndarray:
         """``b`` (P, sum nb) from coefficients in the orthogonal numerators' basis."""
@@ -571,8 +619,8 @@ class PolynomialCost:
         y = y.reshape(n_pop, group, self.K)
         z = self._target - y[:, 0]
         regs = y[:, 1:]
-        coef = _least_squares_rows(regs, np.ascontiguousarray(z))
-        resid = z - np.einsum("pnk,pn->pk", regs, coef)
+        (coef,) = _least_squares_rows([regs], z)
+        resid = z - (coef[:, None, :] @ regs)[:, 0]
         return self._b_of(coef, bases), np.einsum("pk,pk->p", resid, resid)
 
     # ------------------------------------------------------------------ least-squares start
