@@ -11,6 +11,10 @@ Data and models
     :class:`PolynomialCost`
 Structure selection
     :func:`select` (AIC, FPE, MDL and the held-out tests over a grid of structures)
+Grey-box models
+    :class:`GreyBoxModel` of :class:`GreyParameter` (a plant's equations with named physical
+    parameters), the built-in ones by :func:`greybox_model`, their simulation cost
+    :class:`GreyBoxCost` and the reference :func:`greyest` -> :class:`GreyBoxResult`
 References
     :func:`pem` and MATLAB's :func:`oe`, :func:`armax`, :func:`bj` (Levenberg-Marquardt on
     the prediction errors, analytic gradients)
@@ -76,6 +80,13 @@ _LAZY = {
     "PolynomialModel": "polynomial",
     "PolynomialCost": "polynomial_cost",
     "select": "selection",
+    # grey-box models
+    "GreyBoxModel": "greybox",
+    "GreyParameter": "greybox",
+    "GreyBoxCost": "greybox_cost",
+    "greybox_model": "greybox_models",
+    "greyest": "greybox_fit",
+    "GreyBoxResult": "greybox_fit",
     # references
     "pem": "prediction_error",
     "oe": "prediction_error",

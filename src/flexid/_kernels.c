@@ -20,7 +20,8 @@
  *       ``derivatives`` and ``_rk4``, with the constants divided out once and sin, cos and
  *       tanh as inline polynomials, 4 rotors per SIMD vector): x (B, 7) states, updated in
  *       place; u (S, B, 2) voltages held over each of S samples; out (S, B, 7) or None, the
- *       states after each sample; params (22,) in the order of TRS_PARAMS below; n_sub
+ *       states after each sample; params (22,) in the order of TRS_PARAMS below, shared by
+ *       every rotor, or (B, 22), one row per rotor (a population of parameter sets); n_sub
  *       substeps of length h per sample.
  *
  * The recursion runs on blocks of LANES candidates at once, with the block's history in
@@ -438,37 +439,42 @@ static inline __attribute__((always_inline)) v4d trs_tanh(v4d x)
     return 2.0 / (1.0 + p * scale) - 1.0;
 }
 
-/* The model's constants folded as the derivative uses them (divisions done once). */
+/* The model's constants folded as the derivative uses them (divisions done once), one lane
+ * per rotor, so that rotors with their own parameters share a vector. */
 typedef struct {
-    double a1, b1, a2, b2;           /* thrust coefficients over I1 and I2 */
-    double mg, c1psi, c2psi;         /* Mg, B1psi, B2psi over I1 */
-    double c1phi, c2phi, inv_i2;     /* B1phi, B2phi over I2; 1 / I2 */
-    double kgy, inv_eps;
-    double ku1, ku2, g1, g2;         /* k1 / T11, k2 / T21, T10 / T11, T20 / T21 */
-    double r_dt1, r_t1, inv_tp;      /* kc T0 / Tp, kc / Tp, 1 / Tp */
+    v4d a1, b1, a2, b2;           /* thrust coefficients over I1 and I2 */
+    v4d mg, c1psi, c2psi;         /* Mg, B1psi, B2psi over I1 */
+    v4d c1phi, c2phi, inv_i2;     /* B1phi, B2phi over I2; 1 / I2 */
+    v4d kgy, inv_eps;
+    v4d ku1, ku2, g1, g2;         /* k1 / T11, k2 / T21, T10 / T11, T20 / T21 */
+    v4d r_dt1, r_t1, inv_tp;      /* kc T0 / Tp, kc / Tp, 1 / Tp */
 } trs_consts;
 
-static void trs_fold(const double *p, trs_consts *c)
+/* Lane j of c from the parameter vector lanes[j] (TRS_PARAMS values). */
+static void trs_fold(const double *const lanes[4], trs_consts *c)
 {
-    c->a1 = p[2] / p[0];
-    c->b1 = p[3] / p[0];
-    c->a2 = p[4] / p[1];
-    c->b2 = p[5] / p[1];
-    c->mg = p[6] / p[0];
-    c->c1psi = p[7] / p[0];
-    c->c2psi = p[8] / p[0];
-    c->c1phi = p[9] / p[1];
-    c->c2phi = p[10] / p[1];
-    c->inv_i2 = 1.0 / p[1];
-    c->kgy = p[11];
-    c->inv_eps = 1.0 / p[21];
-    c->ku1 = p[12] / p[14];
-    c->ku2 = p[13] / p[16];
-    c->g1 = p[15] / p[14];
-    c->g2 = p[17] / p[16];
-    c->r_dt1 = p[20] * p[19] / p[18];
-    c->r_t1 = p[20] / p[18];
-    c->inv_tp = 1.0 / p[18];
+    for (int j = 0; j < 4; ++j) {
+        const double *p = lanes[j];
+        c->a1[j] = p[2] / p[0];
+        c->b1[j] = p[3] / p[0];
+        c->a2[j] = p[4] / p[1];
+        c->b2[j] = p[5] / p[1];
+        c->mg[j] = p[6] / p[0];
+        c->c1psi[j] = p[7] / p[0];
+        c->c2psi[j] = p[8] / p[0];
+        c->c1phi[j] = p[9] / p[1];
+        c->c2phi[j] = p[10] / p[1];
+        c->inv_i2[j] = 1.0 / p[1];
+        c->kgy[j] = p[11];
+        c->inv_eps[j] = 1.0 / p[21];
+        c->ku1[j] = p[12] / p[14];
+        c->ku2[j] = p[13] / p[16];
+        c->g1[j] = p[15] / p[14];
+        c->g2[j] = p[17] / p[16];
+        c->r_dt1[j] = p[20] * p[19] / p[18];
+        c->r_t1[j] = p[20] / p[18];
+        c->inv_tp[j] = 1.0 / p[18];
+    }
 }
 
 /* Derivatives of 4 rotors, one per lane: x[i] is state i; f1, f2 the rotor forcing k u / T
@@ -516,8 +522,8 @@ trs_block_impl(const trs_consts *c, double *x, const double *u, double *out, Py_
     for (Py_ssize_t s = 0; s < S; ++s) {
         const double *us = u + 2 * (s * B + g);
         for (Py_ssize_t j = 0; j < w; ++j) {
-            f1[j] = c->ku1 * us[2 * j];
-            f2[j] = c->ku2 * us[2 * j + 1];
+            f1[j] = c->ku1[j] * us[2 * j];
+            f2[j] = c->ku2[j] * us[2 * j + 1];
         }
         for (long sub = 0; sub < n_sub; ++sub) {
             trs_deriv(c, xs, f1, f2, k, lock, square);
@@ -565,17 +571,23 @@ TRS_BLOCK(trs_block_lock_sq, 1, 1)
 typedef void (*trs_block_fn)(const trs_consts *, double *, const double *, double *,
                              Py_ssize_t, Py_ssize_t, Py_ssize_t, long, double);
 
-static void trs_run(const double *p, double *x, const double *u, double *out, Py_ssize_t S,
-                    Py_ssize_t B, long n_sub, double h, int lock, int square)
+static void trs_run(const double *p, Py_ssize_t p_stride, double *x, const double *u,
+                    double *out, Py_ssize_t S, Py_ssize_t B, long n_sub, double h, int lock,
+                    int square)
 {
     static const trs_block_fn blocks[2][2] = {
         {trs_block, trs_block_sq},
         {trs_block_lock, trs_block_lock_sq},
     };
     trs_consts c;
-    trs_fold(p, &c);
     const trs_block_fn block = blocks[lock != 0][square != 0];
-    for (Py_ssize_t g = 0; g < B; g += 4) block(&c, x, u, out, S, B, g, n_sub, h);
+    for (Py_ssize_t g = 0; g < B; g += 4) {
+        /* lanes past the last rotor take the block's first parameters (they run at rest) */
+        const double *lanes[4];
+        for (Py_ssize_t j = 0; j < 4; ++j) lanes[j] = p + p_stride * (g + j < B ? g + j : g);
+        trs_fold(lanes, &c);
+        block(&c, x, u, out, S, B, g, n_sub, h);
+    }
 }
 #else
 /* Without GCC's vector extensions: the equations as written in the reference route. */
@@ -608,13 +620,15 @@ static void trs_derivatives(const double *p, const double *x, double u1, double 
     d[6] = dmr;
 }
 
-static void trs_run(const double *p, double *x, const double *u, double *out, Py_ssize_t S,
-                    Py_ssize_t B, long n_sub, double h, int lock, int square)
+static void trs_run(const double *params, Py_ssize_t p_stride, double *x, const double *u,
+                    double *out, Py_ssize_t S, Py_ssize_t B, long n_sub, double h, int lock,
+                    int square)
 {
     double k1[7], k2[7], k3[7], k4[7], y[7];
     const double hh = 0.5 * h, h6 = h / 6.0;
     for (Py_ssize_t s = 0; s < S; ++s) {
         for (Py_ssize_t b = 0; b < B; ++b) {
+            const double *p = params + p_stride * b;
             double *xb = x + 7 * b;
             const double u1 = u[2 * (s * B + b)], u2 = u[2 * (s * B + b) + 1];
             for (long k = 0; k < n_sub; ++k) {
@@ -659,11 +673,14 @@ static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
         have[i] = 1;
         if (check_format(&bufs[i], "d", names[i]) < 0) goto done;
     }
-    if (bufs[0].ndim != 1 || bufs[0].shape[0] != TRS_PARAMS || bufs[1].ndim != 2 ||
+    /* params (22,) shared by every rotor, or (B, 22): one row per rotor */
+    const int rows = bufs[0].ndim == 2;
+    if (!(bufs[0].ndim == 1 || rows) || bufs[0].shape[bufs[0].ndim - 1] != TRS_PARAMS ||
+        bufs[1].ndim != 2 || (rows && bufs[0].shape[0] != bufs[1].shape[0]) ||
         bufs[1].shape[1] != 7 || bufs[2].ndim != 3 || bufs[2].shape[1] != bufs[1].shape[0] ||
         bufs[2].shape[2] != 2 || n_sub < 1) {
-        PyErr_SetString(PyExc_ValueError,
-                        "twin_rotor_run: params (22,), x (B, 7), u (S, B, 2), n_sub >= 1");
+        PyErr_SetString(PyExc_ValueError, "twin_rotor_run: params (22,) or (B, 22), x (B, 7), "
+                                          "u (S, B, 2), n_sub >= 1");
         goto done;
     }
     Py_ssize_t S = bufs[2].shape[0], B = bufs[1].shape[0];
@@ -673,8 +690,9 @@ static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
         goto done;
     }
     Py_BEGIN_ALLOW_THREADS
-    trs_run((const double *)bufs[0].buf, (double *)bufs[1].buf, (const double *)bufs[2].buf,
-            have[3] ? (double *)bufs[3].buf : NULL, S, B, n_sub, h, lock, square);
+    trs_run((const double *)bufs[0].buf, rows ? TRS_PARAMS : 0, (double *)bufs[1].buf,
+            (const double *)bufs[2].buf, have[3] ? (double *)bufs[3].buf : NULL, S, B, n_sub, h,
+            lock, square);
     Py_END_ALLOW_THREADS
     result = Py_None;
     Py_INCREF(result);
@@ -690,7 +708,8 @@ static PyMethodDef methods[] = {
     {"ar_run", py_ar_run, METH_VARARGS,
      "ar_run(a, forced, state, target, y_out, sse_out): batched AR recursion (see module)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
-     "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law): twin rotor RK4."},
+     "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law): twin rotor RK4; "
+     "params (22,) shared or (B, 22) per rotor."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -996,12 +996,15 @@ def _compiled():
     return c
 
 
+#: The compiled stepper's parameter vector, in the order of ``TRS_PARAMS`` in _kernels.c.
+KERNEL_PARAMETERS = ("I1", "I2", "a1", "b1", "a2", "b2", "Mg", "B1psi", "B2psi", "B1phi",
+                     "B2phi", "Kgy", "k1", "k2", "T11", "T10", "T21", "T20", "Tp", "T0", "kc",
+                     "coulomb_velocity")  # fmt: skip
+
+
 def _kernel_params(p: TwinRotorParameters) -> np.ndarray:
-    """The parameter vector of the compiled stepper (order of ``TRS_PARAMS`` in _kernels.c)."""
-    names = ("I1", "I2", "a1", "b1", "a2", "b2", "Mg", "B1psi", "B2psi", "B1phi", "B2phi",
-             "Kgy", "k1", "k2", "T11", "T10", "T21", "T20", "Tp", "T0", "kc",
-             "coulomb_velocity")  # fmt: skip
-    return np.array([float(getattr(p, n)) for n in names])
+    """The parameter vector of the compiled stepper (:data:`KERNEL_PARAMETERS`)."""
+    return np.array([float(getattr(p, n)) for n in KERNEL_PARAMETERS])
 
 
 def _kernel_arguments(p: TwinRotorParameters, dt: float) -> tuple[np.ndarray, tuple]:

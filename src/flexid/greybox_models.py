@@ -1,0 +1,205 @@
+"""Built-in grey-box models: the twin rotor's pitch and its coupled pitch and yaw.
+
+Both are the plant's own equations (:func:`flexid.envs.twin_rotor_physics.derivatives`, the
+one statement of the model) with its parameters named, bounded and either estimated or
+fixed, read without the encoders (the model's outputs are the exact angles; the encoders'
+quantisation is the measurement error the fit leaves).  With flexid's compiled kernels a
+population runs in the plant's compiled RK4, each rotor with its own parameters, four per
+SIMD vector; otherwise in :meth:`GreyBoxModel.simulate_reference
+<flexid.greybox.GreyBoxModel.simulate_reference>`.
+
+What a record can determine (and so what is fixed).  Pitch's equation
+``I1 psi'' = a1 tau1 |tau1| + b1 tau1 - Mg sin(psi) - B1psi psi' - B2psi sgn(psi')`` holds
+``I1`` only in the ratios ``Mg/I1``, ``B1psi/I1``, ``B2psi/I1``, ``a1/I1``, ``b1/I1``; the
+rotor state ``tau1`` has no unit of its own (``tau1' = (k1 u1 - T10 tau1) / T11``: scaling
+``tau1`` by ``s`` scales ``k1`` by ``s`` and ``a1``, ``b1`` by ``1/s^2``, ``1/s``), and its lag
+shows only as ``T11/T10``.  So ``I1``, ``k1`` and ``T10`` are fixed at the manual's values
+and the other pitch parameters are estimated relative to them; the same holds for ``I2``,
+``k2`` and ``T20`` of yaw.  Freeing one of them makes the problem singular, which
+:func:`flexid.greybox_fit.greyest` reports.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from .envs import twin_rotor_physics as trs
+from .greybox import GreyBoxModel, GreyParameter, ParameterSet
+from .plants import get_plant
+
+__all__ = ["GREYBOX_MODELS", "greybox_model", "twin_rotor_coupled", "twin_rotor_pitch"]
+
+# (name, lower, upper, unit, fixed, description); nominal values are the plant's defaults
+_PITCH = (
+    ("I1", 1e-3, 1.0, "kg m^2", True, "moment of inertia about the pitch axis"),
+    ("Mg", 1e-2, 3.0, "N m", False, "gravity moment at 90 degrees of pitch"),
+    ("B1psi", 1e-5, 0.1, "N m s/rad", False, "viscous friction of pitch"),
+    ("B2psi", 1e-6, 0.05, "N m", False, "Coulomb friction of pitch"),
+    ("a1", 1e-4, 0.5, "N m/unit^2", False, "main rotor thrust, quadratic coefficient"),
+    ("b1", 1e-3, 1.0, "N m/unit", False, "main rotor thrust, linear coefficient"),
+    ("k1", 0.1, 10.0, "unit/V", True, "main motor gain (sets the unit of tau1)"),
+    ("T11", 0.05, 10.0, "s", False, "main motor lag: time constant T11/T10"),
+    ("T10", 0.1, 10.0, "-", True, "main motor lag denominator"),
+    ("coulomb_velocity", 1e-3, 1.0, "rad/s", True, "smoothing of sgn(v) as tanh(v/this)"),
+    ("u_max", 0.1, 10.0, "V", True, "motor voltage limit (inputs are clipped)"),
+)
+_YAW = (
+    ("I2", 1e-3, 1.0, "kg m^2", True, "moment of inertia about the yaw axis"),
+    ("a2", 1e-4, 0.5, "N m/unit^2", False, "tail rotor thrust, quadratic coefficient"),
+    ("b2", 1e-3, 1.0, "N m/unit", False, "tail rotor thrust, linear coefficient"),
+    ("B1phi", 1e-4, 1.0, "N m s/rad", False, "viscous friction of yaw"),
+    ("B2phi", 1e-6, 0.1, "N m", False, "Coulomb friction of yaw"),
+    ("Kgy", 0.0, 1.0, "s/rad", False, "gyroscopic coefficient"),
+    ("k2", 0.1, 10.0, "unit/V", True, "tail motor gain (sets the unit of tau2)"),
+    ("T21", 0.05, 10.0, "s", False, "tail motor lag: time constant T21/T20"),
+    ("T20", 0.1, 10.0, "-", True, "tail motor lag denominator"),
+    ("Tp", 0.05, 20.0, "s", False, "lag of the main rotor's reaction torque on yaw"),
+    ("T0", 0.01, 20.0, "s", False, "lead of the main rotor's reaction torque on yaw"),
+    ("kc", -2.0, 2.0, "N m/unit", False, "gain of the main rotor's reaction torque on yaw"),
+)
+_FIELDS = tuple(f.name for f in fields(trs.TwinRotorParameters))
+
+
+def _twin_rotor(
+    name: str, spec: tuple, inputs: tuple[str, ...], outputs: tuple[str, ...], lock_yaw: bool,
+    thrust_law: str, overrides: dict[str, Any], description: str,
+) -> GreyBoxModel:
+    base = trs.TwinRotorParameters(lock_yaw=lock_yaw, thrust_law=thrust_law, encoder_counts=None)
+    parameters = [
+        GreyParameter(n, getattr(base, n), lo, hi, unit, fixed=fixed, description=text)
+        for n, lo, hi, unit, fixed, text in spec
+    ]
+    names = [p.name for p in parameters]
+    columns = [trs.STATE_NAMES.index(o) for o in outputs]
+    voltages = [get_plant("twin-rotor").input_names.index(i) for i in inputs]
+    i_umax = names.index("u_max")
+
+    def voltages_of(u: np.ndarray, u_max: np.ndarray) -> np.ndarray:
+        full = np.zeros((*u.shape[:-1], 2))
+        full[..., voltages] = u
+        return np.clip(full, -u_max[..., None], u_max[..., None])
+
+    def derivatives(x: np.ndarray, u: np.ndarray, p: ParameterSet) -> np.ndarray:
+        values = {f: (p[f] if f in p else getattr(base, f)) for f in _FIELDS}
+        return trs.derivatives(x, voltages_of(u, p["u_max"]), SimpleNamespace(**values))
+
+    def output(x: np.ndarray, u: np.ndarray, p: ParameterSet) -> np.ndarray:
+        return x[:, columns]
+
+    base_vector = trs._kernel_params(base)
+    kernel_columns = [trs.KERNEL_PARAMETERS.index(n) for n in names if n in trs.KERNEL_PARAMETERS]
+    model_columns = [i for i, n in enumerate(names) if n in trs.KERNEL_PARAMETERS]
+
+    def compiled(
+        theta: np.ndarray, u: np.ndarray, dt: float, n_sub: int, x0: np.ndarray
+    ) -> np.ndarray:
+        c = trs._compiled()
+        n_pop, n = theta.shape[0], u.shape[0]
+        params = np.repeat(base_vector[None, :], n_pop, axis=0)
+        params[:, kernel_columns] = theta[:, model_columns]
+        volts = np.ascontiguousarray(voltages_of(u[:, None, :], theta[None, :, i_umax]))
+        x = np.array(x0, dtype=float, order="C")
+        states = np.empty((n, n_pop, 7))
+        c.twin_rotor_run(
+            params, x, volts, states, n_sub, dt / n_sub, lock_yaw, thrust_law == "square"
+        )
+        y = np.empty((n_pop, n, len(columns)))
+        y[:, 0] = x0[:, columns]
+        y[:, 1:] = states[:-1, :, columns].transpose(1, 0, 2)
+        return y
+
+    model = GreyBoxModel(
+        name, derivatives, output, states=trs.STATE_NAMES, inputs=inputs, outputs=outputs,
+        parameters=parameters, substep=base.substep, compiled=compiled, description=description,
+    )
+    return model.with_parameters(**overrides) if overrides else model
+
+
+def twin_rotor_pitch(*, thrust_law: str = "signed_square", **overrides: Any) -> GreyBoxModel:
+    """The twin rotor's pitch with yaw locked (the rig's one-degree-of-freedom setting).
+
+    Input ``main_rotor`` [V], output ``pitch`` [rad]; the plant's seven states (yaw and the
+    tail rotor stay at rest).  Estimated: ``Mg``, ``B1psi``, ``B2psi``, ``a1``, ``b1``,
+    ``T11``; fixed: ``I1``, ``k1``, ``T10`` (see the module notes), the Coulomb smoothing
+    and the voltage limit.
+
+    Parameters
+    ----------
+    thrust_law : {"signed_square", "square"}
+        The plant's thrust law (:data:`flexid.envs.twin_rotor_physics.THRUST_LAWS`).
+    **overrides
+        Parameter changes, as :meth:`GreyBoxModel.with_parameters
+        <flexid.greybox.GreyBoxModel.with_parameters>` takes them.
+
+    Returns
+    -------
+    GreyBoxModel
+    """
+    return _twin_rotor(
+        "twin-rotor-pitch", _PITCH, ("main_rotor",), ("pitch",), True, thrust_law, overrides,
+        "Twin rotor, pitch with yaw locked: the Feedback 33-949S model's pitch equation, the "
+        "main rotor's lag and thrust law. I1, k1 and T10 are fixed (the record holds pitch's "
+        "parameters only relative to I1, the thrust relative to the unit k1 gives tau1, and "
+        "the lag as T11/T10).",
+    )
+
+
+def twin_rotor_coupled(*, thrust_law: str = "signed_square", **overrides: Any) -> GreyBoxModel:
+    """The twin rotor's coupled pitch and yaw (both axes free).
+
+    Inputs ``main_rotor``, ``tail_rotor`` [V], outputs ``pitch``, ``yaw`` [rad]; the pitch
+    parameters of :func:`twin_rotor_pitch` and those of yaw, the tail rotor, the
+    gyroscopic coupling and the main rotor's reaction torque.  Fixed: ``I1``, ``I2``,
+    ``k1``, ``k2``, ``T10``, ``T20`` (see the module notes).
+
+    Parameters
+    ----------
+    thrust_law : {"signed_square", "square"}
+    **overrides
+        Parameter changes (see :func:`twin_rotor_pitch`).
+
+    Returns
+    -------
+    GreyBoxModel
+    """
+    return _twin_rotor(
+        "twin-rotor-coupled", _PITCH + _YAW, ("main_rotor", "tail_rotor"), ("pitch", "yaw"),
+        False, thrust_law, overrides,
+        "Twin rotor, pitch and yaw coupled: the Feedback 33-949S model. I1, I2, k1, k2, T10 "
+        "and T20 are fixed (each axis's parameters are determined only relative to its "
+        "inertia, each rotor's thrust relative to its gain, each lag as a ratio).",
+    )
+
+
+#: Built-in grey-box models by name.
+GREYBOX_MODELS = {"twin-rotor-pitch": twin_rotor_pitch, "twin-rotor-coupled": twin_rotor_coupled}
+
+
+def greybox_model(name: str, **options: Any) -> GreyBoxModel:
+    """A built-in grey-box model by name (:data:`GREYBOX_MODELS`).
+
+    Parameters
+    ----------
+    name : str
+        ``"twin-rotor-pitch"`` or ``"twin-rotor-coupled"``.
+    **options
+        Passed to the model's function (``thrust_law``, parameter changes).
+
+    Returns
+    -------
+    GreyBoxModel
+
+    Raises
+    ------
+    UnknownNameError
+        No such model (the message lists them).
+    """
+    from .errors import UnknownNameError
+
+    if name not in GREYBOX_MODELS:
+        raise UnknownNameError("grey-box model", name, tuple(GREYBOX_MODELS))
+    return GREYBOX_MODELS[name](**options)
