@@ -12,12 +12,14 @@ depend on where they ran.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -79,6 +81,33 @@ def build_data(spec: ComparisonSpec) -> IOData:
     return generate(d.plant, sensors=d.sensors, **options)
 
 
+def _record_digest(data: IOData) -> str:
+    """SHA-256 of a record's numbers: its samples, sample time and channel names.
+
+    Parameters
+    ----------
+    data : IOData
+        The record as read.
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits; equal for two records exactly when their inputs and outputs
+        (as little-endian float64), sample times and channel names are.
+    """
+    head = {
+        "dt": float(data.dt).hex(),
+        "inputs": list(data.input_names),
+        "outputs": list(data.output_names),
+        "u": list(data.u.shape),
+        "y": list(data.y.shape),
+    }
+    h = hashlib.sha256(json.dumps(head, sort_keys=True).encode())
+    h.update(np.ascontiguousarray(data.u, dtype="<f8").tobytes())
+    h.update(np.ascontiguousarray(data.y, dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
 class _Context:
     """What every run of a comparison shares: records, structure, cost, box."""
 
@@ -110,7 +139,13 @@ class _Context:
     @classmethod
     def from_spec(cls, spec: ComparisonSpec) -> _Context:
         d = spec.data
-        est, val = prepare_data(build_data(spec), output=d.output, split=d.split, detrend=d.detrend)
+        record = build_data(spec)
+        if d.file is not None:
+            # a file's path does not say which numbers it held: its digest goes into the key,
+            # so runs on an edited file never join the runs on what it held before
+            d = replace(d, digest=_record_digest(record))
+            spec = replace(spec, data=d)
+        est, val = prepare_data(record, output=d.output, split=d.split, detrend=d.detrend)
         return cls(spec, est, val)
 
     def payload(self) -> dict[str, Any]:
@@ -659,12 +694,10 @@ def _check_optimisers(spec: ComparisonSpec) -> None:
         get(opt.name)(**opt.params)
 
 
-def _check_labels(spec: ComparisonSpec, store: ResultStore | None, key: str) -> None:
+def _check_labels(spec: ComparisonSpec, records: Iterable[Mapping[str, Any]]) -> None:
     """Fail early on a label stored for this comparison with other settings."""
-    if store is None:
-        return
     stored = {}
-    for r in store.runs(key):
+    for r in records:
         stored.setdefault(r["label"], r.get("fingerprint"))
     for opt in spec.optimisers:
         fp = stored.get(opt.display)
@@ -716,7 +749,8 @@ def compare(
         What to compare (see :mod:`flexid.config`).
     store : path or ResultStore, optional
         SQLite result store.  Each finished run is written at once; runs already in the store
-        are skipped.  Without a store the results live in memory only.
+        are skipped, except damaged ones (named in a :class:`~flexid.errors.StoreWarning`),
+        which run again.  Without a store the results live in memory only.
     workers : int
         Processes to run in parallel (1 = in this process).  The numbers do not depend on it.
     scheduler : str or distributed.Client, optional
@@ -734,22 +768,29 @@ def compare(
     ------
     ConfigError, UnknownOptimiserError, HyperParameterError, DataError, StoreError
         Before any run starts, for an invalid specification (and before the store is
-        opened, so an invalid specification leaves no file behind).
+        opened, so an invalid specification leaves no file behind), or for a store that is
+        read-only or not a flexid store (left as it was).
     """
     workers = positive_int(workers, "workers", error=ConfigError)
     t0 = time.perf_counter()
     ctx = _checked_context(spec)  # the whole specification, before the store is opened
+    spec = ctx.spec  # with the digest of a data file's record, which the key includes
     owns_store = store is not None and not isinstance(store, ResultStore)
     db = ResultStore(store) if owns_store else store
     key = spec.key
     try:
-        _check_labels(spec, db, key)
         records: list[dict[str, Any]] = []
         done: set[tuple[str, int]] = set()
         if db is not None:
+            stored = db.runs(key)  # damaged rows are left out (and named): they run again
+            _check_labels(spec, stored)
             db.add_comparison(key, spec.name, spec.to_dict())
-            done = db.finished(key, include_failed=not retry_failed)
-            records = [r for r in db.runs(key) if (r["label"], r["run"]) in done]
+            done = {
+                (r["label"], r["run"])
+                for r in stored
+                if not (retry_failed and r["status"] == "failed")
+            }
+            records = [r for r in stored if (r["label"], r["run"]) in done]
         if (LEAST_SQUARES, 0) not in done:
             ls = _least_squares_record(ctx)
             records.append(ls)

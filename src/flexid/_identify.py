@@ -724,6 +724,10 @@ def identify(
     }
     overrides = {k: v for k, v in given.items() if v is not None}
     search = replace(search or SearchSpec(), **overrides)
+    if optimiser in REFERENCES and not polynomial and structure.na == 0:
+        # an FIR model (na = 0) has no denominator to search, so the default numerator="fit"
+        # space does not exist; a reference searches nothing: the space is only recorded
+        search = replace(search, numerator="search")
     cost_given = {
         "metric": None if isinstance(cost, CostSpec) else cost,
         "predictor": predictor,

@@ -10,14 +10,15 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 from . import __version__
 from ._validate import integer
 from .config import LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR, REFERENCES, STRUCTURE_NAMES
-from .errors import ConfigError, FlexidError
+from .errors import ConfigError, FlexidError, FlexidWarning
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
 
@@ -664,6 +665,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warnings(show: Callable) -> Callable:
+    """``warnings.showwarning`` that prints flexid's warnings (store, data, identification)
+    as one line on stderr."""
+
+    def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+        if issubclass(category, FlexidWarning):
+            print(f"flexid: warning: {message}", file=file or sys.stderr)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return show_warning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status (0 ok, 2 user error).
 
@@ -680,6 +694,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     debug = "--debug" in argv
+    shown = warnings.showwarning
+    warnings.showwarning = _one_line_warnings(shown)
     try:
         args = parser.parse_args(argv)
         if args.command is None:
@@ -701,6 +717,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    finally:
+        warnings.showwarning = shown
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -160,6 +160,11 @@ class DataSpec:
         Estimation share in (0, 1) (default 2/3) or, above 1, the first validation sample.
     detrend : bool
         Remove the estimation record's means from both records (default False).
+    digest : str or None
+        SHA-256 of the record read from ``file`` (its samples, sample time and channel
+        names), set by :func:`flexid.compare` when it reads the file, not in configuration
+        files.  It is part of the store key, so a comparison on an edited file is a new
+        comparison.  None for a simulated record (its settings determine it).
 
     Raises
     ------
@@ -183,6 +188,7 @@ class DataSpec:
     output: str | int | None = None
     split: float | int | None = None
     detrend: bool = False
+    digest: str | None = None
 
     def __post_init__(self) -> None:
         if (self.plant is None) == (self.file is None):
@@ -392,9 +398,10 @@ class OptimiserSpec:
 class ComparisonSpec:
     """Everything that determines a comparison's numbers.
 
-    The comparison's store key is a hash of the data, model, cost, box, budget, seed and
-    validation settings; it leaves out the name, the number of runs and the list of
-    optimisers, so adding runs or optimisers to a finished comparison reuses its runs.
+    The comparison's store key is a hash of the data (for a file, the digest of the numbers
+    it held too), model, cost, box, budget, seed and validation settings; it leaves out the
+    name, the number of runs and the list of optimisers, so adding runs or optimisers to a
+    finished comparison reuses its runs.
 
     Attributes
     ----------
@@ -499,10 +506,11 @@ class ComparisonSpec:
         dict
             ``data``, ``model``, ``cost``, ``search`` (as dicts), ``bounds``, ``seed``,
             ``budget``, ``schedule_cap`` (None unless the budget is ``"schedule"``),
-            ``max_lag`` and ``validate_initial``.
+            ``max_lag`` and ``validate_initial``.  ``data`` has ``digest`` only when it is
+            set (a file's record once :func:`flexid.compare` has read it).
         """
         return {
-            "data": asdict(self.data),
+            "data": _data_dict(self.data),
             "model": self.model.key_material(),
             "cost": asdict(self.cost),
             "search": asdict(self.search),
@@ -526,10 +534,11 @@ class ComparisonSpec:
         Returns
         -------
         dict
-            Every field, the nested specs as dicts, ``optimisers`` as a list of dicts and
-            ``targets`` as a list.
+            Every field, the nested specs as dicts (``data`` without an unset ``digest``),
+            ``optimisers`` as a list of dicts and ``targets`` as a list.
         """
         out = asdict(self)
+        out["data"] = _data_dict(self.data)
         out["optimisers"] = [asdict(o) for o in self.optimisers]
         out["targets"] = list(self.targets)
         return out
@@ -570,6 +579,14 @@ class ComparisonSpec:
         return "paper loop counts" if self.budget == SCHEDULE else f"{self.budget} FE"
 
 
+def _data_dict(data: DataSpec) -> dict[str, Any]:
+    """``asdict(data)`` without an unset digest: keys of simulated records stay as they were."""
+    out = asdict(data)
+    if out["digest"] is None:
+        del out["digest"]
+    return out
+
+
 def _check_int(spec: ComparisonSpec, name: str, what: str, low: int) -> None:
     """Check an integer field and store it as ``int`` (a NumPy integer would change the key)."""
     value = integer(getattr(spec, name), what, error=ConfigError, minimum=low)
@@ -588,7 +605,7 @@ def _take(table: Mapping[str, Any], allowed: Sequence[str], section: str) -> dic
     return dict(table)
 
 
-_DATA_KEYS = tuple(DataSpec.__dataclass_fields__)
+_DATA_KEYS = tuple(k for k in DataSpec.__dataclass_fields__ if k != "digest")  # set by compare
 _MODEL_KEYS = tuple(ModelSpec.__dataclass_fields__)
 _COST_KEYS = tuple(CostSpec.__dataclass_fields__)
 _SEARCH_KEYS = tuple(SearchSpec.__dataclass_fields__)

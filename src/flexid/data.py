@@ -29,6 +29,8 @@ import csv
 import io
 import json
 import os
+import warnings
+import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -37,7 +39,7 @@ import numpy as np
 
 from ._json import jsonable
 from ._validate import integer, is_integer, positive_real, real
-from .errors import DataError, DataFileError, check_finite
+from .errors import DataError, DataFileError, DataWarning, check_finite
 
 __all__ = ["IOData", "load", "save"]
 
@@ -530,13 +532,22 @@ class IOData:
         Raises
         ------
         DataFileError
-            If the file is missing, unreadable, or lacks the ``u``, ``y`` or ``meta`` arrays
-            or a header key.
+            If the file is missing, empty, unreadable or not an NPZ archive, or lacks the
+            ``u``, ``y`` or ``meta`` arrays or a header key.
         DataError
             If the arrays do not make a valid record.
         """
         path = Path(path)
         try:
+            with open(path, "rb") as handle:
+                magic = handle.read(4)
+            # np.load reads an empty file as EOFError, a .npy as one array, anything else
+            # as a pickle it refuses: say what the file is instead
+            if not magic:
+                raise DataFileError(f"{path}: empty file, not an NPZ file")
+            if magic != b"PK\x03\x04":
+                what = "a single NumPy array (.npy)" if magic == b"\x93NUM" else "not a zip archive"
+                raise DataFileError(f"{path}: {what}, not an NPZ file of u, y and meta")
             with np.load(path, allow_pickle=False) as archive:
                 missing = {"u", "y", "meta"} - set(archive.files)
                 if missing:
@@ -547,7 +558,10 @@ class IOData:
             raise
         except FileNotFoundError:
             raise DataFileError(f"{path}: no such file") from None
-        except (OSError, ValueError, json.JSONDecodeError) as exc:
+        except IsADirectoryError:
+            raise DataFileError(f"{path}: is a directory, not a data file") from None
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            # EOFError and BadZipFile: a truncated or damaged archive
             raise DataFileError(f"{path}: not a readable flexid NPZ file ({exc})") from None
         return cls._from_header(header, u, y, str(path))
 
@@ -589,36 +603,20 @@ class IOData:
             cell that is not a number (the message gives the line and column).
         DataError
             On NaN/inf values, unknown column names, or too few samples.
+
+        Warns
+        -----
+        DataWarning
+            When the sample time is the median step of a time column whose steps differ
+            (also noted in ``metadata["dt_note"]``).
+
+        Notes
+        -----
+        The file is read in blocks into one preallocated table, so a read needs at most
+        about three times the bytes of the record's float64 arrays, whatever its length.
         """
         path = Path(path)
-        text = _read_text(path)
-        lines = text.splitlines()
-        header: dict | None = None
-        start = 0
-        if lines and lines[0].startswith(_CSV_MAGIC):
-            try:
-                header = json.loads(lines[0][len(_CSV_MAGIC) :])
-            except json.JSONDecodeError as exc:
-                raise DataFileError(f"{path}: line 1: malformed flexid metadata ({exc})") from None
-            start = 1
-        while start < len(lines) and (not lines[start].strip() or lines[start].startswith("#")):
-            start += 1
-        if start >= len(lines):
-            raise DataFileError(f"{path}: no header row and no data")
-        rows = list(csv.reader(lines[start:]))
-        columns = [c.strip() for c in rows[0]]
-        if not columns or any(not c for c in columns):
-            raise DataFileError(f"{path}: line {start + 1}: empty column name in the header")
-        try:
-            [float(c) for c in columns]
-        except ValueError:
-            pass
-        else:
-            raise DataFileError(
-                f"{path}: line {start + 1}: the first row is numeric; a CSV file needs a "
-                "header row with column names (use a .dat file for bare numbers)"
-            )
-        table = _parse_rows(rows[1:], len(columns), path, first_line=start + 2, columns=columns)
+        header, columns, table = _read_csv(path)
         if header is not None:
             n_u = len(header.get("input_names", []))
             n_y = len(header.get("output_names", []))
@@ -788,6 +786,132 @@ def _read_text(path: Path) -> str:
         raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
+#: Characters of CSV text parsed at a time by :func:`_read_csv` (whole lines, so a block may
+#: be one line longer).  A block is held as Python strings (1 byte a character and about 50
+#: a line) and, by NumPy's parser, as UCS4 (4 bytes a character): about 1.5 MB whatever the
+#: file's size or line length.  Blocks of a few thousand lines are long enough that NumPy's
+#: parser, not the Python loop over blocks, sets the pace.
+_CSV_BLOCK_CHARS = 1 << 18
+
+
+def _read_csv(path: Path) -> tuple[dict | None, list[str], np.ndarray]:
+    """The flexid metadata line, the column names and the numeric rows of a CSV file.
+
+    The file is read in blocks of whole lines, about :data:`_CSV_BLOCK_CHARS` characters
+    each, straight into one preallocated float64 table (its rows counted beforehand from the
+    newline bytes), so a read needs the table plus one block: the file's text is never held
+    whole, nor split into Python strings and lists (hundreds of bytes a sample).  Each block
+    goes through :func:`numpy.loadtxt`; a block it refuses (a quoted cell, an empty row, a
+    bad cell, a row of the wrong width) is read again row by row by :func:`_parse_rows`,
+    which accepts exactly what :class:`float` does and names the line and the column of an
+    error.  Both parse a number with the same correctly rounded conversion, so the table
+    does not depend on which path read a block.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+
+    Returns
+    -------
+    header : dict or None
+        The JSON of a ``# flexid-iodata`` first line, else None.
+    columns : list of str
+        The header row's column names.
+    table : ndarray, shape (N, len(columns))
+        The numeric rows (blank rows skipped).
+
+    Raises
+    ------
+    DataFileError
+        A missing, unreadable or non-UTF-8 file, no header row, an empty or numeric header,
+        malformed metadata, a row of the wrong width or a cell that is not a number.
+    """
+    try:
+        capacity = _count_lines(path)
+        with open(path, encoding="utf-8") as handle:
+            return _read_csv_lines(path, handle, capacity)
+    except DataFileError:  # an OSError too: not one of the cases below
+        raise
+    except FileNotFoundError:
+        raise DataFileError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise DataFileError(f"{path}: is a directory, not a data file") from None
+    except UnicodeDecodeError:
+        raise DataFileError(f"{path}: not a text file (cannot decode as UTF-8)") from None
+    except OSError as exc:
+        raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def _count_lines(path: Path) -> int:
+    """Lines of a file (a last line without a newline counts), from its newline bytes."""
+    count, last = 0, b"\n"
+    with open(path, "rb") as handle:
+        while chunk := handle.read(1 << 20):
+            count += chunk.count(b"\n")
+            last = chunk[-1:]
+    return count + (last != b"\n")
+
+
+def _read_csv_lines(
+    path: Path, handle: io.TextIOBase, capacity: int
+) -> tuple[dict | None, list[str], np.ndarray]:
+    """:func:`_read_csv` on an open file of at most ``capacity`` lines (more only if it has
+    lone ``\\r`` line ends: then the table grows)."""
+    header: dict | None = None
+    lineno = 0  # 1-based number of the last line read
+    line = ""
+    for line in handle:
+        lineno += 1
+        if lineno == 1 and line.startswith(_CSV_MAGIC):
+            try:
+                header = json.loads(line[len(_CSV_MAGIC) :])
+            except json.JSONDecodeError as exc:
+                raise DataFileError(f"{path}: line 1: malformed flexid metadata ({exc})") from None
+            continue
+        if line.strip() and not line.startswith("#"):
+            break
+    else:
+        raise DataFileError(f"{path}: no header row and no data")
+    head = next(csv.reader([line]), [])
+    columns = [c.strip() for c in head]
+    if not columns or any(not c for c in columns):
+        raise DataFileError(f"{path}: line {lineno}: empty column name in the header")
+    if all(_is_float(c) for c in columns):
+        raise DataFileError(
+            f"{path}: line {lineno}: the first row is numeric; a CSV file needs a "
+            "header row with column names (use a .dat file for bare numbers)"
+        )
+    width = len(columns)
+    table = np.empty((max(capacity - lineno, 0), width))
+    filled = 0
+    while lines := handle.readlines(_CSV_BLOCK_CHARS):
+        block = _parse_block(lines, width, path, lineno + 1, columns)
+        lineno += len(lines)
+        if filled + block.shape[0] > table.shape[0]:
+            grown = np.empty((2 * (filled + block.shape[0]), width))
+            grown[:filled] = table[:filled]
+            table = grown
+        table[filled : filled + block.shape[0]] = block
+        filled += block.shape[0]
+    return header, columns, table[:filled]
+
+
+def _parse_block(
+    lines: list[str], width: int, path: Path, first_line: int, columns: list
+) -> np.ndarray:
+    """Rows of a block of CSV lines, shape (n, width): NumPy's parser, else row by row."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # loadtxt warns of a block with no data rows
+            block = np.loadtxt(lines, delimiter=",", comments=None, dtype=float, ndmin=2)
+    except ValueError:
+        block = None
+    if block is not None and block.shape[1] == width and block.shape[0] > 0:
+        return block
+    return _parse_rows(list(csv.reader(lines)), width, path, first_line, columns)
+
+
 def _write_text(path: Path, text: str) -> None:
     _write_bytes(path, text.encode("utf-8"))
 
@@ -845,6 +969,14 @@ def _parse_rows(rows: list, width: int, path: Path, first_line: int, columns: li
     return table
 
 
+def _columns_of(table: np.ndarray, index: list[int]) -> np.ndarray:
+    """Columns ``index`` of ``table``: a view when they are adjacent and in order (IOData
+    copies its arrays anyway, so a large record is not copied twice)."""
+    if index == list(range(index[0], index[0] + len(index))):
+        return table[:, index[0] : index[0] + len(index)]
+    return table[:, index]
+
+
 def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IOData:
     def resolve(which, kind):
         if isinstance(which, (str, int, np.integer)):
@@ -881,14 +1013,23 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
     time_cols = [j for j, c in enumerate(columns) if c.lower() in ("t", "time")]
     if dt is None:
         if time_cols and table.shape[0] >= 2:
-            dt, uniform = _median_step(table[:, time_cols[0]])
+            times = table[:, time_cols[0]]
+            dt, uniform = _median_step(times)
             if not uniform:
                 meta["dt_note"] = "time column not uniform; dt is its median step"
+                steps = np.diff(times)
+                warnings.warn(
+                    f"{path}: the time column {columns[time_cols[0]]!r} is not uniform (steps "
+                    f"from {steps.min():g} to {steps.max():g} s); the samples are read as "
+                    f"equally spaced at its median step, dt = {dt:g} s",
+                    DataWarning,
+                    stacklevel=2,
+                )
         else:
             dt, meta["dt_assumed"] = 1.0, True
     return cls(
-        table[:, ins],
-        table[:, outs],
+        _columns_of(table, ins),
+        _columns_of(table, outs),
         dt,
         input_names=[columns[j] for j in ins],
         output_names=[columns[j] for j in outs],
@@ -919,6 +1060,12 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
     ------
     DataFileError
         For a folder, an unknown suffix, a missing or malformed file.
+
+    Warns
+    -----
+    DataWarning
+        When a CSV time column or a MATLAB time vector is not uniform and the sample time
+        is its median step (the samples are then read as equally spaced).
     """
     path = Path(path)
     if path.is_dir():
@@ -941,7 +1088,15 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
     if suffix == ".mat":
         from ._matfile import read_mat
 
-        return read_mat(path, **options)
+        data = read_mat(path, **options)
+        note = data.metadata.get("dt_note")
+        if note:  # a MAT file has no flexid metadata: the note is this read's
+            warnings.warn(
+                f"{path}: {note} (dt = {data.dt:g} s); the samples are read as equally spaced",
+                DataWarning,
+                stacklevel=2,
+            )
+        return data
     raise DataFileError(f"{path}: unknown data file type {suffix!r}; use .csv, .npz, .dat or .mat")
 
 

@@ -20,13 +20,17 @@ __all__ = [
     "ConfigError",
     "DataError",
     "DataFileError",
+    "DataWarning",
     "FlexidError",
+    "FlexidWarning",
     "HyperParameterError",
+    "IdentificationWarning",
     "ModelOrderError",
     "OptimiserError",
     "PlantParameterError",
     "RegistryError",
     "StoreError",
+    "StoreWarning",
     "UnknownNameError",
     "UnknownOptimiserError",
     "check_finite",
@@ -118,6 +122,27 @@ class ConfigError(FlexidError, ValueError):
 
 class StoreError(FlexidError):
     """A result store that cannot be opened, read or written."""
+
+
+class FlexidWarning(UserWarning):
+    """Base class of the warnings flexid issues: a result is computed, but read it with care.
+
+    The command line prints each as one line, ``flexid: warning: ...``, on stderr.
+    """
+
+
+class DataWarning(FlexidWarning):
+    """A record was read with an assumption the user should know (e.g. a non-uniform time
+    column read at its median step)."""
+
+
+class IdentificationWarning(FlexidWarning):
+    """An identification problem that has an answer, but a fragile one (e.g. an input that is
+    only barely persistently exciting for the model's orders)."""
+
+
+class StoreWarning(FlexidWarning):
+    """A result store read in part: damaged run records were skipped (and are named)."""
 
 
 def check_finite(array: np.ndarray, what: str, error: type[FlexidError] = DataError) -> None:

@@ -11,17 +11,25 @@ as ARX coefficients, converted by :meth:`EstimationProblem.theta`.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from scipy import linalg
 
 from ._validate import is_integer
 from .arx import ARXStructure
 from .config import CostSpec, SearchSpec, auto_initial
 from .data import IOData
-from .errors import ConfigError, ModelOrderError, UnknownNameError
+from .errors import (
+    ConfigError,
+    DataError,
+    IdentificationWarning,
+    ModelOrderError,
+    UnknownNameError,
+)
 from .objective import ARXCost
 from .optimisers import Problem
 from .parametrisation import PARAMETRISATIONS, Parametrisation, make_parametrisation
@@ -29,11 +37,13 @@ from .polynomial import PolynomialStructure
 from .stability import is_stable
 
 __all__ = [
+    "ILL_CONDITIONED",
     "INIT_RULES",
     "NUMERATOR_RULES",
     "EstimationProblem",
     "PolynomialEstimationProblem",
     "build_problem",
+    "check_excitation",
     "check_search",
     "choose_reference",
     "model_structure",
@@ -108,6 +118,172 @@ def model_structure(
             "(one nb and nk per input)"
         )
     return structure
+
+
+# ================================================================================ excitation
+#: Condition number of the lagged-input matrix (columns scaled to unit norm) above which
+#: :func:`check_excitation` warns.  To first order the relative change of least-squares
+#: coefficients is at most the condition number times the relative change of the data: at
+#: 1e8, a change of 1e-8 in the recorded input -- below the resolution of a 24-bit converter
+#: and of float32 storage (both about 6e-8) -- can change the ``b`` coefficients by their own
+#: size, so the estimate says more about rounding and noise than about the plant.
+ILL_CONDITIONED = 1e8
+
+#: Rows of the lagged-input matrix formed at a time (its R factor is accumulated block by
+#: block), so the check of a long record needs a few MB, not the whole matrix.
+_EXCITATION_BLOCK = 65_536
+
+
+def _lagged_singular_values(
+    u: np.ndarray, columns: list[tuple[int, int]], first: int
+) -> tuple[np.ndarray, int]:
+    """Singular values of the lagged-input matrix, its columns scaled to unit norm.
+
+    Column ``i`` is ``u[t - lag_i, j_i]`` for ``(j_i, lag_i) = columns[i]`` and rows
+    ``t = first .. N - 1``.  The matrix is reduced to its R factor block by block (Householder
+    QR of the previous R stacked on the next block), which has the same singular values.
+
+    Returns
+    -------
+    sv : ndarray
+        Singular values, largest first (fewer than ``len(columns)`` when there are fewer
+        rows: the missing ones are zero).
+    rows : int
+        Number of rows ``K = N - first``.
+    """
+    n = u.shape[0]
+    scale = np.array([np.linalg.norm(u[first - lag : n - lag, j]) for j, lag in columns])
+    scale[scale == 0] = 1.0  # a zero column stays zero: its singular value is 0
+    r = np.zeros((0, len(columns)))
+    for lo in range(first, n, _EXCITATION_BLOCK):
+        hi = min(lo + _EXCITATION_BLOCK, n)
+        block = np.column_stack([u[lo - lag : hi - lag, j] for j, lag in columns]) / scale
+        r = linalg.qr(np.vstack([r, block]), mode="r", check_finite=False)[0]
+    return linalg.svdvals(r, check_finite=False), n - first
+
+
+def _rank(sv: np.ndarray, rows: int, n: int) -> int:
+    """Numerical rank: the singular values above ``max(rows, n) * eps * sv[0]``.
+
+    That is the rounding error of computing the singular values of a ``rows x n`` matrix
+    (the backward error of Householder QR and of the SVD is a modest multiple of
+    ``max(rows, n) * eps * ||U||``; ``numpy.linalg.matrix_rank``'s default and MATLAB's
+    ``rank``).  The matrix holds the recorded samples exactly, so nothing else perturbs it:
+    a direction with a smaller singular value is indistinguishable from one the data do not
+    excite at all.
+    """
+    if not sv.size or sv[0] == 0:
+        return 0
+    return int(np.sum(sv > max(rows, n) * np.finfo(float).eps * sv[0]))
+
+
+def check_excitation(data: IOData, structure: ARXStructure | PolynomialStructure) -> None:
+    """Check that the inputs are persistently exciting enough for the model's orders.
+
+    An input ``u_j`` modelled by ``B_j / F_j`` (``nb_j`` coefficients, ``F_j`` of order
+    ``nf_j``, 0 in ARX and ARMAX) determines the model uniquely only if it is persistently
+    exciting of order ``n_j = nb_j + nf_j`` (Ljung, *System Identification*, 2nd ed., 1999,
+    section 13.2, theorem 13.1): the ``n_j`` lagged copies
+    ``[u_j(t - nk_j), ..., u_j(t - nk_j - n_j + 1)]`` over the estimation samples must be
+    linearly independent.  (In ARX and ARMAX the
+    noise excites ``A`` through the output, so ``nb_j`` is what the input must cover;
+    ``F_j`` is seen through the input alone.)  The order found is the numerical rank of that
+    matrix, with its columns scaled to unit norm and singular values below
+    ``max(K, n_j) * eps`` times the largest counted as zero (the rounding error of computing
+    them, see ``numpy.linalg.matrix_rank``).  An input that is zero has order 0, a constant
+    one order 1, a sinusoid order 2.  With several inputs their lagged copies together must
+    be independent too.
+
+    Parameters
+    ----------
+    data : IOData
+        The estimation record; for input ``j`` its samples from
+        ``t = max(structure.start, nk_j + n_j - 1)`` on are used (in ARX, the rows of the
+        least-squares regression).
+    structure : ARXStructure or PolynomialStructure
+        The model's orders.
+
+    Raises
+    ------
+    DataError
+        When an input's order is below what the model needs (the message names the input,
+        the order found and the order needed), or when the inputs together are dependent:
+        the identification problem has no unique answer.
+
+    Warns
+    -----
+    IdentificationWarning
+        When the lagged-input matrix is ill-conditioned: condition number above
+        :data:`ILL_CONDITIONED`.
+    """
+    u = data.u
+    nf = getattr(structure, "nf", (0,) * structure.n_inputs)
+    names = data.input_names
+    used: list[tuple[int, int, int]] = []  # (input, order needed, first row)
+    warned = False
+    for j in range(structure.n_inputs):
+        nb, nk = structure.nb[j], structure.nk[j]
+        if nb == 0:
+            continue  # the model does not use this input
+        need = nb + nf[j]
+        first = max(structure.start, nk + need - 1)
+        if first >= u.shape[0]:
+            continue  # too short: check_samples says so
+        sv, rows = _lagged_singular_values(u, [(j, nk + i) for i in range(need)], first)
+        order = _rank(sv, rows, need)
+        what = f"{nb} b coefficient(s)" + (f" and F of order {nf[j]}" if nf[j] else "")
+        if order < need:
+            orders = "nb + nf" if nf[j] else "nb"
+            found, hint = (
+                ("is zero (persistently exciting of order 0)", "a record where it moves")
+                if order == 0
+                else (
+                    f"is persistently exciting of order {order}",
+                    f"{orders} <= {order} or a richer input (a constant input has order 1, "
+                    "a sinusoid 2)",
+                )
+            )
+            raise DataError(
+                f"input {names[j]!r} {found} over the {rows} estimation samples t >= "
+                f"{first}, but {structure!r} needs order {need} for its {what}: the model "
+                f"is not unique; use {hint}"
+            )
+        cond = sv[0] / sv[-1]
+        if cond > ILL_CONDITIONED:
+            warned = True
+            warnings.warn(
+                f"input {names[j]!r} is barely persistently exciting of order {need} for "
+                f"{structure!r}: its {need} lagged copies over the estimation samples have "
+                f"condition number {cond:.2g} (> {ILL_CONDITIONED:g}), so the coefficients "
+                f"of its {'B and F' if nf[j] else 'B'} are ill-determined; use lower orders "
+                "or a richer input",
+                IdentificationWarning,
+                stacklevel=2,
+            )
+        used.append((j, need, first))
+    if len(used) < 2:
+        return
+    first = max(f for _, _, f in used)
+    columns = [(j, structure.nk[j] + i) for j, need, _ in used for i in range(need)]
+    sv, rows = _lagged_singular_values(u, columns, first)
+    order = _rank(sv, rows, len(columns))
+    listed = ", ".join(repr(names[j]) for j, _, _ in used)
+    if order < len(columns):
+        raise DataError(
+            f"inputs {listed} are not jointly persistently exciting for {structure!r}: their "
+            f"{len(columns)} lagged copies over the {rows} estimation samples t >= {first} "
+            f"span only {order} dimensions (an input is a combination of the others, or "
+            "they share too few frequencies): the model is not unique"
+        )
+    cond = sv[0] / sv[-1]
+    if cond > ILL_CONDITIONED and not warned:
+        warnings.warn(
+            f"inputs {listed} are barely jointly persistently exciting for {structure!r}: "
+            f"their {len(columns)} lagged copies have condition number {cond:.2g} "
+            f"(> {ILL_CONDITIONED:g}), so the coefficients of their B are ill-determined",
+            IdentificationWarning,
+            stacklevel=2,
+        )
 
 
 @dataclass
@@ -331,10 +507,20 @@ def build_problem(
     ------
     UnknownNameError, ConfigError
         For an unknown parametrisation, penalty or initialisation, or bad bounds.
+    DataError
+        When the inputs are not persistently exciting enough for the orders
+        (:func:`check_excitation`), or the regressors are otherwise singular.
+
+    Warns
+    -----
+    IdentificationWarning
+        When they barely are (:func:`check_excitation`).
     """
     from ._identify import search_box
 
     check_search(search)
+    # before any fit: a problem without a unique answer gets an error, not a huge model
+    check_excitation(est, structure)
     cost = replace(cost, initial=resolve_initial(cost.initial, structure))
     if cost.initial == "estimate" and not isinstance(structure, PolynomialStructure):
         # ARXCost has no estimated initial state; the polynomial cost covers ARX as well
@@ -343,7 +529,14 @@ def build_problem(
         if structure.kind != "arx" or cost.initial == "estimate":
             return _build_polynomial(est, structure, cost, search, bounds=bounds)
         structure = structure.arx_structure()
-    objective = ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
+    try:
+        objective = ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
+    except np.linalg.LinAlgError as exc:  # exactly singular regressors with exciting inputs
+        raise DataError(
+            f"the regressors of {structure!r} are singular on the estimation record ({exc}): "
+            "an output that is zero or constant, or orders the data cannot determine; use "
+            "lower orders or other data"
+        ) from None
     box = search_box(structure, bounds, objective.theta_ls)
     na = structure.na
     b_lo, b_hi = box.lower[na:], box.upper[na:]
@@ -392,7 +585,8 @@ def build_problem(
     elif search.parametrisation == "coefficients":
         rule = box.rule
     else:
-        rule = box.rule.split(", ", 1)[-1] if box.rule.startswith("auto") else box.rule
+        # the b part of the automatic rule (its a part, "C(na, k) (...)", has commas too)
+        rule = box.rule.split("stable A), ", 1)[-1] if box.rule.startswith("auto") else box.rule
         rule = f"b box: {rule}"
     return EstimationProblem(
         structure=structure,

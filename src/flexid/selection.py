@@ -947,6 +947,7 @@ def select(
     """
     t_begin = time.perf_counter()
     from ._identify import prepare_data
+    from .estimation import check_excitation
     from .prediction_error import pem
     from .validation import validate
 
@@ -1003,6 +1004,7 @@ def select(
             else:
                 t0 = time.perf_counter()
                 try:
+                    check_excitation(est, s)  # a candidate the input cannot determine fails
                     res = pem(est, s, initial=initial, starts=starts, seed=seed)
                     model, sse, local = res.model, res.sse, res.local_minimum
                 except FlexidError as exc:

@@ -5,7 +5,10 @@ that determines its numbers (data, model orders, cost, search box, budget, optim
 their hyper-parameters, seeds), so rerunning the same comparison finds its finished runs and
 skips them, while a changed comparison gets a new key.  Each run is one row, written in its
 own transaction as soon as it finishes; SQLite's journal makes the write atomic, so killing
-the process at any moment (even ``kill -9``) leaves either the whole row or none of it.
+the process at any moment (even ``kill -9``) leaves either the whole row or none of it.  A
+row whose record cannot be read back (a damaged payload) is skipped with a
+:class:`~flexid.errors.StoreWarning` naming it and counts as not finished, so a rerun of its
+comparison runs it again and replaces it.
 
 Notes
 -----
@@ -24,15 +27,19 @@ import json
 import os
 import sqlite3
 import time
+import warnings
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from .errors import StoreError
+from .errors import StoreError, StoreWarning
 
 __all__ = ["ResultStore"]
 
-_SCHEMA = """
+_STORE_VERSION = "1"
+# One transaction: a file holds either all of flexid's tables and its marker row or none
+_SCHEMA = f"""
+BEGIN;
 CREATE TABLE IF NOT EXISTS comparisons (
     key      TEXT PRIMARY KEY,
     name     TEXT NOT NULL,
@@ -54,12 +61,25 @@ CREATE TABLE IF NOT EXISTS meta (
     name   TEXT PRIMARY KEY,
     value  TEXT NOT NULL
 );
+INSERT OR IGNORE INTO meta(name, value) VALUES ('flexid_store', '{_STORE_VERSION}');
+COMMIT;
 """
-_STORE_VERSION = "1"
+#: The columns each table of a flexid store has (those of ``_SCHEMA``).
+_COLUMNS = {
+    "comparisons": ("key", "name", "spec", "created"),
+    "runs": ("key", "label", "run", "seed", "status", "error", "payload", "created"),
+    "meta": ("name", "value"),
+}
+_SQLITE_READONLY = 8  # primary result code of SQLITE_READONLY and its extended codes
 
 
 class ResultStore:
     """A comparison result store in one SQLite file.
+
+    Opening never writes into a file that is not a flexid store: an existing non-empty file
+    must be one (or an SQLite database without tables), else it is left byte for byte as it
+    was.  A store opened ``readonly`` is read without creating ``-wal`` or ``-shm`` files
+    when no writer is at work, so a store in a folder the user cannot write can be read.
 
     Parameters
     ----------
@@ -71,7 +91,8 @@ class ResultStore:
     Raises
     ------
     StoreError
-        If the file cannot be opened or is not a flexid store.
+        If the file cannot be opened, is not a flexid store, or is read-only and
+        ``readonly`` is False.
     """
 
     def __init__(self, path: str | os.PathLike, *, readonly: bool = False) -> None:
@@ -79,25 +100,77 @@ class ResultStore:
         if readonly and not self.path.is_file():
             raise StoreError(f"{self.path}: no such result store")
         try:
-            if not readonly:
-                self.path.parent.mkdir(parents=True, exist_ok=True)
-            uri = f"file:{self.path}?mode=ro" if readonly else f"file:{self.path}"
-            self._db = sqlite3.connect(uri, uri=True, timeout=30.0, isolation_level=None)
-            if not readonly:
-                self._db.execute("PRAGMA journal_mode=WAL")
-                self._db.execute("PRAGMA synchronous=NORMAL")
-                self._db.executescript(_SCHEMA)
-                self._db.execute(
-                    "INSERT OR IGNORE INTO meta(name, value) VALUES ('flexid_store', ?)",
-                    (_STORE_VERSION,),
-                )
-            row = self._db.execute("SELECT value FROM meta WHERE name = 'flexid_store'").fetchone()
+            self._db = self._open_readonly() if readonly else self._open_for_writing()
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"{self.path}: not a readable flexid result store ({exc})") from None
         except OSError as exc:
             raise StoreError(f"{self.path}: cannot open ({exc})") from None
-        if row is None:
-            raise StoreError(f"{self.path}: not a flexid result store")
+
+    def _open_readonly(self) -> sqlite3.Connection:
+        db = self._connect_readonly()
+        try:
+            problem = _schema_problem(db, empty_ok=False)
+        except BaseException:
+            db.close()
+            raise
+        if problem is not None:
+            db.close()
+            raise StoreError(f"{self.path}: not a flexid result store ({problem})")
+        return db
+
+    def _connect_readonly(self) -> sqlite3.Connection:
+        # With no log beside the file, every committed row is in the file itself: read it as
+        # immutable, which creates no -wal/-shm files and needs no write access to the
+        # folder.  A log means a writer may be at work: then read through SQLite's locks.
+        # (A writer that starts while an immutable read is under way changes the file only
+        # when it checkpoints, after 1000 pages or when it closes.)
+        logs = (self.path.with_name(self.path.name + suffix) for suffix in ("-wal", "-journal"))
+        query = "mode=ro" if any(p.exists() for p in logs) else "mode=ro&immutable=1"
+        uri = f"{self.path.absolute().as_uri()}?{query}"
+        return sqlite3.connect(uri, uri=True, timeout=30.0, isolation_level=None)
+
+    def _open_for_writing(self) -> sqlite3.Connection:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.path.exists() and not os.access(self.path, os.W_OK):
+            raise StoreError(self._readonly_message("no permission to write the file"))
+        if not os.access(self.path.parent, os.W_OK | os.X_OK):
+            raise StoreError(
+                self._readonly_message(
+                    f"no permission to write its folder {self.path.parent}, where SQLite "
+                    "keeps the store's -wal and -shm files"
+                )
+            )
+        if self.path.is_file() and self.path.stat().st_size > 0:
+            # checked read-only, before the first write: a foreign file stays as it was
+            probe = self._connect_readonly()
+            try:
+                problem = _schema_problem(probe, empty_ok=True)
+            finally:
+                probe.close()
+            if problem is not None:
+                raise StoreError(
+                    f"{self.path}: not a flexid result store ({problem}); it was left "
+                    "untouched: give another store file"
+                )
+        db = sqlite3.connect(
+            self.path.absolute().as_uri(), uri=True, timeout=30.0, isolation_level=None
+        )
+        try:
+            db.execute("PRAGMA journal_mode=WAL")
+            db.execute("PRAGMA synchronous=NORMAL")
+            db.executescript(_SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            db.close()
+            if _is_readonly_error(exc):
+                raise StoreError(self._readonly_message(str(exc))) from None
+            raise
+        return db
+
+    def _readonly_message(self, why: str) -> str:
+        return (
+            f"{self.path}: the result store is read-only ({why}); runs cannot be written "
+            "into it (flexid report reads it as it is)"
+        )
 
     # ----------------------------------------------------------------- context manager
     def close(self) -> None:
@@ -188,6 +261,8 @@ class ResultStore:
     def finished(self, key: str, *, include_failed: bool = True) -> set[tuple[str, int]]:
         """The runs already stored for a comparison.
 
+        A damaged run record (see :meth:`runs`) is not finished: a rerun replaces it.
+
         Parameters
         ----------
         key : str
@@ -201,10 +276,11 @@ class ResultStore:
         set of (str, int)
             ``(optimiser label, run index)`` pairs.
         """
-        sql = "SELECT label, run FROM runs WHERE key = ?"
-        if not include_failed:
-            sql += " AND status = 'ok'"
-        return {(label, int(run)) for label, run in self._query(sql, (key,))}
+        return {
+            (r["label"], r["run"])
+            for r in self._records(key)
+            if include_failed or r["status"] == "ok"
+        }
 
     def write_run(self, key: str, record: Mapping[str, Any]) -> None:
         """Write one finished run at once (its own transaction).
@@ -260,9 +336,14 @@ class ResultStore:
         list of dict
             The records as written by :meth:`write_run`, ordered by label then run index
             (empty for an unknown key).
+
+        Warns
+        -----
+        StoreWarning
+            Naming, in one line, the damaged records left out: a payload that is not UTF-8
+            JSON of a run record, or whose label, run index or status is not its row's.
         """
-        rows = self._query("SELECT payload FROM runs WHERE key = ? ORDER BY label, run", (key,))
-        return [json.loads(p) for (p,) in rows]
+        return list(self._records(key))
 
     def iter_runs(self, key: str) -> Iterator[dict[str, Any]]:
         """Iterate over the run records of a comparison without loading them all.
@@ -276,12 +357,13 @@ class ResultStore:
         ------
         dict
             One record as written by :meth:`write_run`, ordered by label then run index.
+
+        Warns
+        -----
+        StoreWarning
+            At the end, naming the damaged records left out (as :meth:`runs`).
         """
-        cursor = self._db.execute(
-            "SELECT payload FROM runs WHERE key = ? ORDER BY label, run", (key,)
-        )
-        for (payload,) in cursor:
-            yield json.loads(payload)
+        yield from self._records(key)
 
     def count(self, key: str) -> dict[str, int]:
         """Number of stored runs of a comparison, by status.
@@ -294,7 +376,8 @@ class ResultStore:
         Returns
         -------
         dict of str to int
-            ``{"ok": n_ok, "failed": n_failed}``.
+            ``{"ok": n_ok, "failed": n_failed}``, by the rows' status (damaged records
+            included).
         """
         counts = {"ok": 0, "failed": 0}
         for status, n in self._query(
@@ -304,6 +387,43 @@ class ResultStore:
         return counts
 
     # ----------------------------------------------------------------- internals
+    def _records(self, key: str) -> Iterator[dict[str, Any]]:
+        """The readable run records of a comparison; one warning names the damaged ones."""
+        # read as bytes and decoded here: SQLite returns TEXT that is not UTF-8 as it is, and
+        # the sqlite3 module would raise on it instead of returning the row
+        sql = (
+            "SELECT CAST(label AS BLOB), run, status, CAST(payload AS BLOB) FROM runs "
+            "WHERE key = ? ORDER BY label, run"
+        )
+        damaged = []
+        try:
+            for label, run, status, payload in self._db.execute(sql, (key,)):
+                record = _decode_run(label, run, status, payload)
+                if record is None:
+                    damaged.append(f"{_text(label)!r} run {run}")
+                else:
+                    yield record
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"{self.path}: read failed ({exc})") from None
+        if damaged:
+            warnings.warn(
+                f"{self.path}: comparison {self._name(key)!r} [{key}]: skipped "
+                f"{len(damaged)} damaged run record(s) (not UTF-8 JSON of their run): "
+                f"{', '.join(damaged)}; a rerun of the comparison runs them again",
+                StoreWarning,
+                stacklevel=1,  # one place: the same damage met twice in one command shows once
+            )
+
+    def _name(self, key: str) -> str:
+        """The name of a comparison, for messages ("?" if it cannot be read)."""
+        try:
+            row = self._db.execute(
+                "SELECT CAST(name AS BLOB) FROM comparisons WHERE key = ?", (key,)
+            ).fetchone()
+        except sqlite3.DatabaseError:
+            return "?"
+        return "?" if row is None else _text(row[0])
+
     def _execute(self, sql: str, args: tuple = ()) -> None:
         try:
             with self._db:
@@ -316,3 +436,68 @@ class ResultStore:
             return self._db.execute(sql, args).fetchall()
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"{self.path}: read failed ({exc})") from None
+
+
+def _text(value: bytes | str | None) -> str:
+    """A stored name as text, whatever bytes it holds."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    return str(value)
+
+
+def _decode_run(label: bytes, run: Any, status: Any, payload: bytes | None) -> dict | None:
+    """The run record of one row, or None if its payload is damaged.
+
+    A payload is damaged when it is not UTF-8, not JSON, not an object, or names another
+    label, run index or status than its row (a row is found by those columns).
+    """
+    if not isinstance(label, bytes) or not isinstance(payload, bytes):
+        return None
+    try:
+        record = json.loads(payload.decode("utf-8"))
+        label_text = label.decode("utf-8")
+    except ValueError:  # UnicodeDecodeError and json.JSONDecodeError are ValueErrors
+        return None
+    if not isinstance(record, dict):
+        return None
+    same = (str(record.get("label")), record.get("run"), str(record.get("status")))
+    return record if same == (label_text, run, status) else None
+
+
+def _is_readonly_error(exc: sqlite3.DatabaseError) -> bool:
+    """Whether SQLite refused a write because the file or its folder is read-only."""
+    code = getattr(exc, "sqlite_errorcode", None)  # Python >= 3.11
+    if code is not None:
+        return code & 0xFF == _SQLITE_READONLY
+    return "readonly database" in str(exc)
+
+
+def _schema_problem(db: sqlite3.Connection, *, empty_ok: bool) -> str | None:
+    """Why the database ``db`` is not a flexid store, or None if it is one.
+
+    Only reads.  A database without tables passes when ``empty_ok`` (it becomes a store).
+    """
+    objects = [
+        (kind, name)
+        for kind, name in db.execute("SELECT type, name FROM sqlite_master").fetchall()
+        if not name.startswith("sqlite_")  # SQLite's own (autoindexes, statistics)
+    ]
+    if not objects:
+        return None if empty_ok else "it has no tables"
+    foreign = sorted(
+        f"{kind} {name!r}" for kind, name in objects if kind != "table" or name not in _COLUMNS
+    )
+    if foreign:
+        return f"it has {', '.join(foreign)}, which a flexid store has not"
+    tables = {name for _, name in objects}
+    for table in sorted(tables):
+        columns = {row[1] for row in db.execute(f"PRAGMA table_info({table})")}
+        missing = [c for c in _COLUMNS[table] if c not in columns]
+        if missing:
+            return f"its table {table!r} has no column(s) {', '.join(missing)}"
+    absent = [table for table in _COLUMNS if table not in tables]
+    if absent:
+        return f"it has no table(s) {', '.join(map(repr, absent))}"
+    if db.execute("SELECT 1 FROM meta WHERE name = 'flexid_store'").fetchone() is None:
+        return "its table 'meta' has no flexid marker"
+    return None
