@@ -5,8 +5,8 @@ pitch model (:func:`flexid.greybox_models.twin_rotor_pitch`) fitted by
 :func:`flexid.greyest` on the first 2/3 from the manual's values with ``Mg``, ``T11`` and
 ``a1`` 1.6x, 2.7x and 0.37x off; then simulated from rest over the whole record (the
 estimation part runs the model into the held-out third, as the plant itself did) and
-scored on the last third: simulation fit, the correlation tests of the residual (whiteness,
-input cross-correlation; :func:`flexid.validation.residual_tests`) and the Billings-Voon
+scored on the last third by :func:`flexid.validate` (``split=2/3``): simulation fit, the
+correlation tests of the residual (whiteness, input cross-correlation) and the Billings-Voon
 tests, beside the same numbers for the plant's own model at its true parameters.  The
 parameters' errors are printed in their standard errors.
 
@@ -26,18 +26,14 @@ from _table import print_table
 import flexid
 from flexid.envs.twin_rotor_physics import TwinRotorParameters
 from flexid.greybox_models import twin_rotor_pitch
-from flexid.validation import billings_voon_tests, fit_percent, residual_tests
 
 
-def held_out(model, theta, data) -> tuple[float, bool, bool]:
+def held_out(model, data) -> tuple[float, bool, bool]:
     """Simulation fit [%] on the last third, linear tests passed, Billings-Voon passed."""
-    y_sim = model.simulate(theta, data.u, data.dt)[0, :, 0]
-    k = int(2 / 3 * data.n_samples)
-    y, u = data.y[k:, 0], data.u[k:, 0]
-    e = y - y_sim[k:]
-    linear = all(t.passed for t in residual_tests(e, u))
-    nonlinear = all(t.passed for t in billings_voon_tests(e, u))
-    return fit_percent(y, y_sim[k:]), linear, nonlinear
+    report = flexid.validate(model, data, split=2 / 3)
+    linear = all(t.passed for t in report.correlation_tests)
+    nonlinear = all(t.passed for t in report.nonlinear_tests)
+    return report.fit_simulation, linear, nonlinear
 
 
 def main() -> None:
@@ -54,8 +50,8 @@ def main() -> None:
         t0 = time.perf_counter()
         fit = flexid.greyest(data[:k], start, starts=0)
         seconds = time.perf_counter() - t0
-        fitted = held_out(fit.model, fit.model.nominal, data)
-        plant = held_out(model, model.nominal, data)
+        fitted = held_out(fit.model, data)
+        plant = held_out(model, data)
         z = max(abs(fit.values[n] - v) / fit.std_errors[n] for n, v in true.items())
         rows.append((
             f"seed {seed}",

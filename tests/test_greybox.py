@@ -242,3 +242,35 @@ def test_wrong_shape_is_an_error_and_divergence_costs_inf():
     out = cost([[-1.0], [9000.0], [-1.5]])
     assert out[0] == 0.0 and np.isinf(out[1]) and np.isfinite(out[2]) and out[2] > 0
     assert cost.n_diverged == 1
+
+
+# ---------------------------------------------------------------------- validation
+def test_validation_runs_the_model_on_from_the_record_start():
+    # independent route: the model simulated over the whole record, its last third scored
+    # by fit_percent and the correlation tests directly
+    from flexid.validation import fit_percent, residual_tests
+
+    data = _pitch_record(900, sensors="lab")
+    model = twin_rotor_pitch()
+    report = flexid.validate(model, data, split=2 / 3)
+    k = data.split(2 / 3)[0].n_samples
+    y_sim = model.simulate(model.nominal, data.u, data.dt)[0, :, 0]
+    assert report.start == k and report.initial == "model"
+    assert "initial state at t = 0, run on through" in report.initial_rule
+    assert report.fit_simulation == fit_percent(data.y[k:, 0], y_sim[k:])
+    direct = residual_tests(data.y[k:, 0] - y_sim[k:], data.u[k:, 0])
+    assert [t.n_outside for t in report.correlation_tests] == [t.n_outside for t in direct]
+
+
+def test_validation_poles_are_the_linearised_pitch():
+    # at rest pitch's equation linearises to I1 s^2 + (B1psi + B2psi / eps) s + Mg = 0 (the
+    # Coulomb term tanh(v / eps) has slope 1 / eps), and the main motor's lag to
+    # T11 s + T10 = 0; the other rotor states are the tail motor and the reaction torque
+    # lags; yaw, locked, is left out.  Central differences: relative error ~1e-10 here.
+    p = trs.TwinRotorParameters()
+    data = _pitch_record(200)
+    report = flexid.validate(twin_rotor_pitch(), data)
+    s_pitch = np.roots([p.I1, p.B1psi + p.B2psi / p.coulomb_velocity, p.Mg])
+    expected = np.r_[s_pitch, -p.T10 / p.T11, -p.T20 / p.T21, -1 / p.Tp]
+    got = np.sort_complex(np.log(report.stability.poles) / data.dt)
+    np.testing.assert_allclose(got, np.sort_complex(expected), rtol=1e-6)

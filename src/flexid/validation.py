@@ -827,8 +827,15 @@ def stability_report(poles: Any, zeros: Any = (), dt: float = 1.0) -> StabilityR
 
 
 # ============================================================================ report
+#: The rule of a grey-box model's validation: its own initial state at the record's start.
+GREYBOX_RULE = "model"
+
+
 def _rule_text(initial: str, start: int) -> str:
     """An initial-condition rule in words (the measured rule says which samples it used)."""
+    if initial == GREYBOX_RULE:
+        run_on = f", run on through t < {start}" if start else ""
+        return f"the model's initial state at t = 0{run_on}"
     text = INITIAL_RULES.get(initial, initial)
     return f"{text} before t = {start}" if initial == "measured" else text
 
@@ -1127,6 +1134,99 @@ class ValidationReport:
 
 
 # ============================================================================ entry point
+def _linearised_poles(model: Any, dt: float) -> np.ndarray:
+    """Discrete poles of a grey-box model linearised at its initial state with zero input.
+
+    Central differences of ``f`` (relative step 1e-6 of each state's scale, at least 1e-6);
+    states whose derivative is identically zero there (a locked axis) are left out, since
+    they hold their value rather than respond.
+    """
+    x0 = model.x0.astype(float)
+    n = x0.size
+    step = 1e-6 * np.maximum(np.abs(x0), 1.0)
+    X = np.repeat(x0[None, :], 2 * n, axis=0)
+    X[np.arange(n), np.arange(n)] += step
+    X[n + np.arange(n), np.arange(n)] -= step
+    from .greybox import ParameterSet
+
+    theta = np.repeat(model.nominal[None, :], 2 * n, axis=0)
+    u = np.zeros((2 * n, len(model.inputs)))
+    f = np.asarray(model.derivatives(X, u, ParameterSet(model.names, theta)), dtype=float)
+    J = ((f[:n] - f[n:]) / (2 * step)[:, None]).T  # J[i, j] = d f_i / d x_j
+    moving = np.flatnonzero(np.any(J != 0.0, axis=1))
+    return np.exp(np.linalg.eigvals(J[np.ix_(moving, moving)]) * dt)
+
+
+def _validate_greybox(
+    model: Any, data: Any, *, max_lag: int, split: float | int | None, dt: float | None
+) -> ValidationReport:
+    """:func:`validate` for a grey-box model: simulated from its own initial state."""
+    from .greybox_cost import record_for
+
+    u_full, y_all, sample_time = record_for(model, data, dt)
+    if y_all.shape[1] != 1:
+        raise DataError(
+            f"validate() takes a single-output model; grey-box model {model.name!r} has "
+            f"outputs {list(model.outputs)}"
+        )
+    y_full = y_all[:, 0]
+    n = y_full.size
+    start = 0
+    if split is not None:  # the same split as IOData.split, evaluated after run-in
+        record = IOData(u_full, y_full, dt=sample_time)
+        parts = record.split(split) if isinstance(split, float) else record.split(index=split)
+        start = parts[0].n_samples
+    n_eval = n - start
+    max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
+    with np.errstate(all="ignore"):
+        ysim_full = model.simulate(model.nominal, u_full, sample_time)[0, :, 0]
+    seg = slice(start, n)
+    y, ysim, u = y_full[seg], ysim_full[seg], u_full[seg]
+    diverged = not bool(np.all(np.isfinite(ysim)))
+    names = list(model.inputs)
+    e = y - ysim if not diverged else np.zeros_like(y)
+    tests = residual_tests(e, u, max_lag, names)
+    nonlinear = billings_voon_tests(e, u, max_lag, names)
+    f, p_meas = psd(y, sample_time)
+    if diverged:
+        p_model = np.full_like(p_meas, np.nan)
+        numbers = (-np.inf, np.inf, (-np.inf, np.inf))
+    else:
+        p_model = psd(ysim, sample_time)[1]
+        numbers = (fit_percent(y, ysim), rmse(y, ysim), error_range(y, ysim))
+    stability = stability_report(_linearised_poles(model, sample_time), [], sample_time)
+    return ValidationReport(
+        n_samples=n,
+        start=start,
+        dt=sample_time,
+        initial=GREYBOX_RULE,
+        fit_one_step=numbers[0],
+        fit_simulation=numbers[0],
+        rmse_one_step=numbers[1],
+        rmse_simulation=numbers[1],
+        error_range_one_step=numbers[2],
+        error_range_simulation=numbers[2],
+        max_lag=max_lag,
+        correlation_tests=tests,
+        nonlinear_tests=nonlinear,
+        psd_frequency=f,
+        psd_measured=p_meas,
+        psd_model=p_model,
+        peak_measured=_peak(f, p_meas),
+        peak_model=float("nan") if diverged else _peak(f, p_model),
+        stability=stability,
+        time=np.arange(start, n) * sample_time,
+        u=u,
+        y=y,
+        y_one_step=ysim,
+        y_simulation=ysim,
+        input_names=tuple(names),
+        output_name=str(model.outputs[0]),
+        simulation_diverged=diverged,
+        initial_one_step=GREYBOX_RULE,
+    )
+
+
 def _as_record(data: Any, dt: float | None) -> IOData:
     if isinstance(data, IOData):
         return data
@@ -1191,12 +1291,17 @@ def validate(
     split: float | int | None = None,
     dt: float | None = None,
 ) -> ValidationReport:
-    """Validate a linear model on a record: fits, errors, correlation tests, PSD, stability.
+    """Validate a model on a record: fits, errors, correlation tests, PSD, stability.
 
     Parameters
     ----------
-    model : PolynomialModel or ARX-like
-        A :class:`~flexid.polynomial.PolynomialModel` (ARX, ARMAX, OE, BJ), or an
+    model : PolynomialModel, GreyBoxModel or ARX-like
+        A :class:`~flexid.polynomial.PolynomialModel` (ARX, ARMAX, OE, BJ), a single-output
+        :class:`~flexid.greybox.GreyBoxModel` at its parameters' values (an output-error
+        model: its one-step prediction is its simulation, run from its own initial state at
+        the record's start and, with ``split``, on through the estimation part, whatever
+        ``initial`` says; the report names that rule, and its poles are those of the model
+        linearised at its initial state), or an
         :class:`~flexid.arx.ARX` or a model duck-typed to it (``structure.start``,
         ``predict(u, y)``, ``simulate(u, y_init=None)``, ``poles()``, ``zeros(input=i)``,
         optionally ``dt``; for ``initial="estimate"`` also ``to_polynomial()``, or ``a``,
@@ -1239,6 +1344,10 @@ def validate(
         input count does not match the data.
     """
     initial = _check_initial(initial)
+    from .greybox import GreyBoxModel
+
+    if isinstance(model, GreyBoxModel):
+        return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt)
     record = _as_record(data, dt if dt is not None else _model_dt(model))
     if split is not None:
         if isinstance(split, float):
