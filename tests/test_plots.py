@@ -82,3 +82,50 @@ def test_diverged_simulation_is_drawn_not_raised(tmp_path):
     fig.savefig(tmp_path / "a.png")
     fig = plot_spectra(np.arange(5.0), {"model": np.array([1.0, np.inf, np.nan, 2.0, 3.0])})
     fig.savefig(tmp_path / "b.png")
+
+
+def _legend_outside(fig) -> bool:
+    """The legend's box lies right of the axes' box (so it covers no data)."""
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    renderer = fig.canvas.get_renderer()
+    legend = ax.get_legend().get_window_extent(renderer)
+    return legend.x0 >= ax.get_window_extent(renderer).x1
+
+
+def test_comparison_figures_read_at_a_glance():
+    # the convergence and FE-to-target figures: log FE axis from 1 to the budget, the cost
+    # relative to the named reference (the line at 1), a legend outside the data, one curve
+    # per optimiser that runs to the budget; with no run at the target, a sentence says so
+    from flexid.plots import plot_comparison_convergence, plot_fe_to_target, reference_name
+
+    result = compare(tiny_spec("glance"), progress=False)
+    budget = result.spec.budget
+    name = reference_name(result)
+    assert name in ("least squares", "best stable run")
+    fig = plot_comparison_convergence(result)
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
+    assert ax.get_xlim() == (1, budget)
+    assert ax.get_ylabel() == f"best cost / {name}"
+    assert any(line.get_label().startswith(name) for line in ax.lines)
+    assert _legend_outside(fig)
+    for target in result.spec.targets:
+        fig = plot_fe_to_target(result, target)
+        ax = fig.axes[0]
+        assert ax.get_xscale() == "log" and _legend_outside(fig)
+        curves = [line for line in ax.lines if not line.get_label().startswith("_")]
+        assert curves and all(line.get_xdata()[-1] == budget for line in curves)
+        reached = any(line.get_ydata()[-1] > 0 for line in curves)
+        assert reached != any("no run reached" in t.get_text() for t in ax.texts)
+
+
+def test_fe_to_target_says_when_no_run_reached_it():
+    from flexid.plots import plot_fe_to_target
+
+    result = compare(tiny_spec("none"), progress=False)
+    target = result.spec.targets[0]
+    for stats in result.stats.values():  # as if no run had reached the target
+        stats["reach"][str(target)]["fe"] = [float("inf")] * len(stats["reach"][str(target)]["fe"])
+    ax = plot_fe_to_target(result, target).axes[0]
+    assert any("no run reached" in t.get_text() for t in ax.texts)

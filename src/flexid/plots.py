@@ -35,6 +35,7 @@ __all__ = [
     "plot_pole_zero",
     "plot_spectra",
     "plot_time_response",
+    "reference_name",
     "selection_figure",
 ]
 
@@ -329,13 +330,61 @@ def identification_figures(
 
 
 # ============================================================================ comparison
-def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
-    """Median (line) and quartiles (band) of the best cost against FE, per optimiser.
+# Okabe & Ito's colour-blind-safe palette (black last), each colour with its own line style
+# so that curves stay apart in grey print and where they cross
+_PALETTE = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000")
+_STYLES = ("-", "--", "-.", ":")
+
+
+def _style(i: int) -> dict[str, Any]:
+    return {"color": _PALETTE[i % len(_PALETTE)], "ls": _STYLES[(i // 2) % len(_STYLES)]}
+
+
+def reference_name(result: ComparisonResult) -> str:
+    """The reference a comparison's costs are relative to, in a few words (for legends).
 
     Parameters
     ----------
     result : ComparisonResult
-        The comparison; failed runs are left out, and the reference cost is a dashed line.
+
+    Returns
+    -------
+    str
+        E.g. ``"least squares"``, ``"prediction-error reference"``, ``"output-error
+        reference"`` or ``"best stable run"``.
+    """
+    note = result.reference_note or "reference"
+    if note.startswith("best stable cost"):
+        return "best stable run"
+    if note.startswith("the ARX least-squares estimate"):
+        return "ARX least squares"
+    return note.split(" (")[0].split(",")[0]
+
+
+def _outside_legend(ax) -> None:
+    """The legend right of the axes, so that it never covers data."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+
+
+def _max_fe(result: ComparisonResult) -> int:
+    """The FE axis's end: the budget (a "schedule" budget has none: the longest run)."""
+    budget = result.spec.budget if isinstance(result.spec.budget, int) else 0
+    runs = [int(r["nfev"]) for rs in result.records.values() for r in rs if r["status"] == "ok"]
+    return max([budget, 1, *runs])
+
+
+def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
+    """Median (line) and quartiles (band) of the best cost against FE, per optimiser.
+
+    Both axes are logarithmic: FE from the first evaluation to the budget, and the cost
+    relative to the comparison's reference (:func:`reference_name`), so that the early
+    progress and a spread of a few percent near the reference are both visible; the
+    reference is the line at 1.  Without a finite reference the raw cost is drawn.
+
+    Parameters
+    ----------
+    result : ComparisonResult
+        The comparison; failed runs are left out.
     ax : matplotlib.axes.Axes, optional
         Axes to draw on (default: a new figure).
 
@@ -344,35 +393,47 @@ def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
     matplotlib.figure.Figure
         The figure drawn on.
     """
-    fig, ax = _axes(ax, figsize=(7.0, 4.4))
-    max_fe = max(
-        (r["nfev"] for rs in result.records.values() for r in rs if r["status"] == "ok"), default=1
-    )
-    for label, records in result.records.items():
+    fig, ax = _axes(ax, figsize=(8.6, 4.4))
+    max_fe = _max_fe(result)
+    ref = result.reference_cost
+    relative = math.isfinite(ref) and ref > 0
+    scale = ref if relative else 1.0
+    name = reference_name(result)
+    for i, (label, records) in enumerate(result.records.items()):
         hist = [r["history"] for r in records if r["status"] == "ok"]
         if not hist:
             continue
-        band = convergence_band(hist, max_fe)
-        line = ax.plot(band["fe"], band["median"], lw=1.5, label=label)[0]
-        ax.fill_between(
-            band["fe"], band["q25"], band["q75"], color=line.get_color(), alpha=0.2, lw=0
-        )
-    ref = result.reference_cost
-    if math.isfinite(ref):
-        ax.axhline(ref, color="k", ls="--", lw=1, label="reference")
+        band = convergence_band(hist, max_fe, log=True)
+        style = _style(i)
+        ax.plot(band["fe"], band["median"] / scale, lw=1.6, label=f"{label} ({len(hist)} runs)",
+                **style)
+        ax.fill_between(band["fe"], band["q25"] / scale, band["q75"] / scale,
+                        color=style["color"], alpha=0.1, lw=0)
+        for edge in ("q25", "q75"):  # thin edges: overlapping bands stay readable
+            ax.plot(band["fe"], band[edge] / scale, color=style["color"], lw=0.5, alpha=0.6)
+    if relative:
+        ax.axhline(1.0, color="k", ls="--", lw=1, label=f"{name} ({ref:.4g})")
+        ax.set_ylabel(f"best cost / {name}")
+    else:
+        ax.set_ylabel("best cost")
+    ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.set_xlim(1, max_fe)
     ax.set_xlabel("function evaluations")
-    ax.set_ylabel("best cost (median, quartiles)")
-    ax.set_title(f"{result.spec.name}: convergence over {result.spec.runs} runs")
+    ax.set_title(
+        f"{result.spec.name}: best cost, median and quartiles over {result.spec.runs} runs",
+        fontsize=10,
+    )
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    _outside_legend(ax)
     return fig
 
 
 def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
-    """Empirical distribution of the FE needed to reach ``reference * (1 + target)``.
+    """Fraction of runs that reached ``reference * (1 + target)`` against FE (log axis).
 
-    Runs that never reach the target keep the curve below 1 (the success rate).
+    Each curve runs to the budget and ends at its success rate; when no run of any
+    optimiser reaches the target the figure says so instead of drawing empty axes.
 
     Parameters
     ----------
@@ -389,26 +450,32 @@ def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
     matplotlib.figure.Figure
         The figure drawn on.
     """
-    fig, ax = _axes(ax, figsize=(6.4, 4.0))
-    for label, stats in result.stats.items():
+    fig, ax = _axes(ax, figsize=(8.0, 4.0))
+    max_fe = _max_fe(result)
+    name = reference_name(result)
+    reached = 0
+    for i, (label, stats) in enumerate(result.stats.items()):
         reach = stats.get("reach", {}).get(str(target))
         if reach is None:
             continue
         fe = np.sort(np.asarray(reach["fe"], float))
         n = fe.size
         hit = fe[np.isfinite(fe)]
-        if hit.size:
-            x = np.concatenate([[0], hit])
-            y = np.arange(hit.size + 1) / n
-            ax.step(x, y, where="post", label=f"{label} ({hit.size}/{n})")
-        else:
-            ax.plot([], [], label=f"{label} (0/{n})")
+        reached += hit.size
+        x = np.concatenate([[1.0], np.maximum(hit, 1.0), [max_fe]])
+        y = np.concatenate([[0.0], np.arange(1, hit.size + 1) / n, [hit.size / n]])
+        ax.step(x, y, where="post", lw=1.6, label=f"{label} ({hit.size}/{n})", **_style(i))
+    if not reached:
+        ax.text(0.5, 0.5, f"no run reached {name} x (1 + {target:g})\nwithin {max_fe:,} FE",
+                transform=ax.transAxes, ha="center", va="center", fontsize=11)
+    ax.set_xscale("log")
+    ax.set_xlim(1, max_fe)
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("function evaluations")
     ax.set_ylabel("fraction of runs at target")
-    ax.set_title(f"FE to reach reference x (1 + {target:g})")
-    ax.grid(True, alpha=0.3)
-    ax.legend()
+    ax.set_title(f"FE to reach {name} x (1 + {target:g})", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    _outside_legend(ax)
     return fig
 
 

@@ -198,7 +198,11 @@ def summarise(
 
 
 def convergence_band(
-    histories: Sequence[Mapping[str, Sequence]], max_fe: int, points: int = 200
+    histories: Sequence[Mapping[str, Sequence]],
+    max_fe: int,
+    points: int = 200,
+    *,
+    log: bool = False,
 ) -> dict[str, np.ndarray]:
     """Median and quartiles of best cost against FE over runs, on a common FE grid.
 
@@ -210,14 +214,17 @@ def convergence_band(
         End of the FE grid.
     points : int
         Number of grid points (fewer where rounding to whole FE merges them).
+    log : bool
+        Space the grid logarithmically (for a log FE axis) instead of linearly.
 
     Returns
     -------
     dict of str to ndarray
-        ``{"fe", "q25", "median", "q75"}``, arrays on the FE grid (linear from the first
+        ``{"fe", "q25", "median", "q75"}``, arrays on the FE grid (from the first
         evaluation to ``max_fe``); NaN everywhere when there are no histories.
     """
-    grid = np.unique(np.linspace(1, max_fe, points).round())
+    spaced = np.geomspace if log else np.linspace
+    grid = np.unique(spaced(1, max(max_fe, 1), points).round())
     if not histories:
         nan = np.full(grid.size, np.nan)
         return {"fe": grid, "q25": nan, "median": nan, "q75": nan}
