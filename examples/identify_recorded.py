@@ -25,10 +25,12 @@ def main(path: str | None = None) -> None:
     record = Path(path) if path else DEFAULT
     if record.exists():
         data = flexid.load(record, inputs=["u"], outputs=["y"], dt=0.01)
+        name = record.stem
         print(f"record {record.name}: {data.n_samples} samples")
     else:
         print(f"{record} not found; using a simulated manipulator record instead")
         data = flexid.generate("manipulator", preset="paper-manipulator", seed=0)
+        name = "simulated-manipulator"
 
     ls = flexid.identify(data, na=8, nb=8, nk=1, optimiser="ls")
     print(ls.summary())
@@ -38,7 +40,7 @@ def main(path: str | None = None) -> None:
     try:
         from flexid.plots import identification_figures
 
-        paths = identification_figures(hb, "flexid-figures", prefix="robot_arm-")
+        paths = identification_figures(hb, "flexid-figures", prefix=f"{name}-")
         print(f"\nfigures: {', '.join(p.name for p in paths)} in flexid-figures/")
     except ImportError:
         print("\n(install the 'plot' extra for figures)")

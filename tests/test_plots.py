@@ -129,3 +129,29 @@ def test_fe_to_target_says_when_no_run_reached_it():
         stats["reach"][str(target)]["fe"] = [float("inf")] * len(stats["reach"][str(target)]["fe"])
     ax = plot_fe_to_target(result, target).axes[0]
     assert any("no run reached" in t.get_text() for t in ax.texts)
+
+
+def test_identification_figures_name_the_channel_and_its_unit():
+    from flexid.plots import plot_convergence, plot_spectra, plot_time_response
+
+    t = np.arange(50) * 0.01
+    fig = plot_time_response(t, np.sin(t), np.sin(t), output="tip_acceleration", unit="m/s^2")
+    assert fig.axes[0].get_ylabel() == "tip_acceleration [m/s^2]"
+    assert fig.axes[1].get_ylabel() == "error [m/s^2]"
+    fig = plot_spectra(np.arange(1.0, 6.0), {"measured": np.ones(5)}, unit="m/s^2")
+    assert fig.axes[0].get_ylabel() == "PSD [dB re 1 (m/s^2)^2/Hz]"
+    fig = plot_convergence({"de": {"fe": [10, 20, 30], "best": [3.0, 2.0, 1.0]}}, reference=0.5,
+                           reference_label="prediction-error reference")
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log" and ax.get_xlim() == (1, 30)
+    assert any(line.get_label().startswith("prediction-error reference") for line in ax.lines)
+    assert _legend_outside(fig)
+
+
+def test_pole_zero_map_marks_repeated_roots():
+    # a triple pole computed as three roots 1e-6 apart (what np.roots gives a cubed factor),
+    # a double zero; a simple pair gets no label
+    fig = plot_pole_zero(np.r_[0.5, 0.5 + 1e-6, 0.5 - 1e-6, 0.3 + 0.4j, 0.3 - 0.4j],
+                         np.r_[-0.5, -0.5])
+    labels = sorted(t.get_text() for t in fig.axes[0].texts)
+    assert labels == ["2", "3"]

@@ -275,7 +275,7 @@ class Identification:
         Seconds spent: ``setup_s``, ``optimise_s``, ``validate_s`` and ``total_s``.
     data_info : dict
         The records used: ``description``, ``n_estimation``, ``n_validation``, ``dt`` (s),
-        ``inputs``, ``output`` and ``source``.
+        ``inputs``, ``output``, ``output_unit`` and ``source``.
     search : dict
         The search space (:meth:`flexid.estimation.EstimationProblem.to_dict` plus a
         ``description``).
@@ -803,6 +803,7 @@ def identify(
         "dt": est.dt,
         "inputs": list(est.input_names),
         "output": est.output_names[0],
+        "output_unit": est.output_units[0],
         "source": est.metadata.get("source") or est.metadata.get("plant"),
     }
     return Identification(

@@ -70,9 +70,34 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
+# Okabe & Ito's colour-blind-safe palette (black last), each colour with its own line style
+# so that curves stay apart in grey print and where they cross
+_PALETTE = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000")
+_STYLES = ("-", "--", "-.", ":")
+
+
+def _with_unit(name: str, unit: str) -> str:
+    return f"{name} [{unit}]" if unit else name
+
+
+def _style(i: int) -> dict[str, Any]:
+    return {"color": _PALETTE[i % len(_PALETTE)], "ls": _STYLES[(i // 2) % len(_STYLES)]}
+
+
+def _outside_legend(ax) -> None:
+    """The legend right of the axes, so that it never covers data."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+
+
 # ============================================================================ identification
-def plot_convergence(histories: dict[str, Any], *, ax=None, reference: float | None = None):
-    """Best cost against function evaluations, one line per run/optimiser.
+def plot_convergence(
+    histories: dict[str, Any],
+    *,
+    ax=None,
+    reference: float | None = None,
+    reference_label: str = "least squares",
+):
+    """Best cost against function evaluations (log axis), one line per run/optimiser.
 
     Parameters
     ----------
@@ -82,31 +107,41 @@ def plot_convergence(histories: dict[str, Any], *, ax=None, reference: float | N
     ax : matplotlib.axes.Axes, optional
         Axes to draw on (default: a new figure).
     reference : float, optional
-        A horizontal line (least-squares cost); not drawn when NaN or infinite.
+        A horizontal line (the reference's cost); not drawn when NaN or infinite.
+    reference_label : str
+        What the reference is, for the legend.
 
     Returns
     -------
     matplotlib.figure.Figure
         The figure drawn on.
     """
-    fig, ax = _axes(ax, figsize=(6.4, 4.0))
-    for label, h in histories.items():
+    fig, ax = _axes(ax, figsize=(8.0, 4.0))
+    last = 1.0
+    for i, (label, h) in enumerate(histories.items()):
         fe = np.asarray(h["fe"] if isinstance(h, dict) else h.fe, float)
         best = np.asarray(h["best"] if isinstance(h, dict) else h.best, float)
         finite = np.isfinite(best)
-        ax.step(fe[finite], best[finite], where="post", label=label)
+        ax.step(fe[finite], best[finite], where="post", label=label, lw=1.6, **_style(i))
+        last = max(last, float(fe.max(initial=1.0)))
     if reference is not None and math.isfinite(reference):
-        ax.axhline(reference, color="k", ls="--", lw=1, label="least squares")
+        label = f"{reference_label} ({reference:.4g})"
+        ax.axhline(reference, color="k", ls="--", lw=1, label=label)
+    ax.set_xscale("log")
+    ax.set_xlim(1, last)
     ax.set_yscale("log")
     ax.set_xlabel("function evaluations")
     ax.set_ylabel("best cost")
-    ax.set_title("Convergence")
+    ax.set_title("Convergence", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    _outside_legend(ax)
     return fig
 
 
-def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axes=None):
+def plot_time_response(
+    t, y, yhat, *, title: str = "", label: str = "model", axes=None, output: str = "output",
+    unit: str = "",
+):
     """Measured and model output (top) and the modelling error (bottom).
 
     Parameters
@@ -123,6 +158,9 @@ def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axe
         Legend label of the model line (default ``"model"``).
     axes : sequence of two matplotlib.axes.Axes, optional
         Top and bottom axes to draw on (default: a new figure).
+    output, unit : str, optional
+        The output channel's name and unit, for the axis labels (``tip_acceleration
+        [m/s^2]``).
 
     Returns
     -------
@@ -144,11 +182,11 @@ def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axe
         title = f"{title} (model output diverges from t = {first:.3g} s)"
     axes[0].plot(t, y, lw=1, label="measured")
     axes[0].plot(t, yhat, lw=1, ls="--", label=label)
-    axes[0].set_ylabel("output")
+    axes[0].set_ylabel(_with_unit(output, unit))
     axes[0].legend(loc="upper right")
     axes[0].set_title(title)
     axes[1].plot(t, y - yhat, lw=0.8, color="tab:red")
-    axes[1].set_ylabel("error")
+    axes[1].set_ylabel(_with_unit("error", unit))
     axes[1].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(True, alpha=0.3)
@@ -156,7 +194,8 @@ def plot_time_response(t, y, yhat, *, title: str = "", label: str = "model", axe
 
 
 def plot_spectra(
-    freq, spectra: dict[str, np.ndarray], *, ax=None, title: str = "Power spectral density"
+    freq, spectra: dict[str, np.ndarray], *, ax=None, title: str = "Power spectral density",
+    unit: str = "",
 ):
     """Power spectra in dB against frequency in Hz, one line per signal.
 
@@ -171,6 +210,8 @@ def plot_spectra(
         Axes to draw on (default: a new figure).
     title : str, optional
         Axes title.
+    unit : str, optional
+        The signal's unit: the PSD is in ``unit^2/Hz`` and drawn in dB re 1 ``unit^2/Hz``.
 
     Returns
     -------
@@ -183,15 +224,37 @@ def plot_spectra(
         p = np.where(np.isfinite(p), p, np.nan)  # a diverged simulation has no spectrum
         ax.plot(freq, 10 * np.log10(np.maximum(p, 1e-300)), lw=1, label=label)
     ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("PSD [dB]")
+    ax.set_ylabel(f"PSD [dB re 1 ({unit})^2/Hz]" if unit else "PSD [dB re 1 unit^2/Hz]")
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend()
     return fig
 
 
+# Roots closer than this (relative to max(1, |root|)) are drawn as one repeated root: a root
+# of multiplicity k is computed as k roots spread by about eps^(1/k) (1e-5 for k = 3).
+_REPEATED = 1e-4
+
+
+def _repeated(roots: np.ndarray) -> list[tuple[complex, int]]:
+    """Clusters of (numerically) repeated roots: ``(mean root, multiplicity)``, k >= 2."""
+    roots = np.asarray(roots, dtype=complex).ravel()
+    left = list(range(roots.size))
+    out = []
+    while left:
+        i = left.pop(0)
+        near = [j for j in left if abs(roots[j] - roots[i]) <= _REPEATED * max(1.0, abs(roots[i]))]
+        if near:
+            left = [j for j in left if j not in near]
+            out.append((complex(roots[[i, *near]].mean()), len(near) + 1))
+    return out
+
+
 def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
     """Poles (x) and zeros (o) in the z-plane with the unit circle (dotted).
+
+    A root that occurs several times (within a relative ``1e-4``) is labelled with its
+    multiplicity.
 
     Parameters
     ----------
@@ -217,6 +280,10 @@ def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
     ax.plot(poles.real, poles.imag, "x", ms=8, mew=2, label="poles")
     if zeros.size:
         ax.plot(zeros.real, zeros.imag, "o", ms=7, mfc="none", mew=1.5, label="zeros")
+    for roots in (poles, zeros):  # a repeated root is one marker: its multiplicity beside it
+        for root, count in _repeated(roots):
+            ax.annotate(f"{count}", (root.real, root.imag), xytext=(5, 5),
+                        textcoords="offset points", fontsize=9)
     ax.axhline(0, color="0.7", lw=0.5)
     ax.axvline(0, color="0.7", lw=0.5)
     ax.set_aspect("equal", adjustable="datalim")
@@ -295,8 +362,15 @@ def identification_figures(
     outdir.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []
     p = prefix
+    output = ident.data_info.get("output", "output")
+    unit = ident.data_info.get("output_unit", "")
     if ident.history is not None:
-        fig = plot_convergence({ident.optimiser: ident.history}, reference=ident.cost_ls)
+        arx = getattr(getattr(ident.model, "structure", None), "kind", "arx") == "arx"
+        fig = plot_convergence(
+            {ident.optimiser: ident.history},
+            reference=ident.cost_ls,
+            reference_label="least squares" if arx else "ARX least squares read as the model",
+        )
         paths.append(_save(fig, outdir / f"{p}convergence.png"))
     for part, report in (("estimation", ident.estimation), ("validation", ident.validation)):
         arrays = report.arrays()
@@ -305,6 +379,8 @@ def identification_figures(
             arrays["y"],
             arrays["y_simulation"],
             title=f"{part}: simulation (free run), fit {report.fit_simulation:.1f} %",
+            output=output,
+            unit=unit,
         )
         paths.append(_save(fig, outdir / f"{p}{part}_simulation.png"))
         fig = plot_time_response(
@@ -312,12 +388,16 @@ def identification_figures(
             arrays["y"],
             arrays["y_one_step"],
             title=f"{part}: one-step prediction, fit {report.fit_one_step:.1f} %",
+            output=output,
+            unit=unit,
         )
         paths.append(_save(fig, outdir / f"{p}{part}_one_step.png"))
     arrays = ident.validation.arrays()
     fig = plot_spectra(
         arrays["psd_frequency"],
         {"measured": arrays["psd_measured"], "model (simulation)": arrays["psd_model"]},
+        title=f"Power spectral density of {output} (validation)",
+        unit=unit,
     )
     paths.append(_save(fig, outdir / f"{p}spectra.png"))
     fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())
@@ -330,16 +410,6 @@ def identification_figures(
 
 
 # ============================================================================ comparison
-# Okabe & Ito's colour-blind-safe palette (black last), each colour with its own line style
-# so that curves stay apart in grey print and where they cross
-_PALETTE = ("#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000")
-_STYLES = ("-", "--", "-.", ":")
-
-
-def _style(i: int) -> dict[str, Any]:
-    return {"color": _PALETTE[i % len(_PALETTE)], "ls": _STYLES[(i // 2) % len(_STYLES)]}
-
-
 def reference_name(result: ComparisonResult) -> str:
     """The reference a comparison's costs are relative to, in a few words (for legends).
 
@@ -359,11 +429,6 @@ def reference_name(result: ComparisonResult) -> str:
     if note.startswith("the ARX least-squares estimate"):
         return "ARX least squares"
     return note.split(" (")[0].split(",")[0]
-
-
-def _outside_legend(ax) -> None:
-    """The legend right of the axes, so that it never covers data."""
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
 
 
 def _max_fe(result: ComparisonResult) -> int:
