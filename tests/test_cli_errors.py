@@ -229,7 +229,8 @@ def test_identify_summary_and_cli_print_a_diverged_fit_as_below_floor(tmp_path, 
     # the unstable free run grows as 1.65^t: far below the floor under any initial rule
     assert ident.validation.fit_simulation < -1e9
     text = ident.summary()
-    assert text.count("< -999 %") == 2  # estimation and validation records
+    # the estimation and validation records, and the closing warning line
+    assert text.count("< -999 %") == 3 and "held-out simulation fit is < -999 %" in text
     assert not re.search(r"\d{12,}", text)
     argv = [
         "identify", path, "--na", "1", "--nb", "1", "--optimiser", "random-search",

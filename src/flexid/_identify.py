@@ -374,14 +374,62 @@ class Identification:
         )
         return items
 
+    def advice(self) -> str | None:
+        """One plain line when the model should not be trusted, with what to try next.
+
+        Checked: an optimiser's final cost more than 10 % above the least-squares cost (the
+        exact optimum of the one-step ARX cost, and where the other searches start), a pole
+        on the search space's radius cap (the search ran into its boundary), the held-out
+        whiteness or cross-correlation test failing (the structure does not describe the
+        data), a negative held-out simulation fit.
+
+        Returns
+        -------
+        str or None
+            ``"warning: ...: try ..."``, or None when none of these holds.
+        """
+        problems: list[str] = []
+        tries: list[str] = []
+        structure = self.model.structure
+        arx = not isinstance(structure, PolynomialStructure) or structure.kind == "arx"
+        reference = "optimiser='ls'" if arx and self.cost.predictor == "one-step" else (
+            "optimiser='oe'" if arx else "optimiser='pem'"
+        )
+        if self.result is not None:
+            if self.cost_ls > 0 and self.cost_value > 1.1 * self.cost_ls:
+                problems.append(
+                    f"the final cost is {self.cost_value / self.cost_ls:.3g} times the "
+                    "least-squares cost"
+                )
+                tries.append(f"{reference} (the reference) or a larger budget")
+            r_max = float(self.search.get("r_max", SearchSpec().r_max))
+            radius = self.validation.stability.max_pole_radius
+            if math.isfinite(radius) and radius >= r_max * (1.0 - 1e-9):
+                problems.append(f"a pole sits on the radius cap {r_max:g}")
+                tries.append(f"{reference} (the reference) or a larger budget")
+        if not self.validation.linear_passed:
+            problems.append("the held-out correlation tests fail")
+            tries.append("another structure or higher orders (flexid select)")
+        if self.validation.fit_simulation < 0:
+            problems.append(
+                f"the held-out simulation fit is {format_fit(self.validation.fit_simulation)} %"
+            )
+        if not problems:
+            return None
+        unique = list(dict.fromkeys(tries))
+        return "warning: " + "; ".join(problems) + (
+            ": try " + ", or ".join(unique) if unique else ""
+        )
+
     def summary(self) -> str:
-        """A readable multi-line account: data, search, cost, model, validation.
+        """A readable multi-line account: data, search, cost, model, validation, advice.
 
         Returns
         -------
         str
             The header lines (data, cost, search, final cost, time), the model's
-            :meth:`~flexid.ARX.summary` and the validation summaries of both records.
+            :meth:`~flexid.ARX.summary`, the validation summaries of both records and, when
+            the model should not be trusted, one last line that says why (:meth:`advice`).
         """
         lines = [self._title()]
         lines += [f"  {label:<12}: {value}" for label, value in self._items()]
@@ -392,6 +440,9 @@ class Identification:
         lines.append(_indent(self.estimation.summary()))
         lines.append("Validation record (held out)")
         lines.append(_indent(self.validation.summary()))
+        advice = self.advice()
+        if advice:
+            lines.append(advice)
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
