@@ -639,7 +639,7 @@ def identify(
     nc: int | None = None,
     nd: int | None = None,
     nf: int | Sequence[int] | None = None,
-    optimiser: str = "hbcsd",
+    optimiser: str = PREDICTION_ERROR,
     params: Mapping[str, Any] | None = None,
     cost: str | CostSpec | None = None,
     predictor: str | None = None,
@@ -686,7 +686,12 @@ def identify(
         least-squares estimate read as the structure, the start of the reference), or
         ``"pem"`` for the gradient reference of the cost: Levenberg-Marquardt with analytic
         gradients from several starts (:func:`flexid.prediction_error.pem`; for ARX with the
-        simulation predictor :func:`flexid.output_error.output_error`, also named ``"oe"``).
+        simulation predictor :func:`flexid.output_error.output_error`, also named ``"oe"``;
+        for the one-step ARX cost, least squares, its exact optimum).  Default ``"pem"``:
+        measured on the built-in plants, a metaheuristic at a default budget ends far from
+        it (the twin rotor's ARX(5,5,1) by HBCSD: a pole on the radius cap, held-out
+        simulation fit 2.9 % against least squares' 83.4 %), so a metaheuristic is run
+        when asked for by name (the paper's: ``"hbcsd"``).
     params : mapping, optional
         The optimiser's hyper-parameters.
     cost : str or CostSpec, optional

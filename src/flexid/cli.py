@@ -551,9 +551,10 @@ def build_parser() -> argparse.ArgumentParser:
     _structure_options(i, "default arx")
     i.add_argument(
         "--optimiser",
-        default="hbcsd",
-        help=f"registered optimiser, {LEAST_SQUARES!r} (least squares) or "
-        f"{PREDICTION_ERROR!r} (the gradient reference; {OUTPUT_ERROR!r} for ARX simulation)",
+        default=PREDICTION_ERROR,
+        help=f"registered optimiser (e.g. hbcsd, the paper's), {LEAST_SQUARES!r} (least "
+        f"squares) or {PREDICTION_ERROR!r}, the default: the structure's gradient reference "
+        f"(least squares for the one-step ARX cost; {OUTPUT_ERROR!r} for ARX simulation)",
     )
     i.add_argument(
         "--initial",
