@@ -5,9 +5,16 @@
 comparison seed with ``numpy.random.SeedSequence``), hence the same initial population, and
 the same FE budget.  Least squares, the exact optimum of the one-step cost, is the reference
 row.  Every finished run is written at once to a :class:`~flexid.store.ResultStore`; a rerun
-skips finished runs, so a comparison killed part-way resumes.  Runs execute serially, in a
-process pool (``workers``) or on a dask.distributed cluster (``scheduler``); the numbers do not
-depend on where they ran.
+skips finished runs, so a comparison killed part-way resumes.  Runs execute serially, in
+worker processes (``workers``) or on a dask.distributed cluster (``scheduler``); the numbers do
+not depend on where they ran.
+
+An optimiser cannot end or hang a comparison: whatever it raises (``SystemExit`` too, not
+``KeyboardInterrupt``) is a failed run with its reason; in worker processes, a run that kills
+its process is a failed run and the process is replaced, and a run longer than
+``run_timeout`` seconds is ended (its process killed and replaced) and recorded as failed.
+With one worker and a time limit, each run is done in a child process, the only way to end a
+Python function that never returns.
 """
 
 from __future__ import annotations
@@ -15,12 +22,16 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
+import signal
+import threading
 import time
 import traceback
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from multiprocessing import get_context
+from multiprocessing import get_context, parent_process
+from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +41,7 @@ from ._identify import prepare_data, structure_of
 from ._json import jsonable
 from ._table import text_table
 from ._validate import positive_int
-from .config import LEAST_SQUARES, ComparisonSpec, OptimiserSpec
+from .config import LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
 from .estimation import build_problem, check_search, choose_reference
@@ -166,10 +177,6 @@ def _context_from_payload(payload: Mapping[str, Any]) -> _Context:
     return cached
 
 
-def _init_worker(payload: Mapping[str, Any]) -> None:
-    _context_from_payload(payload)
-
-
 # ================================================================================ one run
 def _store_history(result) -> dict[str, list]:
     """The run's best-so-far cost as a step function of FE, exact to the evaluation.
@@ -252,9 +259,9 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     return record
 
 
-def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, Any]:
-    """One optimiser run; an exception becomes a failed record, never a crash."""
-    record: dict[str, Any] = {
+def _record_head(opt: OptimiserSpec, run: int, seed: int) -> dict[str, Any]:
+    """The fields of a run record that say which run it is."""
+    return {
         "label": opt.display,
         "optimiser": opt.name,
         "params": dict(opt.params),
@@ -262,6 +269,34 @@ def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, An
         "run": run,
         "seed": seed,
     }
+
+
+def _failed_record(task: tuple, reason: str, wall_time: float) -> dict[str, Any]:
+    """The record of a run that ended without a result (its process died or timed out).
+
+    Parameters
+    ----------
+    task : tuple
+        ``(optimiser spec as a dict, run, seed)``.
+    reason : str
+        Why the run failed, stored as its ``error``.
+    wall_time : float
+        Seconds from the start of the run to its end.
+
+    Returns
+    -------
+    dict
+        A record with status ``"failed"``.
+    """
+    opt_dict, run, seed = task
+    record = _record_head(OptimiserSpec(**opt_dict), run, seed)
+    record.update(status="failed", error=reason, wall_time=wall_time)
+    return record
+
+
+def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, Any]:
+    """One optimiser run; whatever the optimiser raises becomes a failed record, never a crash."""
+    record = _record_head(opt, run, seed)
     t0 = time.perf_counter()
     try:
         budget = Budget(max_fe=ctx.spec.max_fe)
@@ -278,12 +313,15 @@ def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, An
         )
         record.update(_model_numbers(model, ctx))
         record["validation"] = _validation_numbers(model, ctx)
-    except (KeyboardInterrupt, SystemExit):
+    except KeyboardInterrupt:  # the user's Ctrl-C (or the command's SIGTERM) ends everything
         raise
-    except Exception as exc:  # an optimiser that raises is recorded, the others go on
+    except BaseException as exc:
+        # an optimiser that raises, calls sys.exit or raises GeneratorExit is recorded and
+        # the others go on: a plugin cannot end the comparison
+        text = str(exc)
         record.update(
             status="failed",
-            error=f"{type(exc).__name__}: {exc}",
+            error=f"{type(exc).__name__}: {text}" if text else type(exc).__name__,
             traceback=traceback.format_exc(limit=8),
         )
     record["wall_time"] = time.perf_counter() - t0
@@ -296,10 +334,219 @@ def _run_task(payload: Mapping[str, Any], task: tuple) -> dict[str, Any]:
     return _run(ctx, OptimiserSpec(**opt_dict), run, seed)
 
 
-def _run_task_in_worker(task: tuple) -> dict[str, Any]:
-    ctx = next(iter(_WORKER_CONTEXT.values()))
-    opt_dict, run, seed = task
-    return _run(ctx, OptimiserSpec(**opt_dict), run, seed)
+# ================================================================================ workers
+#: Longest wait (s) between two looks at the worker processes: a worker that died without
+#: its pipe showing it (a child process of its own holds the pipe) is still noticed.
+_POLL = 1.0
+#: Seconds an idle worker is given to exit when told to, before it is killed.
+_GRACE = 2.0
+
+
+def _worker_main(conn: Any, payload: Mapping[str, Any]) -> None:
+    """Body of a worker process: build the context, then do the runs the parent sends.
+
+    Messages to the parent: ``("ready", None)`` once the context is built, ``("done",
+    record)`` per run, ``("error", traceback)`` if the context cannot be built.  ``None``
+    from the parent, or its end, stops the worker.
+    """
+    # Ctrl-C reaches every process of the terminal's group: the parent alone answers it (it
+    # ends the workers), so that a run is not cut short into a failed record
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _exit_with_parent()
+    try:
+        ctx = _context_from_payload(payload)
+    except BaseException:
+        conn.send(("error", traceback.format_exc()))
+        return
+    conn.send(("ready", None))
+    while True:
+        try:
+            task = conn.recv()
+        except EOFError:  # the parent has ended
+            return
+        if task is None:
+            return
+        opt_dict, run, seed = task
+        conn.send(("done", _run(ctx, OptimiserSpec(**opt_dict), run, seed)))
+
+
+def _exit_with_parent() -> None:
+    """End this process as soon as its parent ends, even in the middle of a run.
+
+    A parent killed with SIGKILL cannot stop its workers: without this, a worker would finish
+    its run (or never, in a run that never returns) for a result nobody reads.
+    """
+    parent = parent_process()
+    if parent is None:
+        return
+
+    def watch() -> None:
+        parent.join()  # returns when the parent's end of the sentinel pipe closes
+        os._exit(1)
+
+    threading.Thread(target=watch, name="flexid-parent-watch", daemon=True).start()
+
+
+class _Worker:
+    """A worker process, the parent's end of its pipe and the run it is doing."""
+
+    def __init__(self, mp: Any, payload: Mapping[str, Any]) -> None:
+        self.conn, child = mp.Pipe()
+        self.process = mp.Process(target=_worker_main, args=(child, payload), name="flexid-worker")
+        try:
+            self.process.start()
+        finally:
+            child.close()  # the child's copy is the only one left: its death is the pipe's EOF
+        self.ready = False
+        self.task: tuple | None = None
+        self.started = 0.0
+
+    def assign(self, task: tuple) -> bool:
+        """Send ``task`` to this (idle, ready) worker; False if the worker is gone."""
+        try:
+            self.conn.send(task)
+        except OSError:
+            return False
+        self.task = task
+        self.started = time.monotonic()
+        return True
+
+    def check(self, run_timeout: float | None) -> tuple[dict | None, bool]:
+        """Read the worker's messages; end it if its run is over time.
+
+        Parameters
+        ----------
+        run_timeout : float or None
+            The per-run time limit in seconds.
+
+        Returns
+        -------
+        record : dict or None
+            A finished run: done, or failed because the process died or ran out of time.
+        alive : bool
+            False once the process has ended (it is then to be replaced).
+
+        Raises
+        ------
+        RuntimeError
+            If the worker could not build the comparison's context, or ended before it did.
+        """
+        ended = False
+        try:
+            while self.conn.poll():
+                kind, value = self.conn.recv()
+                if kind == "ready":
+                    self.ready = True
+                elif kind == "done":
+                    self.task = None
+                    return value, True
+                else:
+                    raise RuntimeError(f"a flexid worker process could not start:\n{value}")
+        except (EOFError, OSError):  # the process has ended, or is ending
+            ended = True
+            self.process.join(_GRACE)
+        if ended or not self.process.is_alive():
+            self.kill()
+            code = self.process.exitcode
+            if not self.ready:
+                raise RuntimeError(
+                    f"a flexid worker process ended before it started (exit code {code})"
+                )
+            if self.task is None:
+                return None, False
+            reason = f"worker process died (exit code {code})"
+            if code is not None and code < 0:
+                reason = f"worker process died (exit code {code}, {_signal_name(-code)})"
+            return self._fail(reason), False
+        if (
+            self.task is not None
+            and run_timeout is not None
+            and time.monotonic() - self.started >= run_timeout
+        ):
+            self.kill()
+            return self._fail(f"time limit of {run_timeout:g} s exceeded"), False
+        return None, True
+
+    def deadline(self, run_timeout: float | None) -> float | None:
+        """When this worker's run exceeds the time limit (monotonic clock), if it is running."""
+        if self.task is None or run_timeout is None:
+            return None
+        return self.started + run_timeout
+
+    def _fail(self, reason: str) -> dict[str, Any]:
+        task, self.task = self.task, None
+        return _failed_record(task, reason, time.monotonic() - self.started)
+
+    def kill(self) -> None:
+        """End the process at once (a run that never returns cannot be asked to)."""
+        if self.process.is_alive():
+            self.process.kill()
+        self.process.join()
+
+    def stop(self) -> None:
+        """End the process: an idle one is told to exit, a busy one is killed."""
+        if self.task is None and self.process.is_alive():
+            try:
+                self.conn.send(None)
+            except OSError:
+                pass
+            else:
+                self.process.join(_GRACE)
+        self.kill()
+        self.conn.close()
+
+
+def _signal_name(signum: int) -> str:
+    try:
+        return signal.Signals(signum).name
+    except ValueError:
+        return f"signal {signum}"
+
+
+def _execute_processes(
+    ctx: _Context, tasks: Sequence[tuple], workers: int, run_timeout: float | None
+) -> Iterator[dict]:
+    """Yield finished run records from ``workers`` worker processes as they complete.
+
+    A worker that dies or exceeds ``run_timeout`` in a run yields that run as failed and is
+    replaced.  However the generator ends (done, an exception, closed early, an interrupt),
+    every worker process has ended when it does.
+    """
+    mp = get_context("spawn")  # a fresh interpreter: no threads or locks copied by fork
+    payload = ctx.payload()
+    queue = deque(tasks)
+    pool: list[_Worker] = []
+
+    def needed() -> int:
+        """Workers there is work for: the runs going on and the runs waiting."""
+        return min(workers, len(queue) + sum(w.task is not None for w in pool))
+
+    try:
+        while len(pool) < needed():
+            pool.append(_Worker(mp, payload))
+        while queue or any(w.task is not None for w in pool):
+            for w in pool:
+                if w.ready and w.task is None and queue:
+                    task = queue.popleft()
+                    if not w.assign(task):
+                        queue.appendleft(task)  # the worker is gone: check() replaces it
+            deadlines = [d for w in pool if (d := w.deadline(run_timeout)) is not None]
+            timeout = _POLL
+            if deadlines:
+                timeout = min(timeout, max(0.0, min(deadlines) - time.monotonic()))
+            wait([w.conn for w in pool] + [w.process.sentinel for w in pool], timeout)
+            for w in list(pool):
+                record, alive = w.check(run_timeout)
+                if not alive:
+                    pool.remove(w)
+                    w.stop()
+                    if len(pool) < needed():
+                        pool.append(_Worker(mp, payload))
+                if record is not None:
+                    yield record
+    finally:
+        for w in pool:
+            w.stop()
 
 
 # ================================================================================ result
@@ -740,6 +987,7 @@ def compare(
     scheduler: str | Any | None = None,
     progress: bool | Callable[[dict], Any] = False,
     retry_failed: bool = False,
+    run_timeout: float | None = None,
 ) -> ComparisonResult:
     """Run (or resume) a comparison and return its statistics.
 
@@ -759,6 +1007,12 @@ def compare(
         Show a progress bar (``True``) or call ``progress(record)`` after each run.
     retry_failed : bool
         Run again the runs stored as failed (default: keep them).
+    run_timeout : float, optional
+        Wall-time limit of one optimiser run in seconds (default: ``spec.run_timeout``,
+        itself None, no limit, unless set).  A run over it is ended, its worker process
+        killed and replaced, and it is recorded as failed ("time limit of X s exceeded");
+        the comparison goes on.  With ``workers=1`` a limit makes each run a child process
+        of its own.  Not available with ``scheduler``.
 
     Returns
     -------
@@ -770,8 +1024,24 @@ def compare(
         Before any run starts, for an invalid specification (and before the store is
         opened, so an invalid specification leaves no file behind), or for a store that is
         read-only or not a flexid store (left as it was).
+
+    Notes
+    -----
+    An optimiser that raises (``SystemExit`` and ``GeneratorExit`` included) or, in a
+    worker process, ends its process, gives a failed run with the reason; the other runs go
+    on.  ``KeyboardInterrupt`` ends the comparison, worker processes included; the runs
+    finished before it are in the store.
     """
     workers = positive_int(workers, "workers", error=ConfigError)
+    if run_timeout is None:
+        run_timeout = spec.run_timeout
+    else:
+        run_timeout = _check_run_timeout(run_timeout, "run_timeout")
+    if run_timeout is not None and scheduler is not None:
+        raise ConfigError(
+            "run_timeout is not available with a dask scheduler (a dask task cannot be "
+            "stopped); use workers instead"
+        )
     t0 = time.perf_counter()
     ctx = _checked_context(spec)  # the whole specification, before the store is opened
     spec = ctx.spec  # with the digest of a data file's record, which the key includes
@@ -808,13 +1078,15 @@ def compare(
         ]
         records = [r for r in records if not (r["status"] == "failed" and retry_failed)]
         bar = _progress(progress, len(tasks), spec.name)
+        runs = _execute(ctx, tasks, workers, scheduler, run_timeout)
         try:
-            for record in _execute(ctx, tasks, workers, scheduler):
+            for record in runs:
                 if db is not None:
                     db.write_run(key, record)
                 records.append(record)
                 bar(record)
         finally:
+            runs.close()  # ends the worker processes now, also when the loop body raised
             bar(None)
         return ComparisonResult.from_records(
             spec,
@@ -828,32 +1100,24 @@ def compare(
             db.close()
 
 
-def _execute(ctx: _Context, tasks: Sequence[tuple], workers: int, scheduler: Any) -> Iterable[dict]:
+def _execute(
+    ctx: _Context,
+    tasks: Sequence[tuple],
+    workers: int,
+    scheduler: Any,
+    run_timeout: float | None,
+) -> Iterator[dict]:
     """Yield finished run records as they complete (serial, processes or dask)."""
     if not tasks:
         return
     if scheduler is not None:
         yield from _execute_dask(ctx, tasks, scheduler)
         return
-    if workers == 1:
+    if workers == 1 and run_timeout is None:
         for opt_dict, run, seed in tasks:
             yield _run(ctx, OptimiserSpec(**opt_dict), run, seed)
         return
-    payload = ctx.payload()
-    with ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=get_context("spawn"),
-        initializer=_init_worker,
-        initargs=(payload,),
-    ) as pool:
-        futures = [pool.submit(_run_task_in_worker, task) for task in tasks]
-        try:
-            for future in as_completed(futures):
-                yield future.result()
-        except BaseException:
-            for future in futures:
-                future.cancel()
-            raise
+    yield from _execute_processes(ctx, tasks, workers, run_timeout)
 
 
 def _execute_dask(ctx: _Context, tasks: Sequence[tuple], scheduler: Any) -> Iterable[dict]:

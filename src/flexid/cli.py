@@ -2,13 +2,16 @@
 
 Every user error (a missing or malformed file, an unknown name, bad orders, invalid
 hyper-parameters or configuration keys) prints one line on stderr and exits with status 2;
-``--debug`` shows the traceback instead.
+``--debug`` shows the traceback instead.  Ctrl-C (SIGINT) and SIGTERM end a command with one
+line and status 130 or 143 (128 + the signal's number); a comparison's worker processes end
+with it and its finished runs are in the store.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -27,6 +30,17 @@ DEFAULT_OUT = Path("flexid-results")
 
 class _UsageError(Exception):
     """argparse error, reported in one line."""
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is so that it ends as Ctrl-C ends it: the worker
+    processes stopped, the finished runs kept."""
+
+
+def _raise_terminated(signum: int, frame: Any) -> NoReturn:
+    # a second SIGTERM would cut short the ending of the worker processes this one starts
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise _Terminated
 
 
 class _Parser(argparse.ArgumentParser):
@@ -267,11 +281,12 @@ def _add_search_options(p: argparse.ArgumentParser) -> None:
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     from ._compare import check_spec, compare
-    from .config import CostSpec, SearchSpec, default_spec, load_config
+    from .config import CostSpec, SearchSpec, _check_run_timeout, default_spec, load_config
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.runs, "--runs")
     _check_positive(args.workers, "--workers")
+    _check_run_timeout(args.run_timeout, "--run-timeout")
     overrides = {
         "runs": args.runs,
         "budget": args.budget,
@@ -331,6 +346,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             progress=not (args.no_progress or args.json),
             retry_failed=args.retry_failed,
+            run_timeout=args.run_timeout,
         )
         outputs.append(result)
         if not args.json:
@@ -610,6 +626,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_search_options(c)
     c.add_argument("--store", help=f"SQLite result store (default {DEFAULT_OUT}/results.sqlite)")
     c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+    c.add_argument(
+        "--run-timeout",
+        type=float,
+        metavar="SECONDS",
+        help="end a run that takes longer and record it as failed; the comparison goes on "
+        "(default: [compare] run_timeout of the CONFIG, else no limit)",
+    )
     c.add_argument("--scheduler", help="dask.distributed scheduler address")
     c.add_argument("--figures", help="folder for the figures (default: next to the store)")
     c.add_argument("--no-figures", action="store_true", help="do not draw figures")
@@ -680,7 +703,8 @@ def _one_line_warnings(show: Callable) -> Callable:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; return the exit status (0 ok, 2 user error).
+    """Run the command line; return the exit status (0 ok, 2 user error, 130 Ctrl-C, 143
+    SIGTERM).
 
     Parameters
     ----------
@@ -697,6 +721,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = "--debug" in argv
     shown = warnings.showwarning
     warnings.showwarning = _one_line_warnings(shown)
+    terminate = _on_sigterm(_raise_terminated)
     try:
         args = parser.parse_args(argv)
         if args.command is None:
@@ -711,15 +736,29 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"flexid: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(
-            "flexid: interrupted (finished runs are in the store; rerun to resume)", file=sys.stderr
-        )
-        return 130
+    except KeyboardInterrupt as exc:
+        what, status = ("terminated", 143) if isinstance(exc, _Terminated) else ("interrupted", 130)
+        print(f"flexid: {what} (finished runs are in the store; rerun to resume)", file=sys.stderr)
+        return status
     except BrokenPipeError:
         return 0
     finally:
         warnings.showwarning = shown
+        _on_sigterm(terminate)
+
+
+def _on_sigterm(handler: Any) -> Any:
+    """Install ``handler`` for SIGTERM and return the one it replaces.
+
+    Only the main thread can set a signal handler; elsewhere (``main`` called from a
+    thread) nothing is changed and None is returned.
+    """
+    if handler is None or not hasattr(signal, "SIGTERM"):
+        return None
+    try:
+        return signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread
+        return None
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -35,6 +35,9 @@ Example (``experiments/paper-manipulator.toml`` is a complete one)::
     [[optimisers]]
     name = "bfa"
     params = { step_size = 0.01 }
+
+    [compare]
+    run_timeout = 600              # seconds; a longer run is ended and recorded as failed
 """
 
 from __future__ import annotations
@@ -48,7 +51,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from ._validate import integer, is_integer
+from ._validate import integer, is_integer, real
 from .errors import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -436,12 +439,18 @@ class ComparisonSpec:
     validate_initial : {"estimate", "zero", "measured"}
         Initial-condition rule of the validation's simulations and predictions (``initial``
         in the ``[validation]`` table; default ``"estimate"``, MATLAB ``compare``'s).
+    run_timeout : float or None
+        Wall-time limit of one optimiser run in seconds (``run_timeout`` in the
+        ``[compare]`` table); a run that exceeds it is ended and recorded as failed.  None
+        (the default) sets no limit.  It says how runs are executed, not what they compute,
+        so it is not part of :attr:`key`.
 
     Raises
     ------
     ConfigError
         For a non-integer or out-of-range count, no optimiser, repeated labels, an
-        optimiser labelled ``"ls"`` or a target that is not positive.
+        optimiser labelled ``"ls"``, a target that is not positive or a time limit that is
+        not a positive number of seconds.
     """
 
     name: str = "comparison"
@@ -460,9 +469,12 @@ class ComparisonSpec:
     targets: tuple[float, ...] = (0.1, 0.01, 0.001)
     max_lag: int = 25
     validate_initial: str = "estimate"
+    run_timeout: float | None = None
 
     def __post_init__(self) -> None:
         _check_int(self, "runs", "[run] runs", low=1)
+        timeout = _check_run_timeout(self.run_timeout, "[compare] run_timeout")
+        object.__setattr__(self, "run_timeout", timeout)
         _check_int(self, "seed", "[run] seed", low=0)
         _check_int(self, "max_lag", "[validation] max_lag", low=1)
         if self.validate_initial not in ("estimate", "zero", "measured"):
@@ -587,6 +599,29 @@ def _data_dict(data: DataSpec) -> dict[str, Any]:
     return out
 
 
+def _check_run_timeout(value: Any, what: str) -> float | None:
+    """A per-run time limit: a positive, finite number of seconds, or None (no limit).
+
+    Parameters
+    ----------
+    value : object
+        The limit as given.
+    what : str
+        How the message names it (``"--run-timeout"``, ``"[compare] run_timeout"``).
+
+    Returns
+    -------
+    float or None
+        ``float(value)``, or None.
+
+    Raises
+    ------
+    ConfigError
+        For a ``bool``, a string, NaN, an infinity or a value <= 0.
+    """
+    return real(value, what, error=ConfigError, minimum=0, low_open=True, none_ok=True, unit="s")
+
+
 def _check_int(spec: ComparisonSpec, name: str, what: str, low: int) -> None:
     """Check an integer field and store it as ``int`` (a NumPy integer would change the key)."""
     value = integer(getattr(spec, name), what, error=ConfigError, minimum=low)
@@ -610,6 +645,7 @@ _MODEL_KEYS = tuple(ModelSpec.__dataclass_fields__)
 _COST_KEYS = tuple(CostSpec.__dataclass_fields__)
 _SEARCH_KEYS = tuple(SearchSpec.__dataclass_fields__)
 _RUN_KEYS = ("runs", "seed", "budget", "schedule_cap", "targets")
+_COMPARE_KEYS = ("run_timeout",)
 _TOP_KEYS = (
     "name",
     "description",
@@ -621,6 +657,7 @@ _TOP_KEYS = (
     "validation",
     "optimisers",
     "comparison",
+    "compare",
 )
 
 
@@ -652,8 +689,8 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
 
     The top level describes one comparison; a list of budgets gives one comparison per
     budget.  ``[[comparison]]`` tables describe several comparisons that share the top-level
-    data, model, cost, search and validation settings, each with its own ``name``,
-    ``budget``, ``runs``, ``seed`` and ``optimisers`` (defaults from the top level).
+    data, model, cost, search, validation and ``[compare]`` settings, each with its own
+    ``name``, ``budget``, ``runs``, ``seed`` and ``optimisers`` (defaults from the top level).
 
     Parameters
     ----------
@@ -684,6 +721,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         raise ConfigError(f"{source}: {exc}") from None
     run = _take(top.get("run", {}), _RUN_KEYS, "run")
     validation = _take(top.get("validation", {}), ("max_lag", "initial"), "validation")
+    execution = _take(top.get("compare", {}), _COMPARE_KEYS, "compare")
     if "optimisers" in top:
         optimisers = _optimiser_specs(top["optimisers"], "[[optimisers]]")
     else:
@@ -705,6 +743,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         "bounds": bounds,
         "max_lag": validation.get("max_lag", 25),
         "validate_initial": validation.get("initial", "estimate"),
+        **execution,
     }
     specs = []
     if "comparison" in top:
