@@ -214,7 +214,13 @@ def test_list_optimisers_shows_the_libraries(capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert main(["list", "optimisers"]) == 0
+        short = capsys.readouterr().out
+        assert main(["list", "optimisers", "--long"]) == 0
     out = capsys.readouterr().out
+    # the short form: one line per optimiser, its name first
+    for name in ("hbcsd", "cmaes", "de"):
+        assert sum(line.split(" ")[0] == name for line in short.splitlines()) == 1
+    assert len(short.splitlines()) < len(out.splitlines())
     assert "Optimisers of other libraries" in out
     for line in library_notes():
         assert line in out

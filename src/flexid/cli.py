@@ -45,7 +45,8 @@ def _raise_terminated(signum: int, frame: Any) -> NoReturn:
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
-        raise _UsageError(f"{self.prog}: {message}")
+        # the help of the (sub)command that refused the arguments, not the top level's
+        raise _UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
 
 
 # ============================================================================ option parsing
@@ -463,12 +464,19 @@ def _cmd_list(args: argparse.Namespace) -> int:
         if args.json:
             print(json.dumps(jsonable(entries), indent=2, allow_nan=False, default=str))
             return 0
+        width = max(len(e["name"]) for e in entries)
         for e in entries:
             origin = f" (variant of {e['variant_of']})" if e["variant_of"] else ""
             src = "" if e["source"] == "flexid" else f" [{e['source']}]"
+            if not args.long:  # one line each: the name and the first sentence
+                first = e["summary"].split(". ")[0].rstrip(".")
+                print(f"{e['name']:<{width}}  {first}{origin}{src}")
+                continue
             print(f"{e['name']}{origin}{src}: {e['summary']}")
             for pname, p in e["hyperparameters"].items():
                 print(f"    {pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}")
+        if not args.long:
+            print("\n(--long: every optimiser's hyper-parameters, defaults and ranges)")
         from .optimisers.external import library_notes
 
         print("\nOptimisers of other libraries (flexid's FE budget, initial population and seed):")
@@ -685,6 +693,11 @@ def build_parser() -> argparse.ArgumentParser:
     li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
     li.add_argument("what", choices=["optimisers", "signals", "plants", "presets", "environments"])
     li.add_argument("--json", action="store_true", help="machine-readable (optimisers)")
+    li.add_argument(
+        "--long", action="store_true",
+        help="optimisers with their hyper-parameters, defaults, ranges and the assumptions "
+        "made where a paper gives no value (default: one line each)",
+    )
     li.set_defaults(func=_cmd_list)
     return parser
 
@@ -723,13 +736,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     warnings.showwarning = _one_line_warnings(shown)
     terminate = _on_sigterm(_raise_terminated)
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # name the subcommand whose options these are not
+            where = f"flexid {args.command}" if args.command else "flexid"
+            raise _UsageError(
+                f"{where}: unrecognized arguments: {' '.join(extra)} (see {where} --help)"
+            )
         if args.command is None:
             parser.print_help()
             return 2
         return int(args.func(args) or 0)
     except _UsageError as exc:
-        print(f"{exc} (see flexid --help)", file=sys.stderr)
+        print(exc, file=sys.stderr)
         return 2
     except FlexidError as exc:
         if debug:
