@@ -155,3 +155,15 @@ def test_pole_zero_map_marks_repeated_roots():
                          np.r_[-0.5, -0.5])
     labels = sorted(t.get_text() for t in fig.axes[0].texts)
     assert labels == ["2", "3"]
+
+
+def test_figures_of_two_comparisons_with_one_name_do_not_replace_each_other(tmp_path):
+    from flexid.report import figure_prefix
+
+    first = compare(tiny_spec("twin rotor / ARX (5,5,1)"), progress=False)
+    second = compare(tiny_spec("twin rotor / ARX (5,5,1)", budget=200), progress=False)
+    a, b = figure_prefix(first), figure_prefix(second)
+    assert a != b and "--" not in a and a.startswith("twin-rotor-arx-5-5-1-")
+    names_a = {p.name for p in comparison_figures(first, tmp_path, prefix=a)}
+    names_b = {p.name for p in comparison_figures(second, tmp_path, prefix=b)}
+    assert not names_a & names_b

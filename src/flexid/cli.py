@@ -360,11 +360,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             )
         if not args.no_figures:
             from .plots import PlottingUnavailable, comparison_figures
+            from .report import figure_prefix
 
             figdir = Path(args.figures) if args.figures else store.parent
-            slug = "".join(c if c.isalnum() else "-" for c in spec.name).strip("-")
             try:
-                paths = comparison_figures(result, figdir, prefix=f"{slug}-")
+                paths = comparison_figures(result, figdir, prefix=figure_prefix(result))
             except PlottingUnavailable as exc:
                 if not args.json:
                     print(f"(no figures: {exc})")

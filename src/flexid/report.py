@@ -35,6 +35,7 @@ __all__ = [
     "ecdf_fraction",
     "ecdf_targets",
     "export_ioh",
+    "figure_prefix",
     "write_report",
 ]
 
@@ -42,6 +43,24 @@ __all__ = [
 def _slug(text: str) -> str:
     """The file-name form of a comparison name: the export's folder name, in lower case."""
     return _name(text).lower()
+
+
+def figure_prefix(result: ComparisonResult) -> str:
+    """The file-name prefix of a comparison's figures: its name and its key.
+
+    Two comparisons with the same name (other data, orders or budgets) have other keys, so
+    neither's figures replace the other's.
+
+    Parameters
+    ----------
+    result : ComparisonResult
+
+    Returns
+    -------
+    str
+        ``"<name>-<first 8 characters of the key>-"``, letters, digits and single hyphens.
+    """
+    return f"{_slug(result.spec.name)}-{result.key[:8]}-"
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
@@ -66,7 +85,7 @@ def _markdown_table(text_table: str) -> str:
 
 def _section(result: ComparisonResult, outdir: Path, figures: bool) -> list[str]:
     spec = result.spec
-    slug = f"{_slug(spec.name)}-{result.key[:8]}"
+    slug = figure_prefix(result).rstrip("-")
     lines = [f"## {spec.name}", ""]
     header, _, _ = result.summary().partition("\n\n")
     lines += ["```", header, "```", ""]
