@@ -849,9 +849,11 @@ def identify(
     report_est = validate(model, est, max_lag=max_lag, initial=validate_initial)
     report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
     t_end = time.perf_counter()
+    assumed = bool(est.metadata.get("dt_assumed"))  # no time column, no dt given
     info = {
         "description": (
-            f"{est.n_samples} estimation + {val.n_samples} validation samples, dt {est.dt:g} s, "
+            f"{est.n_samples} estimation + {val.n_samples} validation samples, dt {est.dt:g} s"
+            f"{' (ASSUMED: the record has no time column; give --dt or dt=)' if assumed else ''}, "
             f"inputs {list(est.input_names)}, output {est.output_names[0]!r}"
         ),
         "n_estimation": est.n_samples,
