@@ -45,7 +45,7 @@ def test_a_structure_that_cannot_describe_the_data_is_named():
 def test_an_assumed_sample_time_is_said(tmp_path):
     data = _arx_record()
     path = tmp_path / "no_time.csv"
-    rows = "\n".join(f"{u!r},{y!r}" for u, y in zip(data.u[:, 0], data.y[:, 0]))
+    rows = "\n".join(f"{u!r},{y!r}" for u, y in zip(data.u[:, 0].tolist(), data.y[:, 0].tolist()))
     path.write_text("u,y\n" + rows + "\n")
     said = identify(str(path), 2, 2, 1, optimiser="ls").data_info["description"]
     assert "dt 1 s (ASSUMED" in said
