@@ -137,6 +137,9 @@ html_theme_options = {
     "footer_end": ["sphinx-version"],
 }
 html_show_sourcelink = False
+# no left sidebar (the top bar holds the navigation): the page's width goes to the text and
+# the code, so examples are not cut off on the right
+html_sidebars = {"**": []}
 html_static_path: list[str] = []
 
 
