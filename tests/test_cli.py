@@ -148,3 +148,17 @@ def test_entry_point_runs_as_a_module(tmp_path):
     )
     assert bad.returncode == 2
     assert len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_compare_sets_the_data_seed_apart_from_the_runs_seed(tmp_path, capsys):
+    from flexid.cli import main
+
+    argv = ["compare", "--plant", "twin-rotor", "--optimisers", "random-search", "--runs", "1",
+            "--budget", "50", "--no-progress", "--no-figures", "--store",
+            str(tmp_path / "s.sqlite")]
+    assert main([*argv, "--data-seed", "3"]) == 0
+    assert "paper-twin-rotor (seed 3)" in capsys.readouterr().out
+    config = tmp_path / "c.toml"
+    config.write_text('[data]\nplant = "twin-rotor"\n')
+    assert main(["compare", str(config), "--data-seed", "3"]) == 2
+    assert "--data-seed applies to the built-in comparison" in capsys.readouterr().err

@@ -296,6 +296,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if args.config:
         if args.plant:
             raise ConfigError("give either a CONFIG file or --plant, not both")
+        if args.data_seed is not None:
+            raise ConfigError(
+                "--data-seed applies to the built-in comparison (--plant); a CONFIG file sets "
+                "its record's seed in its [data] table"
+            )
         specs = load_config(args.config)
         from dataclasses import replace
 
@@ -330,6 +335,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 nc=args.nc,
                 nd=args.nd,
                 nf=_int_list(args.nf, "--nf"),
+                data_seed=args.data_seed if args.data_seed is not None else 0,
                 cost=CostSpec(**_cost_overrides(args)),
                 search=SearchSpec(**_search_overrides(args)),
             )
@@ -623,7 +629,16 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--optimisers", help="comma-separated optimiser names")
     c.add_argument("--runs", type=int, help="runs (seeds) per optimiser")
     c.add_argument("--budget", type=int, help="function evaluations per run")
-    c.add_argument("--seed", type=int, help="comparison seed")
+    c.add_argument(
+        "--seed", type=int,
+        help="seed of the runs: their initial populations and random draws (default 0, or "
+        "the config's)",
+    )
+    c.add_argument(
+        "--data-seed", type=int,
+        help="seed of the simulated record (input signal, sensor noise) of the built-in "
+        "comparison (--plant; default 0)",
+    )
     _structure_options(
         c,
         "built-in comparison; default: the plant's own model, arx when only orders are given",
