@@ -324,3 +324,42 @@ def test_pitch_recovered_by_cmaes_and_de_on_ideal_data():
 
     assert error("cmaes", 6000, 0) < 1e-5
     assert sum(error("de", 15000, seed) < 1e-3 for seed in range(3)) >= 2
+
+
+# ---------------------------------------------------------------------- command line
+@COMPILED
+def test_greybox_command_fits_and_validates(capsys):
+    from flexid.cli import main
+
+    assert main(["greybox", "--plant", "twin-rotor", "--starts", "0", "--set", "Mg=0.5"]) == 0
+    out = capsys.readouterr().out
+    assert "local minimum" in out and "overall              PASS" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--model", "nope"], "unknown grey-box model 'nope'"),
+        (["--fix", "mass"], "'mass'"),
+        (["--set", "Mg=50"], "'Mg': value 50 is outside its bounds"),
+        (["--set", "Mg"], "--set must look like NAME=VALUE"),
+        (["--plant", "manipulator"], "twin rotor's"),
+    ],
+)
+def test_greybox_command_refuses_bad_input_in_one_line(argv, message, capsys):
+    from flexid.cli import main
+
+    base = ["greybox"] if "--plant" in argv else ["greybox", "--plant", "twin-rotor"]
+    assert main([*base, *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+
+
+def test_greybox_command_names_a_missing_channel(tmp_path, capsys):
+    from flexid.cli import main
+
+    path = tmp_path / "rec.csv"
+    path.write_text("u,y\n" + "\n".join(f"{i % 3},{i % 5}" for i in range(30)) + "\n")
+    assert main(["greybox", str(path), "--dt", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "main_rotor" in err[0]

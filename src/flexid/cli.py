@@ -1,4 +1,4 @@
-"""The ``flexid`` command: generate, identify, compare, report, list.
+"""The ``flexid`` command: generate, identify, compare, select, greybox, report, list.
 
 Every user error (a missing or malformed file, an unknown name, bad orders, invalid
 hyper-parameters or configuration keys) prints one line on stderr and exits with status 2;
@@ -439,6 +439,80 @@ def _cmd_select(args: argparse.Namespace) -> int:
     return 0
 
 
+def _greybox_values(items: Sequence[str] | None, what: str) -> dict[str, Any]:
+    """``["Mg=0.3", "I1=0.07"]`` -> ``{"Mg": 0.3, "I1": 0.07}``."""
+    out: dict[str, Any] = {}
+    for item in items or []:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            raise ConfigError(f"{what} must look like NAME=VALUE, got {item!r}")
+        out[name.strip()] = _value(text)
+    return out
+
+
+def _cmd_greybox(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .data import load
+    from .greybox_cost import GreyBoxCost
+    from .greybox_fit import greyest
+    from .greybox_models import greybox_model
+    from .optimisers import minimize
+    from .validation import validate
+
+    if (args.file is None) == (args.plant is None):
+        raise ConfigError("give a record file or --plant (a simulated record), not both")
+    model = greybox_model(args.model)
+    changes: dict[str, dict[str, Any]] = {}
+    for name, value in _greybox_values(args.set, "--set").items():
+        changes.setdefault(name, {})["value"] = value
+    for option, fixed in ((args.fix, True), (args.free, False)):
+        for name in _names(option) or []:
+            changes.setdefault(name, {})["fixed"] = fixed
+    if changes:
+        model = model.with_parameters(**changes)
+    if args.plant is not None:
+        from .datasets import generate
+
+        if args.plant != "twin-rotor":
+            raise ConfigError(
+                f"the built-in grey-box models are the twin rotor's, not {args.plant!r}'s"
+            )
+        if len(model.outputs) == 1:
+            data = generate(args.plant, preset="paper-twin-rotor", seed=args.data_seed)
+        else:
+            data = generate(args.plant, outputs=list(model.outputs), seed=args.data_seed)
+    else:
+        options = {"inputs": list(model.inputs), "outputs": list(model.outputs)}
+        if args.dt is not None:
+            options["dt"] = args.dt
+        data = load(args.file, **options)
+    split = 2 / 3 if args.split is None else args.split
+    est = data.split(split)[0] if isinstance(split, float) else data.split(index=split)[0]
+    if args.optimiser == "pem":
+        fit = greyest(est, model, starts=args.starts, seed=args.seed)
+        fitted, summary = fit.model, fit.summary()
+    else:
+        _check_positive(args.budget, "--budget")
+        cost = GreyBoxCost(model, est)
+        result = minimize(args.optimiser, cost.problem(), args.budget, seed=args.seed)
+        values = np.clip(model.from_search(result.x), cost.lower, cost.upper)
+        fitted = model.with_parameters(**dict(zip(model.free, values.tolist())))
+        table = "\n".join(
+            f"  {fitted.parameter(n).describe()}" for n in fitted.free
+        )
+        summary = (
+            f"grey-box model {model.name} fitted by {args.optimiser} (seed {args.seed}): cost "
+            f"{result.fun:.6g} after {result.nfev} FE ({result.message})\n{table}"
+        )
+    print(summary)
+    if len(model.outputs) == 1:
+        report = validate(fitted, data, split=split)
+        print("\nValidation record (held out; the model run on through the estimation part)")
+        print("\n".join("  " + line for line in report.summary().splitlines()))
+    return 0
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from .report import write_report
 
@@ -704,6 +778,39 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--key", help="only the comparison with this key (prefix)")
     r.add_argument("--no-figures", action="store_true", help="tables only")
     r.set_defaults(func=_cmd_report)
+
+    gb = sub.add_parser(
+        "greybox",
+        help="fit a grey-box model (a plant's own physics) and validate it",
+        description="Fit the physical parameters of a built-in grey-box model to a record "
+        "by the gradient reference (default) or any registered optimiser, then validate it "
+        "on the held-out part. Example: flexid greybox --plant twin-rotor "
+        "--model twin-rotor-pitch",
+    )
+    gb.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
+    gb.add_argument("--plant", help="fit a simulated record of this plant (twin-rotor) instead")
+    gb.add_argument("--data-seed", type=int, default=0, help="seed of the simulated record")
+    gb.add_argument(
+        "--model", default="twin-rotor-pitch",
+        help="built-in grey-box model: twin-rotor-pitch (default) | twin-rotor-coupled",
+    )
+    gb.add_argument(
+        "--optimiser", default="pem",
+        help="pem (default: Levenberg-Marquardt from several starts, with standard errors) or "
+        "a registered optimiser",
+    )
+    gb.add_argument("--budget", type=int, default=10_000, help="FE of an optimiser (default 10000)")
+    gb.add_argument("--starts", type=int, default=3, help="random starts of pem (default 3)")
+    gb.add_argument("--seed", type=int, default=0, help="seed of the starts or the run (default 0)")
+    gb.add_argument(
+        "--set", action="append", metavar="NAME=VALUE",
+        help="a parameter's value (the start, or its value when fixed); repeatable",
+    )
+    gb.add_argument("--fix", help="comma-separated parameters to hold at their values")
+    gb.add_argument("--free", help="comma-separated parameters to estimate")
+    gb.add_argument("--split", type=_value, help="estimation share (default 2/3) or split index")
+    gb.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
+    gb.set_defaults(func=_cmd_greybox)
 
     li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
     li.add_argument("what", choices=["optimisers", "signals", "plants", "presets", "environments"])
