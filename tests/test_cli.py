@@ -162,3 +162,21 @@ def test_compare_sets_the_data_seed_apart_from_the_runs_seed(tmp_path, capsys):
     config.write_text('[data]\nplant = "twin-rotor"\n')
     assert main(["compare", str(config), "--data-seed", "3"]) == 2
     assert "--data-seed applies to the built-in comparison" in capsys.readouterr().err
+
+
+def test_every_subcommand_help_says_what_it_does_with_an_example_and_defaults(capsys):
+    import pytest as _pytest
+
+    from flexid.cli import build_parser, main
+
+    commands = build_parser()._subparsers._group_actions[0].choices
+    for name in commands:
+        with _pytest.raises(SystemExit):
+            main([name, "--help"])
+        out = capsys.readouterr().out
+        assert f"example:\n  flexid {name}" in out, name
+    with _pytest.raises(SystemExit):
+        main(["identify", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "--budget BUDGET function evaluations (default 20000)" in out
+    assert "--max-lag MAX_LAG lags of the correlation tests (default 25)" in out

@@ -43,6 +43,63 @@ def _raise_terminated(signum: int, frame: Any) -> NoReturn:
     raise _Terminated
 
 
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Help with each option's default (where it has one the help does not already give),
+    and the examples of the epilog kept as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if (
+            "default" in text.lower()
+            or default is None
+            or default is False
+            or default is argparse.SUPPRESS
+            or not action.option_strings
+        ):
+            return text
+        return f"{text} (default {default})"
+
+
+# What each subcommand does and one example of it (its --help shows both)
+_SUBCOMMANDS = {
+    "generate": (
+        "Simulate a plant (its Gymnasium environment) and write the record with its metadata.",
+        "flexid generate manipulator --preset paper-manipulator --seed 0 --output man.csv",
+    ),
+    "identify": (
+        "Identify a polynomial model (ARX, ARMAX, OE, BJ) from a record by the structure's "
+        "reference or a registered optimiser, and validate it on the held-out part.",
+        "flexid identify man.csv --structure oe --nb 16 --nf 16 --nk 1",
+    ),
+    "compare": (
+        "Compare optimisers on identical problems: the same record, initial populations and "
+        "FE budget, several seeds; every finished run is stored at once, a rerun resumes.",
+        "flexid compare --plant twin-rotor --optimisers de,pso,cmaes --runs 10 --budget 5000",
+    ),
+    "select": (
+        "Fit a grid of structures and orders and recommend the best held-out simulation fit "
+        "among those that pass every correlation test (AIC, FPE and MDL are reported).",
+        "flexid select man.csv --structures arx,oe --orders nb=8,16 --orders nf=8,16",
+    ),
+    "greybox": (
+        "Fit the physical parameters of a built-in grey-box model (the twin rotor's equations) "
+        "by the gradient reference or a registered optimiser, then validate it.",
+        "flexid greybox --plant twin-rotor --model twin-rotor-pitch --set Mg=0.5",
+    ),
+    "report": (
+        "Write a Markdown or HTML report (tables and figures) of a result store, or export it "
+        "in the IOHprofiler format.",
+        "flexid report flexid-results/results.sqlite --format html",
+    ),
+    "list": (
+        "List the registered optimisers, excitation signals, plants, presets or Gymnasium "
+        "environments.",
+        "flexid list optimisers --long",
+    ),
+}
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         # the help of the (sub)command that refused the arguments, not the top level's
@@ -780,12 +837,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_report)
 
     gb = sub.add_parser(
-        "greybox",
-        help="fit a grey-box model (a plant's own physics) and validate it",
-        description="Fit the physical parameters of a built-in grey-box model to a record "
-        "by the gradient reference (default) or any registered optimiser, then validate it "
-        "on the held-out part. Example: flexid greybox --plant twin-rotor "
-        "--model twin-rotor-pitch",
+        "greybox", help="fit a grey-box model (a plant's own physics) and validate it"
     )
     gb.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
     gb.add_argument("--plant", help="fit a simulated record of this plant (twin-rotor) instead")
@@ -821,6 +873,11 @@ def build_parser() -> argparse.ArgumentParser:
         "made where a paper gives no value (default: one line each)",
     )
     li.set_defaults(func=_cmd_list)
+    for name, sp in sub.choices.items():
+        what, example = _SUBCOMMANDS[name]
+        sp.description = what
+        sp.epilog = f"example:\n  {example}"
+        sp.formatter_class = _Formatter
     return parser
 
 
