@@ -49,6 +49,7 @@ _BUILTIN_MODULES = (
     "de",
     "ga",
     "cmaes",
+    "cmaes_restarts",
     "random_search",
     "scipy_methods",
     "external",
