@@ -132,6 +132,11 @@ def _flexid(options: str, *paths: str | Path) -> list[str]:
     return [sys.executable, "-m", "flexid", *options.split(), *map(str, paths)]
 
 
+def _default_sigint() -> None:
+    """In the child before it runs flexid: SIGINT handled by default, not ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _env(site: Path) -> dict[str, str]:
     """The environment of a ``flexid`` subprocess that finds the plugin."""
     env = dict(os.environ)
@@ -383,6 +388,9 @@ def test_signal_stops_workers_and_keeps_finished_runs(plugins, tmp_path, signum,
             stderr=err_file,
             env=_env(plugins),
             start_new_session=True,
+            # as a terminal's command gets it: a shell's background job (CI started with '&')
+            # inherits SIGINT ignored, and Python then never raises KeyboardInterrupt
+            preexec_fn=_default_sigint,
         )
     pgid = proc.pid
     try:
