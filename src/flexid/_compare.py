@@ -1136,7 +1136,10 @@ def _execute_dask(ctx: _Context, tasks: Sequence[tuple], scheduler: Any) -> Iter
         except OSError as exc:
             raise ConfigError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from None
     try:
-        payload = client.scatter(ctx.payload(), broadcast=True)
+        # a key of its own (hash=False): a content-hashed key is shared with another
+        # comparison of the same data on this scheduler, and that one's release of it would
+        # cancel these runs ("lost dependencies")
+        payload = client.scatter(ctx.payload(), broadcast=True, hash=False)
         futures = [client.submit(_run_task, payload, task, pure=False) for task in tasks]
         for future in dask_completed(futures):
             yield future.result()
