@@ -496,17 +496,6 @@ def _cmd_select(args: argparse.Namespace) -> int:
     return 0
 
 
-def _greybox_values(items: Sequence[str] | None, what: str) -> dict[str, Any]:
-    """``["Mg=0.3", "I1=0.07"]`` -> ``{"Mg": 0.3, "I1": 0.07}``."""
-    out: dict[str, Any] = {}
-    for item in items or []:
-        name, sep, text = item.partition("=")
-        if not sep or not name.strip():
-            raise ConfigError(f"{what} must look like NAME=VALUE, got {item!r}")
-        out[name.strip()] = _value(text)
-    return out
-
-
 def _cmd_greybox(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -521,7 +510,7 @@ def _cmd_greybox(args: argparse.Namespace) -> int:
         raise ConfigError("give a record file or --plant (a simulated record), not both")
     model = greybox_model(args.model)
     changes: dict[str, dict[str, Any]] = {}
-    for name, value in _greybox_values(args.set, "--set").items():
+    for name, value in _key_values(args.set, "--set").items():
         changes.setdefault(name, {})["value"] = value
     for option, fixed in ((args.fix, True), (args.free, False)):
         for name in _names(option) or []:

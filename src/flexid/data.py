@@ -31,7 +31,8 @@ import json
 import os
 import warnings
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -772,10 +773,13 @@ def _is_float(text: str) -> bool:
     return True
 
 
-def _read_text(path: Path) -> str:
+@contextmanager
+def _text_file(path: Path) -> Iterator[None]:
+    """Turn the errors of reading ``path`` as UTF-8 text into one-line DataFileErrors."""
     try:
-        with open(path, encoding="utf-8", newline="") as handle:
-            return handle.read()
+        yield
+    except DataFileError:  # an OSError too: already said in one line
+        raise
     except FileNotFoundError:
         raise DataFileError(f"{path}: no such file") from None
     except IsADirectoryError:
@@ -784,6 +788,11 @@ def _read_text(path: Path) -> str:
         raise DataFileError(f"{path}: not a text file (cannot decode as UTF-8)") from None
     except OSError as exc:
         raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def _read_text(path: Path) -> str:
+    with _text_file(path), open(path, encoding="utf-8", newline="") as handle:
+        return handle.read()
 
 
 #: Characters of CSV text parsed at a time by :func:`_read_csv` (whole lines, so a block may
@@ -827,20 +836,10 @@ def _read_csv(path: Path) -> tuple[dict | None, list[str], np.ndarray]:
         A missing, unreadable or non-UTF-8 file, no header row, an empty or numeric header,
         malformed metadata, a row of the wrong width or a cell that is not a number.
     """
-    try:
+    with _text_file(path):
         capacity = _count_lines(path)
         with open(path, encoding="utf-8") as handle:
             return _read_csv_lines(path, handle, capacity)
-    except DataFileError:  # an OSError too: not one of the cases below
-        raise
-    except FileNotFoundError:
-        raise DataFileError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise DataFileError(f"{path}: is a directory, not a data file") from None
-    except UnicodeDecodeError:
-        raise DataFileError(f"{path}: not a text file (cannot decode as UTF-8)") from None
-    except OSError as exc:
-        raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
 def _count_lines(path: Path) -> int:

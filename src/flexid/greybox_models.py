@@ -83,9 +83,12 @@ def _twin_rotor(
         full[..., voltages] = u
         return np.clip(full, -u_max[..., None], u_max[..., None])
 
+    # the plant's parameters the model does not name, once (this runs at every RK4 stage)
+    constants = {f: getattr(base, f) for f in _FIELDS if f not in names}
+
     def derivatives(x: np.ndarray, u: np.ndarray, p: ParameterSet) -> np.ndarray:
-        values = {f: (p[f] if f in p else getattr(base, f)) for f in _FIELDS}
-        return trs.derivatives(x, voltages_of(u, p["u_max"]), SimpleNamespace(**values))
+        values = SimpleNamespace(**constants, **{n: p[n] for n in names})
+        return trs.derivatives(x, voltages_of(u, p["u_max"]), values)
 
     def output(x: np.ndarray, u: np.ndarray, p: ParameterSet) -> np.ndarray:
         return x[:, columns]

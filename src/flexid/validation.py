@@ -1180,32 +1180,59 @@ def _validate_greybox(
     max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
     with np.errstate(all="ignore"):
         ysim_full = model.simulate(model.nominal, u_full, sample_time)[0, :, 0]
+    return _report(
+        y_full, None, ysim_full, u_full, start=start, dt=sample_time, max_lag=max_lag,
+        names=list(model.inputs), output_name=str(model.outputs[0]), initial=GREYBOX_RULE,
+        initial_one_step=GREYBOX_RULE, poles=_linearised_poles(model, sample_time), zeros=[],
+    )
+
+
+def _report(
+    y_full: np.ndarray, y1_full: np.ndarray | None, ysim_full: np.ndarray, u_full: np.ndarray,
+    *, start: int, dt: float, max_lag: int, names: list[str], output_name: str, initial: str,
+    initial_one_step: str | None, poles: Any, zeros: Any, predictor_stable: bool | None = None,
+) -> ValidationReport:
+    """The report of one record from the model's outputs over it, scored over ``t >= start``.
+
+    ``y1_full`` None: an output-error model, whose one-step prediction is its simulation
+    (a simulation that overflowed then leaves the correlation tests a zero residual).
+    """
+    n = y_full.size
     seg = slice(start, n)
     y, ysim, u = y_full[seg], ysim_full[seg], u_full[seg]
-    diverged = not bool(np.all(np.isfinite(ysim)))
-    names = list(model.inputs)
-    e = y - ysim if not diverged else np.zeros_like(y)
+    with np.errstate(over="ignore", invalid="ignore"):
+        diverged = not bool(np.all(np.isfinite(ysim)) and np.isfinite(np.sum(ysim * ysim)))
+    if y1_full is None:
+        y1 = ysim
+        e = np.zeros_like(y) if diverged else y - ysim
+    else:
+        y1 = y1_full[seg]
+        e = y - y1
     tests = residual_tests(e, u, max_lag, names)
     nonlinear = billings_voon_tests(e, u, max_lag, names)
-    f, p_meas = psd(y, sample_time)
-    if diverged:
+    f, p_meas = psd(y, dt)
+    if diverged:  # an unstable model's free run overflowed: a result to report, not an error
         p_model = np.full_like(p_meas, np.nan)
-        numbers = (-np.inf, np.inf, (-np.inf, np.inf))
+        sim_numbers = (-np.inf, np.inf, (-np.inf, np.inf))
     else:
-        p_model = psd(ysim, sample_time)[1]
-        numbers = (fit_percent(y, ysim), rmse(y, ysim), error_range(y, ysim))
-    stability = stability_report(_linearised_poles(model, sample_time), [], sample_time)
+        p_model = psd(ysim, dt)[1]
+        sim_numbers = (fit_percent(y, ysim), rmse(y, ysim), error_range(y, ysim))
+    one_numbers = (
+        sim_numbers if y1_full is None else (fit_percent(y, y1), rmse(y, y1), error_range(y, y1))
+    )
+    stability = stability_report(np.asarray(poles), zeros, dt)
+    stability.predictor_stable = predictor_stable
     return ValidationReport(
         n_samples=n,
         start=start,
-        dt=sample_time,
-        initial=GREYBOX_RULE,
-        fit_one_step=numbers[0],
-        fit_simulation=numbers[0],
-        rmse_one_step=numbers[1],
-        rmse_simulation=numbers[1],
-        error_range_one_step=numbers[2],
-        error_range_simulation=numbers[2],
+        dt=dt,
+        initial=initial,
+        fit_one_step=one_numbers[0],
+        fit_simulation=sim_numbers[0],
+        rmse_one_step=one_numbers[1],
+        rmse_simulation=sim_numbers[1],
+        error_range_one_step=one_numbers[2],
+        error_range_simulation=sim_numbers[2],
         max_lag=max_lag,
         correlation_tests=tests,
         nonlinear_tests=nonlinear,
@@ -1215,15 +1242,15 @@ def _validate_greybox(
         peak_measured=_peak(f, p_meas),
         peak_model=float("nan") if diverged else _peak(f, p_model),
         stability=stability,
-        time=np.arange(start, n) * sample_time,
+        time=np.arange(start, n) * dt,
         u=u,
         y=y,
-        y_one_step=ysim,
+        y_one_step=y1,
         y_simulation=ysim,
         input_names=tuple(names),
-        output_name=str(model.outputs[0]),
+        output_name=output_name,
         simulation_diverged=diverged,
-        initial_one_step=GREYBOX_RULE,
+        initial_one_step=initial_one_step,
     )
 
 
@@ -1410,54 +1437,11 @@ def validate(
             raise DataError(f"the model's {what} has {arr.size} samples, the record {n}")
     check_finite(y1, "the model's one-step prediction")
 
-    seg = slice(start, n)
-    y, y1, ysim, u = y_full[seg], y1[seg], ysim[seg], u_full[seg]
-    e = y - y1
-    names = list(record.input_names)
-    tests = residual_tests(e, u, max_lag, names)
-    nonlinear = billings_voon_tests(e, u, max_lag, names)
-    f, p_meas = psd(y, sample_time)
-    with np.errstate(over="ignore", invalid="ignore"):
-        diverged = not bool(np.all(np.isfinite(ysim)) and np.isfinite(np.sum(ysim * ysim)))
-    if diverged:  # an unstable model's free run overflowed: a result to report, not an error
-        p_model = np.full_like(p_meas, np.nan)
-        sim_numbers = (-np.inf, np.inf, (-np.inf, np.inf))
-    else:
-        p_model = psd(ysim, sample_time)[1]
-        sim_numbers = (fit_percent(y, ysim), rmse(y, ysim), error_range(y, ysim))
-
     n_u = u_full.shape[1]
-    zeros = [np.asarray(model.zeros(input=i)) for i in range(n_u)]
-    stability = stability_report(np.asarray(model.poles()), zeros, sample_time)
-    stability.predictor_stable = predictor_stable
-
-    return ValidationReport(
-        n_samples=n,
-        start=start,
-        dt=sample_time,
-        initial=initial,
-        fit_one_step=fit_percent(y, y1),
-        fit_simulation=sim_numbers[0],
-        rmse_one_step=rmse(y, y1),
-        rmse_simulation=sim_numbers[1],
-        error_range_one_step=error_range(y, y1),
-        error_range_simulation=sim_numbers[2],
-        max_lag=max_lag,
-        correlation_tests=tests,
-        nonlinear_tests=nonlinear,
-        psd_frequency=f,
-        psd_measured=p_meas,
-        psd_model=p_model,
-        peak_measured=_peak(f, p_meas),
-        peak_model=float("nan") if diverged else _peak(f, p_model),
-        stability=stability,
-        time=np.arange(start, n) * sample_time,
-        u=u,
-        y=y,
-        y_one_step=y1,
-        y_simulation=ysim,
-        input_names=tuple(names),
-        output_name=str(record.output_names[0]),
-        simulation_diverged=diverged,
-        initial_one_step=initial_one_step,
+    return _report(
+        y_full, y1, ysim, u_full, start=start, dt=sample_time, max_lag=max_lag,
+        names=list(record.input_names), output_name=str(record.output_names[0]),
+        initial=initial, initial_one_step=initial_one_step, poles=model.poles(),
+        zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
+        predictor_stable=predictor_stable,
     )

@@ -11,6 +11,31 @@ from .registry import register
 __all__ = ["CMAES"]
 
 
+
+def _learning_rates(n: int, mueff: float) -> tuple[float, float, float, float, float, float]:
+    """The default learning rates of CMA-ES (Hansen's tutorial, table 1).
+
+    Parameters
+    ----------
+    n : int
+        Dimension.
+    mueff : float
+        Variance-effective selection mass of the positive weights.
+
+    Returns
+    -------
+    cc, cs, c1, cmu, damps, chin : float
+        Rates of the rank-one path, the step-size path, the rank-one and rank-mu updates,
+        the step-size damping, and ``E||N(0, I)||``.
+    """
+    cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
+    cs = (mueff + 2) / (n + mueff + 5)
+    c1 = 2 / ((n + 1.3) ** 2 + mueff)
+    cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
+    damps = 1 + 2 * max(0.0, np.sqrt((mueff - 1) / (n + 1)) - 1) + cs
+    chin = np.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
+    return cc, cs, c1, cmu, damps, chin
+
 @register
 class CMAES(Optimiser):
     """(mu/mu_w, lambda)-CMA-ES with rank-one and rank-mu updates (Hansen's tutorial, 2016).
@@ -65,12 +90,7 @@ class CMAES(Optimiser):
         w = np.log(mu + 0.5) - np.log(np.arange(1, mu + 1))
         w /= w.sum()
         mueff = 1.0 / np.sum(w**2)
-        cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
-        cs = (mueff + 2) / (n + mueff + 5)
-        c1 = 2 / ((n + 1.3) ** 2 + mueff)
-        cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
-        damps = 1 + 2 * max(0.0, np.sqrt((mueff - 1) / (n + 1)) - 1) + cs
-        chin = np.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
+        cc, cs, c1, cmu, damps, chin = _learning_rates(n, mueff)
 
         X0 = space.initial_population(self.initial_points)
         F0 = yield X0

@@ -28,6 +28,7 @@ import numpy as np
 
 from ._params import Optimiser, Param
 from ._problem import SearchSpace
+from .cmaes import _learning_rates
 from .registry import register, register_variant
 
 __all__ = ["CMAESRestarts", "box_transform", "box_transform_inverse"]
@@ -239,12 +240,7 @@ class CMAESRestarts(Optimiser):
         n = mean.size
         sigma0 = sigma
         raw, mu, mueff, mueff_neg = _weights(lam)
-        cc = (4 + mueff / n) / (n + 4 + 2 * mueff / n)
-        cs = (mueff + 2) / (n + mueff + 5)
-        c1 = 2 / ((n + 1.3) ** 2 + mueff)
-        cmu = min(1 - c1, 2 * (mueff - 2 + 1 / mueff) / ((n + 2) ** 2 + mueff))
-        damps = 1 + 2 * max(0.0, np.sqrt((mueff - 1) / (n + 1)) - 1) + cs
-        chin = np.sqrt(n) * (1 - 1 / (4 * n) + 1 / (21 * n * n))
+        cc, cs, c1, cmu, damps, chin = _learning_rates(n, mueff)
         w = np.where(raw > 0, raw / raw[raw > 0].sum(), 0.0)
         if self.active and mueff_neg > 0:
             neg_sum = -raw[raw < 0].sum()
