@@ -50,6 +50,7 @@ _BUILTIN_MODULES = (
     "ga",
     "cmaes",
     "cmaes_restarts",
+    "lshade",
     "random_search",
     "scipy_methods",
     "external",
