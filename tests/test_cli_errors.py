@@ -253,7 +253,7 @@ def test_compare_footer_says_what_it_counts(tmp_path, monkeypatch, capsys):
     ]  # fmt: skip
     status, out, err = _run(argv, capsys)
     assert status == 0, err
-    assert "4 optimiser runs (+ 1 least-squares reference) in store x.sqlite" in out, out
+    assert "4 optimiser runs (+ the least squares row) in store x.sqlite" in out, out
     with sqlite3.connect(tmp_path / "x.sqlite") as db:
         (rows,) = db.execute("SELECT COUNT(*) FROM runs").fetchone()
     assert rows == 4 + 1

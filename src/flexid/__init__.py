@@ -13,8 +13,10 @@ Structure selection
     :func:`select` (AIC, FPE, MDL and the held-out tests over a grid of structures)
 Grey-box models
     :class:`GreyBoxModel` of :class:`GreyParameter` (a plant's equations with named physical
-    parameters), the built-in ones by :func:`greybox_model`, their simulation cost
-    :class:`GreyBoxCost` and the reference :func:`greyest` -> :class:`GreyBoxResult`
+    parameters), the built-in ones and a user's (``file.py:NAME``, or registered by
+    :func:`register_greybox_model`) by :func:`greybox_model`, their simulation cost
+    :class:`GreyBoxCost` and the reference :func:`greyest` -> :class:`GreyBoxResult`;
+    :func:`identify` and :func:`compare` take them as ``structure``
 References
     :func:`pem` and MATLAB's :func:`oe`, :func:`armax`, :func:`bj` (Levenberg-Marquardt on
     the prediction errors, analytic gradients)
@@ -89,6 +91,7 @@ _LAZY = {
     "GreyParameter": "greybox",
     "GreyBoxCost": "greybox_cost",
     "greybox_model": "greybox_models",
+    "register_greybox_model": "greybox_models",
     "greyest": "greybox_fit",
     "GreyBoxResult": "greybox_fit",
     # references

@@ -41,7 +41,7 @@ from ._identify import prepare_data, structure_of
 from ._json import jsonable
 from ._table import text_table
 from ._validate import positive_int
-from .config import LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
+from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
 from .estimation import build_problem, check_search, choose_reference
@@ -127,8 +127,12 @@ class _Context:
         self.est = est
         self.val = val
         m = spec.model
+        self.greybox = m.structure == GREYBOX
         try:
-            self.structure = structure_of(m.structure, est.n_inputs, **m.orders())
+            if self.greybox:
+                self.structure = m.greybox_model()
+            else:
+                self.structure = structure_of(m.structure, est.n_inputs, **m.orders())
         except ModelOrderError as exc:
             raise ConfigError(f"[model]: {exc}") from None
         self.structure.check_samples(est.n_samples)
@@ -136,6 +140,8 @@ class _Context:
         self.estimation = build_problem(
             est, self.structure, spec.cost, spec.search, bounds=spec.bounds
         )
+        if self.greybox:
+            return  # its start is the parameters' given values, always finite
         if not np.isfinite(self.theta_ls).all():  # the least-squares row every comparison has
             raise ConfigError(
                 f"[model]: {self.structure!r} has no least-squares start (its F polynomials "
@@ -156,6 +162,15 @@ class _Context:
             # so runs on an edited file never join the runs on what it held before
             d = replace(d, digest=_record_digest(record))
             spec = replace(spec, data=d)
+        if spec.model.structure == GREYBOX:
+            # a grey-box model reads its own channels, and is validated by running on from
+            # the record's start: its "validation record" is the whole record
+            if d.detrend:
+                raise ConfigError("[data] detrend: a grey-box model's physics see the raw record")
+            split = 2 / 3 if d.split is None else d.split
+            est = record.split(split)[0] if isinstance(split, float) else record.split(
+                index=int(split))[0]
+            return cls(spec, est, record)
         est, val = prepare_data(record, output=d.output, split=d.split, detrend=d.detrend)
         return cls(spec, est, val)
 
@@ -194,7 +209,13 @@ def _store_history(result) -> dict[str, list]:
 
 
 def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
-    report = validate(model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.validate_initial)
+    if ctx.greybox:  # run on from the record's start into the held-out part, first output
+        report = validate(model, ctx.val, max_lag=ctx.spec.max_lag, split=ctx.est.n_samples,
+                          output=model.outputs[0])
+    else:
+        report = validate(
+            model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.validate_initial
+        )
     err = report.error_range_one_step
     return {
         "fit_one_step": float(report.fit_one_step),
@@ -207,6 +228,8 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
 
 
 def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
+    if ctx.greybox:
+        return _greybox_numbers(model, ctx)
     est_err = model.residuals(ctx.est.u, ctx.est.y[:, 0])[ctx.structure.start :]
     return {
         "theta": [float(v) for v in model.theta],
@@ -214,6 +237,25 @@ def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
         "max_pole_radius": float(model.max_pole_radius),
         "estimation_error_min": float(est_err.min()),
         "estimation_error_max": float(est_err.max()),
+    }
+
+
+def _greybox_numbers(model, ctx: _Context) -> dict[str, Any]:
+    """:func:`_model_numbers` of a grey-box model: its simulation errors, its linearisation."""
+    from .validation import _linearised_poles
+
+    cost = ctx.estimation.cost
+    with np.errstate(all="ignore"):
+        y_sim = model.simulate(model.nominal, cost.u, cost.dt)[0, :, 0]
+        err = cost.y[:, 0] - y_sim
+    finite = bool(np.isfinite(err).all())
+    radius = float(np.max(np.abs(_linearised_poles(model, cost.dt)), initial=0.0))
+    return {
+        "theta": [float(v) for v in model.theta],
+        "stable": bool(finite and radius < 1.0),
+        "max_pole_radius": radius,
+        "estimation_error_min": float(err.min()) if finite else -math.inf,
+        "estimation_error_max": float(err.max()) if finite else math.inf,
     }
 
 
@@ -232,7 +274,7 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
         "cost": cost,
         "nfev": 0,
         "nit": 0,
-        "stop": "closed form",
+        "stop": "given values" if ctx.greybox else "closed form",
         "history": {"fe": [0], "best": [cost]},
     }
     record.update(_model_numbers(model, ctx))
@@ -660,7 +702,9 @@ class ComparisonResult:
             )
         elif choice[1] == "least squares":
             self.reference_cost = choice[0]
-            if self.spec.model.structure != "arx":
+            if self.spec.model.structure == GREYBOX:
+                self.reference_note = "the parameters' given values (below the reference)"
+            elif self.spec.model.structure != "arx":
                 self.reference_note = "the ARX least-squares estimate read as the structure"
             elif self.spec.cost.predictor == "one-step":
                 self.reference_note = "least squares (the exact optimum of the one-step cost)"
@@ -671,12 +715,18 @@ class ComparisonResult:
         else:
             self.reference_cost = choice[0]
             name = choice[1]
-            if self.spec.model.structure != "arx":
-                name = "prediction-error reference (Levenberg-Marquardt, analytic gradients)"
-            self.reference_note = (
-                f"{name}, from least squares and stable starts; least squares "
-                f"{_f(ref['cost'])}"
-            )
+            if self.spec.model.structure == GREYBOX:
+                self.reference_note = (
+                    "grey-box reference (Levenberg-Marquardt on the simulation residuals), "
+                    f"from the given values and random starts; given values {_f(ref['cost'])}"
+                )
+            else:
+                if self.spec.model.structure != "arx":
+                    name = "prediction-error reference (Levenberg-Marquardt, analytic gradients)"
+                self.reference_note = (
+                    f"{name}, from least squares and stable starts; least squares "
+                    f"{_f(ref['cost'])}"
+                )
         self.stats = {
             label: summarise(rs, self.reference_cost, self.spec.targets)
             for label, rs in self.records.items()
@@ -688,6 +738,12 @@ class ComparisonResult:
         tests = rank_sum_against_best(costs)
         for label, t in tests.items():
             self.stats[label]["test"] = t
+
+    @property
+    def start_label(self) -> str:
+        """What the first row of the tables is: least squares, or a grey-box model's given
+        parameter values."""
+        return "nominal values" if self.spec.model.structure == GREYBOX else "least squares"
 
     # ------------------------------------------------------------------ tables
     def cost_table(self) -> str:
@@ -710,7 +766,7 @@ class ComparisonResult:
         rows = [head]
         ref = self.reference
         rows.append(
-            ["least squares", "-", _f(ref["cost"]), "-", _f(ref["cost"])]
+            [self.start_label, "-", _f(ref["cost"]), "-", _f(ref["cost"])]
             + ["-"] * len(targets)
             + ["-", f"{ref.get('wall_time', 0):.3f}"]
         )
@@ -762,7 +818,7 @@ class ComparisonResult:
         v = self.reference["validation"]
         rows.append(
             [
-                "least squares",
+                self.start_label,
                 _fit(v["fit_one_step"]),
                 _fit(v["fit_simulation"]),
                 f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
@@ -810,11 +866,18 @@ class ComparisonResult:
             ("data", s.data.describe()),
             (
                 "model",
-                f"{m.describe()}, cost {s.cost.metric}, {s.cost.predictor} predictor, "
+                f"{m.describe()}, cost {s.cost.metric} of the simulation from the model's "
+                "initial state; validated by running on from the record's start"
+                if m.structure == GREYBOX
+                else f"{m.describe()}, cost {s.cost.metric}, {s.cost.predictor} predictor, "
                 f"initial state {s.cost.initial}; validated with initial state "
                 f"{s.validate_initial}",
             ),
-            ("search", _search_text(s.search)),
+            (
+                "search",
+                "the estimated physical parameters in their bounds (log10 where they span "
+                "decades)" if m.structure == GREYBOX else _search_text(s.search),
+            ),
             ("budget", f"{s.budget_label()} per run, {s.runs} runs per optimiser, seed {s.seed}"),
             ("reference", f"{self.reference_note}: {_f(self.reference_cost)}"),
             ("targets", f"reference x (1 + t), t in {list(s.targets)}"),

@@ -32,6 +32,7 @@ from .config import (
 from .data import IOData, load
 from .errors import BudgetError, ConfigError, DataError, ModelOrderError, UnknownNameError
 from .estimation import build_problem, model_structure
+from .greybox import GreyBoxModel
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
 from .polynomial import STRUCTURES, PolynomialStructure, _check_initial
@@ -628,6 +629,50 @@ def structure_of(
     return made
 
 
+def greybox_of(structure: Any, greybox: str | GreyBoxModel | None) -> GreyBoxModel | None:
+    """The grey-box model that ``structure`` and ``greybox`` name, or None for a polynomial.
+
+    Parameters
+    ----------
+    structure : str, structure object, GreyBoxModel or None
+    greybox : str, GreyBoxModel or None
+        The model of ``structure="greybox"`` (a name of
+        :func:`flexid.greybox_models.greybox_model`).
+
+    Returns
+    -------
+    GreyBoxModel or None
+
+    Raises
+    ------
+    ConfigError
+        ``structure="greybox"`` without ``greybox``, or ``greybox`` with another structure.
+    UnknownNameError
+        An unknown grey-box model name.
+    """
+    if isinstance(structure, GreyBoxModel):
+        if greybox is not None:
+            raise ConfigError("give the grey-box model as structure or as greybox, not both")
+        return structure
+    if isinstance(structure, str) and structure.lower() == "greybox":
+        if greybox is None:
+            raise ConfigError(
+                "structure 'greybox' needs the model: greybox='twin-rotor-pitch' (or "
+                "--greybox NAME; 'flexid list greybox' lists them)"
+            )
+        if isinstance(greybox, GreyBoxModel):
+            return greybox
+        from .greybox_models import greybox_model
+
+        return greybox_model(greybox)
+    if greybox is not None:
+        raise ConfigError(
+            f"greybox={greybox!r} is the model of structure='greybox', not of "
+            f"structure={structure!r}"
+        )
+    return None
+
+
 # ================================================================================ identify
 def identify(
     data: IOData | str | os.PathLike,
@@ -635,7 +680,8 @@ def identify(
     nb: int | Sequence[int] | None = None,
     nk: int | Sequence[int] | None = None,
     *,
-    structure: str | PolynomialStructure | None = None,
+    structure: str | PolynomialStructure | GreyBoxModel | None = None,
+    greybox: str | GreyBoxModel | None = None,
     nc: int | None = None,
     nd: int | None = None,
     nf: int | Sequence[int] | None = None,
@@ -674,10 +720,18 @@ def identify(
         Orders and delay in MATLAB's convention.  Without ``structure`` they are the ARX
         model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` (``nb`` defaults to ``na``, ``nk`` to 1;
         one ``nb``/``nk`` per input for several inputs).
-    structure : {"arx", "armax", "oe", "bj"} or PolynomialStructure, optional
+    structure : {"arx", "armax", "oe", "bj", "greybox"}, PolynomialStructure or GreyBoxModel
         The model structure (:mod:`flexid.polynomial`): a name, whose orders are given as
         ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (only those the structure has, e.g.
-        ``structure="oe", nb=16, nf=16``), or a whole structure (then no orders).
+        ``structure="oe", nb=16, nf=16``), or a whole structure (then no orders); or a
+        grey-box model (:class:`~flexid.greybox.GreyBoxModel`, or ``"greybox"`` with
+        ``greybox``): its estimated parameters are fitted on the simulation cost, by
+        ``optimiser`` or the reference :func:`flexid.greybox_fit.greyest` (``"pem"``), and it
+        is validated by running it on from the record's start into the held-out part.
+    greybox : str or GreyBoxModel, optional
+        The grey-box model of ``structure="greybox"``: a name of
+        :func:`flexid.greybox_models.greybox_model` (``"twin-rotor-pitch"``, a registered or
+        installed model, or ``"path/to/file.py:NAME"``).
     nc, nd, nf : int, optional
         Orders of ``C``, ``D`` and ``F`` (``nf`` one per input) for ``structure``.
     optimiser : str
@@ -760,6 +814,29 @@ def identify(
     _check_initial(validate_initial, "validation initial-condition rule")
     if optimiser not in REFERENCES:
         budget = _budget(budget)
+    model_gb = greybox_of(structure, greybox)
+    if model_gb is not None:
+        given = {
+            "na": na, "nb": nb, "nk": nk, "nc": nc, "nd": nd, "nf": nf, "output": output,
+            "bounds": None if bounds == "auto" else bounds, "penalty": penalty,
+            "initial": initial, "parametrisation": parametrisation,
+            "penalty_kind": penalty_kind, "init": init, "numerator": numerator,
+            "search": search, "detrend": detrend or None,
+        }
+        extra = sorted(k for k, v in given.items() if v is not None)
+        if extra:
+            raise ConfigError(
+                f"grey-box model {model_gb.name!r} does not take {', '.join(extra)} (its "
+                "parameters, bounds and channels are set on the model)"
+            )
+        from ._identify_greybox import identify_greybox
+
+        return identify_greybox(
+            data, model_gb, optimiser=optimiser, params=params, cost=cost,
+            predictor=predictor, weight=weight, budget=budget, seed=seed, split=split,
+            validation=validation, max_lag=max_lag, callback=callback,
+            load_options=load_options,
+        )
     est, val = prepare_data(
         data,
         output=output,

@@ -68,8 +68,9 @@ _SUBCOMMANDS = {
         "flexid generate manipulator --preset paper-manipulator --seed 0 --output man.csv",
     ),
     "identify": (
-        "Identify a polynomial model (ARX, ARMAX, OE, BJ) from a record by the structure's "
-        "reference or a registered optimiser, and validate it on the held-out part.",
+        "Identify a polynomial model (ARX, ARMAX, OE, BJ) or a grey-box model's physical "
+        "parameters from a record by the structure's reference or a registered optimiser, and "
+        "validate it on the held-out part.",
         "flexid identify man.csv --structure oe --nb 16 --nf 16 --nk 1",
     ),
     "compare": (
@@ -83,8 +84,10 @@ _SUBCOMMANDS = {
         "flexid select man.csv --structures arx,oe --orders nb=8,16 --orders nf=8,16",
     ),
     "greybox": (
-        "Fit the physical parameters of a built-in grey-box model (the twin rotor's equations) "
-        "by the gradient reference or a registered optimiser, then validate it.",
+        "Fit the physical parameters of a grey-box model (the twin rotor's equations, or your "
+        "own as path/to/file.py:NAME) to a record or a simulated twin rotor by the gradient "
+        "reference or a registered optimiser, then validate it (identify --structure greybox "
+        "on a record does the same).",
         "flexid greybox --plant twin-rotor --model twin-rotor-pitch --set Mg=0.5",
     ),
     "report": (
@@ -93,8 +96,8 @@ _SUBCOMMANDS = {
         "flexid report flexid-results/results.sqlite --format html",
     ),
     "list": (
-        "List the registered optimisers, excitation signals, plants, presets or Gymnasium "
-        "environments.",
+        "List the registered optimisers, excitation signals, plants, presets, grey-box models "
+        "or Gymnasium environments.",
         "flexid list optimisers --long",
     ),
 }
@@ -247,12 +250,13 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     budget: Any = args.budget
     if args.iterations is not None:
         budget = {"max_fe": args.budget, "max_iter": args.iterations}
+    model = _greybox_from_args(args, _greybox_name(args))
     ident = identify(
         args.file,
         args.na,
         _int_list(args.nb, "--nb"),
         _int_list(args.nk, "--nk") if args.nk is not None else None,
-        structure=args.structure,
+        structure=model if model is not None else args.structure,
         nc=args.nc,
         nd=args.nd,
         nf=_int_list(args.nf, "--nf"),
@@ -353,6 +357,11 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     if args.config:
         if args.plant:
             raise ConfigError("give either a CONFIG file or --plant, not both")
+        if args.greybox or args.set or args.fix or args.free:
+            raise ConfigError(
+                "a CONFIG file names its grey-box model and parameters in its [model] table "
+                "(greybox = ..., [model.parameters])"
+            )
         if args.data_seed is not None:
             raise ConfigError(
                 "--data-seed applies to the built-in comparison (--plant); a CONFIG file sets "
@@ -392,6 +401,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 nc=args.nc,
                 nd=args.nd,
                 nf=_int_list(args.nf, "--nf"),
+                greybox=_greybox_name(args),
+                parameters=_parameter_changes(args),
                 data_seed=args.data_seed if args.data_seed is not None else 0,
                 cost=CostSpec(**_cost_overrides(args)),
                 search=SearchSpec(**_search_overrides(args)),
@@ -418,7 +429,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             n_runs = sum(len(runs) for runs in result.records.values())
             print(
                 f"\n{n_runs} optimiser run{'' if n_runs == 1 else 's'} "
-                f"(+ 1 least-squares reference) in store {store} "
+                f"(+ the {result.start_label} row) in store {store} "
                 f"({result.elapsed:.1f} s this time)"
             )
         if not args.no_figures:
@@ -496,27 +507,52 @@ def _cmd_select(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_greybox(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from .data import load
-    from .greybox_cost import GreyBoxCost
-    from .greybox_fit import greyest
-    from .greybox_models import greybox_model
-    from .optimisers import minimize
-    from .validation import validate
-
-    if (args.file is None) == (args.plant is None):
-        raise ConfigError("give a record file or --plant (a simulated record), not both")
-    model = greybox_model(args.model)
+def _parameter_changes(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
+    """``--set NAME=VALUE``, ``--fix A,B`` and ``--free C`` as grey-box parameter changes."""
     changes: dict[str, dict[str, Any]] = {}
-    for name, value in _key_values(args.set, "--set").items():
-        changes.setdefault(name, {})["value"] = value
+    for item in args.set or []:  # parameter names keep their spelling (no - to _)
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip():
+            raise ConfigError(f"--set must look like NAME=VALUE, got {item!r}")
+        changes.setdefault(name.strip(), {})["value"] = _value(text.strip())
     for option, fixed in ((args.fix, True), (args.free, False)):
         for name in _names(option) or []:
             changes.setdefault(name, {})["fixed"] = fixed
-    if changes:
-        model = model.with_parameters(**changes)
+    return changes
+
+
+def _greybox_from_args(args: argparse.Namespace, name: str | None) -> Any:
+    """The grey-box model ``name`` with the command line's parameter changes, or None."""
+    changes = _parameter_changes(args)
+    if name is None:
+        if changes:
+            raise ConfigError("--set, --fix and --free change a grey-box model's parameters: "
+                              "give --structure greybox --greybox NAME")
+        return None
+    from .greybox_models import greybox_model
+
+    model = greybox_model(name)
+    return model.with_parameters(**changes) if changes else model
+
+
+def _greybox_name(args: argparse.Namespace) -> str | None:
+    """``--greybox NAME`` checked against ``--structure``."""
+    if args.structure == "greybox" and args.greybox is None:
+        raise ConfigError(
+            "--structure greybox needs --greybox NAME (flexid list greybox), e.g. "
+            "--greybox twin-rotor-pitch or --greybox path/to/model.py:MODEL"
+        )
+    if args.greybox is not None and args.structure not in (None, "greybox"):
+        raise ConfigError(f"--greybox is the model of --structure greybox, not {args.structure}")
+    return args.greybox
+
+
+def _cmd_greybox(args: argparse.Namespace) -> int:
+    from ._identify import identify
+
+    if (args.file is None) == (args.plant is None):
+        raise ConfigError("give a record file or --plant (a simulated record), not both")
+    model = _greybox_from_args(args, args.model)
     if args.plant is not None:
         from .datasets import generate
 
@@ -529,33 +565,18 @@ def _cmd_greybox(args: argparse.Namespace) -> int:
         else:
             data = generate(args.plant, outputs=list(model.outputs), seed=args.data_seed)
     else:
-        options = {"inputs": list(model.inputs), "outputs": list(model.outputs)}
-        if args.dt is not None:
-            options["dt"] = args.dt
-        data = load(args.file, **options)
-    split = 2 / 3 if args.split is None else args.split
-    est = data.split(split)[0] if isinstance(split, float) else data.split(index=split)[0]
-    if args.optimiser == "pem":
-        fit = greyest(est, model, starts=args.starts, seed=args.seed)
-        fitted, summary = fit.model, fit.summary()
-    else:
+        data = args.file
+    options = {"dt": args.dt} if args.dt is not None else {}
+    if args.optimiser not in REFERENCES:
         _check_positive(args.budget, "--budget")
-        cost = GreyBoxCost(model, est)
-        result = minimize(args.optimiser, cost.problem(), args.budget, seed=args.seed)
-        values = np.clip(model.from_search(result.x), cost.lower, cost.upper)
-        fitted = model.with_parameters(**dict(zip(model.free, values.tolist())))
-        table = "\n".join(
-            f"  {fitted.parameter(n).describe()}" for n in fitted.free
-        )
-        summary = (
-            f"grey-box model {model.name} fitted by {args.optimiser} (seed {args.seed}): cost "
-            f"{result.fun:.6g} after {result.nfev} FE ({result.message})\n{table}"
-        )
-    print(summary)
-    if len(model.outputs) == 1:
-        report = validate(fitted, data, split=split)
-        print("\nValidation record (held out; the model run on through the estimation part)")
-        print("\n".join("  " + line for line in report.summary().splitlines()))
+    ident = identify(
+        data, structure=model, optimiser=args.optimiser, budget=args.budget, seed=args.seed,
+        split=args.split, load_options=options, callback=_identify_progress(args),
+    )
+    if args.json:
+        print(json.dumps(ident.to_dict(), indent=2, allow_nan=False))
+    else:
+        print(ident.summary())
     return 0
 
 
@@ -630,6 +651,21 @@ def _cmd_list(args: argparse.Namespace) -> int:
         for name, preset in PRESETS.items():
             print(f"{name}: {json.dumps(jsonable(preset), allow_nan=False, default=str)}")
         return 0
+    if what == "greybox":
+        from .greybox_models import available_greybox_models, greybox_model
+
+        for name in available_greybox_models():
+            try:
+                model = greybox_model(name)
+            except FlexidError as exc:  # an installed model that fails to load says so
+                print(f"{name}: cannot be loaded ({exc})")
+                continue
+            print(
+                f"{name}: {', '.join(model.inputs)} -> {', '.join(model.outputs)}; estimated "
+                f"{', '.join(model.free)}"
+            )
+        print("and any path/to/file.py:NAME (a GreyBoxModel, or a function returning one)")
+        return 0
     if what == "environments":
         import gymnasium
 
@@ -643,14 +679,33 @@ def _cmd_list(args: argparse.Namespace) -> int:
 def _structure_options(p: argparse.ArgumentParser, default: str, scope: str = "") -> None:
     """``--structure`` and its orders, alike on every command that takes a model."""
     tail = f"; {scope}" if scope else ""
-    names = " | ".join(STRUCTURE_NAMES)
-    p.add_argument("--structure", help=f"model structure: {names} ({default}); give its orders")
+    names = " | ".join((*STRUCTURE_NAMES, "greybox"))
+    p.add_argument(
+        "--structure",
+        help=f"model structure: {names} ({default}); give its orders, or --greybox for greybox",
+    )
+    p.add_argument(
+        "--greybox", metavar="NAME",
+        help="grey-box model of --structure greybox: twin-rotor-pitch, twin-rotor-coupled, "
+        "an installed one (flexid list greybox) or path/to/file.py:NAME",
+    )
+    _parameter_options(p)
     p.add_argument("--na", type=int, help=f"order of A (arx, armax{tail})")
     p.add_argument("--nb", help=f"B coefficients per input (arx default: na{tail})")
     p.add_argument("--nc", type=int, help=f"order of C (armax, bj{tail})")
     p.add_argument("--nd", type=int, help=f"order of D (bj{tail})")
     p.add_argument("--nf", help=f"order of F per input (oe, bj{tail})")
     p.add_argument("--nk", help=f"input delay in samples per input (default 1{tail})")
+
+
+def _parameter_options(p: argparse.ArgumentParser) -> None:
+    """``--set``, ``--fix`` and ``--free``: a grey-box model's parameters."""
+    p.add_argument(
+        "--set", action="append", metavar="NAME=VALUE",
+        help="grey-box parameter's value (the start, or its value when fixed); repeatable",
+    )
+    p.add_argument("--fix", help="grey-box parameters to hold at their values, comma-separated")
+    p.add_argument("--free", help="grey-box parameters to estimate, comma-separated")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -843,18 +898,17 @@ def build_parser() -> argparse.ArgumentParser:
     gb.add_argument("--budget", type=int, default=10_000, help="FE of an optimiser (default 10000)")
     gb.add_argument("--starts", type=int, default=3, help="random starts of pem (default 3)")
     gb.add_argument("--seed", type=int, default=0, help="seed of the starts or the run (default 0)")
-    gb.add_argument(
-        "--set", action="append", metavar="NAME=VALUE",
-        help="a parameter's value (the start, or its value when fixed); repeatable",
-    )
-    gb.add_argument("--fix", help="comma-separated parameters to hold at their values")
-    gb.add_argument("--free", help="comma-separated parameters to estimate")
+    _parameter_options(gb)
+    gb.add_argument("--json", action="store_true", help="machine-readable result")
+    gb.add_argument("--no-progress", action="store_true", help="no progress bar")
     gb.add_argument("--split", type=_value, help="estimation share (default 2/3) or split index")
     gb.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
     gb.set_defaults(func=_cmd_greybox)
 
     li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
-    li.add_argument("what", choices=["optimisers", "signals", "plants", "presets", "environments"])
+    li.add_argument(
+        "what", choices=["optimisers", "signals", "plants", "presets", "greybox", "environments"]
+    )
     li.add_argument("--json", action="store_true", help="machine-readable (optimisers)")
     li.add_argument(
         "--long", action="store_true",

@@ -61,6 +61,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 __all__ = [
     "DEFAULT_OPTIMISERS",
+    "GREYBOX",
     "LEAST_SQUARES",
     "OUTPUT_ERROR",
     "PAPER_SEARCH",
@@ -94,6 +95,8 @@ PREDICTION_ERROR = "pem"
 REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR)
 #: The named model structures (their orders: :data:`flexid.polynomial.STRUCTURES`).
 STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
+#: The structure name of a grey-box model (:mod:`flexid.greybox`), beside the polynomial ones.
+GREYBOX = "greybox"
 
 
 def auto_initial(structure: str) -> str:
@@ -234,6 +237,13 @@ class ModelSpec:
         Orders of ``C`` and ``D`` (``armax``, ``bj``).
     nf : int, list of int or None
         Order of ``F``, for every input or one per input (``oe``, ``bj``).
+    greybox : str or None
+        With ``structure = "greybox"``: the grey-box model's name
+        (:func:`flexid.greybox_models.greybox_model`: a built-in, registered or installed
+        model, or ``"path/to/file.py:NAME"``, relative to the configuration file).
+    parameters : dict
+        With ``structure = "greybox"``: parameter changes, ``name -> value`` (a new value)
+        or ``name -> {"value": ..., "fixed": ..., "lower": ..., "upper": ...}``.
     """
 
     na: int | None = None
@@ -243,14 +253,57 @@ class ModelSpec:
     nc: int | None = None
     nd: int | None = None
     nf: Any = None
+    greybox: str | None = None
+    parameters: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.structure not in STRUCTURE_NAMES:
+        if self.structure not in (*STRUCTURE_NAMES, GREYBOX):
             from .errors import UnknownNameError
 
-            raise UnknownNameError("[model] structure", str(self.structure), STRUCTURE_NAMES)
+            raise UnknownNameError(
+                "[model] structure", str(self.structure), (*STRUCTURE_NAMES, GREYBOX)
+            )
+        if self.structure == GREYBOX:
+            if not isinstance(self.greybox, str) or not self.greybox:
+                raise ConfigError(
+                    "[model] structure 'greybox' needs greybox = the model's name (e.g. "
+                    "'twin-rotor-pitch', or 'path/to/file.py:NAME')"
+                )
+            orders = [k for k in ("na", "nb", "nc", "nd", "nf") if getattr(self, k) is not None]
+            if orders or self.nk != 1:
+                raise ConfigError(
+                    f"[model] a grey-box model has no orders; remove {', '.join(orders or ['nk'])}"
+                )
+            if not isinstance(self.parameters, Mapping):
+                raise ConfigError("[model] parameters must be a table: name = value or {...}")
+            object.__setattr__(self, "parameters", dict(self.parameters))
+            return
+        if self.greybox is not None or self.parameters:
+            raise ConfigError(
+                "[model] greybox and parameters belong to structure = 'greybox', not "
+                f"{self.structure!r}"
+            )
         if self.structure == "arx" and self.na is None:
             object.__setattr__(self, "na", 8)  # the paper's order
+
+    def greybox_model(self) -> Any:
+        """The grey-box model this spec names, with its parameter changes.
+
+        Returns
+        -------
+        GreyBoxModel
+
+        Raises
+        ------
+        ConfigError, UnknownNameError
+            Not a grey-box spec, an unknown model, a bad parameter change.
+        """
+        if self.structure != GREYBOX:
+            raise ConfigError(f"[model] structure {self.structure!r} is not a grey-box model")
+        from .greybox_models import greybox_model
+
+        model = greybox_model(self.greybox)
+        return model.with_parameters(**self.parameters) if self.parameters else model
 
     def orders(self) -> dict[str, Any]:
         """The orders given, by name (None left out).
@@ -273,6 +326,18 @@ class ModelSpec:
         d = asdict(self)
         if self.structure == "arx":
             return {k: d[k] for k in ("na", "nb", "nk")}
+        if self.structure == GREYBOX:
+            from .greybox_models import definition_digest
+
+            model = self.greybox_model()
+            return {
+                "structure": GREYBOX,
+                "greybox": self.greybox,
+                "definition": definition_digest(self.greybox),
+                "model": model.to_dict(),
+            }
+        for k in ("greybox", "parameters"):  # keys of polynomial specs as before
+            del d[k]
         return d
 
     def describe(self) -> str:
@@ -285,6 +350,9 @@ class ModelSpec:
         if self.structure == "arx":
             nb = self.nb if self.nb is not None else self.na
             return f"ARX(na={self.na}, nb={nb}, nk={self.nk})"
+        if self.structure == GREYBOX:
+            changed = f", {len(self.parameters)} parameter(s) changed" if self.parameters else ""
+            return f"grey-box model {self.greybox}{changed}"
         text = ", ".join(f"{k}={v}" for k, v in self.orders().items())
         return f"{self.structure.upper()}({text})"
 
@@ -499,6 +567,13 @@ class ComparisonSpec:
         for t in self.targets:
             if not (isinstance(t, (int, float)) and t > 0):
                 raise ConfigError(f"[run] targets must be positive relative tolerances, got {t!r}")
+        if self.model.structure == GREYBOX and (
+            self.cost.predictor != "simulation" or self.cost.initial != "auto"
+        ):
+            # a grey-box model has only its simulation, from its own initial state
+            object.__setattr__(
+                self, "cost", replace(self.cost, predictor="simulation", initial="auto")
+            )
         if self.cost.initial == "auto":
             # resolved here so the store key of a spec does not depend on how the rule was
             # spelled ("auto" is "measured" for ARX, as before, and "estimate" otherwise)
@@ -816,6 +891,13 @@ def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
         if spec.data.file is not None and not Path(spec.data.file).is_absolute():
             data = replace(spec.data, file=str((path.parent / spec.data.file).resolve()))
             spec = replace(spec, data=data)
+        reference = spec.model.greybox or ""
+        file_part = reference.rpartition(":")[0]
+        if file_part.endswith(".py") and not Path(file_part).is_absolute():
+            # so is a grey-box model's file
+            where = str((path.parent / file_part).resolve())
+            model = replace(spec.model, greybox=f"{where}:{reference.rpartition(':')[2]}")
+            spec = replace(spec, model=model)
         out.append(spec)
     return out
 
@@ -846,6 +928,8 @@ def default_spec(
     nc: int | None = None,
     nd: int | None = None,
     nf: Any = None,
+    greybox: str | None = None,
+    parameters: Mapping[str, Any] | None = None,
     data_seed: int = 0,
 ) -> ComparisonSpec:
     """The built-in comparison: the paper's experiment on a simulated plant, small by default.
@@ -885,6 +969,12 @@ def default_spec(
         Orders of ``C`` and ``D``.
     nf : int or list of int, optional
         Order of ``F``.
+    greybox : str, optional
+        The grey-box model of ``structure="greybox"`` (see :class:`ModelSpec`); the record is
+        the plant's paper preset for a one-output model, else the plant's record with the
+        model's outputs.
+    parameters : mapping, optional
+        Its parameter changes (see :class:`ModelSpec`).
     data_seed : int, optional
         Seed of the simulated record (its input signal and sensor noise; default 0).
 
@@ -904,7 +994,21 @@ def default_spec(
         raise UnknownNameError("plant", plant, _BUILT_IN)
     preset, order, model = _BUILT_IN[plant]
     orders = {"na": na, "nb": nb, "nc": nc, "nd": nd, "nf": nf}
-    if structure is None and all(v is None for v in orders.values()):
+    data = DataSpec(plant=plant, preset=preset, seed=data_seed)
+    if greybox is not None and structure in (None, GREYBOX):
+        given = sorted(k for k, v in orders.items() if v is not None)
+        if given or nk != 1:
+            raise ConfigError(f"a grey-box model has no orders; remove {given or ['nk']}")
+        spec_model = ModelSpec(
+            structure=GREYBOX, greybox=greybox, parameters=dict(parameters or {})
+        )
+        outputs = spec_model.greybox_model().outputs
+        if len(outputs) > 1:  # the paper presets record one output
+            data = DataSpec(plant=plant, seed=data_seed, outputs=list(outputs))
+    elif structure == GREYBOX or parameters:
+        raise ConfigError("structure 'greybox' takes the model's name (greybox=...), and "
+                          "parameters belong to it")
+    elif structure is None and all(v is None for v in orders.values()):
         spec_model = model  # the plant's own default: a structure that passes validation
     else:
         structure = structure or "arx"  # orders without a structure are ARX's, as in identify
@@ -919,7 +1023,7 @@ def default_spec(
     names = list(optimisers) if optimisers else list(DEFAULT_OPTIMISERS)
     return ComparisonSpec(
         name=f"{plant}-default",
-        data=DataSpec(plant=plant, preset=preset, seed=data_seed),
+        data=data,
         model=spec_model,
         cost=cost,
         search=search or SearchSpec(),

@@ -489,8 +489,9 @@ def build_problem(
     ----------
     est : IOData
         Estimation record (one output).
-    structure : ARXStructure
-        Model orders (see :func:`model_structure`).
+    structure : ARXStructure, PolynomialStructure or GreyBoxModel
+        Model orders (see :func:`model_structure`), or a grey-box model (then see
+        :func:`flexid.greybox_estimation.build_greybox_problem`).
     cost : CostSpec
         The cost (metric, predictor, weight, flat penalty value, initial conditions).
     search : SearchSpec
@@ -517,8 +518,13 @@ def build_problem(
         When they barely are (:func:`check_excitation`).
     """
     from ._identify import search_box
+    from .greybox import GreyBoxModel
 
     check_search(search)
+    if isinstance(structure, GreyBoxModel):
+        from .greybox_estimation import build_greybox_problem
+
+        return build_greybox_problem(est, structure, cost, search, bounds=bounds)
     # before any fit: a problem without a unique answer gets an error, not a huge model
     check_excitation(est, structure)
     cost = replace(cost, initial=resolve_initial(cost.initial, structure))

@@ -382,6 +382,101 @@ class GreyBoxModel:
         kwargs.update(changes)
         return GreyBoxModel(self.name, self.derivatives, self.output, **kwargs)
 
+    # ------------------------------------------------------------------ as a model structure
+    #: Samples before the first error an identification scores (a grey-box model is
+    #: simulated from its initial state, so every sample counts).
+    start = 0
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The estimated parameters' values, shape (n_free,) (what a search returns)."""
+        return np.array([p.value for p in self._free_params()], dtype=float)
+
+    def model(self, theta: Any, dt: float | None = None) -> GreyBoxModel:
+        """A copy with the estimated parameters at ``theta`` (the structure interface).
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_free,)
+            The estimated parameters' values, in the order of :attr:`free`.
+        dt : float, optional
+            Accepted for the interface the polynomial structures share; a grey-box model
+            is continuous-time and takes the sample time when simulated.
+
+        Returns
+        -------
+        GreyBoxModel
+
+        Raises
+        ------
+        DataError
+            ``theta`` of the wrong length.
+        ConfigError
+            A value outside its parameter's bounds.
+        """
+        values = np.asarray(theta, dtype=float).reshape(-1)
+        if values.size != self.n_free:
+            raise DataError(
+                f"grey-box model {self.name!r}: {values.size} values for its {self.n_free} "
+                f"estimated parameters {list(self.free)}"
+            )
+        return self.with_parameters(**dict(zip(self.free, values.tolist())))
+
+    def check_samples(self, n_samples: int) -> None:
+        """Raise when a record of ``n_samples`` cannot determine the estimated parameters.
+
+        Parameters
+        ----------
+        n_samples : int
+
+        Raises
+        ------
+        ModelOrderError
+            Fewer samples than twice the estimated parameters (or than 2).
+        """
+        from .errors import ModelOrderError
+
+        need = max(2, 2 * self.n_free)
+        if n_samples < need:
+            raise ModelOrderError(
+                f"a record of {n_samples} samples is too short for grey-box model "
+                f"{self.name!r} ({self.n_free} estimated parameters need at least {need})"
+            )
+
+    def summary(self) -> str:
+        """The model and every parameter's value, unit and bounds (estimated ones marked).
+
+        Returns
+        -------
+        str
+        """
+        return self.describe()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe description: name, channels, and each parameter's value and bounds.
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "structure": "greybox",
+            "name": self.name,
+            "states": list(self.states),
+            "inputs": list(self.inputs),
+            "outputs": list(self.outputs),
+            "parameters": {
+                p.name: {
+                    "value": p.value,
+                    "lower": p.lower,
+                    "upper": p.upper,
+                    "unit": p.unit,
+                    "fixed": p.fixed,
+                }
+                for p in self.parameters
+            },
+        }
+
     # ------------------------------------------------------------------ search coordinates
     def _free_params(self) -> list[GreyParameter]:
         return [p for p in self.parameters if not p.fixed]

@@ -21,17 +21,31 @@ and the other pitch parameters are estimated relative to them; the same holds fo
 
 from __future__ import annotations
 
+import hashlib
+from collections.abc import Callable
 from dataclasses import fields
+from importlib.metadata import entry_points
+from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
 from .envs import twin_rotor_physics as trs
+from .errors import ConfigError
 from .greybox import GreyBoxModel, GreyParameter, ParameterSet
 from .plants import get_plant
 
-__all__ = ["GREYBOX_MODELS", "greybox_model", "twin_rotor_coupled", "twin_rotor_pitch"]
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "GREYBOX_MODELS",
+    "available_greybox_models",
+    "definition_digest",
+    "greybox_model",
+    "register_greybox_model",
+    "twin_rotor_coupled",
+    "twin_rotor_pitch",
+]
 
 # (name, lower, upper, unit, fixed, description); nominal values are the plant's defaults
 _PITCH = (
@@ -178,19 +192,129 @@ def twin_rotor_coupled(*, thrust_law: str = "signed_square", **overrides: Any) -
     )
 
 
-#: Built-in grey-box models by name.
+#: Built-in grey-box models by name (factories taking keyword options).
 GREYBOX_MODELS = {"twin-rotor-pitch": twin_rotor_pitch, "twin-rotor-coupled": twin_rotor_coupled}
 
+#: Entry-point group through which an installed package offers grey-box models: each entry
+#: names a :class:`~flexid.greybox.GreyBoxModel` or a function returning one.
+ENTRY_POINT_GROUP = "flexid.greybox_models"
 
-def greybox_model(name: str, **options: Any) -> GreyBoxModel:
-    """A built-in grey-box model by name (:data:`GREYBOX_MODELS`).
+_REGISTERED: dict[str, GreyBoxModel | Callable[..., GreyBoxModel]] = {}
+
+
+def register_greybox_model(name: str, model: GreyBoxModel | Callable[..., GreyBoxModel]) -> None:
+    """Register a grey-box model under a name, as an optimiser plugin registers itself.
+
+    Registered models are found by :func:`greybox_model`, and so by ``identify``,
+    ``compare`` and the command line (``--greybox NAME``), as the built-in ones are.
 
     Parameters
     ----------
     name : str
-        ``"twin-rotor-pitch"`` or ``"twin-rotor-coupled"``.
+        The name (not a built-in's).
+    model : GreyBoxModel or callable
+        The model, or a function of keyword options returning one.
+
+    Raises
+    ------
+    ConfigError
+        An empty name, a built-in's name, or something that is neither.
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f"a grey-box model's name must be a non-empty string, got {name!r}")
+    if name in GREYBOX_MODELS:
+        raise ConfigError(f"{name!r} is a built-in grey-box model's name")
+    if not (isinstance(model, GreyBoxModel) or callable(model)):
+        raise ConfigError(
+            f"grey-box model {name!r}: give a GreyBoxModel or a function returning one, got "
+            f"{type(model).__name__}"
+        )
+    _REGISTERED[name] = model
+
+
+def _entry_points() -> dict[str, Any]:
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_greybox_models() -> tuple[str, ...]:
+    """Names :func:`greybox_model` knows: built-in, registered and installed (entry points).
+
+    Returns
+    -------
+    tuple of str
+    """
+    names = list(GREYBOX_MODELS) + list(_REGISTERED)
+    names += [n for n in sorted(_entry_points()) if n not in names]
+    return tuple(names)
+
+
+def _as_model(obj: Any, where: str, options: dict[str, Any]) -> GreyBoxModel:
+    """``obj`` (a model or a factory) as a model, with ``options`` applied."""
+    if isinstance(obj, GreyBoxModel):
+        return obj.with_parameters(**options) if options else obj
+    if callable(obj):
+        try:
+            made = obj(**options)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"grey-box model {where}: its factory failed: {exc}") from None
+        if isinstance(made, GreyBoxModel):
+            return made
+        obj = made
+    raise ConfigError(
+        f"grey-box model {where} is a {type(obj).__name__}, not a GreyBoxModel or a function "
+        "returning one"
+    )
+
+
+def _from_file(reference: str, options: dict[str, Any]) -> GreyBoxModel:
+    """``path/to/file.py:NAME``: the object NAME of a Python file, run as a module."""
+    import importlib.util
+    import sys
+
+    path_text, _, attr = reference.rpartition(":")
+    path = Path(path_text).expanduser()
+    if not path.is_file():
+        raise ConfigError(f"grey-box model {reference!r}: no file {str(path)!r}")
+    key = "_flexid_greybox_" + hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:16]
+    module = sys.modules.get(key)
+    if module is None or getattr(module, "__file__", None) != str(path.resolve()):
+        spec = importlib.util.spec_from_file_location(key, path.resolve())
+        if spec is None or spec.loader is None:
+            raise ConfigError(f"grey-box model {reference!r}: {str(path)!r} is not a Python file")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[key] = module  # pickling the model's functions finds them here
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:
+            del sys.modules[key]
+            raise ConfigError(
+                f"grey-box model {reference!r}: running {str(path)!r} failed: "
+                f"{type(exc).__name__}: {exc}"
+            ) from None
+    if not attr or not hasattr(module, attr):
+        found = sorted(k for k, v in vars(module).items() if isinstance(v, GreyBoxModel))
+        raise ConfigError(
+            f"grey-box model {reference!r}: {str(path)!r} has no {attr or '(empty name)'!r}"
+            + (f" (its models: {', '.join(found)})" if found else "")
+        )
+    return _as_model(getattr(module, attr), repr(reference), options)
+
+
+def greybox_model(name: str, **options: Any) -> GreyBoxModel:
+    """A grey-box model by name: built-in, registered, installed, or ``file.py:NAME``.
+
+    Parameters
+    ----------
+    name : str
+        ``"twin-rotor-pitch"``, ``"twin-rotor-coupled"``, a name given to
+        :func:`register_greybox_model` or offered by an installed package (entry-point group
+        ``flexid.greybox_models``), or ``"path/to/file.py:NAME"``: the object ``NAME`` (a
+        :class:`~flexid.greybox.GreyBoxModel` or a function returning one) of that Python
+        file, as ``examples/greybox_mass_spring.py:MODEL``.
     **options
-        Passed to the model's function (``thrust_law``, parameter changes).
+        Passed to the model's function (``thrust_law``, parameter changes); for a model
+        object, parameter changes (:meth:`GreyBoxModel.with_parameters
+        <flexid.greybox.GreyBoxModel.with_parameters>`).
 
     Returns
     -------
@@ -200,9 +324,55 @@ def greybox_model(name: str, **options: Any) -> GreyBoxModel:
     ------
     UnknownNameError
         No such model (the message lists them).
+    ConfigError
+        A file that does not exist, fails to run or lacks ``NAME``; an object that is not a
+        model.
     """
     from .errors import UnknownNameError
 
-    if name not in GREYBOX_MODELS:
-        raise UnknownNameError("grey-box model", name, tuple(GREYBOX_MODELS))
-    return GREYBOX_MODELS[name](**options)
+    if not isinstance(name, str):
+        raise ConfigError(f"a grey-box model is named by a string, got {type(name).__name__}")
+    if name in GREYBOX_MODELS:
+        return GREYBOX_MODELS[name](**options)
+    if name in _REGISTERED:
+        return _as_model(_REGISTERED[name], repr(name), options)
+    if ":" in name and name.rpartition(":")[0].endswith(".py"):
+        return _from_file(name, options)
+    points = _entry_points()
+    if name in points:
+        try:
+            obj = points[name].load()
+        except Exception as exc:  # a broken package must say so, not crash flexid
+            raise ConfigError(
+                f"grey-box model {name!r} ({points[name].value}) failed to load: "
+                f"{type(exc).__name__}: {exc}"
+            ) from None
+        return _as_model(obj, repr(name), options)
+    raise UnknownNameError(
+        "grey-box model", name, (*available_greybox_models(), "path/to/file.py:NAME")
+    )
+
+
+def definition_digest(name: str) -> str:
+    """What a grey-box model's name stands for, as a short hash for store keys.
+
+    A model read from a file (``file.py:NAME``) is defined by that file's bytes, so runs on
+    an edited file never join the runs on what it held before; a named model by its name
+    (its parameters are in the comparison's specification already).
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    str
+        ``""`` for a named model, else 16 hexadecimal digits of the file's SHA-256.
+    """
+    if ":" in name and name.rpartition(":")[0].endswith(".py"):
+        path = Path(name.rpartition(":")[0]).expanduser()
+        try:
+            return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+        except OSError:
+            raise ConfigError(f"grey-box model {name!r}: cannot read {str(path)!r}") from None
+    return ""

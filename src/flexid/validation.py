@@ -1158,18 +1158,28 @@ def _linearised_poles(model: Any, dt: float) -> np.ndarray:
 
 
 def _validate_greybox(
-    model: Any, data: Any, *, max_lag: int, split: float | int | None, dt: float | None
+    model: Any, data: Any, *, max_lag: int, split: float | int | None, dt: float | None,
+    output: str | None = None,
 ) -> ValidationReport:
     """:func:`validate` for a grey-box model: simulated from its own initial state."""
     from .greybox_cost import record_for
 
     u_full, y_all, sample_time = record_for(model, data, dt)
-    if y_all.shape[1] != 1:
+    if output is None:
+        if y_all.shape[1] != 1:
+            raise DataError(
+                f"grey-box model {model.name!r} has outputs {list(model.outputs)}: give the "
+                "one to validate (output=...)"
+            )
+        k = 0
+    elif output in model.outputs:
+        k = list(model.outputs).index(output)
+    else:
         raise DataError(
-            f"validate() takes a single-output model; grey-box model {model.name!r} has "
-            f"outputs {list(model.outputs)}"
+            f"grey-box model {model.name!r} has no output {output!r} (its outputs: "
+            f"{list(model.outputs)})"
         )
-    y_full = y_all[:, 0]
+    y_full = y_all[:, k]
     n = y_full.size
     start = 0
     if split is not None:  # the same split as IOData.split, evaluated after run-in
@@ -1179,10 +1189,10 @@ def _validate_greybox(
     n_eval = n - start
     max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
     with np.errstate(all="ignore"):
-        ysim_full = model.simulate(model.nominal, u_full, sample_time)[0, :, 0]
+        ysim_full = model.simulate(model.nominal, u_full, sample_time)[0, :, k]
     return _report(
         y_full, None, ysim_full, u_full, start=start, dt=sample_time, max_lag=max_lag,
-        names=list(model.inputs), output_name=str(model.outputs[0]), initial=GREYBOX_RULE,
+        names=list(model.inputs), output_name=str(model.outputs[k]), initial=GREYBOX_RULE,
         initial_one_step=GREYBOX_RULE, poles=_linearised_poles(model, sample_time), zeros=[],
     )
 
@@ -1317,6 +1327,7 @@ def validate(
     initial: str = "estimate",
     split: float | int | None = None,
     dt: float | None = None,
+    output: str | None = None,
 ) -> ValidationReport:
     """Validate a model on a record: fits, errors, correlation tests, PSD, stability.
 
@@ -1351,6 +1362,9 @@ def validate(
         a sample index); default: the whole record.
     dt : float, optional
         Sample time in seconds for a ``(u, y)`` pair; default ``model.dt``, else 1.
+    output : str, optional
+        For a grey-box model with several outputs, the one to validate (all are simulated
+        together; the report is of this one).  Other models have one output.
 
     Returns
     -------
@@ -1374,7 +1388,10 @@ def validate(
     from .greybox import GreyBoxModel
 
     if isinstance(model, GreyBoxModel):
-        return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt)
+        return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt,
+                                 output=output)
+    if output is not None:
+        raise DataError("output= selects a grey-box model's output; this model has one")
     record = _as_record(data, dt if dt is not None else _model_dt(model))
     if split is not None:
         if isinstance(split, float):

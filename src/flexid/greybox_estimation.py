@@ -1,0 +1,284 @@
+"""The search problem of a grey-box identification, in the interface the polynomial ones share.
+
+:func:`flexid.estimation.build_problem` returns a :class:`GreyBoxEstimationProblem` for a
+:class:`~flexid.greybox.GreyBoxModel`, so ``identify`` and ``compare`` run a grey-box model
+exactly as they run a polynomial structure: every optimiser searches the same
+:class:`~flexid.optimisers.Problem` (the estimated parameters in their bounds, ``log10`` of
+those that span decades) with the same shared initial population and exact budget, and the
+gradient reference is :func:`flexid.greybox_fit.greyest` (Levenberg-Marquardt on the
+simulation residuals from several starts).  The cost is the simulation (output-error) cost:
+a grey-box model has no one-step predictor.
+
+Where a polynomial problem has least squares (the start of its searches and a row of every
+comparison), a grey-box problem has the model's parameter values as given: the user's
+nominal values, the start of the reference.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .config import CostSpec, SearchSpec
+from .errors import ConfigError
+from .greybox import GreyBoxModel
+from .greybox_cost import GreyBoxCost
+from .optimisers import Problem
+
+__all__ = ["GreyBoxEstimationProblem", "GreyBoxReference", "build_greybox_problem"]
+
+#: What a grey-box problem's "least squares" row is: the parameters' given values.
+START_NAME = "nominal values"
+#: The reference of a grey-box problem, in words.
+REFERENCE_NAME = (
+    "grey-box reference (Levenberg-Marquardt on the simulation residuals, several starts)"
+)
+
+
+@dataclass
+class GreyBoxReference:
+    """The gradient reference's result, as the comparison and identification read it.
+
+    Attributes
+    ----------
+    theta : ndarray, shape (n_free,)
+        The estimated parameters' values.
+    cost : float
+        The problem's cost there (its metric, not greyest's RMSE).
+    stable : bool
+        Always True: a grey-box model has no stability constraint to violate (a model that
+        diverges costs ``+inf`` and is never a reference).
+    nfev : int
+        Parameter sets simulated, residuals and Jacobian columns together.
+    njev : int
+        0 (the Jacobians' simulations are counted in ``nfev``).
+    nfev_equivalent : int
+        Equal to ``nfev``: what an optimiser's FE count compares with.
+    wall_time : float
+        Seconds.
+    local_minimum : bool
+        Whether it ended at a verified local minimum (first-order test).
+    optimality : float
+        The first-order test's largest cosine.
+    on_cap : bool
+        False (no radius cap); here for the interface of the polynomial references.
+    runs : list
+        One entry per start (:class:`flexid.greybox_fit.GreyBoxRun`).
+    result : GreyBoxResult
+        The whole result (standard errors, identifiability, bounds).
+    """
+
+    theta: np.ndarray
+    cost: float
+    stable: bool
+    nfev: int
+    njev: int
+    nfev_equivalent: int
+    wall_time: float
+    local_minimum: bool
+    optimality: float
+    on_cap: bool
+    runs: list
+    result: Any = field(repr=False)
+
+
+@dataclass
+class GreyBoxEstimationProblem:
+    """The search problem of a grey-box identification, and how to read its results.
+
+    Attributes
+    ----------
+    structure : GreyBoxModel
+        The model as given: its parameters' values are the start, its bounds the box.
+    cost : GreyBoxCost
+        The simulation cost on the estimation record, in the estimated parameters' values.
+    problem : Problem
+        What the optimisers minimise, over the search coordinates.
+    search : SearchSpec
+        Recorded only: a grey-box model is searched in its parameters' own bounds.
+    box : SearchBox
+        The search coordinates' bounds and the rule that made them.
+    box_rule : str
+        The same rule, for reports.
+    """
+
+    structure: GreyBoxModel
+    cost: GreyBoxCost
+    problem: Problem
+    search: SearchSpec
+    box: Any
+    box_rule: str
+    _ref: Any = field(default=None, repr=False)
+
+    @property
+    def theta_ls(self) -> np.ndarray:
+        """The start: the estimated parameters' given values, shape (n_free,)."""
+        return self.structure.theta
+
+    @property
+    def cost_ls(self) -> float:
+        """The cost at :attr:`theta_ls`."""
+        return float(self.cost(self.theta_ls[None, :])[0])
+
+    def theta(self, z: Any) -> np.ndarray:
+        """The estimated parameters' values of search vectors (clipped to their bounds).
+
+        Parameters
+        ----------
+        z : array_like, shape (P, n_free) or (n_free,)
+
+        Returns
+        -------
+        ndarray, same shape
+        """
+        lo, hi = self.structure.search_bounds()
+        values = self.structure.from_search(np.clip(np.asarray(z, dtype=float), lo, hi))
+        # 10 ** log10(bound) can round past the bound: the values are clipped as the cost's
+        return np.clip(values, self.cost.lower, self.cost.upper)
+
+    def describe(self) -> str:
+        """One line: what is searched and on which scale.
+
+        Returns
+        -------
+        str
+        """
+        model = self.structure
+        scales = [
+            f"{p.name} ({'log' if p.log else 'linear'})"
+            for p in model.parameters
+            if not p.fixed
+        ]
+        fixed = [p.name for p in model.parameters if p.fixed]
+        text = f"{model.n_free} physical parameters in their bounds: {', '.join(scales)}"
+        if fixed:
+            text += f"; fixed: {', '.join(fixed)}"
+        return text
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe description of the search.
+
+        Returns
+        -------
+        dict
+        """
+        return {
+            "parametrisation": {"name": "greybox", "parameters": list(self.structure.free)},
+            "box_rule": self.box_rule,
+        }
+
+    def output_error_reference(self, *, starts: int = 3, seed: int = 0) -> GreyBoxReference:
+        """The gradient reference, :func:`flexid.greybox_fit.greyest`, from the given values.
+
+        Cached for the last ``(starts, seed)``.
+
+        Parameters
+        ----------
+        starts : int, optional
+            Random starts after the first (the given values); default 3.
+        seed : int, optional
+            Seed of the random starts.
+
+        Returns
+        -------
+        GreyBoxReference
+        """
+        if self._ref is None or self._ref[0] != (starts, seed):
+            from .greybox_fit import greyest
+
+            t0 = time.perf_counter()
+            fit = greyest((self.cost.u, self.cost.y), self.structure, starts=starts,
+                          seed=seed, dt=self.cost.dt)
+            theta = fit.model.theta
+            ref = GreyBoxReference(
+                theta=theta,
+                cost=float(self.cost(theta[None, :])[0]),
+                stable=True,
+                nfev=int(fit.nfev),
+                njev=0,
+                nfev_equivalent=int(fit.nfev),
+                wall_time=time.perf_counter() - t0,
+                local_minimum=bool(fit.local_minimum),
+                optimality=float(fit.optimality),
+                on_cap=False,
+                runs=list(fit.runs),
+                result=fit,
+            )
+            self._ref = ((starts, seed), ref)
+        return self._ref[1]
+
+    def reference_cost(self) -> tuple[float, str]:
+        """The lower finite cost of the given values and the reference.
+
+        Returns
+        -------
+        cost : float
+        name : str
+        """
+        ref = self.output_error_reference()
+        start = self.cost_ls
+        if math.isfinite(ref.cost) and not (math.isfinite(start) and start < ref.cost):
+            return ref.cost, REFERENCE_NAME
+        if math.isfinite(start):
+            return start, START_NAME
+        return math.nan, "no finite reference"
+
+
+def build_greybox_problem(
+    est: Any, model: GreyBoxModel, cost: CostSpec, search: SearchSpec, *, bounds: Any = "auto"
+) -> GreyBoxEstimationProblem:
+    """:func:`flexid.estimation.build_problem` for a grey-box model.
+
+    Parameters
+    ----------
+    est : IOData
+        Estimation record, read by the model's channel names.
+    model : GreyBoxModel
+    cost : CostSpec
+        Its ``metric`` and ``weight``; the predictor must be ``"simulation"``.
+    search : SearchSpec
+        Recorded only.
+    bounds : "auto"
+        A grey-box model is searched in its parameters' bounds; change them on the model
+        (:meth:`GreyBoxModel.with_parameters <flexid.greybox.GreyBoxModel.with_parameters>`).
+
+    Returns
+    -------
+    GreyBoxEstimationProblem
+
+    Raises
+    ------
+    ConfigError
+        The one-step predictor, other bounds, or a model with nothing to estimate.
+    DataError
+        A record without the model's channels.
+    """
+    from ._identify import SearchBox
+
+    if cost.predictor != "simulation":
+        raise ConfigError(
+            f"grey-box model {model.name!r} is fitted on the simulation cost (it has no "
+            f"one-step predictor): use predictor='simulation', not {cost.predictor!r}"
+        )
+    if not (isinstance(bounds, str) and bounds == "auto"):
+        raise ConfigError(
+            f"grey-box model {model.name!r} is searched in its parameters' own bounds: set "
+            f"them on the model (--set NAME=VALUE, with_parameters), not bounds={bounds!r}"
+        )
+    if model.n_free == 0:
+        raise ConfigError(f"grey-box model {model.name!r} has no estimated parameter")
+    objective = GreyBoxCost(model, est, metric=cost.metric, weight=cost.weight)
+    lower, upper = model.search_bounds()
+    rule = "each parameter's own bounds (log10 where they span two decades or more)"
+    return GreyBoxEstimationProblem(
+        structure=model,
+        cost=objective,
+        problem=objective.problem(),
+        search=search,
+        box=SearchBox(lower, upper, rule),
+        box_rule=rule,
+    )
