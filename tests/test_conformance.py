@@ -13,7 +13,9 @@ is put on ``sys.path``).  Every optimiser:
 * **rejects bad hyper-parameters** with HyperParameterError (wrong type, None, below
   ``low``, above ``high``, outside ``choices``, unknown name), under a hyper-parameter's
   aliases too;
-* **beats random search** on a sphere at an equal budget (median over five seeds).
+* **beats random search** on a sphere at an equal budget (median over five seeds);
+* **states what it does at the bounds** (flexid's own), and never evaluates a point outside
+  the box when it says it stays inside (nor stays inside when it says it leaves).
 
 Costs are compared exactly where the same code runs on the same numbers; the sphere
 threshold is a modelling claim with a wide margin (see
@@ -272,3 +274,33 @@ def test_beats_random_search_on_a_sphere(name):
     budget = Budget(max_fe=BEAT_BUDGET, target=target)
     ours = [minimize(name, p, budget, seed=s).fun for s in BEAT_SEEDS]
     assert np.median(ours) < random_search_median(), (name, ours)
+
+
+# ------------------------------------------------------------------------------- bounds
+def _outside(X: np.ndarray, half: float) -> int:
+    return int(np.sum(np.any((X < -half) | (X > half), axis=1)))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_stays_in_the_box_when_it_says_so(name):
+    """Every optimiser of flexid states what it does at the bounds; one that claims to stay
+    in the box evaluates no point outside it, with the optimum on a corner of [-1, 1]^4 and
+    with it outside the box (at (3, ..., 3)), where the search presses on the faces.  One
+    that says it leaves the box (the papers' unconstrained searches) does so on the second.
+    The comparisons with the bounds are exact (the points are compared, not computed)."""
+    cls = get(name)
+    bounds = describe(name)["bounds"]
+    if cls.__module__.startswith("flexid.optimisers"):
+        assert cls.bounds and cls.bounds_note and cls.stays_in_box is not None, name
+    if cls.stays_in_box is None:
+        pytest.skip(f"{name} does not state what it does at the bounds")
+    assert bounds["stays_in_box"] is cls.stays_in_box
+    counts = []
+    for corner in (1.0, 3.0):
+        rec = Recorder(lambda X, c=corner: ((X - c) ** 2).sum(axis=1))
+        minimize(name, box(rec, half=1.0), 1500, seed=0)
+        counts.append(_outside(rec.points, 1.0))
+    if cls.stays_in_box:
+        assert counts == [0, 0], (name, counts)
+    else:
+        assert counts[1] > 0, (name, counts)

@@ -612,14 +612,20 @@ def _cmd_list(args: argparse.Namespace) -> int:
             print(json.dumps(jsonable(entries), indent=2, allow_nan=False, default=str))
             return 0
         width = max(len(e["name"]) for e in entries)
+        bwidth = max(len(e["bounds"]["kind"]) for e in entries)
+        if not args.long:
+            print(f"{'name':<{width}}  {'at the bounds':<{bwidth}}  summary")
         for e in entries:
             origin = f" (variant of {e['variant_of']})" if e["variant_of"] else ""
             src = "" if e["source"] == "flexid" else f" [{e['source']}]"
-            if not args.long:  # one line each: the name and the first sentence
+            bounds = e["bounds"]["kind"]
+            if not args.long:  # one line each: the name, the bounds and the first sentence
                 first = e["summary"].split(". ")[0].rstrip(".")
-                print(f"{e['name']:<{width}}  {first}{origin}{src}")
+                print(f"{e['name']:<{width}}  {bounds:<{bwidth}}  {first}{origin}{src}")
                 continue
             print(f"{e['name']}{origin}{src}: {e['summary']}")
+            note = e["bounds"]["note"]
+            print(f"    at the bounds: {bounds}" + (f": {note}" if note else ""))
             for pname, p in e["hyperparameters"].items():
                 print(f"    {pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}")
         if not args.long:

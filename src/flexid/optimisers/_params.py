@@ -229,11 +229,22 @@ class Optimiser:
         is always iteration 0, phase ``"init"``.
     reference : str
         Where the algorithm comes from.
+    bounds : str
+        What it does at the bounds, in a few words (``"clip"``, ``"midpoint repair"``,
+        ``"periodic transform"``, ``"leaves the box (paper)"``...); ``""``: not stated.
+    bounds_note : str
+        The same in one sentence.
+    stays_in_box : bool or None
+        Whether every point it evaluates lies in the box (with its default
+        hyper-parameters); None: not stated.  The conformance suite checks the claim.
     """
 
     name: ClassVar[str] = ""
     auto_iterations: ClassVar[bool] = True
     reference: ClassVar[str] = ""
+    bounds: ClassVar[str] = ""
+    bounds_note: ClassVar[str] = ""
+    stays_in_box: ClassVar[bool | None] = None
 
     def __init__(self, **params: Any) -> None:
         spec = self.hyperparameters()

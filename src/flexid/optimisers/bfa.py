@@ -224,6 +224,13 @@ class BacterialForaging(Optimiser):
     name = "bfa"
     auto_iterations = False
     reference = "Passino, IEEE Control Systems Magazine 22(3):52-67, 2002"
+    bounds = "leaves the box (paper)"
+    bounds_note = (
+        "The paper's search is unconstrained: tumbles and swims are evaluated "
+        "wherever they land (clip=True clips them to the box, a deviation); "
+        "dispersal re-draws in the box."
+    )
+    stays_in_box = False
     population = Param(int, 50, "population S (even)", low=2, aliases=("bacteria",))
     n_chemotactic = Param(int, 100, "chemotactic steps N_c per reproduction", low=1)
     n_swim = Param(int, 4, "swim length N_s", low=0)

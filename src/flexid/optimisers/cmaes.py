@@ -76,6 +76,13 @@ class CMAES(Optimiser):
 
     name = "cmaes"
     reference = "Hansen & Ostermeier, Evol. Comput. 9(2):159-195, 2001; Hansen, arXiv:1604.00772"
+    bounds = "clip + penalty"
+    bounds_note = (
+        "A sample outside the box is evaluated at its projection onto the box "
+        "and ranked with a penalty on its distance to it; the update uses the "
+        "unclipped sample."
+    )
+    stays_in_box = True
     population = Param(int, None, "lambda (None: 4 + floor(3 ln n))", low=2, none_ok=True)
     sigma0 = Param(float, 0.3, "initial step as a fraction of the box width", low=0.0,
                    low_open=True)

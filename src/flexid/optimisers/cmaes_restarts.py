@@ -178,6 +178,13 @@ class CMAESRestarts(Optimiser):
         "Hansen, arXiv:1604.00772 (tutorial); Auger & Hansen, CEC 2005 (IPOP); "
         "Hansen, GECCO BBOB workshop 2009 (BIPOP)"
     )
+    bounds = "periodic transform"
+    bounds_note = (
+        "Candidates are mapped into the box by pycma's linear-quadratic "
+        "periodic transformation (the identity inside, away from the faces), "
+        "so every point evaluated is in the box."
+    )
+    stays_in_box = True
     population = Param(int, None, "default lambda (None: 4 + floor(3 ln n))", low=2, none_ok=True)
     sigma0 = Param(float, 0.3, "initial step as a fraction of the box width", low=0.0,
                    low_open=True)

@@ -42,6 +42,12 @@ class DifferentialEvolution(Optimiser):
 
     name = "de"
     reference = "Storn & Price, J. Global Optimization 11:341-359, 1997"
+    bounds = "midpoint repair"
+    bounds_note = (
+        "A trial coordinate outside the box is set half-way between its "
+        "parent's coordinate and the violated bound (bounce-back)."
+    )
+    stays_in_box = True
     population = Param(int, 50, "population size NP", low=4)
     weight = Param(float, 0.5, "differential weight F", low=0.0, high=2.0, low_open=True)
     crossover = Param(float, 0.9, "crossover rate CR", low=0.0, high=1.0)

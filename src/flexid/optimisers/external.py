@@ -145,6 +145,12 @@ class NevergradOptimiser(_External):
     name = "ng"
     library = "nevergrad"
     reference = "Rapin & Teytaud, Nevergrad - A gradient-free optimization platform, 2018"
+    bounds = "library's + clip"
+    bounds_note = (
+        "nevergrad's bounded parametrisation (ng.p.Array with lower and upper "
+        "bounds) handles the box; the points it asks are also clipped to it."
+    )
+    stays_in_box = True
     ng_name: ClassVar[str] = ""
     num_workers = Param(int, 1, "candidates asked per batch (nevergrad's num_workers)", low=1)
     initial_points = Param(int, 50, "size of the shared initial population (0: nevergrad's own)",
@@ -253,6 +259,12 @@ class PyCMA(_External):
     name = "cma:CMA-ES"
     library = "pycma"
     reference = "Hansen, Akimoto & Baudis, pycma (CMA-ES in Python), doi:10.5281/zenodo.2559634"
+    bounds = "periodic transform + clip"
+    bounds_note = (
+        "pycma's BoundTransform (bounds = [0, 1]) maps its samples into the "
+        "box; the points are also clipped to it."
+    )
+    stays_in_box = True
     population = Param(int, None, "popsize (None: 4 + floor(3 ln n))", low=2, none_ok=True)
     sigma0 = Param(float, 0.3, "initial step as a fraction of the box width", low=0.0,
                    low_open=True)
@@ -343,6 +355,12 @@ class PymooOptimiser(_External):
     name = "pymoo"
     library = "pymoo"
     reference = "Blank & Deb, pymoo: Multi-objective optimization in Python, IEEE Access 8, 2020"
+    bounds = "library's + clip"
+    bounds_note = (
+        "pymoo's operators keep to the bounds of the problem in their own way; "
+        "the points it asks are also clipped to the box."
+    )
+    stays_in_box = True
     algorithm: ClassVar[str] = ""
 
     def _size(self) -> int:

@@ -48,6 +48,11 @@ class GeneticAlgorithm(Optimiser):
 
     name = "ga"
     reference = "Deb & Agrawal, Complex Systems 9:115-148, 1995; Deb, 2001"
+    bounds = "clip"
+    bounds_note = (
+        "Children are clipped to the box after crossover and mutation."
+    )
+    stays_in_box = True
     population = Param(int, 50, "population size (even)", low=4)
     p_crossover = Param(float, 0.9, "crossover probability per pair", low=0.0, high=1.0)
     eta_c = Param(float, 15.0, "SBX distribution index", low=0.0)

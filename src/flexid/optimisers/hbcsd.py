@@ -122,6 +122,13 @@ class HBCSD(Optimiser):
     name = "hbcsd"
     auto_iterations = False
     reference = "Nasir & Tokhi, Eng. Appl. Artif. Intell. 33:31-46, 2014"
+    bounds = "leaves the box (paper)"
+    bounds_note = (
+        "The paper's search is unconstrained: chemotactic and spiral moves "
+        "are evaluated wherever they land (clip=True clips them to the box, a "
+        "deviation)."
+    )
+    stays_in_box = False
     population = Param(int, 50, "bacteria / spiral points m", low=1, aliases=("points",))
     n_chemotactic = Param(int, 100, "chemotactic steps N_c (phase 1)", low=0)
     n_swim = Param(int, 4, "swim length N_s", low=0)

@@ -164,6 +164,12 @@ class LSHADE(Optimiser):
 
     name = "lshade"
     reference = "Tanabe & Fukunaga, IEEE CEC 2014, 1658-1665"
+    bounds = "midpoint repair"
+    bounds_note = (
+        "The paper's repair: a trial coordinate outside the box is set to "
+        "(parent's coordinate + violated bound) / 2."
+    )
+    stays_in_box = True
     population = Param(int, None, "initial population N_init (None: round(18 n))", low=4,
                        none_ok=True)
     min_population = Param(int, 4, "final population N_min", low=4)

@@ -46,6 +46,12 @@ class ParticleSwarm(Optimiser):
 
     name = "pso"
     reference = "Kennedy & Eberhart 1995; Clerc & Kennedy, IEEE TEC 6(1):58-73, 2002"
+    bounds = "clip"
+    bounds_note = (
+        "A position outside the box is clipped to it and the velocity of each "
+        "clipped coordinate is set to 0."
+    )
+    stays_in_box = True
     population = Param(int, 50, "swarm size", low=2, aliases=("particles",))
     inertia = Param(float, 0.7298, "inertia weight w", low=0.0)
     cognitive = Param(float, 1.49618, "cognitive coefficient c1", low=0.0)

@@ -27,6 +27,11 @@ class RandomSearch(Optimiser):
 
     name = "random-search"
     reference = "Brooks, Operations Research 6(2):244-251, 1958"
+    bounds = "inside by construction"
+    bounds_note = (
+        "Every sample is drawn uniformly in the box."
+    )
+    stays_in_box = True
     population = Param(int, 50, "samples per batch (one iteration)", low=1, aliases=("points",))
 
     def search(self, space: SearchSpace, rng: np.random.Generator):

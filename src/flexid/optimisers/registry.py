@@ -325,8 +325,10 @@ def describe(name: str) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``name``, ``source``, ``variant_of``, ``summary``, ``reference`` and
-        ``hyperparameters`` (name -> type, default, range and description).
+        ``name``, ``source``, ``variant_of``, ``summary``, ``reference``, ``bounds`` (what
+        it does at the bounds: ``kind`` in a few words, ``note`` in one sentence and
+        ``stays_in_box``, True, False or None when not stated) and ``hyperparameters``
+        (name -> type, default, range and description).
     """
     cls = get(name)
     doc = (cls.__doc__ or "").strip().splitlines()
@@ -337,6 +339,11 @@ def describe(name: str) -> dict[str, Any]:
         "variant_of": getattr(cls, "variant_of", None),
         "summary": doc[0] if doc else "",
         "reference": cls.reference,
+        "bounds": {
+            "kind": cls.bounds or "not stated",
+            "note": cls.bounds_note,
+            "stays_in_box": cls.stays_in_box,
+        },
         "hyperparameters": params,
     }
 

@@ -71,6 +71,12 @@ class ScipyMinimize(Optimiser):
 
     name = "scipy"
     reference = "Virtanen et al., Nature Methods 17:261-272, 2020 (scipy.optimize)"
+    bounds = "scipy bounds + clip"
+    bounds_note = (
+        "The box is passed to scipy as bounds and every point is clipped to "
+        "it before it is evaluated."
+    )
+    stays_in_box = True
     method = Param(str, "Nelder-Mead", "scipy method", choices=("Nelder-Mead", "Powell",
                                                                 "L-BFGS-B"))
     start = Param(str, "x0", "first start point", choices=("x0", "best-initial"))

@@ -65,6 +65,13 @@ class SpiralDynamics(Optimiser):
 
     name = "sda"
     reference = "Tamura & Yasuda, JACIII 15(8):1116-1122, 2011"
+    bounds = "leaves the box (paper)"
+    bounds_note = (
+        "The paper's search is unconstrained: rotated points are evaluated "
+        "wherever they land, inside the box or not (clip=True clips them to "
+        "the box, a deviation)."
+    )
+    stays_in_box = False
     population = Param(int, 50, "search points m", low=2, aliases=("points",))
     radius = Param(float, 0.95, "convergence rate r", low=0.0, high=1.0, low_open=True)
     angle = Param(float, np.pi / 4, "rotation angle theta (rad)", low=0.0, high=2 * np.pi,
