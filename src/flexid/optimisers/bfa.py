@@ -293,14 +293,14 @@ class BacterialForaging(Optimiser):
 
 
 register_variant(
-    "bfa-paper-manipulator", "bfa",
+    "bfa-paper-manipulator", BacterialForaging,
     "Nasir & Tokhi 2014 section 5, manipulator: N_s=4, N_c=30, N_re=6, N_ed=6, C=0.01; "
     "S=50 and p_ed=0.25 assumed.",
     population=50, n_swim=4, n_chemotactic=30, n_reproduction=6, n_elim_disp=6, step_size=0.01,
     p_ed=0.25,
 )
 register_variant(
-    "bfa-paper-trs", "bfa",
+    "bfa-paper-trs", BacterialForaging,
     "Nasir & Tokhi 2014 section 5, twin rotor: N_s=4, N_c=30, N_re=4, N_ed=4, C=0.0175; "
     "S=10 and p_ed=0.25 assumed.",
     population=10, n_swim=4, n_chemotactic=30, n_reproduction=4, n_elim_disp=4, step_size=0.0175,

@@ -51,6 +51,7 @@ _BUILTIN_MODULES = (
     "cmaes",
     "cmaes_restarts",
     "lshade",
+    "hbcsd_scaled",
     "random_search",
     "scipy_methods",
     "external",
