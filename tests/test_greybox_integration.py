@@ -311,3 +311,28 @@ def test_cli_refuses_bad_greybox_input_in_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["spring.csv", "spring_model.py"]
+
+
+# ---------------------------------------------------------------------- select
+def test_select_ranks_a_greybox_model_beside_polynomial_ones(model_file):
+    # the spring is second order (linear: OE(2,2) would hold it too); a first-order OE cannot
+    data = _record(model_file, n=600)
+    sel = flexid.select(
+        data, structures=["oe", f"greybox:{model_file}:MODEL"], orders=[{"nb": 1, "nf": 1}],
+        starts=1,
+    )
+    grey = next(c for c in sel.candidates if c.kind == "greybox")
+    assert grey.label == "grey-box spring" and grey.n_params == 2 and grey.orders == {}
+    assert grey.passed and grey.stable and grey.local_minimum
+    assert grey.fit_simulation > 99
+    assert sel.best is grey
+    json.dumps(sel.to_dict(), allow_nan=False)
+    assert "grey-box" in sel.summary()
+
+
+def test_cli_select_takes_a_greybox_candidate(model_file, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _record(model_file, n=600).to_csv(tmp_path / "spring.csv")
+    assert main(["select", "spring.csv", "--structures", f"oe,greybox:{model_file}:MODEL",
+                 "--orders", "nb=1", "--orders", "nf=1"]) == 0
+    assert "recommended: grey-box spring" in capsys.readouterr().out

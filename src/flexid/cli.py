@@ -852,7 +852,8 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("--plant", help="select on a simulated record of this plant instead")
     se.add_argument("--data-seed", type=int, default=0, help="seed of the simulated record")
     se.add_argument(
-        "--structures", help=f"comma-separated: {', '.join(STRUCTURE_NAMES)} (default arx,oe)"
+        "--structures",
+        help=f"comma-separated: {', '.join(STRUCTURE_NAMES)}, greybox:NAME (default arx,oe)",
     )
     se.add_argument(
         "--orders",

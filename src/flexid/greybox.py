@@ -386,6 +386,23 @@ class GreyBoxModel:
     #: Samples before the first error an identification scores (a grey-box model is
     #: simulated from its initial state, so every sample counts).
     start = 0
+    #: The structure's name beside the polynomial ones' (``"arx"``, ``"oe"``, ...).
+    kind = "greybox"
+
+    @property
+    def orders(self) -> dict[str, Any]:
+        """Orders, as a polynomial structure has them: none."""
+        return {}
+
+    @property
+    def n_params(self) -> int:
+        """Estimated parameters (what an information criterion counts)."""
+        return self.n_free
+
+    @property
+    def n_inputs(self) -> int:
+        """Inputs the model reads."""
+        return len(self.inputs)
 
     @property
     def theta(self) -> np.ndarray:
@@ -698,3 +715,6 @@ class GreyBoxModel:
 
     def __repr__(self) -> str:
         return f"GreyBoxModel({self.name!r}, {self.n_free} of {len(self.parameters)} estimated)"
+
+    def __str__(self) -> str:
+        return f"grey-box {self.name}"

@@ -617,6 +617,7 @@ _STRUCTURE_STYLE = {
     "oe": ("tab:orange", "o"),
     "bj": ("tab:purple", "D"),
     "polynomial": ("tab:gray", "v"),
+    "greybox": ("tab:red", "*"),
 }
 # fits below this (%) are drawn on the lower edge of the fit panel, as a down-pointing marker
 _FIT_FLOOR = -20.0
@@ -678,7 +679,8 @@ def selection_figure(selection: Selection, path: str | Path | None = None, *, cr
             # the line joins the best value at each d (ARMAX and BJ have several per d)
             ds = np.unique(d)
             best = [np.nanmax(v[d == x]) if value is _fit else np.nanmin(v[d == x]) for x in ds]
-            ax.plot(ds, best, "-", color=color, lw=1.2, alpha=0.7, label=kind.upper())
+            name = "grey-box" if kind == "greybox" else kind.upper()
+            ax.plot(ds, best, "-", color=color, lw=1.2, alpha=0.7, label=name)
             for c, x, y in zip(group, d, v):
                 clipped = value is _fit and not (c.fit_simulation >= low)
                 ax.plot(

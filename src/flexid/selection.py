@@ -201,8 +201,8 @@ class Candidate:
 
     @property
     def label(self) -> str:
-        """``"OE(nb=2, nf=2, nk=1)"``."""
-        return repr(self.structure)
+        """``"OE(nb=2, nf=2, nk=1)"``, or ``"grey-box twin-rotor-pitch"``."""
+        return str(self.structure) if self.kind == "greybox" else repr(self.structure)
 
     @property
     def loss(self) -> float:
@@ -400,7 +400,7 @@ class Selection:
                 f"{self.n_estimation} samples for estimation, {self.n_validation} held out "
                 f"for validation, dt = {self.dt:g} s",
             ),
-            ("structures", ", ".join(k.upper() for k in kinds)),
+            ("structures", ", ".join("grey-box" if k == "greybox" else k.upper() for k in kinds)),
             ("ranked by", f"{self.criterion}: {CRITERIA[self.criterion]}"),
             (
                 "validation",
@@ -652,6 +652,10 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
     return {name: [dict(e) for e in entries] for name in names}
 
 
+#: A grey-box candidate of :func:`select` by name: ``"greybox:twin-rotor-pitch"``.
+GREYBOX_PREFIX = "greybox:"
+
+
 def _candidate_structures(
     structures: Any, orders: Any, nk: Any, n_inputs: int
 ) -> list[PolynomialStructure]:
@@ -664,14 +668,22 @@ def _candidate_structures(
     if not structures:
         raise ConfigError(f"structures is empty; give names from {tuple(STRUCTURES)}")
     from .arx import ARXStructure
+    from .greybox import GreyBoxModel
 
     names: list[str] = []
     fixed: list[PolynomialStructure] = []
+    greybox: list[GreyBoxModel] = []
     for s in structures:
         if isinstance(s, PolynomialStructure):
             fixed.append(s)
         elif isinstance(s, ARXStructure):
             fixed.append(PolynomialStructure.arx(s.na, s.nb, s.nk))
+        elif isinstance(s, GreyBoxModel):
+            greybox.append(s)
+        elif isinstance(s, str) and s.lower().startswith(GREYBOX_PREFIX):
+            from .greybox_models import greybox_model
+
+            greybox.append(greybox_model(s[len(GREYBOX_PREFIX):]))
         else:
             key = _check_name(s)
             if key not in names:
@@ -700,7 +712,7 @@ def _candidate_structures(
             )
         if s not in out:
             out.append(s)
-    return out
+    return out + greybox  # a grey-box model reads its channels by name
 
 
 def _entry_text(entry: Mapping[str, Any]) -> str:
@@ -880,11 +892,16 @@ def select(
     data : IOData, (u, y) tuple or path
         Single-output record (``u`` shape (N,) or (N, n_u), ``y`` shape (N,)); a path is read
         with :func:`flexid.data.load`.
-    structures : str, PolynomialStructure or sequence of them, optional
+    structures : str, PolynomialStructure, GreyBoxModel or sequence of them, optional
         Structure names from :data:`flexid.polynomial.STRUCTURES` (``"arx"``, ``"armax"``,
         ``"oe"``, ``"bj"``; each gets its grid from ``orders``), and/or
         :class:`~flexid.polynomial.PolynomialStructure` objects (each one candidate as it
-        is).  Default ``("arx", "oe")``.
+        is), and/or grey-box models (:class:`~flexid.greybox.GreyBoxModel` objects or
+        ``"greybox:NAME"`` with a name of :func:`flexid.greybox_models.greybox_model`): each
+        one candidate, fitted by :func:`flexid.greybox_fit.greyest` (``starts`` random
+        starts), its loss the simulation error (its only predictor) and its ``d`` the
+        estimated parameters, validated by running on from the record's start.  Default
+        ``("arx", "oe")``.
     orders : list of dict or mapping, optional
         The grid.  None: :data:`DEFAULT_GRIDS`.  A list of dicts of orders
         (``[{"nb": 16, "nf": 16}, ...]``) applies to every named structure; a mapping
@@ -948,6 +965,7 @@ def select(
     t_begin = time.perf_counter()
     from ._identify import prepare_data
     from .estimation import check_excitation
+    from .greybox_fit import greyest
     from .prediction_error import pem
     from .validation import validate
 
@@ -960,8 +978,9 @@ def select(
     if split is not None and validation is not None:
         raise ConfigError("give split or validation, not both (with validation, all of data "
                           "is for estimation)")
+    record = _as_record(data, "data")
     est, val = prepare_data(
-        _as_record(data, "data"),
+        record,
         split=split,
         validation=None if validation is None else _as_record(validation, "validation"),
     )
@@ -1001,6 +1020,14 @@ def select(
             if i in fitted:
                 model, sse, fit_time = fitted[i]
                 local = True  # least squares: the global minimum
+            elif s.kind == "greybox":
+                t0 = time.perf_counter()
+                try:
+                    res = greyest(est, s, starts=starts, seed=seed)
+                    model, sse, local = res.model, res.sse, res.local_minimum
+                except FlexidError as exc:
+                    model, sse, local = exc, math.nan, False
+                fit_time = time.perf_counter() - t0
             else:
                 t0 = time.perf_counter()
                 try:
@@ -1020,10 +1047,18 @@ def select(
             if isinstance(model, FlexidError):
                 c.error = str(model)
             else:
-                c.model, c.sse, c.stable = model, float(sse), bool(model.is_stable)
+                c.model, c.sse = model, float(sse)
                 t0 = time.perf_counter()
                 try:
-                    rep = validate(model, val, max_lag=max_lag, initial=initial)
+                    if s.kind != "greybox":
+                        c.stable = bool(model.is_stable)
+                        rep = validate(model, val, max_lag=max_lag, initial=initial)
+                    elif validation is None:  # run on from the record's start
+                        rep = validate(model, record, max_lag=max_lag, split=est.n_samples)
+                    else:
+                        rep = validate(model, val, max_lag=max_lag)
+                    if s.kind == "greybox":  # its linearisation, and a finite simulation
+                        c.stable = bool(rep.stability.stable and not rep.simulation_diverged)
                 except FlexidError as exc:
                     c.error = f"validation failed: {exc}"
                 else:
