@@ -59,7 +59,7 @@ def test_generate_writes_byte_identical_files(tmp_path, capsys):
     for path in (a, b):
         status, _, err = _run(
             ["generate", "manipulator", "--signal", "prbs", "--samples", "300", "--seed", "4",
-             "--output", str(path)],
+             "--out", str(path)],
             capsys,
         )
         assert status == 0, err
@@ -83,7 +83,7 @@ def test_compare_small_builtin_and_report(tmp_path, capsys):
     assert status == 0, err
     assert out2.split("\n")[:8] == out.split("\n")[:8]
     status, out, err = _run(
-        ["report", str(store), "--output", str(tmp_path / "rep"), "--no-figures"], capsys
+        ["report", str(store), "--out", str(tmp_path / "rep"), "--no-figures"], capsys
     )
     assert status == 0, err
     assert (tmp_path / "rep" / "report.md").exists()
@@ -100,8 +100,8 @@ BAD = [
     (["compare", "--plant", "moon-lander"], "moon-lander"),
     (["compare", "{badconfig}"], "colour"),
     (["compare", "{missing}"], "missing"),
-    (["generate", "manipulator", "--signal", "jazz", "--output", "{out}"], "jazz"),
-    (["generate", "manipulator", "--samples", "-5", "--output", "{out}"], "samples"),
+    (["generate", "manipulator", "--signal", "jazz", "--out", "{out}"], "jazz"),
+    (["generate", "manipulator", "--samples", "-5", "--out", "{out}"], "samples"),
     (["report", "{missing}"], "missing"),
     (["identify"], "required"),
 ]

@@ -148,9 +148,9 @@ def test_generate_checks_the_output_before_simulating(name, tmp_path, monkeypatc
         raise AssertionError("the plant was simulated before the output path was checked")
 
     monkeypatch.setattr(flexid.datasets, "generate", spy)
-    status, _, err = _run(["generate", "manipulator", "--samples", "10", "--output", name], capsys)
+    status, _, err = _run(["generate", "manipulator", "--samples", "10", "--out", name], capsys)
     line = _one_line_error(status, err)
-    assert "--output" in line and name in line, line
+    assert "--out" in line and name in line, line
     assert calls == []
     assert _files(tmp_path) == ({"folder.csv"} if name == "folder.csv" else set())
 

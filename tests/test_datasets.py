@@ -122,6 +122,7 @@ def test_sensors_reach_generate_from_a_comparison_spec_and_the_cli(tmp_path):
     np.testing.assert_array_equal(build_data(spec).y, want.y)
     assert "ideal sensors" in spec.data.describe()
     out = tmp_path / "d.npz"
+    # --output: the former spelling of --out, still read
     argv = ["generate", "twin-rotor", "--preset", "paper-twin-rotor", "--samples", "300",
             "--seed", "2", "--noise", "1%", "--sensors", "ideal", "--output", str(out)]
     assert main(argv) == 0

@@ -65,7 +65,7 @@ class _Formatter(argparse.RawDescriptionHelpFormatter):
 _SUBCOMMANDS = {
     "generate": (
         "Simulate a plant (its Gymnasium environment) and write the record with its metadata.",
-        "flexid generate manipulator --preset paper-manipulator --seed 0 --output man.csv",
+        "flexid generate manipulator --preset paper-manipulator --seed 0 -o man.csv",
     ),
     "identify": (
         "Identify a polynomial model (ARX, ARMAX, OE, BJ) or a grey-box model's physical "
@@ -191,11 +191,13 @@ def _bounds(text: str) -> Any:
 def _cmd_generate(args: argparse.Namespace) -> int:
     from .datasets import generate
 
-    path = Path(args.output)  # checked before the (possibly long) simulation
+    if args.out is None:
+        raise ConfigError("give the file to write: -o/--out FILE (.csv or .npz)")
+    path = Path(args.out)  # checked before the (possibly long) simulation
     if path.suffix.lower() not in (".csv", ".npz"):
-        raise ConfigError(f"--output must end in .csv or .npz, got {args.output!r}")
+        raise ConfigError(f"--out must end in .csv or .npz, got {args.out!r}")
     if path.is_dir():
-        raise ConfigError(f"--output {args.output!r} is a folder; give a .csv or .npz file name")
+        raise ConfigError(f"--out {args.out!r} is a folder; give a .csv or .npz file name")
     options: dict[str, Any] = {"seed": args.seed}
     if args.preset:
         options["preset"] = args.preset
@@ -293,12 +295,41 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _with_params(spec: Any, items: Sequence[str]) -> Any:
+    """``spec`` with ``--param [OPTIMISER.]NAME=VALUE`` set on its optimisers."""
+    from dataclasses import replace
+
+    by_label = {o.display: o for o in spec.optimisers}
+    changes: dict[str, dict[str, Any]] = {}
+    for key, value in _key_values(items, "--param").items():
+        label, dot, name = key.rpartition(".")
+        if not dot:
+            if len(by_label) != 1:
+                raise ConfigError(
+                    f"--param {key}=... is ambiguous with {len(by_label)} optimisers: write "
+                    f"OPTIMISER.{key}=VALUE (one of {', '.join(by_label)})"
+                )
+            label = next(iter(by_label))
+        elif label not in by_label:
+            raise ConfigError(
+                f"--param {key}: {label!r} is not an optimiser of this comparison "
+                f"({', '.join(by_label)})"
+            )
+        changes.setdefault(label, {})[name] = value
+    optimisers = tuple(
+        replace(o, params={**o.params, **changes[o.display]}) if o.display in changes else o
+        for o in spec.optimisers
+    )
+    return replace(spec, optimisers=optimisers)
+
+
 def _identify_progress(args: argparse.Namespace):
     if args.json or args.no_progress or args.optimiser in REFERENCES or not sys.stderr.isatty():
         return None
     from .progress import ProgressBar
 
-    bar = ProgressBar(args.budget, f"{args.optimiser}")
+    # a bar on a terminal only (checked above), and only for runs longer than a second
+    bar = ProgressBar(args.budget, f"{args.optimiser}", unit="FE", delay=1.0)
     state = {"fe": 0}
 
     def callback(info) -> None:
@@ -408,6 +439,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 search=SearchSpec(**_search_overrides(args)),
             )
         ]
+    if args.param:
+        specs = [_with_params(spec, args.param) for spec in specs]
     if len(specs) > 1:  # compare() checks its own spec before it opens the store; check the
         for spec in specs:  # others too before the first comparison writes anything
             check_spec(spec)
@@ -584,7 +617,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from .report import write_report
 
     outdir = (
-        Path(args.output) if args.output else Path(args.store).with_suffix("").parent / "report"
+        Path(args.out) if args.out else Path(args.store).with_suffix("").parent / "report"
     )
     if args.format in ("ioh", "ioh-info"):
         from .report import export_ioh
@@ -754,7 +787,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--param", action="append", metavar="NAME=VALUE", help="plant parameter (repeatable)"
     )
-    g.add_argument("--output", "-o", required=True, help="output file, .csv or .npz")
+    g.add_argument("--out", "-o", help="the file to write, .csv or .npz (required)")
+    # the former spelling, easily confused with --outputs (channels): still read
+    g.add_argument("--output", dest="out", help=argparse.SUPPRESS)
     g.set_defaults(func=_cmd_generate)
 
     i = sub.add_parser("identify", help="identify a polynomial model (ARX, ARMAX, OE, BJ)")
@@ -820,6 +855,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="seed of the simulated record (input signal, sensor noise) of the built-in "
         "comparison (--plant; default 0)",
     )
+    c.add_argument(
+        "--param", action="append", metavar="[OPTIMISER.]NAME=VALUE",
+        help="an optimiser's hyper-parameter (flexid list optimisers --long), e.g. de.F=0.7; "
+        "the optimiser's name may be left out when there is one; repeatable",
+    )
     _structure_options(
         c,
         "built-in comparison; default: the plant's own model, arx when only orders are given",
@@ -876,7 +916,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("report", help="write a Markdown/HTML report of a result store")
     r.add_argument("store", help="SQLite result store")
-    r.add_argument("--output", "-o", help="report folder (default: report/ next to the store)")
+    r.add_argument("--out", "-o", help="report folder (default: report/ next to the store)")
+    r.add_argument("--output", dest="out", help=argparse.SUPPRESS)  # the former spelling
     r.add_argument(
         "--format",
         default="md",
