@@ -180,3 +180,21 @@ def test_every_subcommand_help_says_what_it_does_with_an_example_and_defaults(ca
     out = " ".join(capsys.readouterr().out.split())
     assert "--budget BUDGET function evaluations (default 20000)" in out
     assert "--max-lag MAX_LAG lags of the correlation tests (default 25)" in out
+
+
+def test_compare_param_sets_an_optimisers_hyper_parameter(tmp_path, capsys):
+    store = str(tmp_path / "s.sqlite")
+    argv = ["compare", "--optimisers", "de,pso", "--runs", "1", "--budget", "60", "--store",
+            store, "--no-figures", "--json"]
+    assert main([*argv, "--param", "de.weight=0.7"]) == 0
+    (result,) = json.loads(capsys.readouterr().out)
+    params = {o["name"]: o["params"] for o in result["spec"]["optimisers"]}
+    assert params == {"de": {"weight": 0.7}, "pso": {}}
+    for bad, message in (
+        ("weight=0.7", "ambiguous with 2 optimisers"),
+        ("ga.x=1", "'ga' is not an optimiser of this comparison"),
+        ("de.nope=1", "unknown hyper-parameter(s) 'nope'"),
+    ):
+        assert main([*argv, "--param", bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
