@@ -182,6 +182,28 @@ def test_every_subcommand_help_says_what_it_does_with_an_example_and_defaults(ca
     assert "--max-lag MAX_LAG lags of the correlation tests (default 25)" in out
 
 
+def test_every_option_says_its_default():
+    """Every option that takes a value says what happens without it (a value, or 'none')."""
+    import argparse
+
+    from flexid.cli import _Formatter, build_parser
+
+    formatter = _Formatter("flexid")
+    silent = []
+    for name, parser in build_parser()._subparsers._group_actions[0].choices.items():
+        for action in parser._actions:
+            if (
+                not action.option_strings
+                or action.help == argparse.SUPPRESS
+                or isinstance(action, (argparse._HelpAction, argparse._StoreTrueAction))
+            ):
+                continue
+            text = formatter._get_help_string(action)
+            if "default" not in text and "required" not in text:
+                silent.append(f"{name} {action.option_strings[0]}")
+    assert not silent, silent
+
+
 def test_compare_param_sets_an_optimisers_hyper_parameter(tmp_path, capsys):
     store = str(tmp_path / "s.sqlite")
     argv = ["compare", "--optimisers", "de,pso", "--runs", "1", "--budget", "60", "--store",

@@ -20,7 +20,14 @@ from typing import Any, NoReturn
 
 from . import __version__
 from ._validate import integer
-from .config import LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR, REFERENCES, STRUCTURE_NAMES
+from .config import (
+    DEFAULT_OPTIMISERS,
+    LEAST_SQUARES,
+    OUTPUT_ERROR,
+    PREDICTION_ERROR,
+    REFERENCES,
+    STRUCTURE_NAMES,
+)
 from .errors import ConfigError, FlexidError, FlexidWarning
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
@@ -364,11 +371,14 @@ def _add_search_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--penalty", help="stability penalty in the coefficient space: graded (default) | flat"
     )
-    p.add_argument("--init", help="initial population in the coefficient space: stable | uniform")
+    p.add_argument(
+        "--init",
+        help="initial population in the coefficient space: stable (default) | uniform",
+    )
     p.add_argument(
         "--numerator",
-        help="search (the optimiser searches b too) | fit (b fitted by least squares for each "
-        "candidate denominator)",
+        help="fit (default: b fitted by least squares for each candidate denominator) | "
+        "search (the optimiser searches b too)",
     )
 
 
@@ -726,14 +736,17 @@ def _structure_options(p: argparse.ArgumentParser, default: str, scope: str = ""
     p.add_argument(
         "--greybox", metavar="NAME",
         help="grey-box model of --structure greybox: twin-rotor-pitch, twin-rotor-coupled, "
-        "an installed one (flexid list greybox) or path/to/file.py:NAME",
+        "an installed one (flexid list greybox) or path/to/file.py:NAME (default: none)",
     )
     _parameter_options(p)
-    p.add_argument("--na", type=int, help=f"order of A (arx, armax{tail})")
+    p.add_argument(
+        "--na", type=int,
+        help=f"order of A (arx, armax{tail}; no default for armax; arx: 8 in compare)",
+    )
     p.add_argument("--nb", help=f"B coefficients per input (arx default: na{tail})")
-    p.add_argument("--nc", type=int, help=f"order of C (armax, bj{tail})")
-    p.add_argument("--nd", type=int, help=f"order of D (bj{tail})")
-    p.add_argument("--nf", help=f"order of F per input (oe, bj{tail})")
+    p.add_argument("--nc", type=int, help=f"order of C (armax, bj{tail}; no default)")
+    p.add_argument("--nd", type=int, help=f"order of D (bj{tail}; no default)")
+    p.add_argument("--nf", help=f"order of F per input (oe, bj{tail}; no default)")
     p.add_argument("--nk", help=f"input delay in samples per input (default 1{tail})")
 
 
@@ -741,10 +754,18 @@ def _parameter_options(p: argparse.ArgumentParser) -> None:
     """``--set``, ``--fix`` and ``--free``: a grey-box model's parameters."""
     p.add_argument(
         "--set", action="append", metavar="NAME=VALUE",
-        help="grey-box parameter's value (the start, or its value when fixed); repeatable",
+        help="grey-box parameter's value (the start, or its value when fixed); repeatable "
+        "(default: the model's values)",
     )
-    p.add_argument("--fix", help="grey-box parameters to hold at their values, comma-separated")
-    p.add_argument("--free", help="grey-box parameters to estimate, comma-separated")
+    p.add_argument(
+        "--fix",
+        help="grey-box parameters to hold at their values, comma-separated (default: the "
+        "model's)",
+    )
+    p.add_argument(
+        "--free",
+        help="grey-box parameters to estimate, comma-separated (default: the model's)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -766,26 +787,42 @@ def build_parser() -> argparse.ArgumentParser:
 
     g = sub.add_parser("generate", help="write a synthetic dataset from a simulated plant")
     g.add_argument("plant", help="manipulator or twin-rotor")
-    g.add_argument("--preset", help="paper-manipulator or paper-twin-rotor")
+    g.add_argument(
+        "--preset",
+        help="paper-manipulator or paper-twin-rotor (default: none, the plant's own defaults)",
+    )
     g.add_argument(
         "--sensors",
         choices=("lab", "ideal"),
         default="lab",
         help="read the plant through its measurement chain (lab, default) or exactly (ideal)",
     )
-    g.add_argument("--signal", help="excitation signal (flexid list signals)")
-    g.add_argument("--samples", type=int, help="number of samples")
+    g.add_argument(
+        "--signal",
+        help="excitation signal (flexid list signals; default: the preset's, else the plant's)",
+    )
+    g.add_argument(
+        "--samples", type=int,
+        help="number of samples (default: the preset's, else the plant's)",
+    )
     g.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-    g.add_argument("--dt", type=float, help="sample time in seconds")
-    g.add_argument("--outputs", help="output channels to keep, comma-separated")
+    g.add_argument("--dt", type=float, help="sample time in seconds (default: the plant's)")
     g.add_argument(
-        "--noise", help="measurement noise std per output, or e.g. 1%% of each output's std"
+        "--outputs",
+        help="output channels to keep, comma-separated (default: all the plant's)",
     )
     g.add_argument(
-        "--signal-option", action="append", metavar="NAME=VALUE", help="signal option (repeatable)"
+        "--noise",
+        help="measurement noise std per output, or e.g. 1%% of each output's std (default: "
+        "the preset's, else none beyond the sensors')"
     )
     g.add_argument(
-        "--param", action="append", metavar="NAME=VALUE", help="plant parameter (repeatable)"
+        "--signal-option", action="append", metavar="NAME=VALUE",
+        help="signal option (repeatable; default: the signal's own)",
+    )
+    g.add_argument(
+        "--param", action="append", metavar="NAME=VALUE",
+        help="plant parameter (repeatable; default: the plant's values)",
     )
     g.add_argument("--out", "-o", help="the file to write, .csv or .npz (required)")
     # the former spelling, easily confused with --outputs (channels): still read
@@ -812,7 +849,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="initial state in the validation: estimate (default) | zero | measured",
     )
     i.add_argument(
-        "--param", action="append", metavar="NAME=VALUE", help="optimiser hyper-parameter"
+        "--param", action="append", metavar="NAME=VALUE",
+        help="optimiser hyper-parameter (repeatable; default: the optimiser's, flexid list "
+        "optimisers --long)",
     )
     i.add_argument("--cost", help="paper (default) | rmse | nrmse | sse | mse")
     i.add_argument("--predictor", help="one-step (default) | simulation")
@@ -821,30 +860,65 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument(
         "--budget", type=int, default=20_000, help="function evaluations (default 20000)"
     )
-    i.add_argument("--iterations", type=int, help="also stop after this many iterations")
+    i.add_argument(
+        "--iterations", type=int,
+        help="also stop after this many iterations (default: no limit)",
+    )
     i.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     i.add_argument("--split", type=float, help="estimation share (default 2/3) or sample index")
-    i.add_argument("--inputs", help="input columns or .mat variables (names or 0-based indices)")
-    i.add_argument("--outputs", help="output columns or .mat variables (names or 0-based indices)")
+    i.add_argument(
+        "--inputs",
+        help="input columns or .mat variables (names or 0-based indices; default: a flexid "
+        "file's own, else columns u, u1, ...)",
+    )
+    i.add_argument(
+        "--outputs",
+        help="output columns or .mat variables (names or 0-based indices; default: a flexid "
+        "file's own, else columns y, y1, ...)",
+    )
     i.add_argument(
         "--variable",
-        help=".mat file: the structure to read, or the matrix whose columns indices name",
+        help=".mat file: the structure to read, or the matrix whose columns indices name "
+        "(default: the only one)",
     )
-    i.add_argument("--output", help="which output to model when there are several")
-    i.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
+    i.add_argument(
+        "--output",
+        help="which output to model when there are several (default: the only one)",
+    )
+    i.add_argument(
+        "--dt", type=float,
+        help="sample time in seconds if the file lacks it (default: from a time column, else 1 "
+        "s, said in the output)",
+    )
     i.add_argument("--detrend", action="store_true", help="remove the estimation means")
     i.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
-    i.add_argument("--figures", help="write the paper's figures (PNG) to this folder")
+    i.add_argument(
+        "--figures",
+        help="write the paper's figures (PNG) to this folder (default: none)",
+    )
     i.add_argument("--json", action="store_true", help="print a machine-readable result")
     i.add_argument("--no-progress", action="store_true", help="no progress bar")
     i.set_defaults(func=_cmd_identify)
 
     c = sub.add_parser("compare", help="compare optimisers on identical problems")
     c.add_argument("config", nargs="?", help="comparison configuration (.toml)")
-    c.add_argument("--plant", help="manipulator or twin-rotor (built-in comparison)")
-    c.add_argument("--optimisers", help="comma-separated optimiser names")
-    c.add_argument("--runs", type=int, help="runs (seeds) per optimiser")
-    c.add_argument("--budget", type=int, help="function evaluations per run")
+    c.add_argument(
+        "--plant",
+        help="manipulator or twin-rotor (built-in comparison; default manipulator)",
+    )
+    c.add_argument(
+        "--optimisers",
+        help=f"comma-separated optimiser names (default {','.join(DEFAULT_OPTIMISERS)}, or "
+        "the config's)",
+    )
+    c.add_argument(
+        "--runs", type=int,
+        help="runs (seeds) per optimiser (default 5, or the config's)",
+    )
+    c.add_argument(
+        "--budget", type=int,
+        help="function evaluations per run (default 10000, or the config's)",
+    )
     c.add_argument(
         "--seed", type=int,
         help="seed of the runs: their initial populations and random draws (default 0, or "
@@ -857,7 +931,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     c.add_argument(
         "--param", action="append", metavar="[OPTIMISER.]NAME=VALUE",
-        help="an optimiser's hyper-parameter (flexid list optimisers --long), e.g. de.F=0.7; "
+        help="an optimiser's hyper-parameter (default: the optimiser's, flexid list optimisers "
+        "--long), e.g. de.weight=0.7; "
         "the optimiser's name may be left out when there is one; repeatable",
     )
     _structure_options(
@@ -877,7 +952,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="end a run that takes longer and record it as failed; the comparison goes on "
         "(default: [compare] run_timeout of the CONFIG, else no limit)",
     )
-    c.add_argument("--scheduler", help="dask.distributed scheduler address")
+    c.add_argument(
+        "--scheduler",
+        help="dask.distributed scheduler address (default: none, local processes)",
+    )
     c.add_argument("--figures", help="folder for the figures (default: next to the store)")
     c.add_argument("--no-figures", action="store_true", help="do not draw figures")
     c.add_argument("--retry-failed", action="store_true", help="run failed runs again")
@@ -889,8 +967,14 @@ def build_parser() -> argparse.ArgumentParser:
         "select", help="choose a structure and its orders (AIC, FPE, MDL, held-out tests)"
     )
     se.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
-    se.add_argument("--plant", help="select on a simulated record of this plant instead")
-    se.add_argument("--data-seed", type=int, default=0, help="seed of the simulated record")
+    se.add_argument(
+        "--plant",
+        help="select on a simulated record of this plant instead (default: none, the FILE)",
+    )
+    se.add_argument(
+        "--data-seed", type=int, default=0,
+        help="seed of the simulated record (default 0)",
+    )
     se.add_argument(
         "--structures",
         help=f"comma-separated: {', '.join(STRUCTURE_NAMES)}, greybox:NAME (default arx,oe)",
@@ -899,17 +983,33 @@ def build_parser() -> argparse.ArgumentParser:
         "--orders",
         action="append",
         metavar="NAME=V1,V2,..",
-        help="a grid of one order (repeatable: a product grid), e.g. nb=8,16 nf=8,16",
+        help="a grid of one order (repeatable: a product grid), e.g. nb=8,16 nf=8,16 (default: "
+        "each structure's default grid)",
     )
     se.add_argument("--nk", help="input delay in samples (default 1)")
     se.add_argument("--criterion", default="simulation", help="simulation | aic | fpe | mdl")
     se.add_argument("--initial", default="estimate", help="estimate | zero | measured")
-    se.add_argument("--inputs", help="input columns (names or 0-based indices)")
-    se.add_argument("--outputs", help="output columns (names or 0-based indices)")
-    se.add_argument("--output", help="which output to model when there are several")
-    se.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
+    se.add_argument(
+        "--inputs",
+        help="input columns (names or 0-based indices; default: a flexid file's own, else u, u1,"
+        " ...)",
+    )
+    se.add_argument(
+        "--outputs",
+        help="output columns (names or 0-based indices; default: a flexid file's own, else y, "
+        "y1, ...)",
+    )
+    se.add_argument(
+        "--output",
+        help="which output to model when there are several (default: the only one)",
+    )
+    se.add_argument(
+        "--dt", type=float,
+        help="sample time in seconds if the file lacks it (default: from a time column, else 1 "
+        "s, said in the output)",
+    )
     se.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
-    se.add_argument("--figure", help="write the selection figure (PNG) here")
+    se.add_argument("--figure", help="write the selection figure (PNG) here (default: none)")
     se.add_argument("--json", action="store_true", help="print a machine-readable result")
     se.add_argument("--no-progress", action="store_true", help="no progress bar")
     se.set_defaults(func=_cmd_select)
@@ -924,7 +1024,10 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["md", "html", "ioh", "ioh-info"],
         help="md, html, or the runs for IOHanalyzer: ioh (JSON meta-data), ioh-info (.info)",
     )
-    r.add_argument("--key", help="only the comparison with this key (prefix)")
+    r.add_argument(
+        "--key",
+        help="only the comparison with this key (prefix; default: every comparison in the store)",
+    )
     r.add_argument("--no-figures", action="store_true", help="tables only")
     r.set_defaults(func=_cmd_report)
 
@@ -932,8 +1035,15 @@ def build_parser() -> argparse.ArgumentParser:
         "greybox", help="fit a grey-box model (a plant's own physics) and validate it"
     )
     gb.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
-    gb.add_argument("--plant", help="fit a simulated record of this plant (twin-rotor) instead")
-    gb.add_argument("--data-seed", type=int, default=0, help="seed of the simulated record")
+    gb.add_argument(
+        "--plant",
+        help="fit a simulated record of this plant (twin-rotor) instead (default: none, the "
+        "FILE)",
+    )
+    gb.add_argument(
+        "--data-seed", type=int, default=0,
+        help="seed of the simulated record (default 0)",
+    )
     gb.add_argument(
         "--model", default="twin-rotor-pitch",
         help="built-in grey-box model: twin-rotor-pitch (default) | twin-rotor-coupled",
@@ -950,7 +1060,11 @@ def build_parser() -> argparse.ArgumentParser:
     gb.add_argument("--json", action="store_true", help="machine-readable result")
     gb.add_argument("--no-progress", action="store_true", help="no progress bar")
     gb.add_argument("--split", type=_value, help="estimation share (default 2/3) or split index")
-    gb.add_argument("--dt", type=float, help="sample time in seconds if the file lacks it")
+    gb.add_argument(
+        "--dt", type=float,
+        help="sample time in seconds if the file lacks it (default: from a time column, else 1 "
+        "s, said in the output)",
+    )
     gb.set_defaults(func=_cmd_greybox)
 
     li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
