@@ -107,6 +107,10 @@ def test_failing_optimiser_is_recorded_and_others_go_on(tmp_path, boom):
     assert "RuntimeError: deliberate failure" in result.records[boom][0]["error"]
     assert all(r["status"] == "ok" for r in result.records["sda"])
     assert "failed" in result.summary()
+    # an optimiser without two finished runs is not ranked, nor said to be worse
+    assert "Lowest median cost: sda (of the optimisers with two or more finished runs; not " \
+        f"tested: {boom})." in result.summary()
+    assert "significantly worse" not in result.summary()
     # a rerun does not repeat failed runs unless asked to
     seen = []
     compare(spec, store=tmp_path / "r.sqlite", progress=lambda rec: seen.append(rec))

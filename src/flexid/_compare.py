@@ -919,20 +919,22 @@ class ComparisonResult:
         tests = [(k, v["test"]) for k, v in self.stats.items() if "test" in v]
         best = [k for k, t in tests if t["best"]]
         if best:
-            same = [
-                k
-                for k, t in tests
-                if not t["best"] and not t["significant"] and not math.isnan(t["p_holm"])
-            ]
-            lines.append("")
-            lines.append(
-                f"Lowest median cost: {best[0]}. "
-                + (
-                    f"Not significantly different (rank-sum, Holm, 5 %): {', '.join(same)}."
-                    if same
-                    else "Every other optimiser is significantly worse (rank-sum, Holm, 5 %)."
+            tested = [(k, t) for k, t in tests if not t["best"] and not math.isnan(t["p_holm"])]
+            untested = [k for k, t in tests if not t["best"] and math.isnan(t["p_holm"])]
+            same = [k for k, t in tested if not t["significant"]]
+            text = f"Lowest median cost: {best[0]}"
+            if untested:
+                text += (
+                    " (of the optimisers with two or more finished runs; not tested: "
+                    f"{', '.join(untested)})"
                 )
-            )
+            text += ". "
+            if same:
+                text += f"Not significantly different (rank-sum, Holm, 5 %): {', '.join(same)}."
+            elif tested:
+                text += "Every other tested optimiser is significantly worse (rank-sum, Holm, 5 %)."
+            lines.append("")
+            lines.append(text.rstrip())
         return lines
 
     def _repr_html_(self) -> str:
