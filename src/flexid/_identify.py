@@ -926,21 +926,10 @@ def identify(
     report_est = validate(model, est, max_lag=max_lag, initial=validate_initial)
     report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
     t_end = time.perf_counter()
-    assumed = bool(est.metadata.get("dt_assumed"))  # no time column, no dt given
-    info = {
-        "description": (
-            f"{est.n_samples} estimation + {val.n_samples} validation samples, dt {est.dt:g} s"
-            f"{' (ASSUMED: the record has no time column; give --dt or dt=)' if assumed else ''}, "
-            f"inputs {list(est.input_names)}, output {est.output_names[0]!r}"
-        ),
-        "n_estimation": est.n_samples,
-        "n_validation": val.n_samples,
-        "dt": est.dt,
-        "inputs": list(est.input_names),
-        "output": est.output_names[0],
-        "output_unit": est.output_units[0],
-        "source": est.metadata.get("source") or est.metadata.get("plant"),
-    }
+    info = data_info(
+        est, val.n_samples, list(est.input_names), [est.output_names[0]],
+        est.output_units[0], est.metadata,
+    )
     return Identification(
         model=model,
         optimiser=optimiser,
@@ -955,14 +944,42 @@ def identify(
         seed=used_seed,
         search={**estimation.to_dict(), "description": estimation.describe()},
         output_error=oe,
-        timings={
-            "setup_s": t_opt - t_start,
-            "optimise_s": t_val - t_opt,
-            "validate_s": t_end - t_val,
-            "total_s": t_end - t_start,
-        },
+        timings=timings(t_start, t_opt, t_val, t_end),
         data_info=info,
     )
+
+
+def timings(t_start: float, t_opt: float, t_val: float, t_end: float) -> dict[str, float]:
+    """Seconds spent setting up, optimising and validating, and in all (an identification's)."""
+    return {
+        "setup_s": t_opt - t_start,
+        "optimise_s": t_val - t_opt,
+        "validate_s": t_end - t_val,
+        "total_s": t_end - t_start,
+    }
+
+
+def data_info(
+    est: IOData, n_validation: int, inputs: list[str], outputs: list[str], unit: str,
+    metadata: Mapping[str, Any],
+) -> dict[str, Any]:
+    """What an identification says of its records (:attr:`Identification.data_info`)."""
+    assumed = bool(metadata.get("dt_assumed"))  # no time column, no dt given
+    named = f"output {outputs[0]!r}" if len(outputs) == 1 else f"outputs {outputs}"
+    return {
+        "description": (
+            f"{est.n_samples} estimation + {n_validation} validation samples, dt {est.dt:g} s"
+            f"{' (ASSUMED: the record has no time column; give --dt or dt=)' if assumed else ''}"
+            f", inputs {inputs}, {named}"
+        ),
+        "n_estimation": est.n_samples,
+        "n_validation": n_validation,
+        "dt": est.dt,
+        "inputs": inputs,
+        "output": outputs[0],
+        "output_unit": unit,
+        "source": metadata.get("source") or metadata.get("plant"),
+    }
 
 
 def _budget(budget: Budget | int | Mapping[str, Any]) -> Budget:

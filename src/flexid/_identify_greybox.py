@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ._identify import Identification, _indent
+from ._identify import Identification, _indent, data_info, timings
 from ._json import jsonable
 from .config import CostSpec, SearchSpec
 from .data import IOData, load
@@ -280,23 +280,11 @@ def identify_greybox(
     t_end = time.perf_counter()
     first = reports[model.outputs[0]]
     n_val = val_record.n_samples - (0 if val_split is None else est.n_samples)
-    assumed = bool(record.metadata.get("dt_assumed"))
-    info = {
-        "description": (
-            f"{est.n_samples} estimation + {n_val} validation samples, dt {est.dt:g} s"
-            f"{' (ASSUMED: the record has no time column; give --dt or dt=)' if assumed else ''}"
-            f", inputs {list(model.inputs)}, outputs {list(model.outputs)}"
-        ),
-        "n_estimation": est.n_samples,
-        "n_validation": n_val,
-        "dt": est.dt,
-        "inputs": list(model.inputs),
-        "output": model.outputs[0],
-        "output_unit": dict(zip(record.output_names, record.output_units)).get(
-            model.outputs[0], ""
-        ),
-        "source": record.metadata.get("source") or record.metadata.get("plant"),
-    }
+    units = dict(zip(record.output_names, record.output_units))
+    info = data_info(
+        est, n_val, list(model.inputs), list(model.outputs), units.get(model.outputs[0], ""),
+        record.metadata,
+    )
     return GreyBoxIdentification(
         model=fitted,
         optimiser=optimiser,
@@ -311,12 +299,7 @@ def identify_greybox(
         seed=seed,
         search={**estimation.to_dict(), "description": estimation.describe()},
         output_error=ref,
-        timings={
-            "setup_s": t_opt - t_start,
-            "optimise_s": t_val - t_opt,
-            "validate_s": t_end - t_val,
-            "total_s": t_end - t_start,
-        },
+        timings=timings(t_start, t_opt, t_val, t_end),
         data_info=info,
         outputs=reports,
     )
