@@ -78,7 +78,7 @@ def _record(model_file: Path, n: int = 240, noise: float = 1e-4) -> flexid.IODat
 def test_a_model_is_found_by_file_and_name(model_file):
     model = greybox_model(f"{model_file}:MODEL")
     assert model.name == "spring" and model.free == ("k", "c")
-    with pytest.raises(ConfigError, match="has no 'NOPE'.*its models: MODEL"):
+    with pytest.raises(ConfigError, match=r"has no 'NOPE'.*its models: MODEL"):
         greybox_model(f"{model_file}:NOPE")
     with pytest.raises(ConfigError, match="is a int, not a GreyBoxModel"):
         greybox_model(f"{model_file}:NOT_A_MODEL")
@@ -109,7 +109,9 @@ def test_register_and_entry_point(model_file, tmp_path, monkeypatch):
     info = site / "spring_pkg-0.1.dist-info"
     info.mkdir(parents=True)
     info.joinpath("METADATA").write_text("Metadata-Version: 2.1\nName: spring-pkg\nVersion: 0.1\n")
-    info.joinpath("entry_points.txt").write_text("[flexid.greybox_models]\nspring = spring_model:MODEL\n")
+    info.joinpath("entry_points.txt").write_text(
+        "[flexid.greybox_models]\nspring = spring_model:MODEL\n"
+    )
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.syspath_prepend(str(model_file.parent))
     assert "spring" in available_greybox_models()
@@ -336,3 +338,11 @@ def test_cli_select_takes_a_greybox_candidate(model_file, tmp_path, capsys, monk
     assert main(["select", "spring.csv", "--structures", f"oe,greybox:{model_file}:MODEL",
                  "--orders", "nb=1", "--orders", "nf=1"]) == 0
     assert "recommended: grey-box spring" in capsys.readouterr().out
+
+
+def test_the_greybox_experiment_config_reads():
+    root = Path(__file__).resolve().parents[1]
+    (spec,) = load_config(root / "experiments" / "twin-rotor-greybox.toml")
+    model = spec.model.greybox_model()
+    assert model.name == "twin-rotor-pitch" and spec.cost.predictor == "simulation"
+    assert spec.data.n_samples == 3000 and spec.runs == 10
