@@ -15,7 +15,7 @@ import textwrap
 import gymnasium
 import pytest
 
-import flexid  # noqa: F401  (registers the environments)
+import flexid  # also registers the environments
 from flexid.envs import MANIPULATOR_ID, TWIN_ROTOR_ID, manipulator, twin_rotor
 from flexid.errors import PlantParameterError, UnknownNameError
 from flexid.plants import PLANTS, get_plant, register_plant
@@ -180,3 +180,38 @@ def test_a_name_is_registered_once_and_unknown_names_raise():
         register_plant(get_plant("manipulator"))
     with pytest.raises(UnknownNameError):
         get_plant("no-such-plant")
+
+
+def test_a_registered_plant_brings_its_presets_and_its_comparison(capsys):
+    """The registry is the only list of plants: a third plant's preset, built-in comparison
+    and command-line help come from its record alone."""
+    import dataclasses
+
+    from flexid.cli import main
+    from flexid.config import default_spec
+    from flexid.datasets import PRESETS
+    from flexid.plants import PLANTS
+
+    man = get_plant("manipulator")
+    copy = dataclasses.replace(
+        man, name="beam-copy", env_id="flexid/BeamCopy-v0", env_entry_point=None,
+        vector_entry_point=None,
+        presets={"short-beam": {**man.presets["paper-manipulator"], "n_samples": 300}},
+        comparison={**man.comparison, "preset": "short-beam"},
+    )
+    register_plant(copy)
+    try:
+        assert PRESETS["short-beam"]["plant"] == "beam-copy"
+        spec = default_spec(plant="beam-copy", runs=1, budget=50, optimisers=["de"])
+        assert spec.data.plant == "beam-copy" and spec.data.preset == "short-beam"
+        assert spec.model == default_spec().model
+        with pytest.raises(SystemExit):
+            main(["compare", "--help"])
+        assert "manipulator | twin-rotor | beam-copy" in " ".join(
+            capsys.readouterr().out.split()
+        )
+        record = flexid.generate("beam-copy", preset="short-beam", seed=0)
+        assert record.n_samples == 300
+    finally:
+        PLANTS.pop("beam-copy")
+    assert "short-beam" not in PRESETS

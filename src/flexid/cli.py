@@ -29,6 +29,7 @@ from .config import (
     STRUCTURE_NAMES,
 )
 from .errors import ConfigError, FlexidError, FlexidWarning
+from .plants import PLANTS, all_presets
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
 
@@ -768,6 +769,11 @@ def _parameter_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _compared() -> list[str]:
+    """The plants with a built-in comparison (``compare --plant``)."""
+    return [name for name, plant in PLANTS.items() if plant.comparison]
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``flexid`` command and its subcommands.
 
@@ -786,10 +792,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     g = sub.add_parser("generate", help="write a synthetic dataset from a simulated plant")
-    g.add_argument("plant", help="manipulator or twin-rotor")
+    g.add_argument("plant", help=f"the plant: {' | '.join(PLANTS)}")
     g.add_argument(
         "--preset",
-        help="paper-manipulator or paper-twin-rotor (default: none, the plant's own defaults)",
+        help=f"a preset record: {' | '.join(all_presets())} (default: none, the plant's own "
+        "defaults)",
     )
     g.add_argument(
         "--sensors",
@@ -904,7 +911,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("config", nargs="?", help="comparison configuration (.toml)")
     c.add_argument(
         "--plant",
-        help="manipulator or twin-rotor (built-in comparison; default manipulator)",
+        help=f"the built-in comparison of a plant: {' | '.join(_compared())} (default "
+        "manipulator)",
     )
     c.add_argument(
         "--optimisers",

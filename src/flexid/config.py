@@ -902,16 +902,6 @@ def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
     return out
 
 
-#: The built-in comparisons: plant -> (preset, ARX order, default model).  The manipulator's
-#: default is output error OE(16,16,1), which passes every validation test on its lab record
-#: where no ARX order does; no linear structure passes on the twin rotor (gravity and Coulomb
-#: friction), so it keeps the paper's ARX(5,5,1).
-_BUILT_IN = {
-    "manipulator": ("paper-manipulator", 8, ModelSpec(structure="oe", nb=16, nf=16, nk=1)),
-    "twin-rotor": ("paper-twin-rotor", 5, ModelSpec(na=5, nb=5, nk=1)),
-}
-
-
 def default_spec(
     *,
     plant: str = "manipulator",
@@ -936,7 +926,9 @@ def default_spec(
 
     Parameters
     ----------
-    plant : {"manipulator", "twin-rotor"}
+    plant : str
+        A registered plant with a built-in comparison
+        (:attr:`flexid.plants.Plant.comparison`: its record and default model):
         ``"manipulator"`` (the end-point acceleration, paper preset; by default output error
         OE(16,16,1), the structure that passes validation there) or ``"twin-rotor"`` (the
         pitch, vertical channel, paper preset; by default the paper's ARX(5,5,1)).
@@ -987,12 +979,19 @@ def default_spec(
     ------
     UnknownNameError
         For an unknown ``plant``.
+    ConfigError
+        For a plant without a built-in comparison.
     """
-    from .errors import UnknownNameError
+    from .plants import get_plant
 
-    if plant not in _BUILT_IN:
-        raise UnknownNameError("plant", plant, _BUILT_IN)
-    preset, order, model = _BUILT_IN[plant]
+    built_in = get_plant(plant).comparison  # UnknownNameError for an unknown plant
+    if not built_in:
+        raise ConfigError(
+            f"plant {plant!r} has no built-in comparison (its record's 'comparison' is "
+            "empty): describe one in a configuration file"
+        )
+    preset, order = built_in["preset"], built_in["arx_order"]
+    model = ModelSpec(**built_in["model"])
     orders = {"na": na, "nb": nb, "nc": nc, "nd": nd, "nf": nf}
     data = DataSpec(plant=plant, preset=preset, seed=data_seed)
     if greybox is not None and structure in (None, GREYBOX):

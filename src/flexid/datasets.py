@@ -33,37 +33,30 @@ from ._json import jsonable
 from ._validate import integer, positive_real
 from .data import IOData
 from .errors import DataError, UnknownNameError
-from .plants import PLANTS, get_plant
+from .plants import PLANTS, all_presets, get_plant
 from .signals import SIGNALS, make_signal
 
 __all__ = ["PLANTS", "PRESETS", "generate"]
 
-PRESETS: dict[str, dict[str, Any]] = {
-    "paper-manipulator": {
-        "plant": "manipulator",
-        "description": "Nasir & Tokhi 4.1: 2,300 samples at 1 ms, random +-0.3 N m torque, "
-        "end-point acceleration",
-        "signal": "uniform",
-        "signal_options": {"low": -0.3, "high": 0.3},
-        "n_samples": 2300,
-        "dt": 1e-3,
-        "outputs": ["tip_acceleration"],
-        "noise_std": "1%",
-    },
-    "paper-twin-rotor": {
-        "plant": "twin-rotor",
-        "description": "Nasir & Tokhi 4.1: vertical channel, 8,000 samples at 0.1 s, random +-1 V "
-        "held 0.1 s on the main rotor, pitch",
-        "signal": "uniform",
-        "signal_options": {"low": -1.0, "high": 1.0},
-        "n_samples": 8000,
-        "dt": 0.1,
-        "outputs": ["pitch"],
-        "inputs": ["main_rotor"],
-        "plant_params": {"lock_yaw": True},
-        "noise_std": 0.0,
-    },
-}
+class _Presets(Mapping):
+    """Every registered plant's presets by name, each with its ``plant`` (read live, so a
+    plant registered later adds its own)."""
+
+    def __getitem__(self, name: str) -> dict[str, Any]:
+        return all_presets()[name]
+
+    def __iter__(self):
+        return iter(all_presets())
+
+    def __len__(self) -> int:
+        return len(all_presets())
+
+    def __repr__(self) -> str:
+        return f"PRESETS({list(self)})"
+
+
+#: The presets of every plant (:attr:`flexid.plants.Plant.presets`), by name.
+PRESETS: Mapping[str, dict[str, Any]] = _Presets()
 
 
 def _indices(plant: str, kind: str, names: list[str], wanted: list[str]) -> list[int]:

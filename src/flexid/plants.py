@@ -24,7 +24,7 @@ import numpy as np
 
 from .errors import PlantParameterError, UnknownNameError
 
-__all__ = ["PLANTS", "Plant", "get_plant", "register_plant"]
+__all__ = ["PLANTS", "Plant", "all_presets", "get_plant", "register_plant"]
 
 
 @dataclass(frozen=True)
@@ -56,6 +56,15 @@ class Plant:
         vectorization_mode="vector_entry_point")``), if any.
     max_episode_steps : int or None
         Episode length the Gymnasium registration gives the environment.
+    presets : mapping
+        Named records of it (:func:`flexid.datasets.generate`'s ``preset``): each a mapping
+        of ``generate``'s options and a ``description``.
+    comparison : mapping
+        Its built-in comparison (``flexid compare --plant NAME``,
+        :func:`flexid.config.default_spec`): ``preset`` (the record), ``arx_order`` (``na``
+        when only ARX orders are given) and ``model`` (the
+        :class:`~flexid.config.ModelSpec` fields of its default model).  Empty: the plant
+        has none.
     """
 
     name: str
@@ -71,6 +80,8 @@ class Plant:
     env_entry_point: str | None = None
     vector_entry_point: str | None = None
     max_episode_steps: int | None = None
+    presets: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    comparison: Mapping[str, Any] = field(default_factory=dict)
 
     def physics(self) -> Any:
         """The physics module (imported on first use).
@@ -206,6 +217,21 @@ def register_plant(plant: Plant) -> Plant:
     return plant
 
 
+def all_presets() -> dict[str, dict[str, Any]]:
+    """Every registered plant's presets (:attr:`Plant.presets`), each with its ``plant``.
+
+    Returns
+    -------
+    dict
+        ``preset name -> {"plant": plant name, **settings}``.
+    """
+    return {
+        name: {"plant": plant.name, **settings}
+        for plant in PLANTS.values()
+        for name, settings in plant.presets.items()
+    }
+
+
 def get_plant(name: str) -> Plant:
     """The registered plant ``name``.
 
@@ -245,6 +271,25 @@ register_plant(
         env_entry_point="flexid.envs.manipulator:FlexibleManipulatorEnv",
         vector_entry_point="flexid.envs.manipulator:FlexibleManipulatorVectorEnv",
         max_episode_steps=2000,
+        presets={
+            "paper-manipulator": {
+                "description": "Nasir & Tokhi 4.1: 2,300 samples at 1 ms, random +-0.3 N m "
+                "torque, end-point acceleration",
+                "signal": "uniform",
+                "signal_options": {"low": -0.3, "high": 0.3},
+                "n_samples": 2300,
+                "dt": 1e-3,
+                "outputs": ["tip_acceleration"],
+                "noise_std": "1%",
+            },
+        },
+        # output error OE(16,16,1) passes every validation test on the lab record, where no
+        # ARX order does
+        comparison={
+            "preset": "paper-manipulator",
+            "arx_order": 8,
+            "model": {"structure": "oe", "nb": 16, "nf": 16, "nk": 1},
+        },
     )
 )
 register_plant(
@@ -262,5 +307,26 @@ register_plant(
         env_entry_point="flexid.envs.twin_rotor:TwinRotorEnv",
         vector_entry_point="flexid.envs.twin_rotor:TwinRotorVectorEnv",
         max_episode_steps=600,
+        presets={
+            "paper-twin-rotor": {
+                "description": "Nasir & Tokhi 4.1: vertical channel, 8,000 samples at 0.1 s, "
+                "random +-1 V held 0.1 s on the main rotor, pitch",
+                "signal": "uniform",
+                "signal_options": {"low": -1.0, "high": 1.0},
+                "n_samples": 8000,
+                "dt": 0.1,
+                "outputs": ["pitch"],
+                "inputs": ["main_rotor"],
+                "plant_params": {"lock_yaw": True},
+                "noise_std": 0.0,
+            },
+        },
+        # no linear structure passes on the twin rotor (gravity and Coulomb friction): the
+        # paper's ARX(5,5,1); its own physics pass (structure "greybox", twin-rotor-pitch)
+        comparison={
+            "preset": "paper-twin-rotor",
+            "arx_order": 5,
+            "model": {"na": 5, "nb": 5, "nk": 1},
+        },
     )
 )
