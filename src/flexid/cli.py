@@ -29,6 +29,7 @@ from .config import (
     STRUCTURE_NAMES,
 )
 from .errors import ConfigError, FlexidError, FlexidWarning
+from .metrics import METRICS
 from .plants import PLANTS, all_presets
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
@@ -769,6 +770,9 @@ def _parameter_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+_COST_HELP = f"cost metric: {' | '.join(METRICS)} (default {METRICS[0]}; see flexid.metrics)"
+
+
 def _compared() -> list[str]:
     """The plants with a built-in comparison (``compare --plant``)."""
     return [name for name, plant in PLANTS.items() if plant.comparison]
@@ -860,7 +864,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="optimiser hyper-parameter (repeatable; default: the optimiser's, flexid list "
         "optimisers --long)",
     )
-    i.add_argument("--cost", help="paper (default) | rmse | nrmse | sse | mse")
+    i.add_argument("--cost", help=_COST_HELP)
     i.add_argument("--predictor", help="one-step (default) | simulation")
     i.add_argument("--bounds", default="auto", help="auto, a half-width S, or LOW,HIGH")
     _add_search_options(i)
@@ -948,7 +952,7 @@ def build_parser() -> argparse.ArgumentParser:
         "built-in comparison; default: the plant's own model, arx when only orders are given",
         scope="built-in comparison",
     )
-    c.add_argument("--cost", help="paper (default) | rmse | nrmse | sse | mse")
+    c.add_argument("--cost", help=_COST_HELP)
     c.add_argument("--predictor", help="one-step (default) | simulation")
     _add_search_options(c)
     c.add_argument("--store", help=f"SQLite result store (default {DEFAULT_OUT}/results.sqlite)")

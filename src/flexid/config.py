@@ -363,8 +363,9 @@ class CostSpec:
 
     Attributes
     ----------
-    metric : {"paper", "rmse", "nrmse", "sse", "mse"}
-        Error measure; ``"paper"`` (default) is ``weight * sqrt(SSE) / K``.
+    metric : str
+        Error measure, a name of :data:`flexid.metrics.METRIC_TABLE`; ``"paper"`` (default)
+        is ``weight * sqrt(SSE) / K``.
     predictor : {"one-step", "simulation"}
         Equation error (default) or output error.
     weight : float

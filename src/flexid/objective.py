@@ -10,8 +10,8 @@ Two predictors:
   compiled batched recursion of :mod:`flexid.kernels` (or one ``lfilter`` per candidate
   without it; see :func:`simulate_population`); unstable candidates are never simulated.
 
-Metrics: the paper's cost (eq. 5-6, ``w sqrt(SSE) / K`` plus a penalty when a pole has
-``|p| >= 1``), RMSE, NRMSE, SSE and MSE.
+Metrics: those of :data:`flexid.metrics.METRIC_TABLE` (the paper's cost, eq. 5-6,
+``w sqrt(SSE) / K``, plus a penalty when a pole has ``|p| >= 1``; RMSE, NRMSE, SSE, MSE).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from .arx import ARXStructure, _io_arrays
 from .config import CostSpec
 from .errors import DataError, UnknownNameError
 from .kernels import ar_recursion
+from .metrics import METRICS, metric_from_sse
 from .stability import is_stable, pole_radius_batched
 
 __all__ = [
@@ -39,7 +40,6 @@ __all__ = [
     "simulate_population",
 ]
 
-METRICS = ("paper", "rmse", "nrmse", "sse", "mse")
 PREDICTORS = ("one-step", "simulation")
 INITIAL = ("measured", "zero")
 PENALTY_KINDS = ("flat", "graded")
@@ -98,38 +98,6 @@ def population(X: Any, n_params: int) -> np.ndarray:
     if X.ndim != 2 or X.shape[1] != n_params:
         raise DataError(f"the population must have shape (P, {n_params}), got {X.shape}")
     return X
-
-
-def metric_from_sse(
-    metric: str, sse: np.ndarray, k: int, weight: float, std_y: float
-) -> np.ndarray:
-    """A cost metric from sums of squared errors over ``k`` samples (the one definition).
-
-    Parameters
-    ----------
-    metric : {"paper", "rmse", "nrmse", "sse", "mse"}
-    sse : ndarray
-        Sums of squared errors (output units squared).
-    k : int
-        Number of error samples.
-    weight : float
-        ``w`` of the paper's cost.
-    std_y : float
-        Standard deviation of the output over the error samples (``nrmse``).
-
-    Returns
-    -------
-    ndarray
-    """
-    if metric == "paper":
-        return np.sqrt(sse) * (weight / k)
-    if metric == "rmse":
-        return np.sqrt(sse / k)
-    if metric == "nrmse":
-        return np.sqrt(sse / k) / (std_y if std_y > 0 else 1.0)
-    if metric == "mse":
-        return sse / k
-    return sse
 
 
 def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
