@@ -58,8 +58,8 @@ def _plt():
 
 def _axes(ax, **fig_kw):
     plt = _plt()
-    if ax is None:
-        fig, ax = plt.subplots(**fig_kw)
+    if ax is None:  # constrained: a legend outside the axes stays inside the saved figure
+        fig, ax = plt.subplots(layout="constrained", **fig_kw)
         return fig, ax
     return ax.figure, ax
 
@@ -84,9 +84,37 @@ def _style(i: int) -> dict[str, Any]:
     return {"color": _PALETTE[i % len(_PALETTE)], "ls": _STYLES[(i // 2) % len(_STYLES)]}
 
 
+_LOG_FORMATTER: type | None = None
+
+
+def _readable_log_ticks(ax) -> None:
+    """Label the log axes of ``ax`` with decades as ``10^k`` and other ticks as plain numbers.
+
+    matplotlib labels the minor ticks of a log axis that spans a decade or two in scientific
+    form (``2x10^1``, ``8.9x10^1``); an engineer reads ``20`` and ``89`` at a glance.  Which
+    ticks carry a label is matplotlib's choice, unchanged.
+    """
+    global _LOG_FORMATTER
+    if _LOG_FORMATTER is None:
+        from matplotlib.ticker import LogFormatterSciNotation
+
+        class _PlainLogFormatter(LogFormatterSciNotation):
+            def __call__(self, x, pos=None):
+                label = super().__call__(x, pos)
+                return f"{x:.3g}" if "\\times" in label else label
+
+        _LOG_FORMATTER = _PlainLogFormatter
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() == "log":
+            axis.set_major_formatter(_LOG_FORMATTER())
+            axis.set_minor_formatter(_LOG_FORMATTER(labelOnlyBase=False))
+
+
 def _outside_legend(ax) -> None:
-    """The legend right of the axes, so that it never covers data."""
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+    """The legend right of the axes, so that it never covers data (none without entries)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                  frameon=False)
 
 
 # ============================================================================ identification
@@ -133,6 +161,7 @@ def plot_convergence(
     ax.set_xlabel("function evaluations")
     ax.set_ylabel("best cost")
     ax.set_title("Convergence", fontsize=10)
+    _readable_log_ticks(ax)
     ax.grid(True, which="both", alpha=0.3)
     _outside_legend(ax)
     return fig
@@ -169,7 +198,8 @@ def plot_time_response(
     """
     plt = _plt()
     if axes is None:
-        fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.0, 4.8), height_ratios=[2, 1])
+        fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.0, 4.8), height_ratios=[2, 1],
+                                 layout="constrained")
     else:
         fig = axes[0].figure
     y = np.asarray(y, dtype=float)
@@ -183,7 +213,7 @@ def plot_time_response(
     axes[0].plot(t, y, lw=1, label="measured")
     axes[0].plot(t, yhat, lw=1, ls="--", label=label)
     axes[0].set_ylabel(_with_unit(output, unit))
-    axes[0].legend(loc="upper right")
+    _outside_legend(axes[0])
     axes[0].set_title(title)
     axes[1].plot(t, y - yhat, lw=0.8, color="tab:red")
     axes[1].set_ylabel(_with_unit("error", unit))
@@ -290,7 +320,7 @@ def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
     ax.set_xlabel("real")
     ax.set_ylabel("imaginary")
     ax.set_title(title)
-    ax.legend(loc="upper right")
+    _outside_legend(ax)
     return fig
 
 
@@ -490,6 +520,7 @@ def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
         fontsize=10,
     )
     ax.grid(True, which="both", alpha=0.3)
+    _readable_log_ticks(ax)
     _outside_legend(ax)
     return fig
 
@@ -539,6 +570,7 @@ def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
     ax.set_xlabel("function evaluations")
     ax.set_ylabel("fraction of runs at target")
     ax.set_title(f"FE to reach {name} x (1 + {target:g})", fontsize=10)
+    _readable_log_ticks(ax)
     ax.grid(True, which="both", alpha=0.3)
     _outside_legend(ax)
     return fig
@@ -571,10 +603,12 @@ def plot_ecdf(ecdf: dict[str, Any], *, ax=None, title: str = ""):
         if fe.size:
             ax.step(fe, fraction, where="post", label=f"{label} ({curve['runs']} runs)")
     ax.set_xscale("log")
+    ax.set_xlim(left=1)  # the first evaluation
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("function evaluations")
     ax.set_ylabel("fraction of (run, target) pairs reached")
     ax.set_title(title or f"ECDF over {n_targets} targets reference x (1 + d)")
+    _readable_log_ticks(ax)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="lower right")
     return fig
