@@ -121,6 +121,14 @@ sphinx_gallery_conf = {
     "matplotlib_animations": False,
     "doc_module": ("flexid",),
     "reference_url": {"flexid": None},
+    # A block ending in a call that returns a matplotlib object (a Figure, a Line2D, a
+    # Legend) would show that object's repr, "<Figure size 640x400 with 1 Axes>", under the
+    # figure; the figure itself is what the reader wants.
+    "ignore_repr_types": r"matplotlib[.]",
+    # FLEXID_DOCS_RERUN_GALLERY=1 runs every example again even when its script has not
+    # changed (sphinx-gallery skips it by its MD5 otherwise), so that a change in flexid's
+    # plotting code shows in the figures; docs/check_site.py sets it.
+    "run_stale_examples": os.environ.get("FLEXID_DOCS_RERUN_GALLERY") == "1",
     "abort_on_example_error": True,
     "only_warn_on_example_error": False,
     "plot_gallery": "True",
@@ -140,7 +148,9 @@ html_show_sourcelink = False
 # no left sidebar (the top bar holds the navigation): the page's width goes to the text and
 # the code, so examples are not cut off on the right
 html_sidebars = {"**": []}
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+# gallery output (printed summaries and tables) shown whole: wrapped, not cut at 30em
+html_css_files = ["flexid.css"]
 
 
 # ---------------------------------------------------------------------------- numpydoc warnings
@@ -195,6 +205,30 @@ def _drop_foreign_docstring(app, what, name, obj, options, lines):
             return
 
 
+# ---------------------------------------------------------------------------- gallery figures
+def _drop_unbuilt_gallery_figures(app, docname, source):
+    """Leave out a page's figure of a gallery image that was not drawn (``-D plot_gallery=0``).
+
+    The index shows a figure the gallery draws at build time; a quick build that skips the
+    gallery has no such file, and a missing image would fail the build under ``-W``.
+    """
+    lines = source[0].splitlines(keepends=True)
+    out, i = [], 0
+    while i < len(lines):
+        line = lines[i]
+        target = line.partition(".. figure:: ")[2].strip()
+        if line.startswith(".. figure:: auto_examples/images/") and not os.path.exists(
+            os.path.join(app.srcdir, target)
+        ):
+            i += 1
+            while i < len(lines) and (not lines[i].strip() or lines[i].startswith(" ")):
+                i += 1
+            continue
+        out.append(line)
+        i += 1
+    source[0] = "".join(out)
+
+
 # ---------------------------------------------------------------------------- coverage
 def _check_api_index(app):
     """Warn (an error under -W) when a public module is missing from the API reference."""
@@ -212,5 +246,6 @@ def setup(app):
     # before numpydoc's handler (priority 500): the first answer that is not None wins
     app.connect("autodoc-process-signature", _alias_signature, priority=100)
     app.connect("builder-inited", _check_api_index)
+    app.connect("source-read", _drop_unbuilt_gallery_figures)
     # before numpydoc parses the docstring
     app.connect("autodoc-process-docstring", _drop_foreign_docstring, priority=100)

@@ -48,14 +48,15 @@ plot_convergence({"HBCSD": hb.history}, reference=hb.cost_ls)
 # this record: with its measurement chain the plant has more than eight poles in the band
 # that matters (see the README's table of fits).
 val = hb.validation.arrays()
+output, unit = hb.data_info["output"], hb.data_info["output_unit"]  # from the record
 plot_time_response(
-    val["time"], val["y"], val["y_one_step"],
+    val["time"], val["y"], val["y_one_step"], output=output, unit=unit,
     title=f"validation: one-step prediction, fit {hb.validation.fit_one_step:.1f} %",
 )
 
 # %%
 plot_time_response(
-    val["time"], val["y"], val["y_simulation"],
+    val["time"], val["y"], val["y_simulation"], output=output, unit=unit,
     title=f"validation: simulation, fit {hb.validation.fit_simulation:.1f} %",
 )
 
@@ -66,6 +67,7 @@ plot_time_response(
 plot_spectra(
     val["psd_frequency"],
     {"measured": val["psd_measured"], "model (simulation)": val["psd_model"]},
+    unit=unit, title=f"Power spectral density of {output} (validation)",
 )
 
 # %%
@@ -83,3 +85,5 @@ plot_pole_zero(hb.model.poles(), hb.model.zeros(), title="HBCSD, ARX(8, 8, 1)")
 plot_correlations(
     hb.validation.correlation_panels(), title="Residual correlation tests (validation)"
 )
+
+# sphinx_gallery_thumbnail_number = 2

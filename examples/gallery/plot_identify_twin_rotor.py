@@ -38,9 +38,11 @@ plot_convergence({name.upper(): ident.history for name, ident in fits.items()},
 # The free-run simulation of the held-out third of the record.
 best = min(fits.values(), key=lambda ident: ident.cost_value)
 val = best.validation.arrays()
+output, unit = best.data_info["output"], best.data_info["output_unit"]  # from the record
 window = val["time"] < val["time"][0] + 120.0  # two minutes, to see the oscillations
 plot_time_response(
     val["time"][window], val["y"][window], val["y_simulation"][window],
+    output=output, unit=unit,
     title=f"{best.optimiser}: simulation, fit {best.validation.fit_simulation:.1f} %",
 )
 
@@ -53,13 +55,14 @@ f_pitch, zeta = pitch_linear_mode()
 fig = plot_spectra(
     val["psd_frequency"],
     {"measured": val["psd_measured"], "model (simulation)": val["psd_model"]},
+    unit=unit, title=f"Power spectral density of {output} (validation)",
 )
 fig.axes[0].axvline(f_pitch, color="k", ls=":", lw=1)
 
 # %%
 f = np.linspace(0.01, 5.0, 500)  # Hz, up to the Nyquist frequency of 0.1 s sampling
 _, response = best.model.to_dlti().freqresp(w=2 * np.pi * f * data.dt)  # w in rad/sample
-fig, ax = plt.subplots(figsize=(6.4, 4.0))
+fig, ax = plt.subplots(figsize=(6.4, 4.0), layout="constrained")
 ax.loglog(f, np.abs(response))
 ax.axvline(f_pitch, color="k", ls=":", lw=1, label=f"linearised pitch mode {f_pitch:.3f} Hz")
 ax.set_xlabel("frequency [Hz]")
@@ -72,3 +75,5 @@ ax.legend()
 # Pole-zero map
 # -------------
 plot_pole_zero(best.model.poles(), best.model.zeros(), title=f"{best.optimiser}, ARX(5, 5, 1)")
+
+# sphinx_gallery_thumbnail_number = 2

@@ -52,7 +52,7 @@ def magnitude(A, B, C, D):
     ])
 
 
-fig, ax = plt.subplots(figsize=(7.0, 4.2))
+fig, ax = plt.subplots(figsize=(7.0, 4.2), layout="constrained")
 ax.loglog(f, magnitude(*beam.continuous_model(ideal)), label="beam alone")
 ax.loglog(f, magnitude(*beam.measured_model(lab, dt=1e-3)), label="with the lab chain")
 for fk in exact:
@@ -72,7 +72,8 @@ dt = 1e-3
 torque = bang_bang(2000, dt, amplitude=0.3, width=0.3)
 y = beam.simulate(torque, ideal, dt=dt)
 t = np.arange(torque.size) * dt
-fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.0, 6.0))
+fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.0, 6.0),
+                         layout="constrained")
 axes[0].plot(t, torque)
 axes[0].set_ylabel("torque [N m]")
 axes[1].plot(t, y[:, beam.OUTPUT_NAMES.index("hub_angle")])
@@ -95,7 +96,8 @@ trs = flexid.generate("twin-rotor", preset="paper-twin-rotor", seed=0)
 f_pitch, zeta = pitch_linear_mode()
 print(f"linearised pitch mode: {f_pitch:.4f} Hz, damping ratio {zeta:.4f}")
 window = slice(0, 600)  # the first minute
-fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.0, 4.6))
+fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.0, 4.6),
+                         layout="constrained")
 axes[0].step(trs.time[window], trs.u[window, 0], where="post", lw=0.8)
 axes[0].set_ylabel("main rotor [V]")
 axes[1].plot(trs.time[window], trs.y[window, 0])

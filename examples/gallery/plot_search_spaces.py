@@ -50,7 +50,10 @@ plot_convergence({label: ident.history for label, ident in runs.items()}, refere
 # %%
 # Where the final models' poles are
 # ---------------------------------
-fig, axes = plt.subplots(1, 3, figsize=(11.0, 4.0))
+fig, axes = plt.subplots(1, 3, figsize=(11.0, 4.0), layout="constrained")
 for ax, (label, ident) in zip(axes, runs.items()):
     plot_pole_zero(ident.model.poles(), ident.model.zeros(), ax=ax, title=label)
-fig.tight_layout()
+for ax in axes[:-1]:  # one legend, right of the last map, says what x and o are
+    ax.get_legend().remove()
+
+# sphinx_gallery_thumbnail_number = 2
