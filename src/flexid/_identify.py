@@ -22,6 +22,7 @@ from ._json import jsonable
 from ._validate import is_integer, positive_real
 from .arx import ARX, ARXStructure
 from .config import (
+    IDENTIFY_BUDGET,
     LEAST_SQUARES,
     OUTPUT_ERROR,
     PREDICTION_ERROR,
@@ -690,7 +691,7 @@ def identify(
     cost: str | CostSpec | None = None,
     predictor: str | None = None,
     bounds: Any = "auto",
-    budget: Budget | int | Mapping[str, Any] = 20_000,
+    budget: Budget | int | Mapping[str, Any] = IDENTIFY_BUDGET,
     seed: int | None = 0,
     split: float | int | None = None,
     validation: IOData | str | os.PathLike | None = None,

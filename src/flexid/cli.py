@@ -21,7 +21,10 @@ from typing import Any, NoReturn
 from . import __version__
 from ._validate import integer
 from .config import (
+    COMPARE_BUDGET,
+    COMPARE_RUNS,
     DEFAULT_OPTIMISERS,
+    IDENTIFY_BUDGET,
     LEAST_SQUARES,
     OUTPUT_ERROR,
     PREDICTION_ERROR,
@@ -429,24 +432,26 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             for s in specs
         ]
     else:
-        budget: Any = args.budget if args.budget is not None else 10_000
+        given = {  # what the command line does not give is default_spec's default
+            "plant": args.plant,
+            "optimisers": _names(args.optimisers),
+            "runs": args.runs,
+            "budget": args.budget,
+            "seed": args.seed,
+            "nk": _int_list(args.nk, "--nk"),
+            "data_seed": args.data_seed,
+        }
         specs = [
             default_spec(
-                plant=args.plant or "manipulator",
-                optimisers=_names(args.optimisers),
-                runs=args.runs if args.runs is not None else 5,
-                budget=budget,
-                seed=args.seed if args.seed is not None else 0,
+                **{k: v for k, v in given.items() if v is not None},
                 na=args.na,
                 nb=_int_list(args.nb, "--nb"),
-                nk=_int_list(args.nk, "--nk") if args.nk is not None else 1,
                 structure=args.structure,
                 nc=args.nc,
                 nd=args.nd,
                 nf=_int_list(args.nf, "--nf"),
                 greybox=_greybox_name(args),
                 parameters=_parameter_changes(args),
-                data_seed=args.data_seed if args.data_seed is not None else 0,
                 cost=CostSpec(**_cost_overrides(args)),
                 search=SearchSpec(**_search_overrides(args)),
             )
@@ -869,7 +874,7 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--bounds", default="auto", help="auto, a half-width S, or LOW,HIGH")
     _add_search_options(i)
     i.add_argument(
-        "--budget", type=int, default=20_000, help="function evaluations (default 20000)"
+        "--budget", type=int, default=IDENTIFY_BUDGET, help="function evaluations"
     )
     i.add_argument(
         "--iterations", type=int,
@@ -925,11 +930,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     c.add_argument(
         "--runs", type=int,
-        help="runs (seeds) per optimiser (default 5, or the config's)",
+        help=f"runs (seeds) per optimiser (default {COMPARE_RUNS}, or the config's)",
     )
     c.add_argument(
         "--budget", type=int,
-        help="function evaluations per run (default 10000, or the config's)",
+        help=f"function evaluations per run (default {COMPARE_BUDGET}, or the config's)",
     )
     c.add_argument(
         "--seed", type=int,
@@ -1065,7 +1070,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="pem (default: Levenberg-Marquardt from several starts, with standard errors) or "
         "a registered optimiser",
     )
-    gb.add_argument("--budget", type=int, default=10_000, help="FE of an optimiser (default 10000)")
+    gb.add_argument(
+        "--budget", type=int, default=IDENTIFY_BUDGET, help="function evaluations of an optimiser"
+    )
     gb.add_argument("--starts", type=int, default=3, help="random starts of pem (default 3)")
     gb.add_argument("--seed", type=int, default=0, help="seed of the starts or the run (default 0)")
     _parameter_options(gb)

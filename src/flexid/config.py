@@ -60,8 +60,11 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 __all__ = [
+    "COMPARE_BUDGET",
+    "COMPARE_RUNS",
     "DEFAULT_OPTIMISERS",
     "GREYBOX",
+    "IDENTIFY_BUDGET",
     "LEAST_SQUARES",
     "OUTPUT_ERROR",
     "PAPER_SEARCH",
@@ -82,6 +85,11 @@ __all__ = [
 ]
 
 DEFAULT_OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de")
+#: Function evaluations of one identification by an optimiser (``identify``, ``greybox``).
+IDENTIFY_BUDGET = 20_000
+#: Function evaluations of each run of a comparison, and its runs per optimiser.
+COMPARE_BUDGET = 10_000
+COMPARE_RUNS = 5
 SCHEDULE = "schedule"
 #: The least-squares reference: an ``optimiser`` name of ``identify`` and the label of the
 #: reference row every comparison includes.
@@ -533,7 +541,7 @@ class ComparisonSpec:
     optimisers: tuple[OptimiserSpec, ...] = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
     runs: int = 10
     seed: int = 0
-    budget: int | str = 10_000
+    budget: int | str = COMPARE_BUDGET
     schedule_cap: int = 2_000_000
     targets: tuple[float, ...] = (0.1, 0.01, 0.001)
     max_lag: int = 25
@@ -802,7 +810,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         optimisers = _optimiser_specs(top["optimisers"], "[[optimisers]]")
     else:
         optimisers = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
-    budgets = _budgets(run.pop("budget", 10_000), "[run]")
+    budgets = _budgets(run.pop("budget", COMPARE_BUDGET), "[run]")
     if "targets" in run:
         if not isinstance(run["targets"], list):
             raise ConfigError("[run] targets must be a list of relative tolerances")
@@ -907,8 +915,8 @@ def default_spec(
     *,
     plant: str = "manipulator",
     optimisers: Sequence[str] | None = None,
-    runs: int = 5,
-    budget: int | str = 10_000,
+    runs: int = COMPARE_RUNS,
+    budget: int | str = COMPARE_BUDGET,
     seed: int = 0,
     na: int | None = None,
     nb: Any = None,
