@@ -477,3 +477,20 @@ def test_framework_modules_depend_one_way():
     for i, module in enumerate(FRAMEWORK):
         imported = _package_imports(folder / f"{module}.py") & set(FRAMEWORK)
         assert imported <= set(FRAMEWORK[:i]), (module, imported)
+
+
+def test_result_status_and_message_say_why_a_run_stopped():
+    """``status`` as scipy.optimize's: 0 done or target, 1 a limit, 2 time, 3 callback, 4
+    no finite cost."""
+    from flexid.optimisers import Budget, Problem, minimize
+
+    sphere = Problem(lambda X: (X**2).sum(axis=1), -np.ones(3), np.ones(3))
+    run = minimize("random-search", sphere, 50, seed=0)
+    assert (run.status, run.stop) == (1, "budget") and "budget reached (50)" in run.message
+    hit = minimize("random-search", sphere, Budget(max_fe=5000, target=0.5), seed=0)
+    assert (hit.status, hit.stop) == (0, "target")
+    stopped = minimize("random-search", sphere, 500, seed=0, callback=lambda info: True)
+    assert (stopped.status, stopped.stop) == (3, "callback")
+    nowhere = Problem(lambda X: np.full(X.shape[0], np.inf), -np.ones(2), np.ones(2))
+    lost = minimize("random-search", nowhere, 40, seed=0)
+    assert lost.status == 4 and not lost.success

@@ -203,12 +203,22 @@ class _Run:
             },
             message=self.stop_message,
             stop=self.stop_reason,
+            status=STATUS.get(self.stop_reason, 0)
+            if math.isfinite(self.best_f)
+            else NO_FINITE_COST,
             success=math.isfinite(self.best_f),
             seed=self.seed,
             optimiser=self.optimiser.name,
             params=self.optimiser.params,
             wall_time=self.elapsed,
         )
+
+
+#: ``status`` of a result by its ``stop`` reason, in scipy.optimize's manner: 0 the optimiser
+#: ended by itself or reached the target, 1 an evaluation or iteration limit, 2 the wall-time
+#: limit, 3 the callback; 4 is a run with no finite cost found, whatever stopped it.
+STATUS = {"converged": 0, "target": 0, "budget": 1, "iterations": 1, "time": 2, "callback": 3}
+NO_FINITE_COST = 4
 
 
 def _clean_costs(F: np.ndarray) -> np.ndarray:
@@ -277,8 +287,11 @@ def minimize(
         every evaluation that lowered the best cost, at its exact FE count, as
         IOHprofiler's on-improvement logger records it), ``message`` and ``stop``
         (``"budget"``, ``"iterations"``, ``"target"``, ``"time"``, ``"callback"`` or
-        ``"converged"`` when the optimiser ended its own schedule), ``success`` (a finite
-        cost was found), ``seed``, ``optimiser``, ``params`` and ``wall_time`` (s).
+        ``"converged"`` when the optimiser ended its own schedule), ``status`` (an int, as
+        scipy's: 0 converged or target reached, 1 an evaluation or iteration limit, 2 the
+        wall-time limit, 3 the callback, 4 no finite cost found),
+        ``success`` (a finite cost was found), ``seed``, ``optimiser``, ``params`` and
+        ``wall_time`` (s).
 
     Raises
     ------
