@@ -62,6 +62,7 @@ from .errors import (
     RegistryError,
     StoreError,
     StoreWarning,
+    UnknownKeywordError,
     UnknownNameError,
     UnknownOptimiserError,
 )
@@ -146,6 +147,7 @@ __all__ = [
     "RegistryError",
     "StoreError",
     "StoreWarning",
+    "UnknownKeywordError",
     "UnknownNameError",
     "UnknownOptimiserError",
     "__version__",

@@ -40,7 +40,7 @@ import numpy as np
 from ._identify import prepare_data, structure_of
 from ._json import jsonable
 from ._table import text_table
-from ._validate import positive_int
+from ._validate import checked_keywords, positive_int
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
 from .data import IOData
 from .errors import ConfigError, ModelOrderError, StoreError
@@ -1027,6 +1027,7 @@ def _checked_context(spec: ComparisonSpec) -> _Context:
     return _Context.from_spec(spec)
 
 
+@checked_keywords
 def check_spec(spec: ComparisonSpec) -> None:
     """Raise if ``spec`` cannot run: unknown optimisers or hyper-parameters, a bad plant,
     data file, orders, cost or bounds.  Nothing is run or written (the record is built, then
@@ -1044,6 +1045,7 @@ def check_spec(spec: ComparisonSpec) -> None:
     _checked_context(spec)
 
 
+@checked_keywords
 def compare(
     spec: ComparisonSpec,
     *,
@@ -1234,6 +1236,7 @@ def _progress(progress: bool | Callable, total: int, name: str) -> Callable[[dic
     return update
 
 
+@checked_keywords
 def load_result(store: str | Path | ResultStore, key: str | None = None) -> list[ComparisonResult]:
     """Comparison results rebuilt from a store (all comparisons, or the one with ``key``).
 

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
-from ._validate import is_integer, positive_real
+from ._validate import checked_keywords, is_integer, positive_real
 from .arx import ARX, ARXStructure
 from .config import (
     IDENTIFY_BUDGET,
@@ -89,6 +89,7 @@ def _round_up(value: float) -> float:
     return math.ceil(value / 10**exponent) * 10**exponent
 
 
+@checked_keywords
 def search_box(
     structure: ARXStructure,
     bounds: Any = "auto",
@@ -675,6 +676,7 @@ def greybox_of(structure: Any, greybox: str | GreyBoxModel | None) -> GreyBoxMod
 
 
 # ================================================================================ identify
+@checked_keywords
 def identify(
     data: IOData | str | os.PathLike,
     na: int | None = None,

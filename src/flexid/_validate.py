@@ -16,13 +16,16 @@ this module does not import NumPy: :mod:`flexid.config` uses it and stays light.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
 import numbers
+from collections.abc import Callable, Iterable
 from typing import Any
 
-from .errors import FlexidError
+from .errors import FlexidError, UnknownKeywordError
 
-__all__ = ["integer", "is_integer", "positive_int", "positive_real", "real"]
+__all__ = ["checked_keywords", "integer", "is_integer", "positive_int", "positive_real", "real"]
 
 
 def is_integer(value: Any) -> bool:
@@ -247,3 +250,55 @@ def positive_real(value: Any, name: str, *, error: type[FlexidError], unit: str 
         ``error`` for a ``bool``, a string, a non-number, NaN, an infinity or a value <= 0.
     """
     return real(value, name, error=error, minimum=0, low_open=True, unit=unit)
+
+
+def checked_keywords(
+    func: Callable | None = None, *, also: Iterable[str] | Callable[[], Iterable[str]] = ()
+) -> Callable:
+    """Decorator: an unknown keyword argument raises :class:`UnknownKeywordError` naming the
+    function that was called, before anything runs.
+
+    Python's own ``TypeError`` names the function too, but is not a ``FlexidError``; a
+    function whose ``**kwargs`` are forwarded (to a reader, a reference) would otherwise
+    fail inside the function it forwards to, under that one's name.
+
+    Parameters
+    ----------
+    func : callable
+        The function (the decorator may be used bare or called with ``also``).
+    also : iterable of str, or a callable returning one
+        The names a ``**kwargs`` parameter accepts (those of the function it forwards to).
+
+    Returns
+    -------
+    callable
+        The function, checked; ``__wrapped__`` is the original.
+    """
+
+    def wrap(f: Callable) -> Callable:
+        sig = inspect.signature(f)
+        own = {
+            name for name, p in sig.parameters.items()
+            if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)
+        }
+        open_ended = any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
+
+        def accepted() -> set[str]:
+            return own | (set(also() if callable(also) else also) if open_ended else set())
+
+        @functools.wraps(f)
+        def checked(*args: Any, **kwargs: Any) -> Any:
+            if kwargs and not kwargs.keys() <= own:
+                known = accepted()
+                extra = kwargs.keys() - known
+                if extra:
+                    raise UnknownKeywordError(
+                        f"{f.__name__}() got unexpected keyword argument(s) "
+                        f"{', '.join(map(repr, sorted(extra)))}; it takes "
+                        f"{', '.join(sorted(known))}"
+                    )
+            return f(*args, **kwargs)
+
+        return checked
+
+    return wrap(func) if func is not None else wrap

@@ -39,8 +39,8 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
-from ._validate import integer, is_integer, positive_real, real
-from .errors import DataError, DataFileError, DataWarning, check_finite
+from ._validate import checked_keywords, integer, is_integer, positive_real, real
+from .errors import DataError, DataFileError, DataWarning, UnknownKeywordError, check_finite
 
 __all__ = ["IOData", "load", "save"]
 
@@ -1036,6 +1036,35 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
     )
 
 
+def _reader_options(reader: Any) -> set[str]:
+    """The keyword options a reader takes (its parameters after ``path``)."""
+    import inspect
+
+    params = list(inspect.signature(reader).parameters)
+    return set(params[params.index("path") + 1 :])
+
+
+def _readers() -> dict[str, Any]:
+    from ._matfile import read_mat
+
+    return {
+        ".csv": IOData.from_csv, ".npz": _NPZ_OPTIONS, ".dat": IOData.from_dat,
+        ".txt": IOData.from_dat, ".mat": read_mat,
+    }
+
+
+_NPZ_OPTIONS = ("inputs", "outputs")  # a .npz record is selected, not parsed
+
+
+def _load_options() -> set[str]:
+    """Every option of some reader (what :func:`load` takes at all)."""
+    out: set[str] = set()
+    for reader in _readers().values():
+        out |= set(reader) if isinstance(reader, tuple) else _reader_options(reader)
+    return out
+
+
+@checked_keywords(also=_load_options)
 def load(path: str | os.PathLike, **options: Any) -> IOData:
     """Read a record from ``.csv``, ``.npz``, ``.dat``/``.txt`` or ``.mat`` by the suffix.
 
@@ -1070,6 +1099,15 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
     if path.is_dir():
         raise DataFileError(f"{path}: is a folder, not a data file (.csv, .npz, .dat or .mat)")
     suffix = path.suffix.lower()
+    reader = _readers().get(suffix)
+    if reader is not None:
+        takes = set(reader) if isinstance(reader, tuple) else _reader_options(reader)
+        extra = sorted(set(options) - takes)
+        if extra:
+            raise UnknownKeywordError(
+                f"load() got option(s) {', '.join(map(repr, extra))}, which a {suffix} file "
+                f"does not take; it takes {', '.join(sorted(takes))}"
+            )
     if suffix == ".csv":
         return IOData.from_csv(path, **options)
     if suffix == ".npz":
@@ -1099,6 +1137,7 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
     raise DataFileError(f"{path}: unknown data file type {suffix!r}; use .csv, .npz, .dat or .mat")
 
 
+@checked_keywords
 def save(data: IOData, path: str | os.PathLike) -> Path:
     """Write ``data`` to ``.csv`` or ``.npz`` according to the suffix; return the path.
 

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
-from ._validate import integer, positive_real
+from ._validate import checked_keywords, integer, positive_real
 from .data import IOData
 from .errors import DataError, UnknownNameError
 from .plants import PLANTS, all_presets, get_plant
@@ -89,6 +89,7 @@ def _noise_levels(noise_std: Any, clean: np.ndarray) -> np.ndarray:
     return levels
 
 
+@checked_keywords
 def generate(
     plant: str,
     *,

@@ -31,6 +31,7 @@ __all__ = [
     "RegistryError",
     "StoreError",
     "StoreWarning",
+    "UnknownKeywordError",
     "UnknownNameError",
     "UnknownOptimiserError",
     "check_finite",
@@ -122,6 +123,10 @@ class ConfigError(FlexidError, ValueError):
 
 class StoreError(FlexidError):
     """A result store that cannot be opened, read or written."""
+
+
+class UnknownKeywordError(FlexidError, TypeError):
+    """A keyword argument the function that was called does not take (named in the message)."""
 
 
 class FlexidWarning(UserWarning):

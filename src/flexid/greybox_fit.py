@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from ._validate import integer, real
+from ._validate import checked_keywords, integer, real
 from .errors import ConfigError
 from .greybox import GreyBoxModel
 from .greybox_cost import GreyBoxCost
@@ -242,6 +242,7 @@ def _directions(J_rel: np.ndarray, names: tuple[str, ...]) -> tuple[np.ndarray, 
     return rel, texts
 
 
+@checked_keywords
 def greyest(
     data: Any,
     model: GreyBoxModel,

@@ -22,6 +22,7 @@ and the other pitch parameters are estimated relative to them; the same holds fo
 from __future__ import annotations
 
 import hashlib
+import inspect
 from collections.abc import Callable
 from dataclasses import fields
 from importlib.metadata import entry_points
@@ -31,8 +32,9 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import checked_keywords
 from .envs import twin_rotor_physics as trs
-from .errors import ConfigError
+from .errors import ConfigError, UnknownKeywordError
 from .greybox import GreyBoxModel, GreyParameter, ParameterSet
 from .plants import get_plant
 
@@ -202,6 +204,7 @@ ENTRY_POINT_GROUP = "flexid.greybox_models"
 _REGISTERED: dict[str, GreyBoxModel | Callable[..., GreyBoxModel]] = {}
 
 
+@checked_keywords
 def register_greybox_model(name: str, model: GreyBoxModel | Callable[..., GreyBoxModel]) -> None:
     """Register a grey-box model under a name, as an optimiser plugin registers itself.
 
@@ -332,6 +335,21 @@ def greybox_model(name: str, **options: Any) -> GreyBoxModel:
 
     if not isinstance(name, str):
         raise ConfigError(f"a grey-box model is named by a string, got {type(name).__name__}")
+    if options:  # what the options may name: the model's parameters, its factory's keywords
+        base = greybox_model(name)
+        factory = GREYBOX_MODELS.get(name) or _REGISTERED.get(name)
+        takes = set(base.names)
+        if callable(factory) and not isinstance(factory, GreyBoxModel):
+            takes |= {
+                p.name for p in inspect.signature(factory).parameters.values()
+                if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)
+            }
+        extra = sorted(set(options) - takes)
+        if extra:
+            raise UnknownKeywordError(
+                f"greybox_model({name!r}) got unknown option(s) {', '.join(map(repr, extra))}; "
+                f"it takes {', '.join(sorted(takes))}"
+            )
     if name in GREYBOX_MODELS:
         return GREYBOX_MODELS[name](**options)
     if name in _REGISTERED:

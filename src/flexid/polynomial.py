@@ -58,7 +58,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from ._json import jsonable
-from ._validate import integer, positive_real
+from ._validate import checked_keywords, integer, positive_real
 from .config import STRUCTURE_NAMES
 from .errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
 
@@ -487,6 +487,7 @@ class PolynomialStructure:
         return ARXStructure(self.na, self.nb, self.nk)
 
 
+@checked_keywords(also=("na", "nb", "nc", "nd", "nf", "nk"))
 def structure(name: str, **orders: Any) -> PolynomialStructure:
     """A structure by its MATLAB name and orders: ``structure("oe", nb=16, nf=16, nk=1)``.
 

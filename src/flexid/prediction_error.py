@@ -101,7 +101,7 @@ import numpy as np
 from scipy import linalg, signal
 from scipy.optimize import least_squares
 
-from ._validate import integer, real
+from ._validate import checked_keywords, integer, real
 from .arx import _io_arrays
 from .errors import ConfigError, DataError
 from .output_error import (
@@ -1003,6 +1003,7 @@ def prediction_jacobian(
     return prob.errors(theta, True)
 
 
+@checked_keywords
 def pem(
     data: Any,
     structure: PolynomialStructure,
@@ -1172,6 +1173,14 @@ def pem(
     )
 
 
+def _pem_options() -> set[str]:
+    """The keyword options of :func:`pem` that :func:`oe`, :func:`armax` and :func:`bj` pass on."""
+    import inspect
+
+    return set(inspect.signature(pem).parameters) - {"data", "structure"}
+
+
+@checked_keywords(also=_pem_options)
 def oe(data: Any, nb: Any, nf: Any, nk: Any = 1, **options: Any) -> PEMResult:
     """Output-error model ``y = sum_j B_j/F_j u_j(t - nk_j) + e`` (MATLAB ``oe(data, [nb nf nk])``).
 
@@ -1191,6 +1200,7 @@ def oe(data: Any, nb: Any, nf: Any, nk: Any = 1, **options: Any) -> PEMResult:
     return pem(data, _named_structure("oe", nb=nb, nf=nf, nk=nk), **options)
 
 
+@checked_keywords(also=_pem_options)
 def armax(data: Any, na: int, nb: Any, nc: int, nk: Any = 1, **options: Any) -> PEMResult:
     """ARMAX model ``A y = sum_j B_j u_j(t - nk_j) + C e`` (MATLAB ``armax(data, [na nb nc nk])``).
 
@@ -1212,6 +1222,7 @@ def armax(data: Any, na: int, nb: Any, nc: int, nk: Any = 1, **options: Any) -> 
     return pem(data, _named_structure("armax", na=na, nb=nb, nc=nc, nk=nk), **options)
 
 
+@checked_keywords(also=_pem_options)
 def bj(data: Any, nb: Any, nc: int, nd: int, nf: Any, nk: Any = 1, **options: Any) -> PEMResult:
     """Box-Jenkins model ``y = sum_j B_j/F_j u_j(t - nk_j) + C/D e``
     (MATLAB ``bj(data, [nb nc nd nf nk])``).

@@ -78,7 +78,7 @@ from scipy import linalg
 
 from ._json import jsonable
 from ._table import text_table
-from ._validate import integer, real
+from ._validate import checked_keywords, integer, real
 from .errors import (
     ConfigError,
     DataError,
@@ -860,6 +860,7 @@ def _progress(progress: Any, total: int) -> Callable[[Candidate | None], None]:
     return update
 
 
+@checked_keywords
 def select(
     data: IOData | tuple | str | os.PathLike,
     structures: Any = ("arx", "oe"),

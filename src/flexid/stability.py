@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
+from ._validate import checked_keywords
 from .errors import DataError
 
 __all__ = [
@@ -66,6 +67,7 @@ def reflection_coefficients(a) -> np.ndarray:
     return k
 
 
+@checked_keywords
 def is_stable(a) -> np.ndarray:
     """Strict stability of monic denominators (every pole with ``|p| < 1``).
 

@@ -101,7 +101,7 @@ from scipy import fft as sfft
 from scipy import signal, stats
 
 from ._json import jsonable
-from ._validate import integer, positive_int, positive_real
+from ._validate import checked_keywords, integer, positive_int, positive_real
 from .data import IOData
 from .errors import DataError, FlexidError, ModelOrderError, check_finite
 from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure, _check_initial
@@ -1319,6 +1319,7 @@ def _free_run(run: Any, n: int, unstable: bool) -> np.ndarray:
     return np.asarray(out, dtype=float).reshape(-1)
 
 
+@checked_keywords
 def validate(
     model: Any,
     data: Any,

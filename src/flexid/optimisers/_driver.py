@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from .._validate import integer
+from .._validate import checked_keywords, integer
 from ..errors import OptimiserError
 from ._budget import Budget
 from ._history import History, IterationInfo
@@ -249,6 +249,7 @@ def _resolve(optimiser: Optimiser | str, params: Mapping[str, Any] | None) -> Op
     return optimiser
 
 
+@checked_keywords
 def minimize(
     optimiser: Optimiser | str,
     problem: Problem,

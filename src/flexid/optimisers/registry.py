@@ -21,6 +21,7 @@ from collections.abc import Callable
 from importlib.metadata import entry_points
 from typing import Any
 
+from .._validate import checked_keywords
 from ..errors import RegistryError, UnknownOptimiserError
 from ._params import Optimiser, Param
 
@@ -68,6 +69,7 @@ class PluginWarning(UserWarning):
     """A third-party optimiser plugin could not be loaded and was skipped."""
 
 
+@checked_keywords
 def register(
     cls: type[Optimiser] | None = None, *, name: str | None = None, source: str = "flexid"
 ):
