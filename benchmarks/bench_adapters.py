@@ -21,8 +21,8 @@ import warnings
 import numpy as np
 
 import flexid
-from flexid._identify import prepare_data
 from flexid.config import PAPER_SEARCH, CostSpec
+from flexid.data import prepare_data
 from flexid.estimation import build_problem, model_structure
 from flexid.optimisers import Problem, minimize
 

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 import flexid
-from flexid._identify import prepare_data
 from flexid.config import PAPER_SEARCH, CostSpec, SearchSpec
+from flexid.data import prepare_data
 from flexid.estimation import build_problem, model_structure
 from flexid.optimisers import minimize
 from flexid.stability import is_stable

@@ -103,8 +103,8 @@ _LAZY = {
     # identification (the function lives in a private module: no module shares its name)
     "identify": "_identify",
     "Identification": "_identify",
-    "SearchBox": "_identify",
-    "search_box": "_identify",
+    "SearchBox": "estimation",
+    "search_box": "estimation",
     # comparison
     "compare": "_compare",
     "ComparisonResult": "_compare",

@@ -37,14 +37,13 @@ from typing import Any
 
 import numpy as np
 
-from ._identify import prepare_data, structure_of
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, positive_int
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
-from .data import IOData
+from .data import IOData, prepare_data
 from .errors import ConfigError, ModelOrderError, StoreError
-from .estimation import build_problem, check_search, choose_reference
+from .estimation import build_problem, check_search, choose_reference, structure_of
 from .optimisers import Budget, get, minimize
 from .statistics import rank_sum_against_best, summarise
 from .store import ResultStore

@@ -42,7 +42,7 @@ from ._json import jsonable
 from ._validate import checked_keywords, integer, is_integer, positive_real, real
 from .errors import DataError, DataFileError, DataWarning, UnknownKeywordError, check_finite
 
-__all__ = ["IOData", "load", "save"]
+__all__ = ["IOData", "load", "prepare_data", "save"]
 
 _CSV_MAGIC = "# flexid-iodata "
 _FORMAT_VERSION = 1
@@ -1160,3 +1160,73 @@ def save(data: IOData, path: str | os.PathLike) -> Path:
     if suffix == ".npz":
         return data.to_npz(path)
     raise DataFileError(f"{path}: unknown output type {suffix!r}; use .csv or .npz")
+
+
+# ================================================================================ data
+def prepare_data(
+    data: IOData | str | os.PathLike,
+    *,
+    output: str | int | None = None,
+    split: float | int | None = None,
+    validation: IOData | str | os.PathLike | None = None,
+    detrend: bool = False,
+    load_options: Mapping[str, Any] | None = None,
+) -> tuple[IOData, IOData]:
+    """Estimation and validation records from a record (or file) and a split rule.
+
+    Parameters
+    ----------
+    data : IOData or path
+        The record; a path is read with :func:`flexid.data.load`.
+    output : str or int, optional
+        The output channel to model when the record has several.
+    split : float or int, optional
+        A fraction in (0, 1) (default 2/3, the paper's rule) or a sample index.
+    validation : IOData or path, optional
+        A separate validation record; then all of ``data`` is used for estimation.
+    detrend : bool, optional
+        Remove the means of the estimation record from both (offsets from the estimation
+        part only, so no validation information leaks into the model).
+    load_options : mapping, optional
+        Options of :func:`load` for a path (``inputs``, ``outputs``, ``dt``, ...).
+
+    Returns
+    -------
+    est, val : IOData
+        The estimation and validation records, one output each.
+
+    Raises
+    ------
+    DataError
+        A record with several outputs and no ``output`` chosen.
+    """
+    options = dict(load_options or {})
+    if not isinstance(data, IOData):
+        data = load(data, **options)
+    if output is not None:
+        data = data.select(outputs=[output])
+    if data.n_outputs != 1:
+        raise DataError(
+            f"the record has {data.n_outputs} outputs {list(data.output_names)}; the models here "
+            "have one output: choose it (output=... or --output NAME)"
+        )
+    if validation is not None:
+        val = validation if isinstance(validation, IOData) else load(validation, **options)
+        if output is not None:
+            val = val.select(outputs=[output])
+        est = data
+    elif is_integer(split) and split > 1:
+        est, val = data.split(index=int(split))
+    else:
+        est, val = data.split(split)
+    if detrend:
+        u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
+        info = {
+            "kind": "constant",
+            "u_mean": u0.tolist(),
+            "y_mean": y0.tolist(),
+            "from": "estimation",
+        }
+        est = est.replace(u=est.u - u0, y=est.y - y0, metadata={**est.metadata, "detrend": info})
+        val = val.replace(u=val.u - u0, y=val.y - y0, metadata={**val.metadata, "detrend": info})
+    return est, val

@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from scipy import linalg
 
-from ._validate import is_integer
+from ._validate import checked_keywords, is_integer, positive_real
 from .arx import ARXStructure
 from .config import CostSpec, SearchSpec, auto_initial
 from .data import IOData
@@ -30,10 +30,12 @@ from .errors import (
     ModelOrderError,
     UnknownNameError,
 )
+from .greybox import GreyBoxModel
 from .objective import ARXCost
 from .optimisers import Problem
 from .parametrisation import PARAMETRISATIONS, Parametrisation, make_parametrisation
-from .polynomial import PolynomialStructure
+from .polynomial import STRUCTURES, PolynomialStructure
+from .polynomial import structure as _named_structure
 from .stability import is_stable
 
 __all__ = [
@@ -42,14 +44,277 @@ __all__ = [
     "NUMERATOR_RULES",
     "EstimationProblem",
     "PolynomialEstimationProblem",
+    "SearchBox",
     "build_problem",
     "check_excitation",
     "check_search",
     "choose_reference",
+    "greybox_of",
     "model_structure",
     "resolve_initial",
+    "search_box",
+    "structure_of",
 ]
 
+# ================================================================================ search box
+@dataclass(frozen=True)
+class SearchBox:
+    """The box an optimiser searches, and the rule that made it.
+
+    Attributes
+    ----------
+    lower, upper : ndarray, shape (n_params,)
+        Bounds in the parameter order of :class:`~flexid.arx.ARXStructure`
+        (``a1..a_na``, then the ``b`` coefficients of each input).
+    rule : str
+        How the bounds were chosen (recorded with every result).
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    rule: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """The box as a JSON-safe dictionary.
+
+        Returns
+        -------
+        dict
+            ``{"rule": str, "lower": list of float, "upper": list of float}`` (n_params
+            values each).
+        """
+        return {"rule": self.rule, "lower": self.lower.tolist(), "upper": self.upper.tolist()}
+
+
+def _round_up(value: float) -> float:
+    """Round up to one significant digit (0.061 -> 0.07, 3.2 -> 4)."""
+    if value <= 0 or not math.isfinite(value):
+        return 1.0
+    exponent = math.floor(math.log10(value))
+    return math.ceil(value / 10**exponent) * 10**exponent
+
+
+@checked_keywords
+def search_box(
+    structure: ARXStructure,
+    bounds: Any = "auto",
+    theta_ls: np.ndarray | None = None,
+) -> SearchBox:
+    """The search box for an ARX structure.
+
+    Parameters
+    ----------
+    structure : ARXStructure
+        Model orders.
+    bounds : "auto", float, (low, high), mapping or (2, n_params) array, optional
+        * ``"auto"`` (default): ``|a_k| <= C(na, k)``, the binomial coefficients of
+          ``(z + 1)^na``, a box that contains *every* stable denominator (the coefficients
+          of a polynomial with all roots in the unit disc are bounded by those of
+          ``(z + 1)^na``); and ``|b| <= 2 max|b_LS|`` rounded up to one significant digit, a
+          data-informed scale from the least-squares estimate.
+        * a number ``s``: every parameter in ``[-s, s]``;
+        * ``(low, high)``: every parameter in ``[low, high]``;
+        * ``{"a": s or (low, high), "b": s or (low, high)}``;
+        * ``{"lower": [...], "upper": [...]}`` or an array of shape ``(2, n_params)``.
+    theta_ls : ndarray, optional
+        Least-squares estimate, needed by ``"auto"``.
+
+    Returns
+    -------
+    SearchBox
+        The bounds, shapes (n_params,), and the rule that made them.
+
+    Raises
+    ------
+    ConfigError
+        For bounds of the wrong form or length, or ``lower >= upper``.
+    """
+    n, na = structure.n_params, structure.na
+
+    def pair(value: Any, what: str) -> tuple[float, float]:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            name = " ".join(filter(None, ["bounds", what, "half-width"]))
+            half = positive_real(value, name, error=ConfigError)
+            return -half, half
+        if isinstance(value, Sequence) and len(value) == 2 and not isinstance(value, str):
+            return float(value[0]), float(value[1])
+        raise ConfigError(f"bounds {what}: expected a half-width or (low, high), got {value!r}")
+
+    if isinstance(bounds, str):
+        if bounds != "auto":
+            raise ConfigError(
+                f"bounds must be 'auto', a number, (low, high) or a mapping, not {bounds!r}"
+            )
+        if theta_ls is None:
+            raise ConfigError("automatic bounds need the least-squares estimate")
+        a_half = np.array([math.comb(na, k) for k in range(1, na + 1)], dtype=float)
+        b_ls = np.asarray(theta_ls[na:], dtype=float)
+        b_half = _round_up(2.0 * float(np.max(np.abs(b_ls)))) if b_ls.size else 1.0
+        upper = np.concatenate([a_half, np.full(n - na, b_half)])
+        rule = (
+            f"auto: |a_k| <= C({na}, k) (contains every stable A), "
+            f"|b| <= {b_half:g} (2 max|b_LS|, rounded up)"
+        )
+        return SearchBox(-upper, upper, rule)
+    if isinstance(bounds, Mapping):
+        if set(bounds) <= {"lower", "upper"} and bounds:
+            try:
+                lower = np.asarray(bounds["lower"], dtype=float).reshape(-1)
+                upper = np.asarray(bounds["upper"], dtype=float).reshape(-1)
+            except KeyError as exc:
+                raise ConfigError(f"bounds mapping lacks {exc}") from None
+            rule = "explicit lower/upper"
+        else:
+            unknown = set(bounds) - {"a", "b"}
+            if unknown:
+                raise ConfigError(f"unknown bounds key(s) {sorted(unknown)}; use 'a' and 'b'")
+            a_lo, a_hi = pair(bounds.get("a", 2.0), "a")
+            b_lo, b_hi = pair(bounds.get("b", 1.0), "b")
+            lower = np.concatenate([np.full(na, a_lo), np.full(n - na, b_lo)])
+            upper = np.concatenate([np.full(na, a_hi), np.full(n - na, b_hi)])
+            rule = f"a in [{a_lo:g}, {a_hi:g}], b in [{b_lo:g}, {b_hi:g}]"
+    elif isinstance(bounds, np.ndarray) and bounds.ndim == 2:
+        if bounds.shape != (2, n):
+            raise ConfigError(f"bounds array must have shape (2, {n}), got {bounds.shape}")
+        lower, upper = bounds[0].astype(float), bounds[1].astype(float)
+        rule = "explicit lower/upper"
+    else:
+        lo, hi = pair(bounds, "")
+        lower, upper = np.full(n, lo), np.full(n, hi)
+        rule = f"every parameter in [{lo:g}, {hi:g}]"
+    if lower.shape != (n,) or upper.shape != (n,):
+        raise ConfigError(f"bounds need {n} values each ({structure.n_params} parameters)")
+    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
+        raise ConfigError("bounds must be finite")
+    bad = np.flatnonzero(lower >= upper)
+    if bad.size:
+        name = structure.param_names[int(bad[0])]
+        raise ConfigError(f"bounds: lower >= upper for parameter {name}")
+    return SearchBox(lower, upper, rule)
+
+
+
+# ================================================================================ structure
+def _per_input(value: Any, n_inputs: int) -> Any:
+    """A scalar order repeated for every input (``nb``, ``nf``, ``nk``)."""
+    if value is None or n_inputs == 1 or not is_integer(value):
+        return value
+    return [int(value)] * n_inputs
+
+
+def structure_of(
+    structure: str | PolynomialStructure | None,
+    n_inputs: int,
+    **orders: Any,
+) -> ARXStructure | PolynomialStructure:
+    """The model structure of an identification, from a name or object and the orders.
+
+    Parameters
+    ----------
+    structure : str, PolynomialStructure or None
+        ``None`` (ARX from ``na``, ``nb``, ``nk``), a name of
+        :data:`flexid.polynomial.STRUCTURES` with its orders, or a structure (no orders).
+    n_inputs : int
+        Inputs of the record (a scalar ``nb``, ``nf`` or ``nk`` applies to each).
+    **orders : int, sequence of int or None
+        ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (None: not given).
+
+    Returns
+    -------
+    ARXStructure or PolynomialStructure
+        An :class:`~flexid.arx.ARXStructure` for ARX (the paper's path, unchanged),
+        otherwise the polynomial structure.
+
+    Raises
+    ------
+    ModelOrderError
+        Orders the structure does not have, missing orders, or orders that do not match the
+        record's inputs.
+    UnknownNameError
+        An unknown structure name.
+    """
+    given = {k: v for k, v in orders.items() if v is not None}
+    if isinstance(structure, PolynomialStructure):
+        extra = sorted(k for k in given if k != "nk" or given[k] != 1)
+        if extra:
+            raise ModelOrderError(
+                f"give either a structure object or orders, not both (got {', '.join(extra)} "
+                f"with {structure!r})"
+            )
+        made = structure
+    else:
+        name = "arx" if structure is None else str(structure).lower()
+        if name not in STRUCTURES:
+            raise UnknownNameError("model structure", str(structure), tuple(STRUCTURES))
+        if name == "arx":
+            extra = sorted(k for k in given if k not in STRUCTURES["arx"])
+            if extra:
+                hint = "" if structure is not None else " (pass structure='armax', 'oe' or 'bj')"
+                raise ModelOrderError(
+                    f"the arx structure has no order {', '.join(extra)}; it takes na, nb, nk"
+                    + hint
+                )
+            if "na" not in given:
+                raise ModelOrderError("the arx structure needs the order na (and nb, nk)")
+            return model_structure(given["na"], given.get("nb"), given.get("nk", 1), n_inputs)
+        per = {k: _per_input(v, n_inputs) for k, v in given.items()}
+        made = _named_structure(name, **per)
+    if made.n_inputs != n_inputs:
+        raise ModelOrderError(
+            f"the record has {n_inputs} input(s) but {made!r} has {made.n_inputs} "
+            "(one nb, nf and nk per input)"
+        )
+    if made.kind == "arx":
+        return made.arx_structure()
+    return made
+
+
+def greybox_of(structure: Any, greybox: str | GreyBoxModel | None) -> GreyBoxModel | None:
+    """The grey-box model that ``structure`` and ``greybox`` name, or None for a polynomial.
+
+    Parameters
+    ----------
+    structure : str, structure object, GreyBoxModel or None
+    greybox : str, GreyBoxModel or None
+        The model of ``structure="greybox"`` (a name of
+        :func:`flexid.greybox_models.greybox_model`).
+
+    Returns
+    -------
+    GreyBoxModel or None
+
+    Raises
+    ------
+    ConfigError
+        ``structure="greybox"`` without ``greybox``, or ``greybox`` with another structure.
+    UnknownNameError
+        An unknown grey-box model name.
+    """
+    if isinstance(structure, GreyBoxModel):
+        if greybox is not None:
+            raise ConfigError("give the grey-box model as structure or as greybox, not both")
+        return structure
+    if isinstance(structure, str) and structure.lower() == "greybox":
+        if greybox is None:
+            raise ConfigError(
+                "structure 'greybox' needs the model: greybox='twin-rotor-pitch' (or "
+                "--greybox NAME; 'flexid list greybox' lists them)"
+            )
+        if isinstance(greybox, GreyBoxModel):
+            return greybox
+        from .greybox_models import greybox_model
+
+        return greybox_model(greybox)
+    if greybox is not None:
+        raise ConfigError(
+            f"greybox={greybox!r} is the model of structure='greybox', not of "
+            f"structure={structure!r}"
+        )
+    return None
+
+
+
+# ================================================================================ rules
 INIT_RULES = ("uniform", "stable")
 NUMERATOR_RULES = ("search", "fit")
 
@@ -517,9 +782,6 @@ def build_problem(
     IdentificationWarning
         When they barely are (:func:`check_excitation`).
     """
-    from ._identify import search_box
-    from .greybox import GreyBoxModel
-
     check_search(search)
     if isinstance(structure, GreyBoxModel):
         from .greybox_estimation import build_greybox_problem
@@ -745,7 +1007,6 @@ def _build_polynomial(
     bounds: Any = "auto",
 ) -> PolynomialEstimationProblem:
     """:func:`build_problem` for a structure other than ARX."""
-    from ._identify import SearchBox, _round_up
     from .polynomial_cost import PolynomialCost
     from .polynomial_space import PolynomialSpace
 

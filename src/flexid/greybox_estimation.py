@@ -257,7 +257,7 @@ def build_greybox_problem(
     DataError
         A record without the model's channels.
     """
-    from ._identify import SearchBox
+    from .estimation import SearchBox
 
     if cost.predictor != "simulation":
         raise ConfigError(

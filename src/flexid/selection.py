@@ -964,7 +964,7 @@ def select(
         Unusable data (several outputs, NaN, an unreadable file).
     """
     t_begin = time.perf_counter()
-    from ._identify import prepare_data
+    from .data import prepare_data
     from .estimation import check_excitation
     from .greybox_fit import greyest
     from .prediction_error import pem
