@@ -244,3 +244,35 @@ def test_a_registration_error_does_not_break_importing_gymnasium():
         """
     )
     assert "could not register its Gymnasium environments" in run.stdout
+
+
+def test_every_public_function_and_method_states_its_return_type():
+    """Type hints on the public API: every function and public method of a public module's
+    ``__all__`` says what it returns (generators their ``Generator``, figures ``Figure``)."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    import flexid
+
+    missing = []
+    for info in pkgutil.walk_packages(flexid.__path__, "flexid."):
+        if any(part.startswith("_") for part in info.name.split(".")[1:]):
+            continue
+        module = importlib.import_module(info.name)
+        for attr in getattr(module, "__all__", []):
+            obj = getattr(module, attr)
+            found = []
+            if inspect.isfunction(obj):
+                found = [(f"{info.name}.{attr}", obj)]
+            elif inspect.isclass(obj) and obj.__module__ == info.name:
+                found = [
+                    (f"{info.name}.{attr}.{k}", v)
+                    for k, v in vars(obj).items()
+                    if inspect.isfunction(v) and (not k.startswith("_") or k == "__call__")
+                ]
+            for qualname, fn in found:
+                fn = inspect.unwrap(fn)
+                if "return" not in fn.__annotations__:
+                    missing.append(qualname)
+    assert not missing, sorted(set(missing))

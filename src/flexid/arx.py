@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import linalg
@@ -20,6 +20,12 @@ from ._json import jsonable
 from ._validate import integer, positive_real
 from .errors import DataError, ModelOrderError, check_finite
 from .stability import is_stable as _is_stable
+
+if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on first use
+    import control
+    from scipy import signal
+
+    from .polynomial import PolynomialModel
 
 __all__ = ["ARX", "ARXStructure"]
 
@@ -455,7 +461,7 @@ class ARX:
         return float(np.abs(p).max()) if p.size else 0.0
 
     # ------------------------------------------------------------------ export
-    def to_polynomial(self):
+    def to_polynomial(self) -> PolynomialModel:
         """The same model as a :class:`~flexid.polynomial.PolynomialModel`.
 
         Returns
@@ -481,7 +487,7 @@ class ARX:
             noise_variance=self.noise_variance,
         )
 
-    def to_control(self):
+    def to_control(self) -> control.TransferFunction:
         """The model as a python-control transfer function.
 
         Returns
@@ -501,7 +507,7 @@ class ARX:
             return control.tf(nums[0], dens[0], self.dt)
         return control.tf([nums], [dens], self.dt)
 
-    def to_dlti(self, input: int = 0):
+    def to_dlti(self, input: int = 0) -> signal.dlti:
         """One input's transfer function as a SciPy discrete-time system.
 
         Parameters

@@ -14,7 +14,7 @@ import math
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import linalg
@@ -37,6 +37,10 @@ from .parametrisation import PARAMETRISATIONS, Parametrisation, make_parametrisa
 from .polynomial import STRUCTURES, PolynomialStructure
 from .polynomial import structure as _named_structure
 from .stability import is_stable
+
+if TYPE_CHECKING:  # pragma: no cover - the references load on first use
+    from .output_error import OEResult
+    from .prediction_error import PEMResult
 
 __all__ = [
     "ILL_CONDITIONED",
@@ -655,7 +659,7 @@ class EstimationProblem:
             "box_rule": self.box_rule,
         }
 
-    def output_error_reference(self, *, starts: int = 4, seed: int = 0):
+    def output_error_reference(self, *, starts: int = 4, seed: int = 0) -> OEResult | None:
         """The output-error reference of a simulation cost; ``None`` for one-step.
 
         Levenberg-Marquardt from least squares and stable starts
@@ -949,7 +953,7 @@ class PolynomialEstimationProblem(EstimationProblem):
             text += f"; {self.box_rule}"
         return text
 
-    def output_error_reference(self, *, starts: int = 4, seed: int = 0):
+    def output_error_reference(self, *, starts: int = 4, seed: int = 0) -> PEMResult:
         """The prediction-error reference (:func:`flexid.prediction_error.pem`) of this cost.
 
         Levenberg-Marquardt on the structure's prediction errors (with this cost's predictor

@@ -103,7 +103,9 @@ class Plant:
         """Units of the outputs, in the order of :attr:`output_names`."""
         return tuple(self.physics().OUTPUT_UNITS)
 
-    def make_parameters(self, overrides: Mapping[str, Any] | None = None, *, sensors: str = "lab"):
+    def make_parameters(
+        self, overrides: Mapping[str, Any] | None = None, *, sensors: str = "lab"
+    ) -> Any:
         """The parameter dataclass with ``overrides``; ``sensors="ideal"`` switches the chain off.
 
         Parameters

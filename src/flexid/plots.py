@@ -19,6 +19,9 @@ from .errors import FlexidError
 from .statistics import convergence_band
 
 if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
     from ._compare import ComparisonResult
     from ._identify import Identification
     from .selection import Selection
@@ -124,7 +127,7 @@ def plot_convergence(
     ax=None,
     reference: float | None = None,
     reference_label: str = "least squares",
-):
+) -> Figure:
     """Best cost against function evaluations (log axis), one line per run/optimiser.
 
     Parameters
@@ -170,7 +173,7 @@ def plot_convergence(
 def plot_time_response(
     t, y, yhat, *, title: str = "", label: str = "model", axes=None, output: str = "output",
     unit: str = "",
-):
+) -> Figure:
     """Measured and model output (top) and the modelling error (bottom).
 
     Parameters
@@ -226,7 +229,7 @@ def plot_time_response(
 def plot_spectra(
     freq, spectra: dict[str, np.ndarray], *, ax=None, title: str = "Power spectral density",
     unit: str = "",
-):
+) -> Figure:
     """Power spectra in dB against frequency in Hz, one line per signal.
 
     Parameters
@@ -280,7 +283,9 @@ def _repeated(roots: np.ndarray) -> list[tuple[complex, int]]:
     return out
 
 
-def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
+def plot_pole_zero(
+    poles: Any, zeros: Any, *, ax: Axes | None = None, title: str = "Pole-zero map"
+) -> Figure:
     """Poles (x) and zeros (o) in the z-plane with the unit circle (dotted).
 
     A root that occurs several times (within a relative ``1e-4``) is labelled with its
@@ -326,7 +331,7 @@ def plot_pole_zero(poles, zeros, *, ax=None, title: str = "Pole-zero map"):
 
 def plot_correlations(
     panels: Sequence[tuple[str, np.ndarray, np.ndarray, float]], *, title: str = ""
-):
+) -> Figure:
     """Correlation functions with their 95 % bands.
 
     Parameters
@@ -468,7 +473,7 @@ def _max_fe(result: ComparisonResult) -> int:
     return max([budget, 1, *runs])
 
 
-def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
+def plot_comparison_convergence(result: ComparisonResult, *, ax: Axes | None = None) -> Figure:
     """Median (line) and quartiles (band) of the best cost against FE, per optimiser.
 
     Both axes are logarithmic: FE from the first evaluation to the budget, and the cost
@@ -525,7 +530,9 @@ def plot_comparison_convergence(result: ComparisonResult, *, ax=None):
     return fig
 
 
-def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
+def plot_fe_to_target(
+    result: ComparisonResult, target: float, *, ax: Axes | None = None
+) -> Figure:
     """Fraction of runs that reached ``reference * (1 + target)`` against FE (log axis).
 
     Each curve runs to the budget and ends at its success rate; when no run of any
@@ -576,7 +583,7 @@ def plot_fe_to_target(result: ComparisonResult, target: float, *, ax=None):
     return fig
 
 
-def plot_ecdf(ecdf: dict[str, Any], *, ax=None, title: str = ""):
+def plot_ecdf(ecdf: dict[str, Any], *, ax: Axes | None = None, title: str = "") -> Figure:
     """ECDF of (run, target) pairs reached against function evaluations (log axis).
 
     Parameters
@@ -657,7 +664,9 @@ _STRUCTURE_STYLE = {
 _FIT_FLOOR = -20.0
 
 
-def selection_figure(selection: Selection, path: str | Path | None = None, *, criterion=True):
+def selection_figure(
+    selection: Selection, path: str | Path | None = None, *, criterion: bool = True
+) -> Figure | Path:
     """Held-out simulation fit against the number of parameters, per structure.
 
     The left panel is what :func:`flexid.selection.select` recommends from: one line and

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import linalg, signal
@@ -61,6 +61,11 @@ from ._json import jsonable
 from ._validate import checked_keywords, integer, positive_real
 from .config import STRUCTURE_NAMES
 from .errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
+
+if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
+    import control
+
+    from .arx import ARXStructure
 
 __all__ = [
     "INITIAL_RULES",
@@ -473,7 +478,7 @@ class PolynomialStructure:
         """
         return PolynomialModel(self, theta, dt=dt)
 
-    def arx_structure(self):
+    def arx_structure(self) -> ARXStructure:
         """The :class:`~flexid.arx.ARXStructure` of an ARX structure (ModelOrderError otherwise).
 
         Returns
@@ -896,7 +901,7 @@ class PolynomialModel:
         n = max(num.size, den.size)
         return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
 
-    def to_control(self, *, noise: bool = False):
+    def to_control(self, *, noise: bool = False) -> control.TransferFunction:
         """The plant ``B/(A F)`` (or the noise model ``C/(A D)``) as a python-control system.
 
         Parameters
@@ -919,7 +924,7 @@ class PolynomialModel:
             return control.tf(*parts[0], self.dt)
         return control.tf([[p[0] for p in parts]], [[p[1] for p in parts]], self.dt)
 
-    def to_dlti(self, input: int = 0, *, noise: bool = False):
+    def to_dlti(self, input: int = 0, *, noise: bool = False) -> signal.dlti:
         """One input's plant ``B/(A F)`` (or the noise model) as a SciPy ``dlti``.
 
         Parameters

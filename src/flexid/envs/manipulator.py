@@ -341,7 +341,9 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         obs[4] = self.target
         return obs
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(
+        self, *, seed: int | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode at rest at theta = 0.
 
         Parameters
@@ -374,7 +376,7 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         y = self._cfg.outputs(self.state)
         return self._observe(y), {"outputs": y, "target_angle": self.target}
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Apply a hub torque for one sample time.
 
         Parameters
@@ -413,7 +415,7 @@ class FlexibleManipulatorEnv(gymnasium.Env):
         }
         return self._observe(y), float(reward), bool(terminated), False, info
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         """The current frame, in ``"rgb_array"`` render mode.
 
         Returns
@@ -500,7 +502,9 @@ class FlexibleManipulatorVectorEnv(
         obs[:, 4] = self.targets
         return obs
 
-    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset all sub-environments.
 
         Parameters
@@ -536,7 +540,9 @@ class FlexibleManipulatorVectorEnv(
         y = self._cfg.outputs(self.state)
         return self._observe(y), {"outputs": y, "target_angle": self.targets.copy()}
 
-    def step(self, actions):
+    def step(
+        self, actions: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step all sub-environments by one sample time.
 
         Parameters
@@ -578,7 +584,7 @@ class FlexibleManipulatorVectorEnv(
         infos = {"applied_torque": tau, "clipped": clipped, "outputs": y}
         return self._observe(y), reward, terminated, truncated, infos
 
-    def render(self):
+    def render(self) -> tuple[np.ndarray, ...] | None:
         """The current frames, in ``"rgb_array"`` render mode.
 
         Returns

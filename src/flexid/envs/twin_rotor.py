@@ -200,12 +200,14 @@ class TwinRotorEnv(gymnasium.Env):
             obs[:4] += self.np_random.standard_normal(4) * cfg.noise
         return obs
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(
+        self, *, seed: int | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self._x = (0.0,) * 7
         return self._observe(0.0, 0.0, 0.0, 0.0), {"state": self.state}
 
-    def step(self, action):
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         cfg = self._cfg
         if type(action) is np.ndarray and action.shape == (2,) and action.dtype == np.float64:
             a1, a2 = action.tolist()  # the common case, without the array round trip
@@ -226,7 +228,7 @@ class TwinRotorEnv(gymnasium.Env):
         obs = self._observe(psi, dpsi, phi, dphi)
         return obs, reward, abs(psi) > cfg.pitch_limit, False, info
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
         return _render(self._x, self._cfg.setpoint)
@@ -329,14 +331,18 @@ class TwinRotorVectorEnv(BatchedVectorEnv, single_env=TwinRotorEnv, config_type=
         obs[:, 4:] = cfg.setpoint
         return obs
 
-    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         self._seed(seed)
         self._stepper.reset(np.ones(self.num_envs, dtype=bool))
         self.steps[:] = 0
         self.prev_done[:] = False
         return self._observe(), {}
 
-    def step(self, actions):
+    def step(
+        self, actions: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         cfg = self._cfg
         u = cfg.check_action(actions, self.num_envs)
         done = self.prev_done
@@ -359,7 +365,7 @@ class TwinRotorVectorEnv(BatchedVectorEnv, single_env=TwinRotorEnv, config_type=
         truncated = self._end_step(done, reward, terminated)
         return self._observe(), reward, terminated, truncated, {"applied_voltage": u}
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
         return np.stack([_render(x, self._cfg.setpoint) for x in self.state])

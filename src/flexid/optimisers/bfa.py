@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register, register_variant
 
@@ -70,7 +70,7 @@ def chemotactic_step(
     clip: bool,
     decide: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
     evaluated: Callable[[np.ndarray, np.ndarray], None] | None = None,
-):
+) -> Generator[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """One chemotactic step of every bacterium (Passino's tumble and swim), as a generator.
 
     Shared by BFA and HBCSD: a search runs it with
@@ -264,7 +264,7 @@ class BacterialForaging(Optimiser):
     def _decide(self, X: np.ndarray, J: np.ndarray) -> np.ndarray:
         return J + self._jcc(X)
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         S, C = self.population, self.step_size
         X = space.initial_population(S)
         J = (yield X).copy()

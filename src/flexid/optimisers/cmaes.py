@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register
 
@@ -89,7 +89,7 @@ class CMAES(Optimiser):
     initial_points = Param(int, 50, "size of the shared initial population", low=1)
     penalty = Param(float, 1.0, "boundary penalty weight", low=0.0)
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         n = space.dim
         lo, width = space.lower, space.upper - space.lower
         lam = self.population or 4 + int(3 * np.log(n))

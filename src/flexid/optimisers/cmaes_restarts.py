@@ -26,7 +26,7 @@ from collections.abc import Generator
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .cmaes import _learning_rates
 from .registry import register, register_variant
@@ -192,7 +192,7 @@ class CMAESRestarts(Optimiser):
     bipop = Param(bool, True, "interleave small-population restarts (False: IPOP)")
     active = Param(bool, True, "negative weights in the covariance update (active CMA)")
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         n = space.dim
         lam_def = self.population or 4 + int(3 * np.log(n))
         X0 = space.initial_population(self.initial_points)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register
 
@@ -53,7 +53,7 @@ class DifferentialEvolution(Optimiser):
     crossover = Param(float, 0.9, "crossover rate CR", low=0.0, high=1.0)
     dither = Param(bool, False, "draw F per member in [weight, 1]")
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         NP, n = self.population, space.dim
         X = space.initial_population(NP)
         F = yield X

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register
 
@@ -69,7 +69,7 @@ class GeneticAlgorithm(Optimiser):
                 f"ga: elites ({self.elites}) must be smaller than population ({self.population})"
             )
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         N, n = self.population, space.dim
         lo, hi = space.lower, space.upper
         width = hi - lo

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .bfa import chemotactic_step
 from .registry import register, register_variant
@@ -150,7 +150,7 @@ class HBCSD(Optimiser):
     c2_theta = Param(float, 1.0, "angle law c2", low=0.0, low_open=True)
     clip = Param(bool, False, "clip moved points to the box (deviation)")
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         X = space.initial_population(self.population)
         J = (yield X).copy()
         Pb, Jb = X.copy(), J.copy()
@@ -168,7 +168,7 @@ class HBCSD(Optimiser):
         # ---- phase 2: adaptive spiral from the personal bests
         yield from self.spiral(space, Pb, Jb)
 
-    def spiral(self, space: SearchSpace, Y: np.ndarray, F: np.ndarray):
+    def spiral(self, space: SearchSpace, Y: np.ndarray, F: np.ndarray) -> SearchGenerator:
         """The adaptive SDA phase from points ``Y`` with known costs ``F`` (no FE to start).
 
         Runs until ``k_max`` iterations (phase ``"spiral"``) or, when ``k_max`` is None,

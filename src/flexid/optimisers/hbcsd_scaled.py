@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ._params import Param
+from ._params import Param, SearchGenerator
 from ._problem import SearchSpace
 from .bfa import chemotactic_step
 from .hbcsd import HBCSD
@@ -84,7 +84,7 @@ class HBCSDScaled(HBCSD):
     phase1_share = Param(float, 0.5, "share of the FE budget for phase 1 (chemotaxis)",
                          low=0.0, high=1.0, low_open=True, high_open=True)
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         """Phase 1 within its share of the FE budget, then the spiral to the budget.
 
         Parameters

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import HyperParameterError
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register
 
@@ -185,7 +185,7 @@ class LSHADE(Optimiser):
                 f"least 'min_population' ({self.min_population})"
             )
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         n = space.dim
         n_init = self.population or max(self.min_population, _round(18 * n))
         n_min = self.min_population

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register
 
@@ -59,7 +59,7 @@ class ParticleSwarm(Optimiser):
     v_max = Param(float, 0.2, "velocity clamp as a fraction of the box width", low=0.0,
                   low_open=True)
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         n, P = space.dim, self.population
         width = space.upper - space.lower
         vmax = self.v_max * width

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register
 
@@ -34,7 +34,7 @@ class RandomSearch(Optimiser):
     stays_in_box = True
     population = Param(int, 50, "samples per batch (one iteration)", low=1, aliases=("points",))
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         yield space.initial_population(self.population)
         while True:
             yield space.uniform(self.population, rng)

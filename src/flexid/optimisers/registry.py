@@ -72,7 +72,7 @@ class PluginWarning(UserWarning):
 @checked_keywords
 def register(
     cls: type[Optimiser] | None = None, *, name: str | None = None, source: str = "flexid"
-):
+) -> type[Optimiser] | Callable[[type[Optimiser]], type[Optimiser]]:
     """Class decorator: register an optimiser under ``name`` (default ``cls.name``).
 
     Parameters

@@ -17,7 +17,7 @@ import threading
 import numpy as np
 from scipy import optimize
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register, register_variant
 
@@ -86,7 +86,7 @@ class ScipyMinimize(Optimiser):
     fd_step = Param(float, 1e-7, "relative forward-difference step (L-BFGS-B)", low=0.0,
                     low_open=True)
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         if self.start == "best-initial":
             X0 = space.initial_population(self.initial_points)
             F0 = yield X0

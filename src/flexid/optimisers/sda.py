@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import SearchSpace
 from .registry import register, register_variant
 from .rotation import rotation_matrix
@@ -79,7 +79,7 @@ class SpiralDynamics(Optimiser):
     k_max = Param(int, None, "iterations (None: until the budget)", low=1, none_ok=True)
     clip = Param(bool, False, "clip moved points to the box (deviation)")
 
-    def search(self, space: SearchSpace, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         X = space.initial_population(self.population)
         F = yield X
         b = int(np.argmin(F))
