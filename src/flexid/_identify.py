@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
-from ._validate import checked_keywords
+from ._validate import checked_keywords, integer
 from .arx import ARX
 from .config import (
     IDENTIFY_BUDGET,
@@ -665,13 +665,12 @@ def data_info(
 
 def _budget(budget: Budget | int | Mapping[str, Any]) -> Budget:
     """The budget, checked before any work; errors name the ``budget`` argument."""
-    try:
-        return Budget.coerce(budget)
-    except BudgetError as exc:
-        if isinstance(budget, Mapping):
+    if isinstance(budget, (Budget, type(None))):
+        return Budget.coerce(budget)  # a Budget is checked already; None is refused there
+    if isinstance(budget, Mapping):
+        try:
+            return Budget.coerce(budget)
+        except BudgetError as exc:
             raise BudgetError(f"budget: {exc}") from None
-        if "budget" in str(exc):
-            raise
-        raise BudgetError(
-            f"budget must be a positive integer (function evaluations), got {budget!r}"
-        ) from None
+    max_fe = integer(budget, "budget (function evaluations)", error=BudgetError, minimum=1)
+    return Budget.coerce(max_fe)
