@@ -26,7 +26,11 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
+import json
+import subprocess
+import sys
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -204,3 +208,33 @@ def test_pending_entries_still_fail():
         found = {code for code, _ in failures(name, OBJECTS[name])}
         fixed += [f"{name}: {code}" for code in sorted(codes - found)]
     assert not fixed, "fixed, remove from PENDING:\n" + "\n".join(fixed)
+
+
+RECIPES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("recipe_*.py"))
+
+
+@pytest.mark.parametrize("path", RECIPES, ids=[p.stem for p in RECIPES])
+def test_the_recipes_pass_the_docstring_check(path):
+    """The recipes of docs/architecture.md are files that follow the rules they teach: their
+    classes and functions pass the same numpydoc check as flexid's own.  Each is imported in
+    a fresh interpreter, so what it registers stays out of this one."""
+    script = f"""
+import importlib.util, inspect, json, sys
+sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
+from test_docstrings import failures
+spec = importlib.util.spec_from_file_location("recipe", {str(path)!r})
+module = importlib.util.module_from_spec(spec)
+sys.modules["recipe"] = module
+spec.loader.exec_module(module)
+found = []
+for name, obj in vars(module).items():
+    if name.startswith("_") or getattr(obj, "__module__", None) != "recipe":
+        continue
+    if inspect.isclass(obj) or inspect.isfunction(obj):
+        found += [f"{{name}}: {{c}} {{m}}" for c, m in failures(f"recipe.{{name}}", obj)]
+print(json.dumps(found))
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout.splitlines()[-1]) == []

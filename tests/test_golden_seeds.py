@@ -19,9 +19,14 @@ optimiser, two things that do not depend on the last bits of a floating-point re
   are held to this (all of flexid's own); scipy's Nelder-Mead and Powell order points with
   numpy's default sort, whose order of equal keys depends on the CPU's SIMD sort kernel.
 
-After an intended change, regenerate the file with
+A new built-in optimiser gets its entry with
 
-    python tests/test_golden_seeds.py --update
+    python tests/test_golden_seeds.py --add
+
+which records the optimisers that have none and leaves every other entry as it is.  After an
+intended change of an algorithm, rewrite its entry (and only its) with
+
+    python tests/test_golden_seeds.py --update NAME [NAME ...]
 
 and say why in the commit message.
 """
@@ -116,7 +121,41 @@ def test_seeded_run_matches_the_golden_record(name):
     assert got.get("staircase") == recorded.get("staircase")
 
 
-if __name__ == "__main__" and "--update" in sys.argv:
-    table = {name: run(name) for name in builtins()}
+def record(argv: list[str]) -> str:
+    """``--add``: record the built-ins without an entry; ``--update NAME ...``: those names.
+
+    Every other entry is written back as it was read.
+    """
+    table = json.loads(GOLDEN.read_text()) if GOLDEN.exists() else {}
+    if argv[:1] == ["--add"] and len(argv) == 1:
+        names = [n for n in builtins() if n not in table]
+    elif argv[:1] == ["--update"] and len(argv) > 1:
+        names = argv[1:]
+        unknown = sorted(set(names) - set(builtins()))
+        if unknown:
+            raise SystemExit(f"not built-in optimisers: {', '.join(unknown)}")
+    else:
+        raise SystemExit("usage: test_golden_seeds.py --add | --update NAME [NAME ...]")
+    table.update({name: run(name) for name in names})
     GOLDEN.write_text(json.dumps(table, indent=2, sort_keys=True) + "\n")
-    print(f"wrote {GOLDEN} ({len(table)} optimisers)")
+    return f"wrote {GOLDEN}: {', '.join(names) or 'nothing new'}"
+
+
+if __name__ == "__main__":
+    print(record(sys.argv[1:]))
+
+
+def test_add_records_the_missing_entries_and_rewrites_no_other(tmp_path, monkeypatch):
+    table = json.loads(GOLDEN.read_text())
+    table.pop("random-search")
+    table["pso"] = {"trace": [[0.0, 0.0, 0.0]], "marker": "left as it was"}
+    copy = tmp_path / "golden.json"
+    copy.write_text(json.dumps(table))
+    monkeypatch.setattr(sys.modules[__name__], "GOLDEN", copy)
+    assert record(["--add"]).endswith(": random-search")
+    after = json.loads(copy.read_text())
+    assert after["pso"]["marker"] == "left as it was"
+    assert after["random-search"]["trace"]  # recorded afresh
+    assert set(after) == set(json.loads(GOLDEN.read_text()))
+    with pytest.raises(SystemExit, match="not built-in optimisers: nope"):
+        record(["--update", "nope"])

@@ -262,3 +262,12 @@ def test_broken_plugins_warn_and_are_skipped(plugin_dir):
     p = Problem(sphere, -np.ones(2), np.ones(2))
     assert minimize("test-plugin-walk", p, budget=50, seed=0).nfev == 50
     assert minimize("pso", p, budget=50, seed=0).nfev == 50
+
+
+def test_a_misspelled_builtin_module_is_an_error(monkeypatch):
+    from flexid.optimisers import registry
+
+    monkeypatch.setattr(registry, "_BUILTIN_MODULES", (*registry._BUILTIN_MODULES, "psoo"))
+    monkeypatch.setitem(registry._state, "builtins", False)
+    with pytest.raises(RegistryError, match=r"'flexid\.optimisers\.psoo'.*does not exist"):
+        registry.available()

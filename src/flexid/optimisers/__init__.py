@@ -39,7 +39,7 @@ from __future__ import annotations
 from ._budget import Budget
 from ._driver import AskTell, minimize
 from ._history import History, IterationInfo
-from ._params import Optimiser, Param
+from ._params import Optimiser, Param, SearchGenerator
 from ._problem import Problem, SearchSpace
 from .registry import (
     ENTRY_POINT_GROUP,
@@ -64,6 +64,7 @@ __all__ = [
     "Param",
     "PluginWarning",
     "Problem",
+    "SearchGenerator",
     "SearchSpace",
     "available",
     "create",

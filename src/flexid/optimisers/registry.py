@@ -184,8 +184,12 @@ def _load_builtins() -> None:
     _state["builtins"] = True
     for module in _BUILTIN_MODULES:
         qualified = f"{__package__}.{module}"
-        if importlib.util.find_spec(qualified) is not None:
-            importlib.import_module(qualified)
+        if importlib.util.find_spec(qualified) is None:  # a misspelled name is an error
+            raise RegistryError(
+                f"built-in optimiser module {qualified!r} (registry._BUILTIN_MODULES) does "
+                "not exist"
+            )
+        importlib.import_module(qualified)
 
 
 def _load_plugins() -> None:
