@@ -220,3 +220,20 @@ def test_compare_param_sets_an_optimisers_hyper_parameter(tmp_path, capsys):
         assert main([*argv, "--param", bad]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], err
+
+
+def test_compare_with_a_config_refuses_the_built_in_models_options(tmp_path, capsys):
+    config = tmp_path / "c.toml"
+    config.write_text('[data]\nplant = "twin-rotor"\n[run]\nruns = 1\nbudget = 20\n')
+    assert main(["compare", str(config), "--na", "3"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "na set the built-in comparison's model" in err[0]
+
+
+def test_compare_param_reads_an_optimiser_label_with_a_dash(tmp_path, capsys):
+    argv = ["compare", "--optimisers", "cmaes-bipop", "--runs", "1", "--budget", "40",
+            "--store", str(tmp_path / "s.sqlite"), "--no-figures", "--json",
+            "--param", "cmaes-bipop.population=6"]
+    assert main(argv) == 0
+    (result,) = json.loads(capsys.readouterr().out)
+    assert result["spec"]["optimisers"][0]["params"] == {"population": 6}

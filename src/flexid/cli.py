@@ -135,15 +135,20 @@ def _value(text: str) -> Any:
         return text
 
 
-def _key_values(items: Sequence[str] | None, what: str) -> dict[str, Any]:
-    """``["a=1", "b=x"]`` -> ``{"a": 1, "b": "x"}``."""
+def _key_values_raw(items: Sequence[str] | None, what: str) -> dict[str, Any]:
+    """``["a-b=1", "c=x"]`` -> ``{"a-b": 1, "c": "x"}``: names as written."""
     out: dict[str, Any] = {}
     for item in items or []:
         key, sep, text = item.partition("=")
         if not sep or not key.strip():
             raise ConfigError(f"{what} must look like NAME=VALUE, got {item!r}")
-        out[key.strip().replace("-", "_")] = _value(text.strip())
+        out[key.strip()] = _value(text.strip())
     return out
+
+
+def _key_values(items: Sequence[str] | None, what: str) -> dict[str, Any]:
+    """``["a-b=1", "c=x"]`` -> ``{"a_b": 1, "c": "x"}``: names with ``-`` read as ``_``."""
+    return {k.replace("-", "_"): v for k, v in _key_values_raw(items, what).items()}
 
 
 def _names(text: str | None) -> list[str] | None:
@@ -307,32 +312,14 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     return 0
 
 
-def _with_params(spec: Any, items: Sequence[str]) -> Any:
-    """``spec`` with ``--param [OPTIMISER.]NAME=VALUE`` set on its optimisers."""
-    from dataclasses import replace
-
-    by_label = {o.display: o for o in spec.optimisers}
-    changes: dict[str, dict[str, Any]] = {}
-    for key, value in _key_values(items, "--param").items():
+def _optimiser_params(items: Sequence[str] | None) -> dict[str, Any]:
+    """``["de.weight=0.7", "F=1"]`` -> ``{"de.weight": 0.7, "F": 1}``: the optimiser's label
+    as written, the hyper-parameter's name with ``-`` read as ``_``."""
+    out: dict[str, Any] = {}
+    for key, value in _key_values_raw(items, "--param").items():
         label, dot, name = key.rpartition(".")
-        if not dot:
-            if len(by_label) != 1:
-                raise ConfigError(
-                    f"--param {key}=... is ambiguous with {len(by_label)} optimisers: write "
-                    f"OPTIMISER.{key}=VALUE (one of {', '.join(by_label)})"
-                )
-            label = next(iter(by_label))
-        elif label not in by_label:
-            raise ConfigError(
-                f"--param {key}: {label!r} is not an optimiser of this comparison "
-                f"({', '.join(by_label)})"
-            )
-        changes.setdefault(label, {})[name] = value
-    optimisers = tuple(
-        replace(o, params={**o.params, **changes[o.display]}) if o.display in changes else o
-        for o in spec.optimisers
-    )
-    return replace(spec, optimisers=optimisers)
+        out[f"{label}{dot}{name.replace('-', '_')}"] = value
+    return out
 
 
 def _identify_progress(args: argparse.Namespace):
@@ -389,75 +376,24 @@ def _add_search_options(p: argparse.ArgumentParser) -> None:
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     from ._compare import check_spec, compare
-    from .config import CostSpec, SearchSpec, _check_run_timeout, default_spec, load_config
+    from .config import _check_run_timeout, command_specs
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.runs, "--runs")
     _check_positive(args.workers, "--workers")
     _check_run_timeout(args.run_timeout, "--run-timeout")
-    overrides = {
-        "runs": args.runs,
-        "budget": args.budget,
-        "seed": args.seed,
+    orders = {
+        "structure": args.structure, "na": args.na, "nb": _int_list(args.nb, "--nb"),
+        "nc": args.nc, "nd": args.nd, "nf": _int_list(args.nf, "--nf"),
+        "nk": _int_list(args.nk, "--nk"), "greybox": _greybox_name(args),
+        "parameters": _parameter_changes(args),
     }
-    if args.config:
-        if args.plant:
-            raise ConfigError("give either a CONFIG file or --plant, not both")
-        if args.greybox or args.set or args.fix or args.free:
-            raise ConfigError(
-                "a CONFIG file names its grey-box model and parameters in its [model] table "
-                "(greybox = ..., [model.parameters])"
-            )
-        if args.data_seed is not None:
-            raise ConfigError(
-                "--data-seed applies to the built-in comparison (--plant); a CONFIG file sets "
-                "its record's seed in its [data] table"
-            )
-        specs = load_config(args.config)
-        from dataclasses import replace
-
-        changes = {k: v for k, v in overrides.items() if v is not None}
-        if args.optimisers:
-            from .config import OptimiserSpec
-
-            changes["optimisers"] = tuple(OptimiserSpec(n) for n in _names(args.optimisers))
-        search, cost = _search_overrides(args), _cost_overrides(args)
-        specs = [
-            replace(
-                s,
-                **changes,
-                **({"search": replace(s.search, **search)} if search else {}),
-                **({"cost": replace(s.cost, **cost)} if cost else {}),
-            )
-            for s in specs
-        ]
-    else:
-        given = {  # what the command line does not give is default_spec's default
-            "plant": args.plant,
-            "optimisers": _names(args.optimisers),
-            "runs": args.runs,
-            "budget": args.budget,
-            "seed": args.seed,
-            "nk": _int_list(args.nk, "--nk"),
-            "data_seed": args.data_seed,
-        }
-        specs = [
-            default_spec(
-                **{k: v for k, v in given.items() if v is not None},
-                na=args.na,
-                nb=_int_list(args.nb, "--nb"),
-                structure=args.structure,
-                nc=args.nc,
-                nd=args.nd,
-                nf=_int_list(args.nf, "--nf"),
-                greybox=_greybox_name(args),
-                parameters=_parameter_changes(args),
-                cost=CostSpec(**_cost_overrides(args)),
-                search=SearchSpec(**_search_overrides(args)),
-            )
-        ]
-    if args.param:
-        specs = [_with_params(spec, args.param) for spec in specs]
+    specs = command_specs(
+        args.config, plant=args.plant, optimisers=_names(args.optimisers), runs=args.runs,
+        budget=args.budget, seed=args.seed, data_seed=args.data_seed, model=orders,
+        cost=_cost_overrides(args), search=_search_overrides(args),
+        params=_optimiser_params(args.param),
+    )
     if len(specs) > 1:  # compare() checks its own spec before it opens the store; check the
         for spec in specs:  # others too before the first comparison writes anything
             check_spec(spec)
@@ -560,11 +496,8 @@ def _cmd_select(args: argparse.Namespace) -> int:
 def _parameter_changes(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
     """``--set NAME=VALUE``, ``--fix A,B`` and ``--free C`` as grey-box parameter changes."""
     changes: dict[str, dict[str, Any]] = {}
-    for item in args.set or []:  # parameter names keep their spelling (no - to _)
-        name, sep, text = item.partition("=")
-        if not sep or not name.strip():
-            raise ConfigError(f"--set must look like NAME=VALUE, got {item!r}")
-        changes.setdefault(name.strip(), {})["value"] = _value(text.strip())
+    for name, value in _key_values_raw(args.set, "--set").items():  # names as spelled
+        changes.setdefault(name, {})["value"] = value
     for option, fixed in ((args.fix, True), (args.free, False)):
         for name in _names(option) or []:
             changes.setdefault(name, {})["fixed"] = fixed
@@ -650,85 +583,97 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_list(args: argparse.Namespace) -> int:
+def _list_optimisers(args: argparse.Namespace) -> None:
+    from ._json import jsonable
+    from .optimisers import available, describe
+    from .optimisers.external import library_notes
+
+    entries = [describe(name) for name in available()]
+    if args.json:
+        print(json.dumps(jsonable(entries), indent=2, allow_nan=False, default=str))
+        return
+    width = max(len(e["name"]) for e in entries)
+    bwidth = max(len(e["bounds"]["kind"]) for e in entries)
+    if not args.long:
+        print(f"{'name':<{width}}  {'at the bounds':<{bwidth}}  summary")
+    for e in entries:
+        origin = f" (variant of {e['variant_of']})" if e["variant_of"] else ""
+        src = "" if e["source"] == "flexid" else f" [{e['source']}]"
+        bounds = e["bounds"]["kind"]
+        if not args.long:  # one line each: the name, the bounds and the first sentence
+            first = e["summary"].split(". ")[0].rstrip(".")
+            print(f"{e['name']:<{width}}  {bounds:<{bwidth}}  {first}{origin}{src}")
+            continue
+        print(f"{e['name']}{origin}{src}: {e['summary']}")
+        note = e["bounds"]["note"]
+        print(f"    at the bounds: {bounds}" + (f": {note}" if note else ""))
+        for pname, p in e["hyperparameters"].items():
+            print(f"    {pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}")
+    if not args.long:
+        print("\n(--long: every optimiser's hyper-parameters, defaults and ranges)")
+    print("\nOptimisers of other libraries (flexid's FE budget, initial population and seed):")
+    for line in library_notes():
+        print(f"  {line}")
+
+
+def _list_signals(args: argparse.Namespace) -> None:
+    from .signals import describe_signals
+
+    print(describe_signals())
+
+
+def _list_plants(args: argparse.Namespace) -> None:
+    for plant in PLANTS.values():
+        print(
+            f"{plant.name:12s} {', '.join(plant.input_names)} -> "
+            f"{', '.join(plant.output_names)}; dt {plant.dt:g} s; gymnasium id {plant.env_id}"
+        )
+
+
+def _list_presets(args: argparse.Namespace) -> None:
     from ._json import jsonable
 
-    what = args.what
-    if what == "optimisers":
-        from .optimisers import available, describe
+    for name, preset in all_presets().items():
+        print(f"{name}: {json.dumps(jsonable(preset), allow_nan=False, default=str)}")
 
-        entries = [describe(name) for name in available()]
-        if args.json:
-            print(json.dumps(jsonable(entries), indent=2, allow_nan=False, default=str))
-            return 0
-        width = max(len(e["name"]) for e in entries)
-        bwidth = max(len(e["bounds"]["kind"]) for e in entries)
-        if not args.long:
-            print(f"{'name':<{width}}  {'at the bounds':<{bwidth}}  summary")
-        for e in entries:
-            origin = f" (variant of {e['variant_of']})" if e["variant_of"] else ""
-            src = "" if e["source"] == "flexid" else f" [{e['source']}]"
-            bounds = e["bounds"]["kind"]
-            if not args.long:  # one line each: the name, the bounds and the first sentence
-                first = e["summary"].split(". ")[0].rstrip(".")
-                print(f"{e['name']:<{width}}  {bounds:<{bwidth}}  {first}{origin}{src}")
-                continue
-            print(f"{e['name']}{origin}{src}: {e['summary']}")
-            note = e["bounds"]["note"]
-            print(f"    at the bounds: {bounds}" + (f": {note}" if note else ""))
-            for pname, p in e["hyperparameters"].items():
-                print(f"    {pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}")
-        if not args.long:
-            print("\n(--long: every optimiser's hyper-parameters, defaults and ranges)")
-        from .optimisers.external import library_notes
 
-        print("\nOptimisers of other libraries (flexid's FE budget, initial population and seed):")
-        for line in library_notes():
-            print(f"  {line}")
-        return 0
-    if what == "signals":
-        from .signals import describe_signals
+def _list_greybox(args: argparse.Namespace) -> None:
+    from .greybox_models import available_greybox_models, greybox_model
 
-        print(describe_signals())
-        return 0
-    if what in ("plants", "presets"):
-        from .datasets import PRESETS
+    for name in available_greybox_models():
+        try:
+            model = greybox_model(name)
+        except FlexidError as exc:  # an installed model that fails to load says so
+            print(f"{name}: cannot be loaded ({exc})")
+            continue
+        print(
+            f"{name}: {', '.join(model.inputs)} -> {', '.join(model.outputs)}; estimated "
+            f"{', '.join(model.free)}"
+        )
+    print("and any path/to/file.py:NAME (a GreyBoxModel, or a function returning one)")
 
-        if what == "plants":
-            from .plants import PLANTS
 
-            for plant in PLANTS.values():
-                print(
-                    f"{plant.name:12s} {', '.join(plant.input_names)} -> "
-                    f"{', '.join(plant.output_names)}; dt {plant.dt:g} s; "
-                    f"gymnasium id {plant.env_id}"
-                )
-            return 0
-        for name, preset in PRESETS.items():
-            print(f"{name}: {json.dumps(jsonable(preset), allow_nan=False, default=str)}")
-        return 0
-    if what == "greybox":
-        from .greybox_models import available_greybox_models, greybox_model
+def _list_environments(args: argparse.Namespace) -> None:
+    import gymnasium
 
-        for name in available_greybox_models():
-            try:
-                model = greybox_model(name)
-            except FlexidError as exc:  # an installed model that fails to load says so
-                print(f"{name}: cannot be loaded ({exc})")
-                continue
-            print(
-                f"{name}: {', '.join(model.inputs)} -> {', '.join(model.outputs)}; estimated "
-                f"{', '.join(model.free)}"
-            )
-        print("and any path/to/file.py:NAME (a GreyBoxModel, or a function returning one)")
-        return 0
-    if what == "environments":
-        import gymnasium
+    for env_id in sorted(k for k in gymnasium.envs.registry if k.startswith("flexid/")):
+        print(env_id)
 
-        for env_id in sorted(k for k in gymnasium.envs.registry if k.startswith("flexid/")):
-            print(env_id)
-        return 0
-    raise ConfigError(f"unknown list {what!r}")  # pragma: no cover (argparse choices)
+
+#: What ``flexid list`` lists, and how.
+_LISTS = {
+    "optimisers": _list_optimisers,
+    "signals": _list_signals,
+    "plants": _list_plants,
+    "presets": _list_presets,
+    "greybox": _list_greybox,
+    "environments": _list_environments,
+}
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    _LISTS[args.what](args)
+    return 0
 
 
 # ============================================================================ parser
@@ -1088,7 +1033,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
     li.add_argument(
-        "what", choices=["optimisers", "signals", "plants", "presets", "greybox", "environments"]
+        "what", choices=list(_LISTS)
     )
     li.add_argument("--json", action="store_true", help="machine-readable (optimisers)")
     li.add_argument(

@@ -79,9 +79,11 @@ __all__ = [
     "OptimiserSpec",
     "SearchSpec",
     "auto_initial",
+    "command_specs",
     "default_spec",
     "load_config",
     "spec_from_mapping",
+    "with_optimiser_params",
 ]
 
 DEFAULT_OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de")
@@ -1040,3 +1042,143 @@ def default_spec(
         seed=seed,
         budget=budget,
     )
+
+
+def with_optimiser_params(spec: ComparisonSpec, params: Mapping[str, Any]) -> ComparisonSpec:
+    """``spec`` with hyper-parameters set on its optimisers.
+
+    Parameters
+    ----------
+    spec : ComparisonSpec
+    params : mapping
+        ``"OPTIMISER.NAME" -> value`` (an optimiser's label or name, then the
+        hyper-parameter), or ``"NAME" -> value`` when the comparison has one optimiser.
+
+    Returns
+    -------
+    ComparisonSpec
+
+    Raises
+    ------
+    ConfigError
+        A bare name with several optimisers, or an optimiser the comparison does not have.
+    """
+    by_label = {o.display: o for o in spec.optimisers}
+    changes: dict[str, dict[str, Any]] = {}
+    for key, value in params.items():
+        label, dot, name = key.rpartition(".")
+        if not dot:
+            if len(by_label) != 1:
+                raise ConfigError(
+                    f"--param {key}=... is ambiguous with {len(by_label)} optimisers: write "
+                    f"OPTIMISER.{key}=VALUE (one of {', '.join(by_label)})"
+                )
+            label = next(iter(by_label))
+        elif label not in by_label:
+            raise ConfigError(
+                f"--param {key}: {label!r} is not an optimiser of this comparison "
+                f"({', '.join(by_label)})"
+            )
+        changes.setdefault(label, {})[name] = value
+    optimisers = tuple(
+        replace(o, params={**o.params, **changes[o.display]}) if o.display in changes else o
+        for o in spec.optimisers
+    )
+    return replace(spec, optimisers=optimisers)
+
+
+def command_specs(
+    config: str | os.PathLike | None = None,
+    *,
+    plant: str | None = None,
+    optimisers: Sequence[str] | None = None,
+    runs: int | None = None,
+    budget: int | None = None,
+    seed: int | None = None,
+    data_seed: int | None = None,
+    model: Mapping[str, Any] | None = None,
+    cost: Mapping[str, Any] | None = None,
+    search: Mapping[str, Any] | None = None,
+    params: Mapping[str, Any] | None = None,
+) -> list[ComparisonSpec]:
+    """The comparisons a command asks for: a configuration file's, or the built-in one.
+
+    What is not given keeps the file's value, or :func:`default_spec`'s default.
+
+    Parameters
+    ----------
+    config : path, optional
+        A TOML configuration (:func:`load_config`); without it, the built-in comparison of
+        ``plant``.
+    plant : str, optional
+        The built-in comparison's plant (not with ``config``).
+    optimisers : sequence of str, optional
+        Registry names, replacing the comparison's optimisers.
+    runs, budget, seed : int, optional
+        Runs per optimiser, FE per run, seed of the runs.
+    data_seed : int, optional
+        Seed of the built-in comparison's record (not with ``config``: a file sets its own).
+    model : mapping, optional
+        Of the built-in comparison: ``structure``, ``na``, ``nb``, ``nc``, ``nd``, ``nf``,
+        ``nk``, ``greybox`` and ``parameters`` (not with ``config``: a file has its
+        ``[model]`` table).
+    cost, search : mapping, optional
+        Fields of :class:`CostSpec` and :class:`SearchSpec` to change.
+    params : mapping, optional
+        Hyper-parameters (see :func:`with_optimiser_params`).
+
+    Returns
+    -------
+    list of ComparisonSpec
+
+    Raises
+    ------
+    ConfigError
+        Options that do not go together, or whatever the file or the specs refuse.
+    """
+    model = {k: v for k, v in (model or {}).items() if v not in (None, {}, [])}
+    cost, search = dict(cost or {}), dict(search or {})
+    if config is not None:
+        if plant:
+            raise ConfigError("give either a CONFIG file or --plant, not both")
+        if model:
+            raise ConfigError(
+                f"{', '.join(sorted(model))} set the built-in comparison's model; a CONFIG "
+                "file names its structure, orders, grey-box model and parameters in its "
+                "[model] table"
+            )
+        if data_seed is not None:
+            raise ConfigError(
+                "--data-seed applies to the built-in comparison (--plant); a CONFIG file sets "
+                "its record's seed in its [data] table"
+            )
+        changes: dict[str, Any] = {
+            k: v for k, v in (("runs", runs), ("budget", budget), ("seed", seed)) if v is not None
+        }
+        if optimisers:
+            changes["optimisers"] = tuple(OptimiserSpec(n) for n in optimisers)
+        specs = [
+            replace(
+                s,
+                **changes,
+                **({"search": replace(s.search, **search)} if search else {}),
+                **({"cost": replace(s.cost, **cost)} if cost else {}),
+            )
+            for s in load_config(config)
+        ]
+    else:
+        given = {
+            "plant": plant, "optimisers": optimisers, "runs": runs, "budget": budget,
+            "seed": seed, "data_seed": data_seed,
+        }
+        specs = [
+            default_spec(
+                **{k: v for k, v in given.items() if v is not None},
+                **model,
+                cost=CostSpec(**cost),
+                search=SearchSpec(**search),
+            )
+        ]
+    if params:
+        specs = [with_optimiser_params(spec, params) for spec in specs]
+    return specs
