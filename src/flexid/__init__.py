@@ -107,7 +107,7 @@ _LAZY = {
     "search_box": "estimation",
     # comparison
     "compare": "_compare",
-    "ComparisonResult": "_compare",
+    "ComparisonResult": "_comparison_result",
     "check_spec": "_compare",
     "load_result": "_compare",
     "ComparisonSpec": "config",

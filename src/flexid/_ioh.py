@@ -81,7 +81,8 @@ from typing import Any
 
 import numpy as np
 
-from ._compare import ComparisonResult, load_result
+from ._compare import load_result
+from ._comparison_result import ComparisonResult
 from ._json import jsonable
 from .errors import ConfigError, StoreError
 from .statistics import best_at

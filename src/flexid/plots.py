@@ -22,7 +22,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from ._compare import ComparisonResult
+    from ._comparison_result import ComparisonResult
     from ._identify import Identification
     from .selection import Selection
 

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._compare import ComparisonResult, load_result
+from ._compare import load_result
+from ._comparison_result import ComparisonResult
 from ._html import escape, table
 from ._ioh import (
     IOH_LAYOUTS,
