@@ -40,8 +40,9 @@ import scipy.signal
 
 from flexid.arx import ARXStructure
 from flexid.datasets import generate
+from flexid.diagnostics import fit_percent, residual_tests
 from flexid.envs import beam, twin_rotor_physics
-from flexid.validation import fit_percent, residual_tests, validate
+from flexid.validation import validate
 
 
 def peaks(

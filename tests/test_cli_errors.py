@@ -190,8 +190,8 @@ def test_load_of_a_folder_says_folder(name, tmp_path):
 
 # ------------------------------------------------------------------ 5. diverged fits
 def test_format_fit_is_shared_and_caps_diverged_fits():
-    from flexid import _compare as compare_module
-    from flexid.validation import format_fit
+    from flexid import _comparison_result as compare_module
+    from flexid.diagnostics import format_fit
 
     assert format_fit(-1.4e113) == "< -999"
     assert format_fit(-math.inf) == "< -999"

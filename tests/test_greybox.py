@@ -263,7 +263,7 @@ def test_wrong_shape_is_an_error_and_divergence_costs_inf():
 def test_validation_runs_the_model_on_from_the_record_start():
     # independent route: the model simulated over the whole record, its last third scored
     # by fit_percent and the correlation tests directly
-    from flexid.validation import fit_percent, residual_tests
+    from flexid.diagnostics import fit_percent, residual_tests
 
     data = _pitch_record(900, sensors="lab")
     model = twin_rotor_pitch()

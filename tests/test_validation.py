@@ -21,8 +21,7 @@ from scipy import fft as sfft
 from scipy.signal import lfilter
 
 from flexid.data import IOData
-from flexid.errors import DataError, ModelOrderError
-from flexid.validation import (
+from flexid.diagnostics import (
     billings_voon_tests,
     correlation_bound,
     error_range,
@@ -31,10 +30,10 @@ from flexid.validation import (
     psd,
     residual_tests,
     rmse,
-    stability_report,
-    validate,
     xcorr,
 )
+from flexid.errors import DataError, ModelOrderError
+from flexid.validation import stability_report, validate
 from numerics import EPS
 
 

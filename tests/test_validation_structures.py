@@ -21,9 +21,10 @@ from scipy.signal import lfilter
 
 from flexid.arx import ARXStructure
 from flexid.data import IOData
+from flexid.diagnostics import fit_percent
 from flexid.errors import DataError, UnknownNameError
 from flexid.polynomial import INITIAL_RULES, PolynomialStructure
-from flexid.validation import fit_percent, validate
+from flexid.validation import validate
 from numerics import EPS, assert_close_to_terms, route_tolerance
 from route_bounds import ar_route_bound, lstsq_error
 

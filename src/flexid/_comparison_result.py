@@ -16,10 +16,10 @@ from typing import Any
 from ._json import jsonable
 from ._table import text_table
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec
+from .diagnostics import format_fit as _fit
 from .errors import StoreError
 from .estimation import choose_reference
 from .statistics import rank_sum_against_best, summarise
-from .validation import format_fit as _fit
 
 __all__ = ["ComparisonResult"]
 

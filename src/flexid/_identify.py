@@ -31,13 +31,14 @@ from .config import (
     SearchSpec,
 )
 from .data import IOData, prepare_data
+from .diagnostics import format_fit
 from .errors import BudgetError, ConfigError
 from .estimation import SearchBox, build_problem, greybox_of, structure_of
 from .greybox import GreyBoxModel
 from .objective import ARXCost
 from .optimisers import Budget, History, minimize
 from .polynomial import PolynomialStructure, _check_initial
-from .validation import ValidationReport, format_fit, validate
+from .validation import ValidationReport, validate
 
 __all__ = ["Identification", "identify"]
 

@@ -19,12 +19,13 @@ from ._identify import Identification, _indent, data_info, timings
 from ._json import jsonable
 from .config import CostSpec, SearchSpec
 from .data import IOData, load
+from .diagnostics import format_fit
 from .errors import ConfigError
 from .estimation import build_problem
 from .greybox import GreyBoxModel
 from .greybox_estimation import START_NAME
 from .optimisers import Budget, minimize
-from .validation import ValidationReport, format_fit, validate
+from .validation import ValidationReport, validate
 
 __all__ = ["GreyBoxIdentification", "identify_greybox"]
 

@@ -48,10 +48,10 @@ import numpy as np
 from scipy import optimize
 
 from ._validate import checked_keywords, integer, real
+from .diagnostics import fit_percent
 from .errors import ConfigError
 from .greybox import GreyBoxModel
 from .greybox_cost import GreyBoxCost
-from .validation import fit_percent
 
 __all__ = ["EXACT", "OPTIMALITY", "UNIDENTIFIABLE", "GreyBoxResult", "GreyBoxRun", "greyest"]
 

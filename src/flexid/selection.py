@@ -79,6 +79,7 @@ from scipy import linalg
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, integer, real
+from .diagnostics import format_fit
 from .errors import (
     ConfigError,
     DataError,
@@ -93,7 +94,6 @@ from .polynomial import (
     _check_initial,
     structure,
 )
-from .validation import format_fit
 
 if TYPE_CHECKING:  # pragma: no cover
     from .data import IOData
