@@ -559,51 +559,9 @@ def identify(
     cost_ls = estimation.cost_ls
 
     t_opt = time.perf_counter()
-    oe = None
-    # the gradient reference of the one-step ARX cost is its exact optimum, least squares
-    arx_ls = optimiser == PREDICTION_ERROR and not polynomial and predictor != "simulation"
-    if (optimiser == LEAST_SQUARES or arx_ls) and not polynomial:
-        model = structure.least_squares(est.u, est.y[:, 0], dt=est.dt)
-        result, used_params, used_seed = None, {}, None
-        cost_value = cost_ls
-    elif optimiser == LEAST_SQUARES:
-        if not np.isfinite(objective.theta_ls).all():
-            raise ConfigError(
-                f"{structure!r} has no least-squares start (its F polynomials differ in "
-                "order); use optimiser='pem'"
-            )
-        model = structure.model(objective.theta_ls, dt=est.dt)
-        result, used_params, used_seed = None, {}, None
-        cost_value = cost_ls
-    elif optimiser in (OUTPUT_ERROR, PREDICTION_ERROR) and not polynomial:
-        if predictor != "simulation":
-            raise ConfigError(
-                "the output-error reference ('oe') minimises the simulation cost: use "
-                "predictor='simulation' (--predictor simulation); least squares ('ls') is "
-                "the optimum of the one-step cost"
-            )
-        oe = estimation.output_error_reference(seed=0 if seed is None else seed)
-        model = structure.model(oe.theta, dt=est.dt)
-        result, used_params, used_seed = None, {"starts": len(oe.runs)}, seed
-        cost_value = float(oe.cost)
-    elif optimiser in (OUTPUT_ERROR, PREDICTION_ERROR):
-        oe = estimation.output_error_reference(seed=0 if seed is None else seed)
-        model = type(oe.model)(
-            structure,
-            oe.theta,
-            dt=est.dt,
-            param_std=oe.model.param_std,
-            noise_variance=oe.model.noise_variance,
-        )
-        result, used_params, used_seed = None, {"starts": len(oe.runs)}, seed
-        cost_value = float(oe.cost)
-    else:
-        result = minimize(
-            optimiser, estimation.problem, budget, seed, params=params, callback=callback
-        )
-        model = structure.model(estimation.theta(result.x), dt=est.dt)
-        used_params, used_seed = dict(result.params), result.seed
-        cost_value = float(result.fun)
+    model, result, used_params, used_seed, cost_value, oe = _search(
+        estimation, structure, est, optimiser, predictor, budget, seed, params, callback
+    )
     t_val = time.perf_counter()
     report_est = validate(model, est, max_lag=max_lag, initial=validate_initial)
     report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
@@ -629,6 +587,51 @@ def identify(
         timings=timings(t_start, t_opt, t_val, t_end),
         data_info=info,
     )
+
+
+def _search(
+    estimation: Any, structure: Any, est: IOData, optimiser: str, predictor: str, budget: Any,
+    seed: int | None, params: Mapping[str, Any] | None, callback: Callable | None,
+) -> tuple[Any, Any, dict, int | None, float, Any]:
+    """Fit a polynomial structure by least squares, its gradient reference or an optimiser.
+
+    Returns ``(model, optimiser result or None, hyper-parameters used, seed used, cost,
+    reference result or None)``.
+    """
+    polynomial = isinstance(structure, PolynomialStructure)
+    objective, cost_ls = estimation.cost, estimation.cost_ls
+    # the gradient reference of the one-step ARX cost is its exact optimum, least squares
+    arx_ls = optimiser == PREDICTION_ERROR and not polynomial and predictor != "simulation"
+    if (optimiser == LEAST_SQUARES or arx_ls) and not polynomial:
+        return structure.least_squares(est.u, est.y[:, 0], dt=est.dt), None, {}, None, \
+            cost_ls, None
+    if optimiser == LEAST_SQUARES:
+        if not np.isfinite(objective.theta_ls).all():
+            raise ConfigError(
+                f"{structure!r} has no least-squares start (its F polynomials differ in "
+                "order); use optimiser='pem'"
+            )
+        return structure.model(objective.theta_ls, dt=est.dt), None, {}, None, cost_ls, None
+    if optimiser in (OUTPUT_ERROR, PREDICTION_ERROR):
+        if not polynomial and predictor != "simulation":
+            raise ConfigError(
+                "the output-error reference ('oe') minimises the simulation cost: use "
+                "predictor='simulation' (--predictor simulation); least squares ('ls') is "
+                "the optimum of the one-step cost"
+            )
+        oe = estimation.output_error_reference(seed=0 if seed is None else seed)
+        if polynomial:
+            model = type(oe.model)(
+                structure, oe.theta, dt=est.dt, param_std=oe.model.param_std,
+                noise_variance=oe.model.noise_variance,
+            )
+        else:
+            model = structure.model(oe.theta, dt=est.dt)
+        return model, None, {"starts": len(oe.runs)}, seed, float(oe.cost), oe
+    result = minimize(optimiser, estimation.problem, budget, seed, params=params,
+                      callback=callback)
+    model = structure.model(estimation.theta(result.x), dt=est.dt)
+    return model, result, dict(result.params), result.seed, float(result.fun), None
 
 
 def timings(t_start: float, t_opt: float, t_val: float, t_end: float) -> dict[str, float]:
