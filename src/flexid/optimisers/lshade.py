@@ -156,6 +156,14 @@ class LSHADE(Optimiser):
     zero as in the authors' C++ code, and the archive is cut to its first entries when it
     shrinks, as there.  One generation is one iteration (one batch of ``N`` FE).
 
+    A terminal ``M_CR`` slot stays terminal, as the paper's Algorithm 1 and the authors'
+    MATLAB code have it; their C++ code (L-SHADE 1.1) zeroes the slot before it tests it, so
+    there a terminal slot is overwritten at its next update.  Checked against that C++ code
+    built locally with the test as in the paper (shifted 10-D Rastrigin and Rosenbrock in
+    [-5, 5]^10, 10,000 FE, 60 runs each): medians 0.276 and 2.49 for the C++ code, 0.280 and
+    2.48 here (Mann-Whitney p = 0.70 and 0.93); with the C++ test as published, Rastrigin's
+    median is 0.88 there (p = 0.005: CR = 0 suits a separable function).
+
     References
     ----------
     R. Tanabe and A. S. Fukunaga, "Improving the Search Performance of SHADE Using Linear
