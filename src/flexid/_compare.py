@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from . import kernels
 from ._identify import prepare_data, structure_of
 from ._json import jsonable
 from ._table import text_table
@@ -353,6 +354,7 @@ def _worker_main(conn: Any, payload: Mapping[str, Any]) -> None:
     # ends the workers), so that a run is not cut short into a failed record
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _exit_with_parent()
+    kernels.set_threads(1)  # the worker processes share the cores already
     try:
         ctx = _context_from_payload(payload)
     except BaseException:

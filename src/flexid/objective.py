@@ -21,11 +21,12 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
+from . import kernels
 from ._validate import real
 from .arx import ARXStructure, _io_arrays
 from .config import CostSpec
 from .errors import DataError, UnknownNameError
-from .kernels import ar_recursion
+from .kernels import ar_recursion, arx_recursion
 from .stability import is_stable, pole_radius_batched
 
 __all__ = [
@@ -269,6 +270,7 @@ class ARXCost:
             if initial == "zero":
                 self._phi_u = structure._phi_padded(u, y)[:, na:]
             self._phi_u_t = np.ascontiguousarray(self._phi_u.T)
+            self._phi_u_rows = np.ascontiguousarray(self._phi_u)  # (K, nb): arx_recursion
             # state before the first simulated sample: [y(start-1), ..., y(start-na)]
             s = structure.start
             self._state = y[s - na : s][::-1].copy() if na else np.zeros(0)
@@ -328,6 +330,14 @@ class ARXCost:
 
     def _simulated_sse(self, X: np.ndarray) -> np.ndarray:
         na = self.structure.na
+        if kernels.BACKEND == "c":  # the input part computed in the kernel, no (P, K) GEMM
+            a, b = X[:, :na], X[:, na:]
+            if self.initial == "measured":
+                return arx_recursion(a, b, self._phi_u_rows, self._state, self._target,
+                                     want_output=False)[1]  # fmt: skip
+            y, _ = arx_recursion(a, b, self._phi_u_rows, np.zeros(na))
+            e = self._target - y[:, self.structure.start :]
+            return np.einsum("ij,ij->i", e, e)
         forced = X[:, na:] @ self._phi_u_t  # (P, K) one GEMM
         if self.initial == "measured":
             _, sse = ar_recursion(X[:, :na], forced, self._state, self._target, want_output=False)
