@@ -29,7 +29,7 @@ from flexid.errors import FlexidError
 from flexid.objective import ARXCost
 from flexid.stability import is_stable_reference
 from numerics import EPS, assert_close_to_terms
-from route_bounds import ar_route_bound, sse_route_bound
+from route_bounds import ar_route_bound, lstsq_error, sse_route_bound
 from test_kernels import stable_denominators
 
 compiled = pytest.mark.skipif(
@@ -276,3 +276,135 @@ def test_compare_worker_processes_use_one_thread(monkeypatch):
         assert sent == [("ready", None)]
     finally:
         kernels.set_threads(old)
+
+
+# ------------------------------------------------------------------ the fitted numerator
+def fitted_numerator_problem(na, nb, initial):
+    """A simulation cost and stable denominators near the data's (poles at radius 0.9)."""
+    rng = np.random.default_rng(na * 10 + nb + (initial == "zero"))
+    u = rng.uniform(-1, 1, 600)
+    poles = 0.9 * np.exp(1j * np.linspace(0.3, 2.5, na // 2))
+    den = np.poly(np.r_[poles, poles.conj(), [0.5] * (na % 2)]).real
+    yv = signal.lfilter(np.r_[0.0, rng.normal(size=nb)], den, u) + 0.01 * rng.normal(size=600)
+    cost = ARXCost(ARXStructure(na, nb, 1), (u, yv), predictor="simulation", initial=initial)
+    a = den[1:] + 0.01 * rng.normal(size=(9, na))
+    return cost, a[is_stable_reference(a)]
+
+
+@pytest.mark.numerics
+@compiled
+@pytest.mark.parametrize("initial", ["measured", "zero"])
+@pytest.mark.parametrize("orders", [(2, 3), (8, 8), (5, 1), (1, 4)])
+def test_arx_fit_solves_the_least_squares_problem(simd, initial, orders):
+    # kernels.arx_fit (nb + 1 recursions, normal equations of the scaled columns, Cholesky,
+    # one refinement step) against the exact least-squares solution (SVD) of the reference
+    # route's regressors (lfilter).  Two parts:
+    # * the problems differ by the recursions' rounding, bounded element-wise by
+    #   ar_route_bound for every column and for the free response; the least-squares
+    #   perturbation theorem (Higham Thm 20.1) maps those relative perturbations eps_F, eps_r
+    #   to |dx| <= kappa e / (1 - kappa e) (2 |x| + (kappa + 1) |r| / |F|), e = max of them;
+    # * each solve's own rounding: lstsq_error (route_bounds.py) for each of the two, the
+    #   compiled one under the condition that its refinement converges, kappa^2 eps < 1/2
+    #   (asserted): then one refinement step from the normal equations reaches the accuracy of
+    #   a backward-stable solve (Higham sec. 20.5).
+    na, nb = orders
+    cost, a = fitted_numerator_problem(na, nb, initial)
+    start = cost.structure.start
+    offset = 0 if initial == "measured" else start
+    state0 = cost._state if initial == "measured" else np.zeros(na)
+    reg = cost._phi_u_rows
+    b, ok = kernels.arx_fit(a, reg, state0, cost._target, offset)
+    assert ok.all() and b.shape == (a.shape[0], nb)
+    forced = np.vstack([np.zeros((1, reg.shape[0])), reg.T])
+    for i, row in enumerate(a):
+        rows = np.repeat(row[None], nb + 1, 0)
+        states = np.zeros((nb + 1, na))
+        states[0] = state0
+        y = kernels.ar_recursion_reference(rows, forced, states)
+        dy = ar_route_bound(rows, forced, states, y)[:, offset:]
+        F, r = y[1:, offset:].T, cost._target - y[0, offset:]
+        sv = np.linalg.svd(F, compute_uv=False)
+        kappa = sv[0] / sv[-1]
+        assert kappa**2 * EPS < 0.5
+        exact = np.linalg.lstsq(F, r, rcond=None)[0]
+        resid = float(np.linalg.norm(r - F @ exact))
+        e = max(np.linalg.norm(dy[1:]) / sv[0], np.linalg.norm(dy[0]) / np.linalg.norm(r))
+        assert kappa * e < 0.5
+        perturbation = kappa * e / (1 - kappa * e) * (
+            2 * np.linalg.norm(exact) + (kappa + 1) * resid / sv[0])  # fmt: skip
+        bound = perturbation + 2 * lstsq_error(F, exact, resid)
+        assert np.linalg.norm(b[i] - exact) <= bound
+
+
+@compiled
+def test_fitted_numerator_compiled_and_numpy_routes_agree(monkeypatch):
+    # ARXCost.fit_numerator takes kernels.arx_fit on the compiled backend; its rows then feed
+    # the same cost as the NumPy route's.  Both solve the same problem (the regressors by
+    # the same recursion, bit for bit on one instruction set): the difference is the two
+    # solves' rounding, each within lstsq_error of the exact solution
+    cost, a = fitted_numerator_problem(8, 8, "measured")
+    monkeypatch.setattr(kernels, "BACKEND", "c")
+    got = cost.fit_numerator(a)
+    monkeypatch.setattr(kernels, "BACKEND", "numpy")
+    ref = cost.fit_numerator(a)
+    np.testing.assert_array_equal(got[:, :8], ref[:, :8])
+    for i, row in enumerate(a):
+        nb, na = 8, 8
+        forced = np.vstack([np.zeros((1, cost.K)), cost._phi_u_rows.T])
+        states = np.zeros((nb + 1, na))
+        states[0] = cost._state
+        y = kernels.ar_recursion_reference(np.repeat(row[None], nb + 1, 0), forced, states)
+        F, r = y[1:].T, cost._target - y[0]
+        exact = np.linalg.lstsq(F, r, rcond=None)[0]
+        resid = float(np.linalg.norm(r - F @ exact))
+        # both within 2 lstsq_error of the exact solution of the reference's problem, whose
+        # regressors differ from either route's by rounding far below it (first test)
+        assert np.linalg.norm(got[i, 8:] - ref[i, 8:]) <= 8 * lstsq_error(F, exact, resid)
+
+
+@compiled
+def test_arx_fit_rejects_bad_arguments_and_flags_singular_rows():
+    a = np.array([[-0.5], [0.2]])
+    reg = np.zeros((50, 2))  # zero regressors: a singular Gram matrix
+    _, ok = kernels.arx_fit(a, reg, np.zeros(1), np.ones(50), 0)
+    assert not ok.any()
+    with pytest.raises(ValueError, match="arx_fit"):
+        kernels.arx_fit(a, reg, np.zeros(2), np.ones(50), 0)
+    with pytest.raises(ValueError, match="arx_fit"):
+        kernels.arx_fit(a, reg, np.zeros(1), np.ones(49), 0)
+    with pytest.raises(ValueError, match="arx_fit"):
+        kernels.arx_fit(np.zeros((2, 17)), reg, np.zeros(17), np.ones(50), 0)
+
+
+@compiled
+def test_arx_fit_does_not_depend_on_the_thread_count(simd):
+    from flexid import _kernels
+
+    cost, a = fitted_numerator_problem(4, 3, "measured")
+    a = np.vstack([a] * 5)
+    outs = []
+    for n_threads in (1, 2, 3, 16):
+        b, ok = np.empty((a.shape[0], 3)), np.empty(a.shape[0], np.uint8)
+        _kernels.arx_fit(a, cost._phi_u_rows, cost._state, cost._target, 0, b, ok, n_threads)
+        outs.append(b)
+    for b in outs[1:]:
+        np.testing.assert_array_equal(b, outs[0])
+
+
+@compiled
+def test_rows_the_compiled_fit_cannot_solve_take_the_numpy_route(monkeypatch):
+    cost, a = fitted_numerator_problem(3, 2, "measured")
+    real = kernels.arx_fit
+
+    def flaky(*args):
+        b, ok = real(*args)
+        ok[::2] = False
+        return b, ok
+
+    monkeypatch.setattr(kernels, "BACKEND", "c")
+    want = cost._simulation_numerators_numpy(a, 0, cost._state)
+    monkeypatch.setattr(kernels, "arx_fit", flaky)
+    got = cost.fit_numerator(a)[:, 3:]
+    np.testing.assert_array_equal(got[::2], want[::2])  # recomputed by the NumPy route
+    np.testing.assert_array_equal(got[1::2], real(a, cost._phi_u_rows, cost._state,
+                                                   cost._target, 0)[0][1::2])  # fmt: skip

@@ -379,27 +379,41 @@ static void ar_units(const ar_job *J, Py_ssize_t lo, Py_ssize_t hi, double *hist
 }
 
 /* ------------------------------------------------------------------ threads */
-/* A job's units are claimed one at a time, by the calling thread and by up to n - 1 helper
- * threads started for the call.  The caller waits only for units a helper has claimed, never
- * for a helper to start or to end: on a busy machine a helper the scheduler starts late finds
- * nothing left and ends on its own (the shared record is freed by whichever of them lets go of
- * it last), so threads cost at most their start-up when they do not help.  The GIL is
+/* A job's units (blocks of candidates) are claimed one at a time, by the calling thread and
+ * by up to n - 1 helper threads started for the call.  The caller waits only for units a
+ * helper has claimed, never for a helper to start or to end: on a busy machine a helper the
+ * scheduler starts late finds nothing left and ends on its own (the shared record is freed
+ * by whichever of them lets go of it last), so threads cost at most their start-up when they
+ * do not help.  A unit function gets a scratch pointer of its thread (allocated by it on
+ * first use, freed with free() at the end) and returns -1 when out of memory.  The GIL is
  * released around all of it. */
+typedef int (*unit_fn)(const void *ctx, Py_ssize_t unit, void **scratch);
+
+static int run_units_serial(const void *ctx, unit_fn fn, Py_ssize_t n_units)
+{
+    void *scratch = NULL;
+    int rc = 0;
+    for (Py_ssize_t u = 0; u < n_units && rc == 0; ++u) rc = fn(ctx, u, &scratch);
+    free(scratch);
+    return rc;
+}
+
 #if defined(FLEXID_THREADS)
 #include <pthread.h>
 typedef struct {
-    ar_job job;         /* a copy: the caller's frame may be gone when a late helper starts */
+    const void *ctx;    /* read only while a claimed unit runs: the caller is waiting then */
+    unit_fn fn;
     Py_ssize_t n_units;
     Py_ssize_t next;    /* next unclaimed unit (atomic) */
     Py_ssize_t done;    /* units finished (atomic) */
-    int failed;         /* a buffer could not be allocated (atomic) */
+    int failed;         /* a unit ran out of memory (atomic) */
     int refs;           /* the caller and every helper started (atomic) */
     int waiting;        /* the caller sleeps on cond (under lock) */
     pthread_mutex_t lock;
     pthread_cond_t cond;
-} ar_shared;
+} pool_shared;
 
-static void ar_release(ar_shared *sh)
+static void pool_release(pool_shared *sh)
 {
     if (__atomic_sub_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL) == 0) {
         pthread_mutex_destroy(&sh->lock);
@@ -408,44 +422,39 @@ static void ar_release(ar_shared *sh)
     }
 }
 
-static void ar_claim(ar_shared *sh)
+static void pool_claim(pool_shared *sh)
 {
-    const ar_job *J = &sh->job;
-    double *hist = NULL;
+    void *scratch = NULL;
     for (;;) {
-        Py_ssize_t u = __atomic_fetch_add(&sh->next, 1, __ATOMIC_RELAXED);
+        const Py_ssize_t u = __atomic_fetch_add(&sh->next, 1, __ATOMIC_RELAXED);
         if (u >= sh->n_units) break;
-        if (!hist && !(J->na >= 1 && J->na <= AR_MAXNA)) {
-            hist = (double *)malloc((size_t)(J->na + J->K + 1) * sizeof(double));
-            if (!hist) __atomic_store_n(&sh->failed, 1, __ATOMIC_RELAXED);
-        }
-        if (hist || (J->na >= 1 && J->na <= AR_MAXNA)) ar_units(J, u, u + 1, hist);
+        if (sh->fn(sh->ctx, u, &scratch) < 0) __atomic_store_n(&sh->failed, 1, __ATOMIC_RELAXED);
         if (__atomic_add_fetch(&sh->done, 1, __ATOMIC_ACQ_REL) == sh->n_units) {
             pthread_mutex_lock(&sh->lock);
             if (sh->waiting) pthread_cond_signal(&sh->cond);
             pthread_mutex_unlock(&sh->lock);
         }
     }
-    free(hist);
+    free(scratch);
 }
 
-static void *ar_helper(void *arg)
+static void *pool_helper(void *arg)
 {
-    ar_claim((ar_shared *)arg);
-    ar_release((ar_shared *)arg);
+    pool_claim((pool_shared *)arg);
+    pool_release((pool_shared *)arg);
     return NULL;
 }
 #endif
 
-/* Runs the whole job on up to n_threads threads; 0 on success, -1 when out of memory. */
-static int ar_run_job(const ar_job *J, int n_threads)
+/* Runs units 0 .. n_units - 1 of fn on up to n_threads threads; 0, or -1 out of memory. */
+static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_threads)
 {
-    const Py_ssize_t n_units = (J->P + AR_UNIT - 1) / AR_UNIT;
 #if defined(FLEXID_THREADS)
     if (n_threads > n_units) n_threads = (int)n_units;
-    ar_shared *sh = n_threads > 1 ? (ar_shared *)calloc(1, sizeof(ar_shared)) : NULL;
+    pool_shared *sh = n_threads > 1 ? (pool_shared *)calloc(1, sizeof(pool_shared)) : NULL;
     if (sh) {
-        sh->job = *J;
+        sh->ctx = ctx;
+        sh->fn = fn;
         sh->n_units = n_units;
         sh->refs = 1;
         pthread_mutex_init(&sh->lock, NULL);
@@ -456,13 +465,13 @@ static int ar_run_job(const ar_job *J, int n_threads)
         for (int i = 0; i < n_threads - 1 && i < 63; ++i) {
             pthread_t tid;
             __atomic_add_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
-            if (pthread_create(&tid, &attr, ar_helper, sh) != 0) {
+            if (pthread_create(&tid, &attr, pool_helper, sh) != 0) {
                 __atomic_sub_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
                 break;
             }
         }
         pthread_attr_destroy(&attr);
-        ar_claim(sh);
+        pool_claim(sh);
         if (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units) {
             pthread_mutex_lock(&sh->lock);
             sh->waiting = 1;
@@ -471,23 +480,31 @@ static int ar_run_job(const ar_job *J, int n_threads)
             pthread_mutex_unlock(&sh->lock);
         }
         const int failed = __atomic_load_n(&sh->failed, __ATOMIC_ACQUIRE);
-        ar_release(sh);
+        pool_release(sh);
         return failed ? -1 : 0;
     }
 #else
     (void)n_threads;
 #endif
-    double *hist = NULL;
-#if defined(__GNUC__)
-    if (!(J->na >= 1 && J->na <= AR_MAXNA))
-#endif
-    {
-        hist = (double *)malloc((size_t)(J->na + J->K + 1) * sizeof(double));
-        if (!hist) return -1;
+    return run_units_serial(ctx, fn, n_units);
+}
+
+/* One unit of a recursion job; the scratch is the history of the one-candidate path. */
+static int ar_unit(const void *ctx, Py_ssize_t u, void **scratch)
+{
+    const ar_job *J = (const ar_job *)ctx;
+    if (!(J->na >= 1 && J->na <= AR_MAXNA) && !*scratch) {
+        *scratch = malloc((size_t)(J->na + J->K + 1) * sizeof(double));
+        if (!*scratch) return -1;
     }
-    ar_units(J, 0, n_units, hist);
-    free(hist);
+    ar_units(J, u, u + 1, (double *)*scratch);
     return 0;
+}
+
+/* Runs the whole job on up to n_threads threads; 0 on success, -1 when out of memory. */
+static int ar_run_job(const ar_job *J, int n_threads)
+{
+    return run_units(J, ar_unit, (J->P + AR_UNIT - 1) / AR_UNIT, n_threads);
 }
 
 /* ------------------------------------------------------------------ Python glue */
@@ -1086,6 +1103,275 @@ done:
     return result;
 }
 
+/* ------------------------------------------------------------------ numerator fit */
+/* Variable projection of the simulation cost (flexid.objective.ARXCost.fit_numerator): for
+ * each denominator a (P, na), the b (P, nb) minimising sum_{t >= offset} (target(t - offset)
+ * - y(t))^2 where y = g_0 + sum_j b_j g_j, g_0 the free response from state0 and g_j the
+ * response to the regressor column reg[:, j - 1] from rest (all signals over t = 0..T-1).
+ *
+ * Per block of 4 candidates (one per lane): the nb + 1 recursions run together, each step
+ * summed f(t) - a_na y(t - na) - ... - a_1 y(t - 1) in that order like ar_run (the nb + 1
+ * independent chains hide the latency of each); then, in passes over the stored outputs,
+ * the column norms s_j, the Gram matrix and right-hand side of the column-scaled regressors,
+ * a Cholesky solve, and one step of iterative refinement with the residual recomputed from
+ * the regressors: the normal equations of ARXCost._least_squares_rows, solved without
+ * forming a (P, nb + 1, T) array.  ok[p] = 0 where the Cholesky factorisation breaks down
+ * or the result is not finite (the caller solves those rows another way). */
+#if defined(__GNUC__)
+#define FIT_MAXNB 16
+
+static inline __attribute__((always_inline)) void
+fit_quad_impl(const double *a, Py_ssize_t a_stride, Py_ssize_t P, Py_ssize_t na,
+              const double *reg, Py_ssize_t T, const double *state0, const double *target,
+              Py_ssize_t offset, double *b_out, unsigned char *ok, Py_ssize_t q, v4d *hist,
+              const int nb)
+{
+    const Py_ssize_t w = (P - q < 4) ? P - q : 4, K = T - offset, H = na + T;
+    const int R = nb + 1;
+    v4d A[AR_MAXNA];
+    const v4d zero = {0, 0, 0, 0};
+    for (Py_ssize_t i = 0; i < na; ++i) A[i] = zero;
+    for (Py_ssize_t l = 0; l < 4; ++l)
+        for (Py_ssize_t i = 0; i < na; ++i) A[i][l] = a[(q + (l < w ? l : 0)) * a_stride + i];
+    /* hist[r * H + na + t] = g_r(t); the na rows before are the initial state */
+    for (Py_ssize_t r = 0; r < R; ++r)
+        for (Py_ssize_t i = 0; i < na; ++i) {
+            const double s = r == 0 ? state0[i] : 0.0; /* y(-1 - i) */
+            hist[r * H + na - 1 - i] = (v4d){s, s, s, s};
+        }
+    v4d acc[FIT_MAXNB + 1];
+    for (Py_ssize_t t = 0; t < T; ++t) {
+        const double *rt = reg + t * nb;
+        acc[0] = zero;
+        for (int r = 1; r < R; ++r) acc[r] = zero + rt[r - 1];
+        for (Py_ssize_t k = na; k >= 1; --k) {
+            const v4d ak = A[k - 1];
+            const v4d *past = hist + na + t - k;
+            for (int r = 0; r < R; ++r) acc[r] -= ak * past[r * H];
+        }
+        for (int r = 0; r < R; ++r) hist[r * H + na + t] = acc[r];
+    }
+    const v4d *g0 = hist + na + offset;
+#define FIT_G(j) (hist + (j) * H + na + offset) /* column j (1..nb) over t >= offset */
+    /* column norms; Gram matrix and right-hand side of the scaled columns */
+    v4d sc[FIT_MAXNB], G[FIT_MAXNB][FIT_MAXNB], c[FIT_MAXNB], rhs[FIT_MAXNB];
+    for (int i = 0; i < nb; ++i) {
+        /* row i of the Gram matrix and rhs[i] in one pass, the sums in registers */
+        const v4d *gi = FIT_G(i + 1);
+        v4d s[FIT_MAXNB], sr = zero;
+        for (int j = i; j < nb; ++j) s[j] = zero;
+        for (Py_ssize_t t = 0; t < K; ++t) {
+            const v4d v = gi[t];
+            for (int j = i; j < nb; ++j) s[j] += v * FIT_G(j + 1)[t];
+            sr += v * (target[t] - g0[t]);
+        }
+        for (int j = i; j < nb; ++j) G[i][j] = s[j];
+        rhs[i] = sr;
+    }
+    for (Py_ssize_t i = 0; i < nb; ++i)
+        for (int l = 0; l < 4; ++l) {
+            const double d = sqrt(G[i][i][l]);
+            sc[i][l] = d > 0 ? d : 1.0;
+        }
+    for (Py_ssize_t i = 0; i < nb; ++i) {
+        rhs[i] /= sc[i];
+        for (Py_ssize_t j = i; j < nb; ++j) G[i][j] /= sc[i] * sc[j];
+    }
+    /* Cholesky G = L L^T per lane, in place in the lower triangle (G[j][i], j >= i) */
+    unsigned char good[4] = {1, 1, 1, 1};
+    for (int l = 0; l < 4; ++l) {
+        double L[FIT_MAXNB][FIT_MAXNB];
+        for (Py_ssize_t i = 0; i < nb; ++i)
+            for (Py_ssize_t j = 0; j <= i; ++j) L[i][j] = G[j][i][l];
+        for (Py_ssize_t j = 0; j < nb && good[l]; ++j) {
+            double d = L[j][j];
+            for (Py_ssize_t k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
+            if (!(d > 0) || !isfinite(d)) {
+                good[l] = 0;
+                break;
+            }
+            d = sqrt(d);
+            L[j][j] = d;
+            for (Py_ssize_t i = j + 1; i < nb; ++i) {
+                double v = L[i][j];
+                for (Py_ssize_t k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+                L[i][j] = v / d;
+            }
+        }
+        for (Py_ssize_t i = 0; i < nb; ++i)
+            for (Py_ssize_t j = 0; j <= i; ++j) G[i][j][l] = good[l] ? L[i][j] : (i == j);
+    }
+    /* solve L L^T x = v in place, every lane */
+#define FIT_SOLVE(v)                                                                          \
+    do {                                                                                      \
+        for (Py_ssize_t i_ = 0; i_ < nb; ++i_) {                                              \
+            v4d s_ = (v)[i_];                                                                 \
+            for (Py_ssize_t k_ = 0; k_ < i_; ++k_) s_ -= G[i_][k_] * (v)[k_];                 \
+            (v)[i_] = s_ / G[i_][i_];                                                         \
+        }                                                                                     \
+        for (Py_ssize_t i_ = nb - 1; i_ >= 0; --i_) {                                         \
+            v4d s_ = (v)[i_];                                                                 \
+            for (Py_ssize_t k_ = i_ + 1; k_ < nb; ++k_) s_ -= G[k_][i_] * (v)[k_];            \
+            (v)[i_] = s_ / G[i_][i_];                                                         \
+        }                                                                                     \
+    } while (0)
+    for (Py_ssize_t i = 0; i < nb; ++i) c[i] = rhs[i];
+    FIT_SOLVE(c);
+    /* refinement: the residual of the scaled problem, from the columns themselves */
+    v4d cs[FIT_MAXNB], corr[FIT_MAXNB];
+    for (Py_ssize_t i = 0; i < nb; ++i) {
+        cs[i] = c[i] / sc[i];
+        corr[i] = zero;
+    }
+    for (Py_ssize_t t = 0; t < K; ++t) {
+        v4d e = target[t] - g0[t];
+        for (Py_ssize_t j = 0; j < nb; ++j) e -= FIT_G(j + 1)[t] * cs[j];
+        for (Py_ssize_t j = 0; j < nb; ++j) corr[j] += FIT_G(j + 1)[t] * e;
+    }
+    for (Py_ssize_t i = 0; i < nb; ++i) corr[i] /= sc[i];
+    FIT_SOLVE(corr);
+#undef FIT_SOLVE
+#undef FIT_G
+    for (Py_ssize_t l = 0; l < w; ++l) {
+        int fine = good[l];
+        for (Py_ssize_t i = 0; i < nb; ++i) {
+            const double v = (c[i][l] + corr[i][l]) / sc[i][l];
+            b_out[(q + l) * nb + i] = v;
+            fine = fine && isfinite(v);
+        }
+        ok[q + l] = (unsigned char)fine;
+    }
+}
+
+#define FIT_ARGS                                                                              \
+    const double *a, Py_ssize_t a_stride, Py_ssize_t P, Py_ssize_t na, const double *reg,     \
+        Py_ssize_t T, const double *state0, const double *target, Py_ssize_t offset,          \
+        double *b_out, unsigned char *ok, Py_ssize_t q, v4d *hist
+#define FIT_PASS a, a_stride, P, na, reg, T, state0, target, offset, b_out, ok, q, hist
+typedef void (*fit_quad_fn)(FIT_ARGS);
+/* one function per nb and instruction set (nb a constant: the sums stay in registers) */
+#if defined(AR_X86)
+#define FIT_QUAD(n)                                                                           \
+    static void fit_quad_g##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }                       \
+    AR_TGT_V3 static void fit_quad_v3_##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }           \
+    AR_TGT_V4 static void fit_quad_v4_##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }
+#else
+#define FIT_QUAD(n)                                                                           \
+    static void fit_quad_g##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }
+#endif
+FIT_QUAD(1)
+FIT_QUAD(2)
+FIT_QUAD(3)
+FIT_QUAD(4)
+FIT_QUAD(5)
+FIT_QUAD(6)
+FIT_QUAD(7)
+FIT_QUAD(8)
+FIT_QUAD(9)
+FIT_QUAD(10)
+FIT_QUAD(11)
+FIT_QUAD(12)
+FIT_QUAD(13)
+FIT_QUAD(14)
+FIT_QUAD(15)
+FIT_QUAD(16)
+static const fit_quad_fn fit_quads_generic[FIT_MAXNB + 1] = AR_TABLE(fit_quad_g);
+#if defined(AR_X86)
+static const fit_quad_fn fit_quads_v3[FIT_MAXNB + 1] = AR_TABLE(fit_quad_v3_);
+static const fit_quad_fn fit_quads_v4[FIT_MAXNB + 1] = AR_TABLE(fit_quad_v4_);
+#endif
+
+static fit_quad_fn fit_quad_for(int level, Py_ssize_t nb)
+{
+#if defined(AR_X86)
+    if (level == 2) return fit_quads_v4[nb];
+    if (level == 1) return fit_quads_v3[nb];
+#endif
+    (void)level;
+    return fit_quads_generic[nb];
+}
+
+/* The arguments of fit_quad_fn for the blocks of one call. */
+typedef struct {
+    const double *a;
+    Py_ssize_t a_stride, P, na, nb;
+    const double *reg;
+    Py_ssize_t T;
+    const double *state0, *target;
+    Py_ssize_t offset;
+    double *b_out;
+    unsigned char *ok;
+    fit_quad_fn fn;
+} fit_ctx;
+
+/* Block u of a numerator fit; the scratch holds its nb + 1 recursions. */
+static int fit_unit(const void *ctx, Py_ssize_t u, void **scratch)
+{
+    const fit_ctx *c = (const fit_ctx *)ctx;
+    if (!*scratch) {
+        *scratch = malloc((size_t)((c->nb + 1) * (c->na + c->T)) * sizeof(v4d));
+        if (!*scratch) return -1;
+    }
+    c->fn(c->a, c->a_stride, c->P, c->na, c->reg, c->T, c->state0, c->target, c->offset,
+          c->b_out, c->ok, 4 * u, (v4d *)*scratch);
+    return 0;
+}
+
+static PyObject *py_arx_fit(PyObject *self, PyObject *args)
+{
+    PyObject *objs[6];
+    Py_buffer bufs[6];
+    int have[6] = {0}, n_threads = 1;
+    Py_ssize_t offset;
+    if (!PyArg_ParseTuple(args, "OOOOnOO|i", &objs[0], &objs[1], &objs[2], &objs[3], &offset,
+                          &objs[4], &objs[5], &n_threads))
+        return NULL;
+    static const char *names[6] = {"a", "reg", "state0", "target", "b_out", "ok_out"};
+    PyObject *result = NULL;
+    Py_ssize_t a_stride = get_rows(objs[0], &bufs[0], "arx_fit", "a");
+    if (a_stride < 0) return NULL;
+    have[0] = 1;
+    for (int i = 1; i < 6; ++i) {
+        if (get_buffer(objs[i], &bufs[i], i >= 4, names[i]) < 0) goto done;
+        have[i] = 1;
+        if (check_format(&bufs[i], i == 5 ? "B" : "d", names[i]) < 0) goto done;
+    }
+    const Py_ssize_t P = bufs[0].shape[0], na = bufs[0].shape[1];
+    if (bufs[1].ndim != 2 || bufs[2].ndim != 1 || bufs[3].ndim != 1 || bufs[4].ndim != 2 ||
+        bufs[5].ndim != 1) {
+        PyErr_SetString(PyExc_ValueError, "arx_fit: wrong number of dimensions");
+        goto done;
+    }
+    const Py_ssize_t T = bufs[1].shape[0], nb = bufs[1].shape[1], K = bufs[3].shape[0];
+    if (na < 1 || na > AR_MAXNA || nb < 1 || nb > FIT_MAXNB || bufs[2].shape[0] != na ||
+        offset < 0 || K != T - offset || K < 1 || bufs[4].shape[0] != P ||
+        bufs[4].shape[1] != nb || bufs[5].shape[0] != P) {
+        PyErr_SetString(PyExc_ValueError,
+                        "arx_fit: a (P, na) with 1 <= na <= 16, reg (T, nb) with 1 <= nb <= "
+                        "16, state0 (na,), target (T - offset,), b_out (P, nb), ok_out (P,)");
+        goto done;
+    }
+    fit_ctx ctx = {(const double *)bufs[0].buf, a_stride, P, na, nb,
+                   (const double *)bufs[1].buf, T, (const double *)bufs[2].buf,
+                   (const double *)bufs[3].buf, offset, (double *)bufs[4].buf,
+                   (unsigned char *)bufs[5].buf, fit_quad_for(ar_simd, nb)};
+    int rc;
+    Py_BEGIN_ALLOW_THREADS
+    rc = run_units(&ctx, fit_unit, (P + 3) / 4, n_threads);
+    Py_END_ALLOW_THREADS
+    if (rc < 0) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < 6; ++i)
+        if (have[i]) PyBuffer_Release(&bufs[i]);
+    return result;
+}
+#endif
+
 static PyObject *py_simd(PyObject *self, PyObject *args)
 {
     const char *name = NULL;
@@ -1116,6 +1402,11 @@ static PyMethodDef methods[] = {
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
      "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law): twin rotor RK4; "
      "params (22,) shared or (B, 22) per rotor."},
+#if defined(__GNUC__)
+    {"arx_fit", py_arx_fit, METH_VARARGS,
+     "arx_fit(a, reg, state0, target, offset, b_out, ok_out[, threads]): least-squares "
+     "numerators of the simulation cost for denominators a (see the module)."},
+#endif
     {"simd", py_simd, METH_VARARGS,
      "simd([name]): (in use, best) instruction sets of ar_run/arx_run; with a name ('generic', "
      "'avx2', 'avx512'), run that one from now on (tests, benchmarks)."},

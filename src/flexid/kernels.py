@@ -38,6 +38,7 @@ __all__ = [
     "BACKEND",
     "ar_recursion",
     "ar_recursion_reference",
+    "arx_fit",
     "arx_recursion",
     "compiled_available",
     "schur_cohn_compiled",
@@ -303,3 +304,45 @@ def arx_recursion(
     work = p * k * (a.shape[1] + b.shape[1] + 1)
     _c.arx_run(a, b, reg, state, tgt, y, sse, _threads_for(work))
     return y, sse
+
+
+def arx_fit(
+    a: np.ndarray, reg: np.ndarray, state0: np.ndarray, target: np.ndarray, offset: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares numerators of the simulation cost, compiled (variable projection).
+
+    For each denominator ``a[p]``, the ``b`` minimising ``sum_t (target(t) - y(offset +
+    t))^2`` with ``y = g_0 + sum_j b_j g_j``: ``g_0`` the free response from ``state0``,
+    ``g_j`` the response to ``reg[:, j - 1]`` from rest.  The ``nb + 1`` recursions (each
+    summed as :func:`ar_recursion` sums), the normal equations of the column-scaled
+    regressors, a Cholesky solve and one step of iterative refinement run in one pass of the
+    compiled kernel, without the ``(P, nb + 1, T)`` array of regressors.  Compiled kernels
+    only (``BACKEND == "c"``), ``1 <= na, nb <= 16``.
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, na)
+    reg : ndarray, shape (T, nb)
+        The input regressors of every step.
+    state0 : ndarray, shape (na,)
+        ``[y(-1), ..., y(-na)]`` of the free response.
+    target : ndarray, shape (T - offset,)
+    offset : int
+
+    Returns
+    -------
+    b : ndarray, shape (P, nb)
+    ok : ndarray of bool, shape (P,)
+        False where the factorisation broke down or ``b`` is not finite (solve those rows
+        another way).
+    """
+    a = _rows(a)
+    reg = np.ascontiguousarray(reg, dtype=float)
+    p, nb = a.shape[0], reg.shape[1]
+    b = np.empty((p, nb))
+    ok = np.empty(p, dtype=np.uint8)
+    work = p * reg.shape[0] * (nb + 1) * (a.shape[1] + nb)
+    _c.arx_fit(a, reg, np.ascontiguousarray(state0, dtype=float),
+               np.ascontiguousarray(target, dtype=float), int(offset), b, ok,
+               _threads_for(work))  # fmt: skip
+    return b, ok.view(bool)

@@ -411,6 +411,23 @@ class ARXCost:
         nb = self.n_params - na
         offset = 0 if self.initial == "measured" else self.structure.start
         state0 = self._state if self.initial == "measured" else np.zeros(na)
+        if kernels.BACKEND == "c" and 1 <= na <= 16 and 1 <= nb <= 16:
+            # the nb + 1 recursions, the normal equations and their refinement in one pass
+            # of the compiled kernel (kernels.arx_fit); rows it cannot solve come back below
+            out, ok = kernels.arx_fit(a, self._phi_u_rows, state0, self._target, offset)
+            if ok.all():
+                return out
+            if ok.any():
+                out[~ok] = self._simulation_numerators_numpy(a[~ok], offset, state0)
+                return out
+        return self._simulation_numerators_numpy(a, offset, state0)
+
+    def _simulation_numerators_numpy(
+        self, a: np.ndarray, offset: int, state0: np.ndarray
+    ) -> np.ndarray:
+        """:meth:`_simulation_numerators` by ``ar_recursion`` and ``_least_squares_rows``."""
+        na = self.structure.na
+        nb = self.n_params - na
         t = self._phi_u_t.shape[1]
         # row 0: free response from the initial state; rows 1..nb: filtered B-regressors
         forced = np.vstack([np.zeros((1, t)), self._phi_u_t])
