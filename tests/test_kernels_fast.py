@@ -408,3 +408,53 @@ def test_rows_the_compiled_fit_cannot_solve_take_the_numpy_route(monkeypatch):
     np.testing.assert_array_equal(got[::2], want[::2])  # recomputed by the NumPy route
     np.testing.assert_array_equal(got[1::2], real(a, cost._phi_u_rows, cost._state,
                                                    cost._target, 0)[0][1::2])  # fmt: skip
+
+
+@compiled
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork")
+def test_threads_after_fork():
+    # the helper threads are kept between calls; a child made by fork has none and must
+    # start its own (pthread_atfork), not wait for the parent's
+    code = """
+import os, sys, numpy as np
+from flexid import _kernels
+rng = np.random.default_rng(3)
+a, b, reg = rng.random((64, 4)) * 0.1, rng.random((64, 3)), rng.random((500, 3))
+out = np.empty(64)
+_kernels.arx_run(a, b, reg, np.zeros(4), None, None, out, 2)  # the parent's helpers start
+pid = os.fork()
+if pid == 0:
+    child = np.empty(64)
+    _kernels.arx_run(a, b, reg, np.zeros(4), None, None, child, 2)
+    same = np.array_equal(child, out)
+    _kernels.arx_run(a, b, reg, np.zeros(4), None, None, child, 3)
+    os._exit(0 if same and np.array_equal(child, out) else 1)
+_, status = os.waitpid(pid, 0)
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+
+
+@compiled
+def test_threads_from_several_python_threads():
+    # the kernels run without the GIL: Python threads may call them at once (one of them
+    # owns the helper threads, the others run alone); every result as on one thread
+    from concurrent.futures import ThreadPoolExecutor
+
+    from flexid import _kernels
+
+    rng = np.random.default_rng(4)
+    a, b, reg, state, target = problem(rng, 40, 6, 4, 800, False)
+    want = np.empty(40)
+    _kernels.arx_run(a, b, reg, state, target, None, want, 1)
+
+    def run(_):
+        got = np.empty(40)
+        _kernels.arx_run(a, b, reg, state, target, None, got, 2)
+        return got
+
+    with ThreadPoolExecutor(4) as pool:
+        for got in pool.map(run, range(32)):
+            np.testing.assert_array_equal(got, want)

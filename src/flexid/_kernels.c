@@ -380,11 +380,10 @@ static void ar_units(const ar_job *J, Py_ssize_t lo, Py_ssize_t hi, double *hist
 
 /* ------------------------------------------------------------------ threads */
 /* A job's units (blocks of candidates) are claimed one at a time, by the calling thread and
- * by up to n - 1 helper threads started for the call.  The caller waits only for units a
- * helper has claimed, never for a helper to start or to end: on a busy machine a helper the
- * scheduler starts late finds nothing left and ends on its own (the shared record is freed
- * by whichever of them lets go of it last), so threads cost at most their start-up when they
- * do not help.  A unit function gets a scratch pointer of its thread (allocated by it on
+ * by up to n - 1 helper threads woken for the call.  The caller waits only for units a
+ * helper has claimed, never for a helper to wake or to finish: on a busy machine a helper the
+ * scheduler runs late finds nothing left (the shared record is freed by whichever of them
+ * lets go of it last), so threads cost at most their wake-up when they do not help.  A unit function gets a scratch pointer of its thread (allocated by it on
  * first use, freed with free() at the end) and returns -1 when out of memory.  The GIL is
  * released around all of it. */
 typedef int (*unit_fn)(const void *ctx, Py_ssize_t unit, void **scratch);
@@ -409,6 +408,8 @@ typedef struct {
     int failed;         /* a unit ran out of memory (atomic) */
     int refs;           /* the caller and every helper started (atomic) */
     int waiting;        /* the caller sleeps on cond (under lock) */
+    int joined;         /* helpers that took the job (atomic) */
+    int max_helpers;    /* how many may work on it */
     pthread_mutex_t lock;
     pthread_cond_t cond;
 } pool_shared;
@@ -438,11 +439,44 @@ static void pool_claim(pool_shared *sh)
     free(scratch);
 }
 
+/* The helper threads: started on first use and then kept, waiting for the next job (starting
+ * a thread costs tens of microseconds, as much as a whole small population).  One caller at a
+ * time posts a job to them (pool_busy); another one meanwhile runs its job alone. */
+static pthread_mutex_t pool_lock = PTHREAD_MUTEX_INITIALIZER;
+static pthread_cond_t pool_wake = PTHREAD_COND_INITIALIZER;
+static pool_shared *pool_job = NULL; /* the posted job (under pool_lock) */
+static unsigned long pool_gen = 0;   /* jobs posted so far (under pool_lock) */
+static int pool_helpers = 0;         /* helper threads started (under pool_lock) */
+static int pool_busy = 0;            /* a caller owns the helpers (atomic) */
+
 static void *pool_helper(void *arg)
 {
-    pool_claim((pool_shared *)arg);
-    pool_release((pool_shared *)arg);
+    (void)arg;
+    unsigned long seen = 0;
+    pthread_mutex_lock(&pool_lock);
+    for (;;) {
+        while (!(pool_job && pool_gen != seen)) pthread_cond_wait(&pool_wake, &pool_lock);
+        pool_shared *sh = pool_job;
+        seen = pool_gen;
+        __atomic_add_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
+        pthread_mutex_unlock(&pool_lock);
+        /* no more helpers on a job than its caller asked for */
+        if (__atomic_add_fetch(&sh->joined, 1, __ATOMIC_ACQ_REL) <= sh->max_helpers)
+            pool_claim(sh);
+        pool_release(sh);
+        pthread_mutex_lock(&pool_lock);
+    }
     return NULL;
+}
+
+/* In a child process made by fork the helpers do not exist: start afresh. */
+static void pool_after_fork(void)
+{
+    pthread_mutex_init(&pool_lock, NULL);
+    pthread_cond_init(&pool_wake, NULL);
+    pool_job = NULL;
+    pool_helpers = 0;
+    pool_busy = 0;
 }
 #endif
 
@@ -451,26 +485,36 @@ static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_thre
 {
 #if defined(FLEXID_THREADS)
     if (n_threads > n_units) n_threads = (int)n_units;
-    pool_shared *sh = n_threads > 1 ? (pool_shared *)calloc(1, sizeof(pool_shared)) : NULL;
+    if (n_threads > 64) n_threads = 64;
+    pool_shared *sh = NULL;
+    if (n_threads > 1 && !__atomic_exchange_n(&pool_busy, 1, __ATOMIC_ACQUIRE)) {
+        sh = (pool_shared *)calloc(1, sizeof(pool_shared));
+        if (!sh) __atomic_store_n(&pool_busy, 0, __ATOMIC_RELEASE);
+    }
     if (sh) {
         sh->ctx = ctx;
         sh->fn = fn;
         sh->n_units = n_units;
         sh->refs = 1;
+        sh->max_helpers = n_threads - 1;
         pthread_mutex_init(&sh->lock, NULL);
         pthread_cond_init(&sh->cond, NULL);
-        pthread_attr_t attr;
-        pthread_attr_init(&attr);
-        pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
-        for (int i = 0; i < n_threads - 1 && i < 63; ++i) {
-            pthread_t tid;
-            __atomic_add_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
-            if (pthread_create(&tid, &attr, pool_helper, sh) != 0) {
-                __atomic_sub_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
-                break;
+        pthread_mutex_lock(&pool_lock);
+        if (pool_helpers < n_threads - 1) {
+            pthread_attr_t attr;
+            pthread_attr_init(&attr);
+            pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+            while (pool_helpers < n_threads - 1) {
+                pthread_t tid;
+                if (pthread_create(&tid, &attr, pool_helper, NULL) != 0) break;
+                ++pool_helpers;
             }
+            pthread_attr_destroy(&attr);
         }
-        pthread_attr_destroy(&attr);
+        pool_job = sh;
+        ++pool_gen;
+        pthread_cond_broadcast(&pool_wake);
+        pthread_mutex_unlock(&pool_lock);
         pool_claim(sh);
         if (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units) {
             pthread_mutex_lock(&sh->lock);
@@ -479,6 +523,10 @@ static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_thre
                 pthread_cond_wait(&sh->cond, &sh->lock);
             pthread_mutex_unlock(&sh->lock);
         }
+        pthread_mutex_lock(&pool_lock);
+        pool_job = NULL;
+        pthread_mutex_unlock(&pool_lock);
+        __atomic_store_n(&pool_busy, 0, __ATOMIC_RELEASE);
         const int failed = __atomic_load_n(&sh->failed, __ATOMIC_ACQUIRE);
         pool_release(sh);
         return failed ? -1 : 0;
@@ -1421,6 +1469,9 @@ static struct PyModuleDef module = {
 
 PyMODINIT_FUNC PyInit__kernels(void)
 {
+#if defined(FLEXID_THREADS)
+    pthread_atfork(NULL, NULL, pool_after_fork);
+#endif
     ar_simd_detect();
     ar_simd_select(ar_simd_best);
     return PyModule_Create(&module);
