@@ -5,6 +5,8 @@ It is marked optional: where no C compiler is available the build skips it and f
 uses its NumPy/SciPy reference path (``flexid.kernels.BACKEND`` says which one runs).
 """
 
+import os
+
 from setuptools import Extension, setup
 
 setup(
@@ -12,7 +14,8 @@ setup(
         Extension(
             "flexid._kernels",
             sources=["src/flexid/_kernels.c"],
-            extra_compile_args=["-O3"] if __import__("os").name != "nt" else ["/O2"],
+            extra_compile_args=["-O3", "-pthread"] if os.name != "nt" else ["/O2"],
+            extra_link_args=["-pthread"] if os.name != "nt" else [],
             optional=True,
         )
     ]

@@ -6,7 +6,13 @@ random +-0.3 input with small noise, population 50.  Compares, in the same run:
 (a) the one-step paper cost with the stability test (batched) against a per-candidate loop
     of the residual vector ``y - Phi theta`` plus ``np.roots``;
 (b) the simulation paper cost (batched) against a per-candidate loop of ``np.roots`` +
-    ``scipy.signal.lfilter`` (+ cost), and against a loop of ``lfilter`` alone.
+    ``scipy.signal.lfilter`` (+ cost), and against a loop of ``lfilter`` alone;
+(c) the simulation cost of a larger population (P = 128) on one thread and on every core
+    this process may use (``flexid.kernels.set_threads``).
+
+Next to each cost: the multiply-adds one candidate needs, the rate this core's FMA
+throughput allows for them (benchmarks/roofline.py, measured at the start of the run) and
+the share of that bound reached.
 
 Run:  python benchmarks/bench_costs.py
 """
@@ -20,6 +26,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads on
 import time
 
 import numpy as np
+import roofline
 from scipy import signal
 
 from flexid import kernels
@@ -98,36 +105,97 @@ def main() -> None:
     np.testing.assert_allclose(one(X), loop_one_step(), rtol=1e-10)
     np.testing.assert_allclose(sim(X), loop_simulation(), rtol=1e-9)
 
+    P_big = 128
+    X_big = one.theta_ls + rng.normal(size=(P_big, 16)) * np.r_[np.full(8, 1e-5), np.full(8, 1e-2)]
+    cores = kernels.threads() if "FLEXID_THREADS" in os.environ else len(os.sched_getaffinity(0))
+
+    def on_threads(n, fn):
+        def run():
+            kernels.set_threads(n)
+            return fn()
+
+        return run
+
+    roof = roofline.measure()
     t = interleaved_medians(
         {
-            "one": lambda: one(X),
+            "one": on_threads(1, lambda: one(X)),
             "one_loop": loop_one_step,
             "stab": lambda: is_stable(X[:, :8]),
-            "sim": lambda: sim(X),
+            "sim": on_threads(1, lambda: sim(X)),
             "sim_loop": loop_simulation,
             "lf": loop_lfilter_only,
+            "fit": on_threads(1, lambda: sim(sim.fit_numerator(X[:, :8]))),
         }
+        | (  # threads only split the compiled kernels' work
+            {
+                "big1": on_threads(1, lambda: sim(X_big)),
+                "bigN": on_threads(cores, lambda: sim(X_big)),
+            }
+            if kernels.BACKEND == "c"
+            else {}
+        )
     )
+    kernels.set_threads(None)
     t_one, t_one_loop, t_stab = t["one"], t["one_loop"], t["stab"]
     t_sim, t_sim_loop, t_lf = t["sim"], t["sim_loop"], t["lf"]
+    # multiply-adds per candidate: n = 16 parameters, na = nb = 8, K samples
+    na, nb, nparam = 8, 8, 16
+    f_stab = na * (na - 1)  # Schur-Cohn: (m - 1) pairs of updates at each step m
+    f_one = nparam * nparam + nparam + f_stab  # R (theta - theta*), its norm, the test
+    f_sim = k * (nparam + 1)  # recursion na, input part nb, squared error 1 per sample
+    f_roots = 10 * na**3  # np.roots: eigenvalues of the companion matrix, ~10 n^3
+    f_lf = n * (na + 1 + nb + 1)  # lfilter: the numerator and denominator taps per sample
+    # fitted numerator (README "Numerator"): nb + 1 recursions, the (nb, nb) Gram matrix and
+    # right-hand side twice (refinement), the residual, then the plain cost
+    f_fit = k * ((nb + 1) * na + 2 * (nb * (nb + 1) // 2 + nb) + nb) + f_sim + 2 * f_stab
     rows = [
-        ("one-step paper cost, batched (P=50)", t_one, P / t_one),
-        ("  of which: Schur-Cohn stability test", t_stab, P / t_stab),
-        ("one-step loop: residual + np.roots", t_one_loop, P / t_one_loop),
-        ("simulation paper cost, batched", t_sim, P / t_sim),
-        ("simulation loop: np.roots + lfilter + cost", t_sim_loop, P / t_sim_loop),
-        ("loop of lfilter alone", t_lf, P / t_lf),
+        ("one-step paper cost, batched (P=50)", t_one, P, f_one),
+        ("  of which: Schur-Cohn stability test", t_stab, P, f_stab),
+        ("one-step loop: residual + np.roots", t_one_loop, P, k * (nparam + 1) + f_roots),
+        ("simulation paper cost, batched", t_sim, P, f_sim + f_stab),
+        ("simulation loop: np.roots + lfilter + cost", t_sim_loop, P, f_sim + f_roots),
+        ("loop of lfilter alone", t_lf, P, f_lf),
+        ("simulation cost with fitted numerator", t["fit"], P, f_fit),
     ]
+    if "big1" in t:
+        rows += [
+            (f"simulation cost, P={P_big}, 1 thread", t["big1"], P_big, f_sim + f_stab),
+            (f"simulation cost, P={P_big}, {cores} threads", t["bigN"], P_big, f_sim + f_stab),
+        ]
     n_stable = int(is_stable(X[:, :8]).sum())
     print(f"ARX(8,8,1), N = {n} samples (K = {k}), population {P} ({n_stable} stable)")
-    print(f"kernels: {kernels.BACKEND} (set FLEXID_KERNELS=numpy for the reference path)")
-    print(f"{'method':45s} {'time/call':>12s} {'candidates/s':>14s}")
-    for name, t, rate in rows:
-        print(f"{name:45s} {t * 1e3:9.3f} ms {rate:14,.0f}")
+    print(f"kernels: {kernels.BACKEND} (set FLEXID_KERNELS=numpy for the reference path)"
+          + (f", {kernels._c.simd()[0]}" if kernels.BACKEND == "c" else ""))  # fmt: skip
+    if roof:
+        print(f"roofline ({roof['isa']}): FMA latency {roof['latency'] * 1e9:.2f} ns, throughput "
+              f"{roof['throughput'] * 1e-9:.1f} double FMAs/ns on one core, "
+              f"{roof['throughput_all'] * 1e-9:.1f} on {roof['cores']} at once")  # fmt: skip
+    print(f"{'method':45s} {'time/call':>12s} {'candidates/s':>14s} {'FMA/cand':>9s} "
+          f"{'bound/s':>12s} {'share':>6s}")  # fmt: skip
+    for name, tt, p, fmas in rows:
+        rate = p / tt
+        all_cores = cores > 1 and name.endswith(f"{cores} threads")
+        bound = 1 / roofline.bound(fmas, roof, all_cores) if roof else float("nan")
+        print(f"{name:45s} {tt * 1e3:9.3f} ms {rate:14,.0f} {fmas:9,d} {bound:12,.0f} "
+              f"{rate / bound:6.1%}")  # fmt: skip
     print(f"one-step speed-up over its loop:          {t_one_loop / t_one:6.1f}x  (target >= 30x)")
     print(f"one-step candidate evaluations per second: {P / t_one:,.0f}  (target >= 500,000)")
     print(f"simulation speed-up over np.roots+lfilter: {t_sim_loop / t_sim:6.1f}x")
-    print(f"simulation speed-up over lfilter alone:    {t_lf / t_sim:6.1f}x  (target >= 5x)")
+    print(f"simulation speed-up over lfilter alone:    {t_lf / t_sim:6.1f}x  (target >= 35x)")
+    if roof:
+        best = t_lf / (P * roofline.bound(f_sim + f_stab, roof))
+        print(f"  the most one core's FMA throughput allows: {best:6.1f}x")
+        # a step of the recursion waits for the previous output: a chain of na dependent FMAs
+        # in the direct form (the former kernel: 16 candidates in flight), of one FMA in the
+        # transposed form with the state in registers (4 candidates per chain)
+        lat = roof["latency"]
+        print(f"  latency bounds of the recursion: {16 / (k * na * lat):,.0f} candidates/s "
+              f"(direct form, 16 lanes), {4 / (k * lat):,.0f} (transposed, 4 lanes)")  # fmt: skip
+    print(f"fitted numerator over a plain evaluation:  {t['fit'] / t_sim:6.1f}x  (target <= 3x)")
+    if "big1" in t:
+        print(f"simulation, P={P_big}: {cores} threads over 1:  {t['big1'] / t['bigN']:6.2f}x "
+              "(target >= 1.7x on 2 cores)")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -9,6 +9,14 @@ order, with or without FMA, any BLAS kernel) differs by at most ``n eps sum|term
   ``A(q) d(t) = delta1(t) - delta2(t)``, so ``|d(t)| <= sum_s |h(t - s)| |delta1(s) -
   delta2(s)|`` with ``h`` the impulse response of ``1 / A(q)``: exact for the linear
   recursion, whatever its damping (a pole at radius 0.999 amplifies by up to ~1000).
+* The compiled kernels (``flexid._kernels``) run the recursion in the transposed direct form
+  with the state in registers, but each ``y(t)`` is still ``f(t) - a_na y(t - na) - ... -
+  a_1 y(t - 1)`` summed in that order (the order of the direct form they replaced), so the
+  bound above is unchanged.  ``arx_run`` computes ``f(t) = sum_j b_j reg[t, j]`` itself
+  where the reference path uses a GEMM: a second ``nb``-term sum per step whose two routes
+  differ by ``nb eps sum_j |b_j reg[t, j]|`` (``forced_terms`` and ``n_forced`` below),
+  entering the recursion as ``delta`` does.  Thread counts and SIMD widths change which
+  lanes hold a candidate, not the order of its sums.
 * A sum of squares ``sum_t (target - y)^2`` moves by ``2 |e| |dy| + dy^2`` per sample, plus
   its own rounding (``K + 2`` roundings per route).
 * Least squares by Householder QR or the SVD is backward stable: the solution is exact for

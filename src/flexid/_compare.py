@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from . import kernels
 from ._comparison_result import ComparisonResult, _f
 from ._validate import checked_keywords, positive_int
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
@@ -391,6 +392,7 @@ def _worker_main(conn: Any, payload: Mapping[str, Any]) -> None:
     # ends the workers), so that a run is not cut short into a failed record
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _exit_with_parent()
+    kernels.set_threads(1)  # the worker processes share the cores already
     try:
         ctx = _context_from_payload(payload)
     except BaseException:

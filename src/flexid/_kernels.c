@@ -9,11 +9,16 @@
  *       the C-contiguous float64 array a (P, n) per candidate, by the Schur-Cohn step-down
  *       recursion; writes 1/0 into the uint8 array out (P,).
  *
- *   ar_run(a, forced, state, target, y_out, sse_out)
+ *   ar_run(a, forced, state, target, y_out, sse_out[, threads])
  *       The autoregressive recursion y(t) = f(t) - sum_i a_i y(t - i), t = 0..K-1, for
  *       every candidate: a (P, na), forced (P, K), state (P, na) holding
  *       [y(-1), ..., y(-na)] (or (na,) shared by all candidates), target (K,) or None,
  *       y_out (P, K) or None, sse_out (P,) or None (sum over t of (target - y)^2).
+ *
+ *   arx_run(a, b, reg, state, target, y_out, sse_out[, threads])
+ *       The same with the input part computed in the kernel, f(t) = sum_j b_j reg[t, j]:
+ *       b (P, nb), reg (K, nb) the input regressors of every step (shared by all
+ *       candidates), so that no (P, K) array of forced terms is formed.
  *
  *   twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law)
  *       The twin rotor's RK4 (flexid.envs.twin_rotor_physics: the equations of its batched
@@ -24,10 +29,11 @@
  *       every rotor, or (B, 22), one row per rotor (a population of parameter sets); n_sub
  *       substeps of length h per sample.
  *
- * The recursion runs on blocks of LANES candidates at once, with the block's history in
- * one contiguous buffer, so that the compiler turns the lane loops into SIMD instructions;
- * on x86-64 with GCC an AVX2/FMA clone is chosen at load time when the CPU has it.  The
- * GIL is released while the kernels run.
+ * The recursion runs on blocks of 4 candidates, one per lane of a SIMD vector, in the
+ * transposed direct form with its state in registers (see ar_quad_impl), the summation order
+ * of the direct form; on x86-64 with GCC an AVX2/FMA clone is chosen at load time when the
+ * CPU has it.  The GIL is released while the kernels run, and ar_run/arx_run split the
+ * population between `threads` threads (POSIX threads; one where there are none).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -40,7 +46,10 @@
 #define restrict __restrict
 #endif
 
-#define LANES 16 /* lanes per block, in vectors of 4 doubles */
+/* Helper threads for one call (the population split between them): POSIX threads */
+#if defined(__GNUC__) && !defined(_WIN32) && (defined(__unix__) || defined(__APPLE__))
+#define FLEXID_THREADS 1
+#endif
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
 #define FLEXID_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
@@ -50,11 +59,12 @@
 
 /* ------------------------------------------------------------------ Schur-Cohn */
 
-static void schur_cohn_rows(const double *a, Py_ssize_t P, Py_ssize_t n, unsigned char *out,
+static void schur_cohn_rows(const double *a, Py_ssize_t stride, Py_ssize_t P, Py_ssize_t n,
+                            unsigned char *out,
                             double *c)
 {
     for (Py_ssize_t p = 0; p < P; ++p) {
-        const double *row = a + p * n;
+        const double *row = a + p * stride;
         int ok = 1;
         for (Py_ssize_t j = 0; j < n; ++j) {
             if (!isfinite(row[j])) ok = 0;
@@ -81,137 +91,471 @@ static void schur_cohn_rows(const double *a, Py_ssize_t P, Py_ssize_t n, unsigne
 
 /* ------------------------------------------------------------------ AR recursion */
 
-/* One block of LANES candidates.  hist has (na + K) * LANES doubles: rows 0..na-1 hold the
- * initial state, row na + t the output at t (first filled with the forced term).  With
- * GCC/Clang the lanes are held in four 4-wide vector registers (GCC vector extensions),
- * which keeps the accumulators out of memory across the loop over the lags. */
+/* One recursion job: the population's arrays and sizes.  f(t) is forced[p, t] when forced is
+ * given, else sum_j b[p, j] reg[t, j] (the input part computed here, from the regressor rows
+ * shared by every candidate). */
+typedef struct {
+    const double *a;      /* (P, na), rows a_stride doubles apart */
+    const double *forced; /* (P, K) or NULL */
+    const double *b;      /* (P, nb), rows b_stride apart, with reg, when forced is NULL */
+    const double *reg;    /* (K, nb) */
+    const double *state;  /* [y(-1), ..., y(-na)] per candidate (stride state_stride) */
+    Py_ssize_t state_stride;
+    const double *target; /* (K,) or NULL */
+    double *y;            /* (P, K) or NULL */
+    double *sse;          /* (P,) or NULL */
+    Py_ssize_t P, na, nb, K, a_stride, b_stride;
+} ar_job;
+
+/* One candidate at a time, the direct form y(t) = f(t) - a_na y(t - na) - ... - a_1 y(t - 1)
+ * summed in that order, the history in hist (na + K doubles).  The portable path, and the one
+ * for orders above AR_MAXNA. */
+static void ar_one(const ar_job *J, Py_ssize_t p, double *hist)
+{
+    const Py_ssize_t na = J->na, nb = J->nb, K = J->K;
+    const double *ap = J->a + p * J->a_stride, *sp = J->state + p * J->state_stride;
+    for (Py_ssize_t i = 0; i < na; ++i) hist[na - 1 - i] = sp[i];
+    double s = 0.0;
+    for (Py_ssize_t t = 0; t < K; ++t) {
+        double acc;
+        if (J->forced) {
+            acc = J->forced[p * K + t];
+        } else {
+            const double *bp = J->b + p * J->b_stride, *rt = J->reg + t * nb;
+            acc = nb ? bp[0] * rt[0] : 0.0;
+            for (Py_ssize_t j = 1; j < nb; ++j) acc += bp[j] * rt[j];
+        }
+        for (Py_ssize_t k = na; k >= 1; --k) acc -= ap[k - 1] * hist[na + t - k];
+        hist[na + t] = acc;
+        if (J->target) {
+            const double e = J->target[t] - acc;
+            s += e * e;
+        }
+    }
+    if (J->y) memcpy(J->y + p * K, hist + na, (size_t)K * sizeof(double));
+    if (J->sse) J->sse[p] = s;
+}
+
 #if defined(__GNUC__)
 typedef double v4d __attribute__((vector_size(32), aligned(8)));
+#define AR_MAXNA 16  /* orders whose state is held in registers */
+#define AR_MAXNB 64  /* input terms computed in the kernel (more: the caller's GEMM) */
+#define AR_CHUNK 128 /* forced terms computed per pass (4 KB: they stay in L1) */
 
-/* nv vectors of 4 lanes; nv is a constant in each caller, so acc[] and s[] live in
- * registers */
-static inline __attribute__((always_inline)) void
-ar_block_impl(const double *restrict coef, double *restrict hist, Py_ssize_t na, Py_ssize_t K,
-              const double *restrict target, double *restrict sse, const int nv)
-{
-    const Py_ssize_t lanes = 4 * nv;
-    v4d s[LANES / 4], acc[LANES / 4];
-    for (int v = 0; v < nv; ++v) s[v] = (v4d){0, 0, 0, 0};
-    for (Py_ssize_t t = 0; t < K; ++t) {
-        v4d *cur = (v4d *)(hist + (na + t) * lanes);
-        for (int v = 0; v < nv; ++v) acc[v] = cur[v];
-        for (Py_ssize_t k = na; k >= 1; --k) {
-            const v4d *past = (const v4d *)(hist + (na + t - k) * lanes);
-            const v4d *ck = (const v4d *)(coef + (k - 1) * lanes);
-            for (int v = 0; v < nv; ++v) acc[v] -= ck[v] * past[v];
-        }
-        for (int v = 0; v < nv; ++v) cur[v] = acc[v];
-        if (target) {
-            const double yt = target[t];
-            for (int v = 0; v < nv; ++v) {
-                const v4d e = yt - acc[v];
-                s[v] += e * e;
-            }
-        }
+/* Candidates q, ..., q + 3 (those below P; the other lanes run a zero model), one per lane of
+ * a 4-double vector, by the transposed direct form: after step t, S[k - 1] holds f(t + k) -
+ * sum_{i >= k} a_i y(t + k - i), the part of y(t + k) known so far, so that
+ *
+ *     y(t) = S[0],   S[k - 1] <- S[k] - a_k y(t)  (k < na),   S[na - 1] <- f(t + na) - a_na y(t).
+ *
+ * Each y(t) is then f(t) - a_na y(t - na) - ... - a_1 y(t - 1) summed in that order, the order
+ * of ar_one (and of this kernel's earlier direct form, so its results are unchanged), but the
+ * state lives in registers and a step waits for one multiply-add only (the na updates are
+ * independent): the recursion runs at the machine's multiply-add throughput, not at the
+ * latency of a chain of na of them.  The forced terms are computed AR_CHUNK steps at a time
+ * into a small buffer (a separate pass, so that the coefficients of both passes have the
+ * registers to themselves).  na is a constant in every caller; a_in_mem keeps the a_k in
+ * memory (read as operands of the multiply-adds) where 16 vector registers cannot hold them
+ * beside the state. */
+/* In AR_BLOCK_IMPL: f(c0), ..., f(c1 - 1) into fbuf[0 .. c1 - c0); each f(t) = b_1 r_1 + ... +
+ * b_nb r_nb in that order, 8 steps at a time so that each b_j is loaded once for 8 products */
+#define AR_FILL(c0, c1)                                                                       \
+    do {                                                                                      \
+        if (forced) {                                                                         \
+            for (Py_ssize_t t_ = (c0); t_ < (c1); ++t_) {                                     \
+                __typeof__(zero) v_ = zero;                                                   \
+                for (Py_ssize_t l_ = 0; l_ < w; ++l_) v_[l_] = forced[l_ * K + t_];           \
+                fbuf[t_ - (c0)] = v_;                                                         \
+            }                                                                                 \
+        } else if (nb == 0) {                                                                 \
+            for (Py_ssize_t t_ = (c0); t_ < (c1); ++t_) fbuf[t_ - (c0)] = zero;               \
+        } else {                                                                              \
+            Py_ssize_t t_ = (c0);                                                             \
+            for (; t_ + 8 <= (c1); t_ += 8) {                                                 \
+                const double *r_ = reg + t_ * nb;                                             \
+                __typeof__(zero) o_[8];                                                       \
+                for (int i_ = 0; i_ < 8; ++i_) o_[i_] = Bv[0] * r_[i_ * nb];                  \
+                for (Py_ssize_t j_ = 1; j_ < nb; ++j_) {                                      \
+                    const __typeof__(zero) bj_ = Bv[j_];                                      \
+                    for (int i_ = 0; i_ < 8; ++i_) o_[i_] += bj_ * r_[i_ * nb + j_];          \
+                }                                                                             \
+                for (int i_ = 0; i_ < 8; ++i_) fbuf[t_ - (c0) + i_] = o_[i_];                 \
+            }                                                                                 \
+            for (; t_ < (c1); ++t_) {                                                         \
+                const double *r_ = reg + t_ * nb;                                             \
+                __typeof__(zero) o_ = Bv[0] * r_[0];                                          \
+                for (Py_ssize_t j_ = 1; j_ < nb; ++j_) o_ += Bv[j_] * r_[j_];                 \
+                fbuf[t_ - (c0)] = o_;                                                         \
+            }                                                                                 \
+        }                                                                                     \
+    } while (0)
+
+#define AR_BLOCK_IMPL(NAME, VEC, NL)                                                          \
+static inline __attribute__((always_inline)) void                                              \
+NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem)                          \
+{                                                                                              \
+    const Py_ssize_t K = J->K, nb = J->nb, w = (J->P - q < NL) ? J->P - q : NL;                \
+    const double *forced = J->forced ? J->forced + q * K : NULL, *reg = J->reg;                \
+    const double *target = J->target;                                                          \
+    double *y = J->y ? J->y + q * K : NULL;                                                    \
+    VEC A[AR_MAXNA], S[AR_MAXNA], Y[AR_MAXNA], Bv[AR_MAXNB];                                   \
+    VEC fbuf[AR_CHUNK];                                                                        \
+    VEC zero = {0};                                                                            \
+    for (int i = 0; i < na; ++i) A[i] = Y[i] = zero;                                           \
+    for (Py_ssize_t j = 0; j < nb && !forced; ++j) Bv[j] = zero;                               \
+    for (Py_ssize_t l = 0; l < w; ++l) {                                                       \
+        const double *ap = J->a + (q + l) * J->a_stride, *sp = J->state + (q + l) * J->state_stride; \
+        for (int i = 0; i < na; ++i) {                                                         \
+            A[i][l] = ap[i];                                                                   \
+            Y[i][l] = sp[i]; /* y(-1 - i) */                                                   \
+        }                                                                                      \
+        for (Py_ssize_t j = 0; j < nb && !forced; ++j) Bv[j][l] = J->b[(q + l) * J->b_stride + j]; \
+    }                                                                                          \
+    /* the state before t = 0: S[k - 1] = f(k - 1) - sum_{i = na..k} a_i y(k - 1 - i) */       \
+    const Py_ssize_t n0 = na < K ? na : K;                                                     \
+    AR_FILL(0, n0);                                                                            \
+    for (int k = 1; k <= na; ++k) {                                                            \
+        VEC acc = k - 1 < K ? fbuf[k - 1] : zero;                                              \
+        for (int i = na; i >= k; --i) acc -= A[i - 1] * Y[i - k]; /* y(k - 1 - i) */           \
+        S[k - 1] = acc;                                                                        \
+    }                                                                                          \
+    VEC s = zero;                                                                              \
+    /* steps t = c0 - na .. c1 - na - 1 take f(t + na) from the chunk [c0, c1); the last na    \
+     * steps feed no forced term */                                                            \
+    for (Py_ssize_t c0 = na; c0 < K + na; c0 += AR_CHUNK) {                                    \
+        const Py_ssize_t c1 = c0 + AR_CHUNK < K + na ? c0 + AR_CHUNK : K + na;                 \
+        const Py_ssize_t cf = c1 < K ? c1 : K;                                                 \
+        if (cf > c0) AR_FILL(c0, cf);                                                          \
+        for (Py_ssize_t c = cf; c < c1; ++c) fbuf[c - c0] = zero;                              \
+        const VEC *Am = A;                                                                     \
+        if (a_in_mem) __asm__("" : "+r"(Am)); /* the a_k read from memory in the loop */       \
+        Py_ssize_t c = c0;                                                                     \
+        /* with 32 registers, na steps at a time with the state's registers renamed            \
+         * rather than moved: in step r of a round, the S[k] above is S[(k + r) % na], so      \
+         * each update accumulates in place and the slot of y(t) takes the new last entry      \
+         * (the same operations; with 16 registers the unrolled rounds spill) */               \
+        for (; !a_in_mem && c + na <= c1; c += na) {                                           \
+            _Pragma("GCC unroll 16") for (int r = 0; r < na; ++r) {                            \
+                const Py_ssize_t t = c + r - na;                                               \
+                const VEC yt = S[r];                                                           \
+                if (target) {                                                                  \
+                    const VEC e = target[t] - yt;                                              \
+                    s += e * e;                                                                \
+                }                                                                              \
+                if (y)                                                                         \
+                    for (Py_ssize_t l = 0; l < w; ++l) y[l * K + t] = yt[l];                   \
+                _Pragma("GCC unroll 16") for (int k = 0; k < na - 1; ++k)                      \
+                    S[(k + 1 + r) % na] -= Am[k] * yt;                                         \
+                S[r] = fbuf[c + r - c0] - Am[na - 1] * yt;                                     \
+            }                                                                                  \
+        }                                                                                      \
+        for (; c < c1; ++c) {                                                                  \
+            const Py_ssize_t t = c - na;                                                       \
+            const VEC yt = S[0];                                                               \
+            if (target) {                                                                      \
+                const VEC e = target[t] - yt;                                                  \
+                s += e * e;                                                                    \
+            }                                                                                  \
+            if (y)                                                                             \
+                for (Py_ssize_t l = 0; l < w; ++l) y[l * K + t] = yt[l];                       \
+            for (int k = 0; k < na - 1; ++k) S[k] = S[k + 1] - Am[k] * yt;                     \
+            S[na - 1] = fbuf[c - c0] - Am[na - 1] * yt;                                        \
+        }                                                                                      \
+    }                                                                                          \
+    if (J->sse)                                                                                \
+        for (Py_ssize_t l = 0; l < w; ++l) J->sse[q + l] = s[l];                               \
+}
+typedef double v2d __attribute__((vector_size(16), aligned(8)));
+AR_BLOCK_IMPL(ar_quad_impl, v4d, 4)
+/* the baseline: 2-lane vectors (SSE2 has 16 registers of 2 doubles: 4-lane states spill) */
+AR_BLOCK_IMPL(ar_pair_impl, v2d, 2)
+
+/* One function per order and instruction set, chosen at run time (ar_simd): on x86-64 with
+ * GCC, AVX-512 (32 vector registers: the a_k stay in registers), AVX2/FMA, and the baseline;
+ * elsewhere the compiler's generic vectors. */
+#if defined(__x86_64__) && !defined(__clang__)
+#define AR_X86 1
+#define AR_TGT_V4 __attribute__((target("avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")))
+#define AR_TGT_V3 __attribute__((target("avx2,fma")))
+#endif
+#define AR_QUAD(n)                                                                            \
+    static void ar_quad_g##n(const ar_job *J, Py_ssize_t q)                                   \
+    {                                                                                         \
+        ar_pair_impl(J, q, n, 1);                                                             \
+        if (q + 2 < J->P) ar_pair_impl(J, q + 2, n, 1);                                       \
+    }                                                                                         \
+    AR_QUAD_X86(n)
+#if defined(AR_X86)
+#define AR_QUAD_X86(n)                                                                        \
+    AR_TGT_V3 static void ar_quad_v3_##n(const ar_job *J, Py_ssize_t q)                       \
+    {                                                                                         \
+        ar_quad_impl(J, q, n, 1);                                                             \
+    }                                                                                         \
+    AR_TGT_V4 static void ar_quad_v4_##n(const ar_job *J, Py_ssize_t q)                       \
+    {                                                                                         \
+        ar_quad_impl(J, q, n, 0);                                                             \
     }
-    for (int v = 0; v < nv; ++v)
-        for (int j = 0; j < 4; ++j) sse[4 * v + j] = s[v][j];
-}
-
-FLEXID_CLONES
-static void ar_block(const double *restrict coef, double *restrict hist, Py_ssize_t na,
-                     Py_ssize_t K, const double *restrict target, double *restrict sse)
-{
-    ar_block_impl(coef, hist, na, K, target, sse, LANES / 4);
-}
-
-FLEXID_CLONES
-static void ar_block_narrow(const double *restrict coef, double *restrict hist, Py_ssize_t na,
-                            Py_ssize_t K, const double *restrict target, double *restrict sse)
-{
-    ar_block_impl(coef, hist, na, K, target, sse, 1);
-}
-#define HAVE_NARROW 1
 #else
-static void ar_block(const double *restrict coef, double *restrict hist, Py_ssize_t na,
-                     Py_ssize_t K, const double *restrict target, double *restrict sse)
+#define AR_QUAD_X86(n)
+#endif
+AR_QUAD(1)
+AR_QUAD(2)
+AR_QUAD(3)
+AR_QUAD(4)
+AR_QUAD(5)
+AR_QUAD(6)
+AR_QUAD(7)
+AR_QUAD(8)
+AR_QUAD(9)
+AR_QUAD(10)
+AR_QUAD(11)
+AR_QUAD(12)
+AR_QUAD(13)
+AR_QUAD(14)
+AR_QUAD(15)
+AR_QUAD(16)
+typedef void (*ar_quad_fn)(const ar_job *, Py_ssize_t);
+#define AR_TABLE(p)                                                                           \
+    {                                                                                         \
+        NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
+            p##13, p##14, p##15, p##16                                                        \
+    }
+static const ar_quad_fn ar_quads_generic[AR_MAXNA + 1] = AR_TABLE(ar_quad_g);
+#if defined(AR_X86)
+static const ar_quad_fn ar_quads_v3[AR_MAXNA + 1] = AR_TABLE(ar_quad_v3_);
+static const ar_quad_fn ar_quads_v4[AR_MAXNA + 1] = AR_TABLE(ar_quad_v4_);
+#endif
+static const char *const ar_simd_names[3] = {"generic", "avx2", "avx512"};
+static int ar_simd_best = 0; /* the best the CPU runs */
+static int ar_simd = 0;      /* the one in use */
+static const ar_quad_fn *ar_quads = ar_quads_generic;
+
+static void ar_simd_detect(void)
 {
-    double s[LANES] = {0};
-    for (Py_ssize_t t = 0; t < K; ++t) {
-        double *cur = hist + (na + t) * LANES;
-        for (Py_ssize_t k = na; k >= 1; --k) {
-            const double *past = hist + (na + t - k) * LANES;
-            const double *ck = coef + (k - 1) * LANES;
-            for (int j = 0; j < LANES; ++j) cur[j] -= ck[j] * past[j];
-        }
-        if (target) {
-            for (int j = 0; j < LANES; ++j) {
-                const double e = target[t] - cur[j];
-                s[j] += e * e;
-            }
+#if defined(AR_X86)
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+        ar_simd_best = 1;
+        if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+            __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw"))
+            ar_simd_best = 2;
+    }
+#endif
+}
+
+static void ar_simd_select(int level)
+{
+    ar_simd = level;
+#if defined(AR_X86)
+    ar_quads = level == 2 ? ar_quads_v4 : level == 1 ? ar_quads_v3 : ar_quads_generic;
+#else
+    ar_quads = ar_quads_generic;
+#endif
+}
+#define AR_UNIT 4 /* candidates per unit of work */
+#else
+#define AR_MAXNA 0
+#define AR_MAXNB 0
+#define AR_UNIT 1
+static const char *const ar_simd_names[1] = {"scalar"};
+static int ar_simd_best = 0, ar_simd = 0;
+static void ar_simd_detect(void) {}
+static void ar_simd_select(int level) { (void)level; }
+#endif
+
+/* Runs units [lo, hi) of the job: blocks of 4 candidates on the vector path, single
+ * candidates otherwise; hist (na + K doubles) for the latter. */
+static void ar_units(const ar_job *J, Py_ssize_t lo, Py_ssize_t hi, double *hist)
+{
+#if defined(__GNUC__)
+    if (J->na >= 1 && J->na <= AR_MAXNA) {
+        for (Py_ssize_t u = lo; u < hi; ++u) ar_quads[J->na](J, u * AR_UNIT);
+        return;
+    }
+#endif
+    for (Py_ssize_t u = lo; u < hi; ++u)
+        for (Py_ssize_t p = u * AR_UNIT; p < (u + 1) * AR_UNIT && p < J->P; ++p)
+            ar_one(J, p, hist);
+}
+
+/* ------------------------------------------------------------------ threads */
+/* A job's units (blocks of candidates) are claimed one at a time, by the calling thread and
+ * by up to n - 1 helper threads woken for the call.  The caller waits only for units a
+ * helper has claimed, never for a helper to wake or to finish: on a busy machine a helper the
+ * scheduler runs late finds nothing left (the shared record is freed by whichever of them
+ * lets go of it last), so threads cost at most their wake-up when they do not help.  A unit function gets a scratch pointer of its thread (allocated by it on
+ * first use, freed with free() at the end) and returns -1 when out of memory.  The GIL is
+ * released around all of it. */
+typedef int (*unit_fn)(const void *ctx, Py_ssize_t unit, void **scratch);
+
+static int run_units_serial(const void *ctx, unit_fn fn, Py_ssize_t n_units)
+{
+    void *scratch = NULL;
+    int rc = 0;
+    for (Py_ssize_t u = 0; u < n_units && rc == 0; ++u) rc = fn(ctx, u, &scratch);
+    free(scratch);
+    return rc;
+}
+
+#if defined(FLEXID_THREADS)
+#include <pthread.h>
+typedef struct {
+    const void *ctx;    /* read only while a claimed unit runs: the caller is waiting then */
+    unit_fn fn;
+    Py_ssize_t n_units;
+    Py_ssize_t next;    /* next unclaimed unit (atomic) */
+    Py_ssize_t done;    /* units finished (atomic) */
+    int failed;         /* a unit ran out of memory (atomic) */
+    int refs;           /* the caller and every helper started (atomic) */
+    int waiting;        /* the caller sleeps on cond (under lock) */
+    int joined;         /* helpers that took the job (atomic) */
+    int max_helpers;    /* how many may work on it */
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+} pool_shared;
+
+static void pool_release(pool_shared *sh)
+{
+    if (__atomic_sub_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL) == 0) {
+        pthread_mutex_destroy(&sh->lock);
+        pthread_cond_destroy(&sh->cond);
+        free(sh);
+    }
+}
+
+static void pool_claim(pool_shared *sh)
+{
+    void *scratch = NULL;
+    for (;;) {
+        const Py_ssize_t u = __atomic_fetch_add(&sh->next, 1, __ATOMIC_RELAXED);
+        if (u >= sh->n_units) break;
+        if (sh->fn(sh->ctx, u, &scratch) < 0) __atomic_store_n(&sh->failed, 1, __ATOMIC_RELAXED);
+        if (__atomic_add_fetch(&sh->done, 1, __ATOMIC_ACQ_REL) == sh->n_units) {
+            pthread_mutex_lock(&sh->lock);
+            if (sh->waiting) pthread_cond_signal(&sh->cond);
+            pthread_mutex_unlock(&sh->lock);
         }
     }
-    for (int j = 0; j < LANES; ++j) sse[j] = s[j];
+    free(scratch);
+}
+
+/* The helper threads: started on first use and then kept, waiting for the next job (starting
+ * a thread costs tens of microseconds, as much as a whole small population).  One caller at a
+ * time posts a job to them (pool_busy); another one meanwhile runs its job alone. */
+static pthread_mutex_t pool_lock = PTHREAD_MUTEX_INITIALIZER;
+static pthread_cond_t pool_wake = PTHREAD_COND_INITIALIZER;
+static pool_shared *pool_job = NULL; /* the posted job (under pool_lock) */
+static unsigned long pool_gen = 0;   /* jobs posted so far (under pool_lock) */
+static int pool_helpers = 0;         /* helper threads started (under pool_lock) */
+static int pool_busy = 0;            /* a caller owns the helpers (atomic) */
+
+static void *pool_helper(void *arg)
+{
+    (void)arg;
+    unsigned long seen = 0;
+    pthread_mutex_lock(&pool_lock);
+    for (;;) {
+        while (!(pool_job && pool_gen != seen)) pthread_cond_wait(&pool_wake, &pool_lock);
+        pool_shared *sh = pool_job;
+        seen = pool_gen;
+        __atomic_add_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
+        pthread_mutex_unlock(&pool_lock);
+        /* no more helpers on a job than its caller asked for */
+        if (__atomic_add_fetch(&sh->joined, 1, __ATOMIC_ACQ_REL) <= sh->max_helpers)
+            pool_claim(sh);
+        pool_release(sh);
+        pthread_mutex_lock(&pool_lock);
+    }
+    return NULL;
+}
+
+/* In a child process made by fork the helpers do not exist: start afresh. */
+static void pool_after_fork(void)
+{
+    pthread_mutex_init(&pool_lock, NULL);
+    pthread_cond_init(&pool_wake, NULL);
+    pool_job = NULL;
+    pool_helpers = 0;
+    pool_busy = 0;
 }
 #endif
 
-static void ar_rows(const double *a, const double *forced, const double *state,
-                    Py_ssize_t state_stride, const double *target, double *y, double *sse,
-                    Py_ssize_t P, Py_ssize_t na, Py_ssize_t K, double *coef, double *hist)
+/* Runs units 0 .. n_units - 1 of fn on up to n_threads threads; 0, or -1 out of memory. */
+static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_threads)
 {
-    double s[LANES];
-    for (Py_ssize_t g = 0; g < P;) {
-        Py_ssize_t lanes = LANES;
-#ifdef HAVE_NARROW
-        if (P - g <= 4) lanes = 4; /* a short tail: one 4-lane block, not a mostly empty wide one */
-#endif
-        const Py_ssize_t w = (P - g < lanes) ? P - g : lanes;
-        memset(coef, 0, (size_t)(na > 0 ? na : 1) * lanes * sizeof(double));
-        if (w < lanes) memset(hist, 0, (size_t)(na + K) * lanes * sizeof(double));
-        for (Py_ssize_t j = 0; j < w; ++j) {
-            const double *aj = a + (g + j) * na;
-            const double *sj = state + (g + j) * state_stride;
-            for (Py_ssize_t i = 0; i < na; ++i) {
-                coef[i * lanes + j] = aj[i];
-                hist[(na - 1 - i) * lanes + j] = sj[i]; /* y(-1-i) */
-            }
-        }
-        /* transpose the block's forced terms into the history rows: time outer, so the
-         * writes are contiguous and the reads are w sequential streams */
-        const double *fg = forced + g * K;
-        for (Py_ssize_t t = 0; t < K; ++t) {
-            double *row = hist + (na + t) * lanes;
-            for (Py_ssize_t j = 0; j < w; ++j) row[j] = fg[j * K + t];
-        }
-#ifdef HAVE_NARROW
-        if (lanes == 4)
-            ar_block_narrow(coef, hist, na, K, target, s);
-        else
-#endif
-            ar_block(coef, hist, na, K, target, s);
-        if (y) {
-            double *yg = y + g * K;
-            for (Py_ssize_t t = 0; t < K; ++t) {
-                const double *row = hist + (na + t) * lanes;
-                for (Py_ssize_t j = 0; j < w; ++j) yg[j * K + t] = row[j];
-            }
-        }
-        if (sse)
-            for (Py_ssize_t j = 0; j < w; ++j) sse[g + j] = s[j];
-        g += w;
+#if defined(FLEXID_THREADS)
+    if (n_threads > n_units) n_threads = (int)n_units;
+    if (n_threads > 64) n_threads = 64;
+    pool_shared *sh = NULL;
+    if (n_threads > 1 && !__atomic_exchange_n(&pool_busy, 1, __ATOMIC_ACQUIRE)) {
+        sh = (pool_shared *)calloc(1, sizeof(pool_shared));
+        if (!sh) __atomic_store_n(&pool_busy, 0, __ATOMIC_RELEASE);
     }
+    if (sh) {
+        sh->ctx = ctx;
+        sh->fn = fn;
+        sh->n_units = n_units;
+        sh->refs = 1;
+        sh->max_helpers = n_threads - 1;
+        pthread_mutex_init(&sh->lock, NULL);
+        pthread_cond_init(&sh->cond, NULL);
+        pthread_mutex_lock(&pool_lock);
+        if (pool_helpers < n_threads - 1) {
+            pthread_attr_t attr;
+            pthread_attr_init(&attr);
+            pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
+            while (pool_helpers < n_threads - 1) {
+                pthread_t tid;
+                if (pthread_create(&tid, &attr, pool_helper, NULL) != 0) break;
+                ++pool_helpers;
+            }
+            pthread_attr_destroy(&attr);
+        }
+        pool_job = sh;
+        ++pool_gen;
+        pthread_cond_broadcast(&pool_wake);
+        pthread_mutex_unlock(&pool_lock);
+        pool_claim(sh);
+        if (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units) {
+            pthread_mutex_lock(&sh->lock);
+            sh->waiting = 1;
+            while (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units)
+                pthread_cond_wait(&sh->cond, &sh->lock);
+            pthread_mutex_unlock(&sh->lock);
+        }
+        pthread_mutex_lock(&pool_lock);
+        pool_job = NULL;
+        pthread_mutex_unlock(&pool_lock);
+        __atomic_store_n(&pool_busy, 0, __ATOMIC_RELEASE);
+        const int failed = __atomic_load_n(&sh->failed, __ATOMIC_ACQUIRE);
+        pool_release(sh);
+        return failed ? -1 : 0;
+    }
+#else
+    (void)n_threads;
+#endif
+    return run_units_serial(ctx, fn, n_units);
+}
+
+/* One unit of a recursion job; the scratch is the history of the one-candidate path. */
+static int ar_unit(const void *ctx, Py_ssize_t u, void **scratch)
+{
+    const ar_job *J = (const ar_job *)ctx;
+    if (!(J->na >= 1 && J->na <= AR_MAXNA) && !*scratch) {
+        *scratch = malloc((size_t)(J->na + J->K + 1) * sizeof(double));
+        if (!*scratch) return -1;
+    }
+    ar_units(J, u, u + 1, (double *)*scratch);
+    return 0;
+}
+
+/* Runs the whole job on up to n_threads threads; 0 on success, -1 when out of memory. */
+static int ar_run_job(const ar_job *J, int n_threads)
+{
+    return run_units(J, ar_unit, (J->P + AR_UNIT - 1) / AR_UNIT, n_threads);
 }
 
 /* ------------------------------------------------------------------ Python glue */
-
-/* n doubles aligned to a cache line (vectors that straddle two lines defeat store-to-load
- * forwarding in the recursion); free *raw afterwards. */
-static double *alloc_aligned(size_t n, void **raw)
-{
-    *raw = malloc(n * sizeof(double) + 64);
-    if (!*raw) return NULL;
-    return (double *)(((uintptr_t)*raw + 63) & ~(uintptr_t)63);
-}
 
 static int get_buffer(PyObject *obj, Py_buffer *view, int writable, const char *name)
 {
@@ -235,19 +579,46 @@ static int check_format(Py_buffer *view, const char *want, const char *name)
     return 0;
 }
 
+/* A (P, n) float64 array whose rows are contiguous, some (non-negative) number of doubles
+ * apart, e.g. a column block of a population array; its row stride in doubles, or -1 with an
+ * exception set. */
+static Py_ssize_t get_rows(PyObject *obj, Py_buffer *view, const char *fn, const char *name)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_STRIDES | PyBUF_FORMAT) < 0) {
+        PyErr_Format(PyExc_TypeError, "%s: %s: expected a buffer", fn, name);
+        return -1;
+    }
+    if (check_format(view, "d", name) < 0) goto fail;
+    if (view->ndim != 2) {
+        PyErr_Format(PyExc_ValueError, "%s: %s must be 2-D", fn, name);
+        goto fail;
+    }
+    const Py_ssize_t d = (Py_ssize_t)sizeof(double);
+    if ((view->shape[1] > 1 && view->strides[1] != d) || view->strides[0] % d != 0 ||
+        (view->shape[0] > 1 && view->strides[0] < 0)) {
+        PyErr_Format(PyExc_TypeError, "%s: %s: rows must be contiguous", fn, name);
+        goto fail;
+    }
+    return view->shape[0] > 1 ? view->strides[0] / d : view->shape[1];
+fail:
+    PyBuffer_Release(view);
+    return -1;
+}
+
 static PyObject *py_schur_cohn(PyObject *self, PyObject *args)
 {
     PyObject *a_obj, *out_obj;
     Py_buffer a, out;
     if (!PyArg_ParseTuple(args, "OO", &a_obj, &out_obj)) return NULL;
-    if (get_buffer(a_obj, &a, 0, "a") < 0) return NULL;
+    const Py_ssize_t stride = get_rows(a_obj, &a, "schur_cohn", "a");
+    if (stride < 0) return NULL;
     if (get_buffer(out_obj, &out, 1, "out") < 0) {
         PyBuffer_Release(&a);
         return NULL;
     }
     PyObject *result = NULL;
-    if (check_format(&a, "d", "a") < 0 || check_format(&out, "B", "out") < 0) goto done;
-    if (a.ndim != 2 || out.ndim != 1 || out.shape[0] != a.shape[0]) {
+    if (check_format(&out, "B", "out") < 0) goto done;
+    if (out.ndim != 1 || out.shape[0] != a.shape[0]) {
         PyErr_SetString(PyExc_ValueError, "schur_cohn: a must be (P, n) and out (P,)");
         goto done;
     }
@@ -258,7 +629,7 @@ static PyObject *py_schur_cohn(PyObject *self, PyObject *args)
         goto done;
     }
     Py_BEGIN_ALLOW_THREADS
-    schur_cohn_rows((const double *)a.buf, P, n, (unsigned char *)out.buf, c);
+    schur_cohn_rows((const double *)a.buf, stride, P, n, (unsigned char *)out.buf, c);
     Py_END_ALLOW_THREADS
     free(c);
     result = Py_None;
@@ -269,25 +640,79 @@ done:
     return result;
 }
 
+/* Parses the common tail (state, target, y_out, sse_out) of ar_run and arx_run into J, given
+ * P, na and K; bufs[0..3] and have[0..3] are theirs.  -1 with an exception set on error. */
+static int ar_parse_tail(const char *fn, PyObject *objs[4], Py_buffer bufs[4], int have[4],
+                         ar_job *J)
+{
+    static const char *names[4] = {"state", "target", "y_out", "sse_out"};
+    const Py_ssize_t P = J->P, na = J->na, K = J->K;
+    for (int i = 0; i < 4; ++i) {
+        if (objs[i] == Py_None) {
+            if (i == 0) {
+                PyErr_Format(PyExc_TypeError, "%s: state is required", fn);
+                return -1;
+            }
+            continue;
+        }
+        if (get_buffer(objs[i], &bufs[i], i >= 2, names[i]) < 0) return -1;
+        have[i] = 1;
+        if (check_format(&bufs[i], "d", names[i]) < 0) return -1;
+    }
+    if (bufs[0].ndim == 1 && bufs[0].shape[0] == na) {
+        J->state_stride = 0;
+    } else if (bufs[0].ndim == 2 && bufs[0].shape[0] == P && bufs[0].shape[1] == na) {
+        J->state_stride = na;
+    } else {
+        PyErr_Format(PyExc_ValueError, "%s: state must be (na,) or (P, na)", fn);
+        return -1;
+    }
+    if (have[1] && (bufs[1].ndim != 1 || bufs[1].shape[0] != K)) {
+        PyErr_Format(PyExc_ValueError, "%s: target must be (K,)", fn);
+        return -1;
+    }
+    if (have[2] && (bufs[2].ndim != 2 || bufs[2].shape[0] != P || bufs[2].shape[1] != K)) {
+        PyErr_Format(PyExc_ValueError, "%s: y_out must be (P, K)", fn);
+        return -1;
+    }
+    if (have[3] && (bufs[3].ndim != 1 || bufs[3].shape[0] != P)) {
+        PyErr_Format(PyExc_ValueError, "%s: sse_out must be (P,)", fn);
+        return -1;
+    }
+    J->state = (const double *)bufs[0].buf;
+    J->target = have[1] ? (const double *)bufs[1].buf : NULL;
+    J->y = have[2] ? (double *)bufs[2].buf : NULL;
+    J->sse = have[3] ? (double *)bufs[3].buf : NULL;
+    return 0;
+}
+
+/* Runs J without the GIL; None, or NULL with MemoryError. */
+static PyObject *ar_execute(const ar_job *J, int n_threads)
+{
+    int rc;
+    Py_BEGIN_ALLOW_THREADS
+    rc = ar_run_job(J, n_threads);
+    Py_END_ALLOW_THREADS
+    if (rc < 0) return PyErr_NoMemory();
+    Py_RETURN_NONE;
+}
+
 static PyObject *py_ar_run(PyObject *self, PyObject *args)
 {
     PyObject *objs[6];
     Py_buffer bufs[6];
-    int have[6] = {0};
-    static const char *names[6] = {"a", "forced", "state", "target", "y_out", "sse_out"};
-    if (!PyArg_ParseTuple(args, "OOOOOO", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4],
-                          &objs[5]))
+    int have[6] = {0}, n_threads = 1;
+    if (!PyArg_ParseTuple(args, "OOOOOO|i", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4],
+                          &objs[5], &n_threads))
         return NULL;
     PyObject *result = NULL;
-    for (int i = 0; i < 6; ++i) {
+    static const char *names[2] = {"a", "forced"};
+    for (int i = 0; i < 2; ++i) {
         if (objs[i] == Py_None) {
-            if (i < 3) {
-                PyErr_Format(PyExc_TypeError, "ar_run: %s is required", names[i]);
-                goto done;
-            }
-            continue;
+            PyErr_Format(PyExc_TypeError, "ar_run: %s is required", names[i]);
+            goto done;
         }
-        if (get_buffer(objs[i], &bufs[i], i >= 4, names[i]) < 0) goto done;
+        if (get_buffer(objs[i], &bufs[i], 0, names[i]) < 0) goto done;
         have[i] = 1;
         if (check_format(&bufs[i], "d", names[i]) < 0) goto done;
     }
@@ -295,53 +720,77 @@ static PyObject *py_ar_run(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "ar_run: a must be (P, na) and forced (P, K)");
         goto done;
     }
-    Py_ssize_t P = bufs[0].shape[0], na = bufs[0].shape[1], K = bufs[1].shape[1];
-    if (bufs[1].shape[0] != P) {
+    ar_job J = {0};
+    J.P = bufs[0].shape[0];
+    J.na = bufs[0].shape[1];
+    J.K = bufs[1].shape[1];
+    if (bufs[1].shape[0] != J.P) {
         PyErr_SetString(PyExc_ValueError, "ar_run: a and forced differ in P");
         goto done;
     }
-    Py_ssize_t state_stride;
-    if (bufs[2].ndim == 1 && bufs[2].shape[0] == na) {
-        state_stride = 0;
-    } else if (bufs[2].ndim == 2 && bufs[2].shape[0] == P && bufs[2].shape[1] == na) {
-        state_stride = na;
-    } else {
-        PyErr_SetString(PyExc_ValueError, "ar_run: state must be (na,) or (P, na)");
-        goto done;
-    }
-    if (have[3] && (bufs[3].ndim != 1 || bufs[3].shape[0] != K)) {
-        PyErr_SetString(PyExc_ValueError, "ar_run: target must be (K,)");
-        goto done;
-    }
-    if (have[4] && (bufs[4].ndim != 2 || bufs[4].shape[0] != P || bufs[4].shape[1] != K)) {
-        PyErr_SetString(PyExc_ValueError, "ar_run: y_out must be (P, K)");
-        goto done;
-    }
-    if (have[5] && (bufs[5].ndim != 1 || bufs[5].shape[0] != P)) {
-        PyErr_SetString(PyExc_ValueError, "ar_run: sse_out must be (P,)");
-        goto done;
-    }
-    void *coef_raw = NULL, *hist_raw = NULL;
-    double *coef = alloc_aligned((size_t)(na > 0 ? na : 1) * LANES, &coef_raw);
-    double *hist = alloc_aligned((size_t)(na + K > 0 ? na + K : 1) * LANES, &hist_raw);
-    if (!coef || !hist) {
-        free(coef_raw);
-        free(hist_raw);
-        PyErr_NoMemory();
-        goto done;
-    }
-    Py_BEGIN_ALLOW_THREADS
-    ar_rows((const double *)bufs[0].buf, (const double *)bufs[1].buf,
-            (const double *)bufs[2].buf, state_stride,
-            have[3] ? (const double *)bufs[3].buf : NULL, have[4] ? (double *)bufs[4].buf : NULL,
-            have[5] ? (double *)bufs[5].buf : NULL, P, na, K, coef, hist);
-    Py_END_ALLOW_THREADS
-    free(coef_raw);
-    free(hist_raw);
-    result = Py_None;
-    Py_INCREF(result);
+    J.a = (const double *)bufs[0].buf;
+    J.a_stride = J.na;
+    J.forced = (const double *)bufs[1].buf;
+    if (ar_parse_tail("ar_run", objs + 2, bufs + 2, have + 2, &J) < 0) goto done;
+    result = ar_execute(&J, n_threads);
 done:
     for (int i = 0; i < 6; ++i)
+        if (have[i]) PyBuffer_Release(&bufs[i]);
+    return result;
+}
+
+static PyObject *py_arx_run(PyObject *self, PyObject *args)
+{
+    PyObject *objs[7];
+    Py_buffer bufs[7];
+    int have[7] = {0}, n_threads = 1;
+    Py_ssize_t strides[2] = {0, 0};
+    if (!PyArg_ParseTuple(args, "OOOOOOO|i", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4],
+                          &objs[5], &objs[6], &n_threads))
+        return NULL;
+    PyObject *result = NULL;
+    static const char *names[3] = {"a", "b", "reg"};
+    for (int i = 0; i < 3; ++i) {
+        if (objs[i] == Py_None) {
+            PyErr_Format(PyExc_TypeError, "arx_run: %s is required", names[i]);
+            goto done;
+        }
+        /* a and b may be column blocks of one population array (rows of contiguous values
+         * some stride apart), reg must be C-contiguous */
+        if (i < 2) {
+            strides[i] = get_rows(objs[i], &bufs[i], "arx_run", names[i]);
+            if (strides[i] < 0) goto done;
+            have[i] = 1;
+            continue;
+        }
+        if (get_buffer(objs[i], &bufs[i], 0, names[i]) < 0) goto done;
+        have[i] = 1;
+        if (check_format(&bufs[i], "d", names[i]) < 0) goto done;
+    }
+    if (bufs[0].ndim != 2 || bufs[1].ndim != 2 || bufs[2].ndim != 2 ||
+        bufs[1].shape[0] != bufs[0].shape[0] || bufs[2].shape[1] != bufs[1].shape[1]) {
+        PyErr_SetString(PyExc_ValueError,
+                        "arx_run: a must be (P, na), b (P, nb) and reg (K, nb)");
+        goto done;
+    }
+    ar_job J = {0};
+    J.P = bufs[0].shape[0];
+    J.na = bufs[0].shape[1];
+    J.nb = bufs[1].shape[1];
+    J.K = bufs[2].shape[0];
+    if (J.nb > AR_MAXNB && AR_MAXNB > 0) {
+        PyErr_Format(PyExc_ValueError, "arx_run: at most %d input terms (nb)", AR_MAXNB);
+        goto done;
+    }
+    J.a = (const double *)bufs[0].buf;
+    J.b = (const double *)bufs[1].buf;
+    J.a_stride = strides[0];
+    J.b_stride = strides[1];
+    J.reg = (const double *)bufs[2].buf;
+    if (ar_parse_tail("arx_run", objs + 3, bufs + 3, have + 3, &J) < 0) goto done;
+    result = ar_execute(&J, n_threads);
+done:
+    for (int i = 0; i < 7; ++i)
         if (have[i]) PyBuffer_Release(&bufs[i]);
     return result;
 }
@@ -702,14 +1151,313 @@ done:
     return result;
 }
 
+/* ------------------------------------------------------------------ numerator fit */
+/* Variable projection of the simulation cost (flexid.objective.ARXCost.fit_numerator): for
+ * each denominator a (P, na), the b (P, nb) minimising sum_{t >= offset} (target(t - offset)
+ * - y(t))^2 where y = g_0 + sum_j b_j g_j, g_0 the free response from state0 and g_j the
+ * response to the regressor column reg[:, j - 1] from rest (all signals over t = 0..T-1).
+ *
+ * Per block of 4 candidates (one per lane): the nb + 1 recursions run together, each step
+ * summed f(t) - a_na y(t - na) - ... - a_1 y(t - 1) in that order like ar_run (the nb + 1
+ * independent chains hide the latency of each); then, in passes over the stored outputs,
+ * the column norms s_j, the Gram matrix and right-hand side of the column-scaled regressors,
+ * a Cholesky solve, and one step of iterative refinement with the residual recomputed from
+ * the regressors: the normal equations of ARXCost._least_squares_rows, solved without
+ * forming a (P, nb + 1, T) array.  ok[p] = 0 where the Cholesky factorisation breaks down
+ * or the result is not finite (the caller solves those rows another way). */
+#if defined(__GNUC__)
+#define FIT_MAXNB 16
+
+static inline __attribute__((always_inline)) void
+fit_quad_impl(const double *a, Py_ssize_t a_stride, Py_ssize_t P, Py_ssize_t na,
+              const double *reg, Py_ssize_t T, const double *state0, const double *target,
+              Py_ssize_t offset, double *b_out, unsigned char *ok, Py_ssize_t q, v4d *hist,
+              const int nb)
+{
+    const Py_ssize_t w = (P - q < 4) ? P - q : 4, K = T - offset, H = na + T;
+    const int R = nb + 1;
+    v4d A[AR_MAXNA];
+    const v4d zero = {0, 0, 0, 0};
+    for (Py_ssize_t i = 0; i < na; ++i) A[i] = zero;
+    for (Py_ssize_t l = 0; l < 4; ++l)
+        for (Py_ssize_t i = 0; i < na; ++i) A[i][l] = a[(q + (l < w ? l : 0)) * a_stride + i];
+    /* hist[r * H + na + t] = g_r(t); the na rows before are the initial state */
+    for (Py_ssize_t r = 0; r < R; ++r)
+        for (Py_ssize_t i = 0; i < na; ++i) {
+            const double s = r == 0 ? state0[i] : 0.0; /* y(-1 - i) */
+            hist[r * H + na - 1 - i] = (v4d){s, s, s, s};
+        }
+    v4d acc[FIT_MAXNB + 1];
+    for (Py_ssize_t t = 0; t < T; ++t) {
+        const double *rt = reg + t * nb;
+        acc[0] = zero;
+        for (int r = 1; r < R; ++r) acc[r] = zero + rt[r - 1];
+        for (Py_ssize_t k = na; k >= 1; --k) {
+            const v4d ak = A[k - 1];
+            const v4d *past = hist + na + t - k;
+            for (int r = 0; r < R; ++r) acc[r] -= ak * past[r * H];
+        }
+        for (int r = 0; r < R; ++r) hist[r * H + na + t] = acc[r];
+    }
+    const v4d *g0 = hist + na + offset;
+#define FIT_G(j) (hist + (j) * H + na + offset) /* column j (1..nb) over t >= offset */
+    /* column norms; Gram matrix and right-hand side of the scaled columns */
+    v4d sc[FIT_MAXNB], G[FIT_MAXNB][FIT_MAXNB], c[FIT_MAXNB], rhs[FIT_MAXNB];
+    for (int i = 0; i < nb; ++i) {
+        /* row i of the Gram matrix and rhs[i] in one pass, the sums in registers */
+        const v4d *gi = FIT_G(i + 1);
+        v4d s[FIT_MAXNB], sr = zero;
+        for (int j = i; j < nb; ++j) s[j] = zero;
+        for (Py_ssize_t t = 0; t < K; ++t) {
+            const v4d v = gi[t];
+            for (int j = i; j < nb; ++j) s[j] += v * FIT_G(j + 1)[t];
+            sr += v * (target[t] - g0[t]);
+        }
+        for (int j = i; j < nb; ++j) G[i][j] = s[j];
+        rhs[i] = sr;
+    }
+    for (Py_ssize_t i = 0; i < nb; ++i)
+        for (int l = 0; l < 4; ++l) {
+            const double d = sqrt(G[i][i][l]);
+            sc[i][l] = d > 0 ? d : 1.0;
+        }
+    for (Py_ssize_t i = 0; i < nb; ++i) {
+        rhs[i] /= sc[i];
+        for (Py_ssize_t j = i; j < nb; ++j) G[i][j] /= sc[i] * sc[j];
+    }
+    /* Cholesky G = L L^T per lane, in place in the lower triangle (G[j][i], j >= i) */
+    unsigned char good[4] = {1, 1, 1, 1};
+    for (int l = 0; l < 4; ++l) {
+        double L[FIT_MAXNB][FIT_MAXNB];
+        for (Py_ssize_t i = 0; i < nb; ++i)
+            for (Py_ssize_t j = 0; j <= i; ++j) L[i][j] = G[j][i][l];
+        for (Py_ssize_t j = 0; j < nb && good[l]; ++j) {
+            double d = L[j][j];
+            for (Py_ssize_t k = 0; k < j; ++k) d -= L[j][k] * L[j][k];
+            if (!(d > 0) || !isfinite(d)) {
+                good[l] = 0;
+                break;
+            }
+            d = sqrt(d);
+            L[j][j] = d;
+            for (Py_ssize_t i = j + 1; i < nb; ++i) {
+                double v = L[i][j];
+                for (Py_ssize_t k = 0; k < j; ++k) v -= L[i][k] * L[j][k];
+                L[i][j] = v / d;
+            }
+        }
+        for (Py_ssize_t i = 0; i < nb; ++i)
+            for (Py_ssize_t j = 0; j <= i; ++j) G[i][j][l] = good[l] ? L[i][j] : (i == j);
+    }
+    /* solve L L^T x = v in place, every lane */
+#define FIT_SOLVE(v)                                                                          \
+    do {                                                                                      \
+        for (Py_ssize_t i_ = 0; i_ < nb; ++i_) {                                              \
+            v4d s_ = (v)[i_];                                                                 \
+            for (Py_ssize_t k_ = 0; k_ < i_; ++k_) s_ -= G[i_][k_] * (v)[k_];                 \
+            (v)[i_] = s_ / G[i_][i_];                                                         \
+        }                                                                                     \
+        for (Py_ssize_t i_ = nb - 1; i_ >= 0; --i_) {                                         \
+            v4d s_ = (v)[i_];                                                                 \
+            for (Py_ssize_t k_ = i_ + 1; k_ < nb; ++k_) s_ -= G[k_][i_] * (v)[k_];            \
+            (v)[i_] = s_ / G[i_][i_];                                                         \
+        }                                                                                     \
+    } while (0)
+    for (Py_ssize_t i = 0; i < nb; ++i) c[i] = rhs[i];
+    FIT_SOLVE(c);
+    /* refinement: the residual of the scaled problem, from the columns themselves */
+    v4d cs[FIT_MAXNB], corr[FIT_MAXNB];
+    for (Py_ssize_t i = 0; i < nb; ++i) {
+        cs[i] = c[i] / sc[i];
+        corr[i] = zero;
+    }
+    for (Py_ssize_t t = 0; t < K; ++t) {
+        v4d e = target[t] - g0[t];
+        for (Py_ssize_t j = 0; j < nb; ++j) e -= FIT_G(j + 1)[t] * cs[j];
+        for (Py_ssize_t j = 0; j < nb; ++j) corr[j] += FIT_G(j + 1)[t] * e;
+    }
+    for (Py_ssize_t i = 0; i < nb; ++i) corr[i] /= sc[i];
+    FIT_SOLVE(corr);
+#undef FIT_SOLVE
+#undef FIT_G
+    for (Py_ssize_t l = 0; l < w; ++l) {
+        int fine = good[l];
+        for (Py_ssize_t i = 0; i < nb; ++i) {
+            const double v = (c[i][l] + corr[i][l]) / sc[i][l];
+            b_out[(q + l) * nb + i] = v;
+            fine = fine && isfinite(v);
+        }
+        ok[q + l] = (unsigned char)fine;
+    }
+}
+
+#define FIT_ARGS                                                                              \
+    const double *a, Py_ssize_t a_stride, Py_ssize_t P, Py_ssize_t na, const double *reg,     \
+        Py_ssize_t T, const double *state0, const double *target, Py_ssize_t offset,          \
+        double *b_out, unsigned char *ok, Py_ssize_t q, v4d *hist
+#define FIT_PASS a, a_stride, P, na, reg, T, state0, target, offset, b_out, ok, q, hist
+typedef void (*fit_quad_fn)(FIT_ARGS);
+/* one function per nb and instruction set (nb a constant: the sums stay in registers) */
+#if defined(AR_X86)
+#define FIT_QUAD(n)                                                                           \
+    static void fit_quad_g##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }                       \
+    AR_TGT_V3 static void fit_quad_v3_##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }           \
+    AR_TGT_V4 static void fit_quad_v4_##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }
+#else
+#define FIT_QUAD(n)                                                                           \
+    static void fit_quad_g##n(FIT_ARGS) { fit_quad_impl(FIT_PASS, n); }
+#endif
+FIT_QUAD(1)
+FIT_QUAD(2)
+FIT_QUAD(3)
+FIT_QUAD(4)
+FIT_QUAD(5)
+FIT_QUAD(6)
+FIT_QUAD(7)
+FIT_QUAD(8)
+FIT_QUAD(9)
+FIT_QUAD(10)
+FIT_QUAD(11)
+FIT_QUAD(12)
+FIT_QUAD(13)
+FIT_QUAD(14)
+FIT_QUAD(15)
+FIT_QUAD(16)
+static const fit_quad_fn fit_quads_generic[FIT_MAXNB + 1] = AR_TABLE(fit_quad_g);
+#if defined(AR_X86)
+static const fit_quad_fn fit_quads_v3[FIT_MAXNB + 1] = AR_TABLE(fit_quad_v3_);
+static const fit_quad_fn fit_quads_v4[FIT_MAXNB + 1] = AR_TABLE(fit_quad_v4_);
+#endif
+
+static fit_quad_fn fit_quad_for(int level, Py_ssize_t nb)
+{
+#if defined(AR_X86)
+    if (level == 2) return fit_quads_v4[nb];
+    if (level == 1) return fit_quads_v3[nb];
+#endif
+    (void)level;
+    return fit_quads_generic[nb];
+}
+
+/* The arguments of fit_quad_fn for the blocks of one call. */
+typedef struct {
+    const double *a;
+    Py_ssize_t a_stride, P, na, nb;
+    const double *reg;
+    Py_ssize_t T;
+    const double *state0, *target;
+    Py_ssize_t offset;
+    double *b_out;
+    unsigned char *ok;
+    fit_quad_fn fn;
+} fit_ctx;
+
+/* Block u of a numerator fit; the scratch holds its nb + 1 recursions. */
+static int fit_unit(const void *ctx, Py_ssize_t u, void **scratch)
+{
+    const fit_ctx *c = (const fit_ctx *)ctx;
+    if (!*scratch) {
+        *scratch = malloc((size_t)((c->nb + 1) * (c->na + c->T)) * sizeof(v4d));
+        if (!*scratch) return -1;
+    }
+    c->fn(c->a, c->a_stride, c->P, c->na, c->reg, c->T, c->state0, c->target, c->offset,
+          c->b_out, c->ok, 4 * u, (v4d *)*scratch);
+    return 0;
+}
+
+static PyObject *py_arx_fit(PyObject *self, PyObject *args)
+{
+    PyObject *objs[6];
+    Py_buffer bufs[6];
+    int have[6] = {0}, n_threads = 1;
+    Py_ssize_t offset;
+    if (!PyArg_ParseTuple(args, "OOOOnOO|i", &objs[0], &objs[1], &objs[2], &objs[3], &offset,
+                          &objs[4], &objs[5], &n_threads))
+        return NULL;
+    static const char *names[6] = {"a", "reg", "state0", "target", "b_out", "ok_out"};
+    PyObject *result = NULL;
+    Py_ssize_t a_stride = get_rows(objs[0], &bufs[0], "arx_fit", "a");
+    if (a_stride < 0) return NULL;
+    have[0] = 1;
+    for (int i = 1; i < 6; ++i) {
+        if (get_buffer(objs[i], &bufs[i], i >= 4, names[i]) < 0) goto done;
+        have[i] = 1;
+        if (check_format(&bufs[i], i == 5 ? "B" : "d", names[i]) < 0) goto done;
+    }
+    const Py_ssize_t P = bufs[0].shape[0], na = bufs[0].shape[1];
+    if (bufs[1].ndim != 2 || bufs[2].ndim != 1 || bufs[3].ndim != 1 || bufs[4].ndim != 2 ||
+        bufs[5].ndim != 1) {
+        PyErr_SetString(PyExc_ValueError, "arx_fit: wrong number of dimensions");
+        goto done;
+    }
+    const Py_ssize_t T = bufs[1].shape[0], nb = bufs[1].shape[1], K = bufs[3].shape[0];
+    if (na < 1 || na > AR_MAXNA || nb < 1 || nb > FIT_MAXNB || bufs[2].shape[0] != na ||
+        offset < 0 || K != T - offset || K < 1 || bufs[4].shape[0] != P ||
+        bufs[4].shape[1] != nb || bufs[5].shape[0] != P) {
+        PyErr_SetString(PyExc_ValueError,
+                        "arx_fit: a (P, na) with 1 <= na <= 16, reg (T, nb) with 1 <= nb <= "
+                        "16, state0 (na,), target (T - offset,), b_out (P, nb), ok_out (P,)");
+        goto done;
+    }
+    fit_ctx ctx = {(const double *)bufs[0].buf, a_stride, P, na, nb,
+                   (const double *)bufs[1].buf, T, (const double *)bufs[2].buf,
+                   (const double *)bufs[3].buf, offset, (double *)bufs[4].buf,
+                   (unsigned char *)bufs[5].buf, fit_quad_for(ar_simd, nb)};
+    int rc;
+    Py_BEGIN_ALLOW_THREADS
+    rc = run_units(&ctx, fit_unit, (P + 3) / 4, n_threads);
+    Py_END_ALLOW_THREADS
+    if (rc < 0) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < 6; ++i)
+        if (have[i]) PyBuffer_Release(&bufs[i]);
+    return result;
+}
+#endif
+
+static PyObject *py_simd(PyObject *self, PyObject *args)
+{
+    const char *name = NULL;
+    if (!PyArg_ParseTuple(args, "|z", &name)) return NULL;
+    if (name) {
+        int level = -1;
+        for (int i = 0; i <= ar_simd_best; ++i)
+            if (strcmp(name, ar_simd_names[i]) == 0) level = i;
+        if (level < 0) {
+            PyErr_Format(PyExc_ValueError, "simd: %s is not one this CPU runs (best: %s)",
+                         name, ar_simd_names[ar_simd_best]);
+            return NULL;
+        }
+        ar_simd_select(level);
+    }
+    return Py_BuildValue("(ss)", ar_simd_names[ar_simd], ar_simd_names[ar_simd_best]);
+}
+
 static PyMethodDef methods[] = {
     {"schur_cohn", py_schur_cohn, METH_VARARGS,
      "schur_cohn(a, out): strict stability of monic denominators a (P, n) into out (P,) uint8."},
     {"ar_run", py_ar_run, METH_VARARGS,
-     "ar_run(a, forced, state, target, y_out, sse_out): batched AR recursion (see module)."},
+     "ar_run(a, forced, state, target, y_out, sse_out[, threads]): batched AR recursion "
+     "(see module)."},
+    {"arx_run", py_arx_run, METH_VARARGS,
+     "arx_run(a, b, reg, state, target, y_out, sse_out[, threads]): batched ARX recursion, "
+     "the input part computed from the regressor rows reg (see module)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
      "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law): twin rotor RK4; "
      "params (22,) shared or (B, 22) per rotor."},
+#if defined(__GNUC__)
+    {"arx_fit", py_arx_fit, METH_VARARGS,
+     "arx_fit(a, reg, state0, target, offset, b_out, ok_out[, threads]): least-squares "
+     "numerators of the simulation cost for denominators a (see the module)."},
+#endif
+    {"simd", py_simd, METH_VARARGS,
+     "simd([name]): (in use, best) instruction sets of ar_run/arx_run; with a name ('generic', "
+     "'avx2', 'avx512'), run that one from now on (tests, benchmarks)."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -719,4 +1467,12 @@ static struct PyModuleDef module = {
     methods,
 };
 
-PyMODINIT_FUNC PyInit__kernels(void) { return PyModule_Create(&module); }
+PyMODINIT_FUNC PyInit__kernels(void)
+{
+#if defined(FLEXID_THREADS)
+    pthread_atfork(NULL, NULL, pool_after_fork);
+#endif
+    ar_simd_detect();
+    ar_simd_select(ar_simd_best);
+    return PyModule_Create(&module);
+}

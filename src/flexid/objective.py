@@ -21,11 +21,12 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
+from . import kernels
 from ._validate import real
 from .arx import ARXStructure, _io_arrays
 from .config import CostSpec
 from .errors import DataError, UnknownNameError
-from .kernels import ar_recursion
+from .kernels import ar_recursion, arx_recursion
 from .metrics import METRICS, metric_from_sse
 from .stability import is_stable, pole_radius_batched
 
@@ -237,6 +238,7 @@ class ARXCost:
             if initial == "zero":
                 self._phi_u = structure._phi_padded(u, y)[:, na:]
             self._phi_u_t = np.ascontiguousarray(self._phi_u.T)
+            self._phi_u_rows = np.ascontiguousarray(self._phi_u)  # (K, nb): arx_recursion
             # state before the first simulated sample: [y(start-1), ..., y(start-na)]
             s = structure.start
             self._state = y[s - na : s][::-1].copy() if na else np.zeros(0)
@@ -296,6 +298,14 @@ class ARXCost:
 
     def _simulated_sse(self, X: np.ndarray) -> np.ndarray:
         na = self.structure.na
+        if kernels.BACKEND == "c":  # the input part computed in the kernel, no (P, K) GEMM
+            a, b = X[:, :na], X[:, na:]
+            if self.initial == "measured":
+                return arx_recursion(a, b, self._phi_u_rows, self._state, self._target,
+                                     want_output=False)[1]  # fmt: skip
+            y, _ = arx_recursion(a, b, self._phi_u_rows, np.zeros(na))
+            e = self._target - y[:, self.structure.start :]
+            return np.einsum("ij,ij->i", e, e)
         forced = X[:, na:] @ self._phi_u_t  # (P, K) one GEMM
         if self.initial == "measured":
             _, sse = ar_recursion(X[:, :na], forced, self._state, self._target, want_output=False)
@@ -369,6 +379,23 @@ class ARXCost:
         nb = self.n_params - na
         offset = 0 if self.initial == "measured" else self.structure.start
         state0 = self._state if self.initial == "measured" else np.zeros(na)
+        if kernels.BACKEND == "c" and 1 <= na <= 16 and 1 <= nb <= 16:
+            # the nb + 1 recursions, the normal equations and their refinement in one pass
+            # of the compiled kernel (kernels.arx_fit); rows it cannot solve come back below
+            out, ok = kernels.arx_fit(a, self._phi_u_rows, state0, self._target, offset)
+            if ok.all():
+                return out
+            if ok.any():
+                out[~ok] = self._simulation_numerators_numpy(a[~ok], offset, state0)
+                return out
+        return self._simulation_numerators_numpy(a, offset, state0)
+
+    def _simulation_numerators_numpy(
+        self, a: np.ndarray, offset: int, state0: np.ndarray
+    ) -> np.ndarray:
+        """:meth:`_simulation_numerators` by ``ar_recursion`` and ``_least_squares_rows``."""
+        na = self.structure.na
+        nb = self.n_params - na
         t = self._phi_u_t.shape[1]
         # row 0: free response from the initial state; rows 1..nb: filtered B-regressors
         forced = np.vstack([np.zeros((1, t)), self._phi_u_t])

@@ -1,0 +1,460 @@
+"""The fast compiled recursions (issue 28) against the NumPy/SciPy reference path.
+
+* ``arx_run`` computes the input part ``f(t) = sum_j b_j reg[t, j]`` in the kernel, where the
+  reference forms it with one GEMM: the two are ``nb``-term sums in different orders, so each
+  step differs by the recursion's ``na + 1``-term rounding plus the ``nb``-term rounding of
+  ``f``, both filtered by ``1/A(q)`` (``ar_route_bound`` with ``forced_terms``,
+  tests/route_bounds.py).  Those bounds hold on any IEEE-754 machine, with or without FMA,
+  whatever the SIMD width, because they are in terms of the magnitudes summed at each step.
+* Every instruction set the CPU runs (``_kernels.simd``: the portable 2-lane build, AVX2/FMA,
+  AVX-512) is held to the same bounds, so a CI machine with AVX-512 checks all three.
+* The thread count only decides which thread computes a block of 4 candidates, never how:
+  results are compared exactly across thread counts, and between strided and contiguous
+  inputs (the same arithmetic on the same numbers).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from flexid import kernels
+from flexid.arx import ARXStructure
+from flexid.errors import FlexidError
+from flexid.objective import ARXCost
+from flexid.stability import is_stable_reference
+from numerics import EPS, assert_close_to_terms
+from route_bounds import ar_route_bound, lstsq_error, sse_route_bound
+from test_kernels import stable_denominators
+
+compiled = pytest.mark.skipif(
+    not kernels.compiled_available(), reason="flexid._kernels was not built (no C compiler)"
+)
+
+
+def simd_levels() -> list[str]:
+    """The instruction sets of the recursions this CPU runs (all, not only the best)."""
+    if not kernels.compiled_available():
+        return []
+    from flexid import _kernels
+
+    order = ["generic", "avx2", "avx512"]
+    best = _kernels.simd()[1]
+    return order[: order.index(best) + 1] if best in order else [best]
+
+
+@pytest.fixture(params=simd_levels() or ["none"])
+def simd(request):
+    """Run the test on one instruction set of the compiled recursions, then restore."""
+    if request.param == "none":
+        pytest.skip("flexid._kernels was not built")
+    from flexid import _kernels
+
+    before = _kernels.simd()[0]
+    _kernels.simd(request.param)
+    yield request.param
+    _kernels.simd(before)
+
+
+def problem(rng, p, na, nb, k, shared_state):
+    a = stable_denominators(rng, p, na) if na else np.zeros((p, 0))
+    b = rng.normal(size=(p, nb))
+    reg = rng.normal(size=(k, nb))
+    state = rng.normal(size=na) if shared_state else rng.normal(size=(p, na))
+    target = rng.normal(size=k)
+    return a, b, reg, state, target
+
+
+@pytest.mark.numerics
+@compiled
+@pytest.mark.parametrize("na", [0, 1, 2, 5, 8, 16, 17])
+@pytest.mark.parametrize("nb", [0, 1, 3, 8, 9])
+@pytest.mark.parametrize("p", [1, 5, 50])
+def test_arx_run_equals_the_reference(simd, na, nb, p):
+    from flexid import _kernels
+
+    rng = np.random.default_rng(1000 * na + 10 * nb + p)
+    k = 300  # not a multiple of the kernel's chunk of 128 steps, nor of 8
+    for shared in (True, False):
+        a, b, reg, state, target = problem(rng, p, na, nb, k, shared)
+        forced = b @ reg.T
+        ref = kernels.ar_recursion_reference(a, forced, state)
+        y = np.empty((p, k))
+        sse = np.empty(p)
+        _kernels.arx_run(a, b, reg, state, target, y, sse, 1)
+        # the recursion (na + 1 terms a step) and f (nb terms, GEMM against the kernel's
+        # order), both filtered by 1/A(q)
+        dy = ar_route_bound(a, forced, state, ref, np.abs(b) @ np.abs(reg).T, nb)
+        assert_close_to_terms(y, ref, dy, 1.0)
+        e = target - ref
+        assert_close_to_terms(sse, (e * e).sum(axis=1), sse_route_bound(e, dy), 1.0)
+        # the forced terms given: the recursion's rounding only
+        y2 = np.empty((p, k))
+        _kernels.ar_run(a, forced, state, None, y2, None, 1)
+        assert_close_to_terms(y2, ref, ar_route_bound(a, forced, state, ref), 1.0)
+
+
+@pytest.mark.numerics
+@compiled
+@pytest.mark.parametrize("k", [1, 3, 7, 128, 129, 136])
+def test_arx_run_short_records_and_chunk_edges(simd, k):
+    # records shorter than the order (the state alone feeds the first outputs), and lengths
+    # around the kernel's chunks of 128 forced terms and blocks of 8
+    from flexid import _kernels
+
+    rng = np.random.default_rng(k)
+    a, b, reg, state, target = problem(rng, 6, 8, 4, k, False)
+    forced = b @ reg.T
+    ref = kernels.ar_recursion_reference(a, forced, state)
+    y = np.empty((6, k))
+    _kernels.arx_run(a, b, reg, state, target, y, None, 1)
+    dy = ar_route_bound(a, forced, state, ref, np.abs(b) @ np.abs(reg).T, 4)
+    assert_close_to_terms(y, ref, dy, 1.0)
+
+
+@compiled
+@pytest.mark.parametrize("na", [3, 8, 20])
+def test_thread_count_and_strides_do_not_change_results(simd, na):
+    # a thread computes whole blocks of 4 candidates exactly as one thread would
+    from flexid import _kernels
+
+    rng = np.random.default_rng(na)
+    p, nb, k = 37, 5, 400
+    a, b, reg, state, target = problem(rng, p, na, nb, k, False)
+    forced = b @ reg.T
+    outs = []
+    for n_threads in (1, 2, 3, 8, 100):
+        y, sse = np.empty((p, k)), np.empty(p)
+        _kernels.arx_run(a, b, reg, state, target, y, sse, n_threads)
+        y2, sse2 = np.empty((p, k)), np.empty(p)
+        _kernels.ar_run(a, forced, state, target, y2, sse2, n_threads)
+        outs.append((y, sse, y2, sse2))
+    for other in outs[1:]:
+        for x0, x1 in zip(outs[0], other):
+            np.testing.assert_array_equal(x1, x0)
+    # a and b as column blocks of one population array (strided rows): no copy, same numbers
+    X = np.hstack([a, b])
+    y, sse = np.empty((p, k)), np.empty(p)
+    _kernels.arx_run(X[:, :na], X[:, na:], reg, state, target, y, sse, 2)
+    np.testing.assert_array_equal(y, outs[0][0])
+    np.testing.assert_array_equal(sse, outs[0][1])
+    # without outputs or without a target: the same sums
+    sse3 = np.empty(p)
+    _kernels.arx_run(a, b, reg, state, target, None, sse3, 3)
+    np.testing.assert_array_equal(sse3, outs[0][1])
+    y3 = np.empty((p, k))
+    _kernels.arx_run(a, b, reg, state, None, y3, None, 3)
+    np.testing.assert_array_equal(y3, outs[0][0])
+
+
+@compiled
+def test_arx_run_rejects_bad_buffers():
+    from flexid import _kernels
+
+    a, b, reg = np.zeros((4, 2)), np.zeros((4, 3)), np.zeros((10, 3))
+    with pytest.raises(ValueError, match="reg \\(K, nb\\)"):
+        _kernels.arx_run(a, b, np.zeros((10, 2)), np.zeros(2), None, None, None)
+    with pytest.raises(ValueError, match="reg \\(K, nb\\)"):
+        _kernels.arx_run(a, np.zeros((3, 3)), reg, np.zeros(2), None, None, None)
+    with pytest.raises(ValueError, match="state"):
+        _kernels.arx_run(a, b, reg, np.zeros(3), None, None, None)
+    with pytest.raises(ValueError, match="y_out"):
+        _kernels.arx_run(a, b, reg, np.zeros(2), None, np.zeros((4, 9)), None)
+    with pytest.raises(TypeError, match="rows must be contiguous"):
+        _kernels.arx_run(np.zeros((2, 4)).T, b, reg, np.zeros(2), None, None, None)
+    with pytest.raises(ValueError, match="at most 64"):
+        _kernels.arx_run(a, np.zeros((4, 65)), np.zeros((10, 65)), np.zeros(2), None, None, None)
+    with pytest.raises(ValueError, match="not one this CPU runs"):
+        _kernels.simd("sse9")
+
+
+@pytest.mark.numerics
+def test_arx_recursion_against_gemm_and_lfilter():
+    # the public function on either backend (FLEXID_KERNELS=numpy: the reference itself)
+    rng = np.random.default_rng(7)
+    p, na, nb, k = 19, 6, 4, 500
+    a, b, reg, state, target = problem(rng, p, na, nb, k, True)
+    X = np.hstack([a, b])
+    y, sse = kernels.arx_recursion(X[:, :na], X[:, na:], reg, state, target)
+    forced = b @ reg.T
+    ref = np.empty((p, k))
+    for i in range(p):
+        den = np.r_[1.0, a[i]]
+        ref[i] = signal.lfilter([1.0], den, forced[i], zi=signal.lfiltic([1.0], den, state))[0]
+    dy = ar_route_bound(a, forced, state, ref, np.abs(b) @ np.abs(reg).T, nb)
+    assert_close_to_terms(y, ref, dy, 1.0)
+    e = target - ref
+    assert_close_to_terms(sse, (e * e).sum(axis=1), sse_route_bound(e, dy), 1.0)
+    y2, sse2 = kernels.arx_recursion(a, b, reg, state, target, want_output=False)
+    assert y2 is None
+    np.testing.assert_array_equal(sse2, sse)
+
+
+@pytest.mark.numerics
+@compiled
+@pytest.mark.parametrize("initial", ["measured", "zero"])
+def test_simulation_cost_compiled_against_numpy(monkeypatch, simd, initial):
+    # ARXCost's simulation SSE by the fused kernel (f in the kernel) against the NumPy route
+    # (GEMM + lfilter): the recursion and f bounds, then the SSE and the metric's roundings
+    rng = np.random.default_rng(11)
+    u = rng.uniform(-1, 1, 700)
+    yv = signal.lfilter([0, 0.3, 0.1, 0.05], [1, -1.5, 0.7, -0.05], u)
+    yv += 0.01 * rng.standard_normal(700)
+    s = ARXStructure(5, 4, 1)
+    cost = ARXCost(s, (u, yv), predictor="simulation", initial=initial)
+    X = cost.theta_ls + 0.02 * rng.normal(size=(45, s.n_params))
+    X = X[is_stable_reference(X[:, :5])]
+    monkeypatch.setattr(kernels, "BACKEND", "c")
+    got = cost(X)
+    monkeypatch.setattr(kernels, "BACKEND", "numpy")
+    ref = cost(X)
+    a, b = X[:, :5], X[:, 5:]
+    phi_u = cost._phi_u
+    forced = b @ phi_u.T
+    state = cost._state if initial == "measured" else np.zeros(5)
+    yref = kernels.ar_recursion_reference(a, forced, state)
+    dy = ar_route_bound(a, forced, state, yref, np.abs(b) @ np.abs(phi_u).T, 4)
+    if initial == "zero":
+        yref, dy = yref[:, s.start :], dy[:, s.start :]
+    e = cost._target - yref
+    sse = (e * e).sum(axis=1)
+    # cost = w sqrt(sse) / K: relative change half that of the SSE, plus 3 roundings each
+    rel = sse_route_bound(e, dy) / (2 * sse) + 3 * EPS
+    assert_close_to_terms(got, ref, rel * ref, 1.0)
+
+
+def test_thread_setting():
+    old = kernels.set_threads(3)
+    try:
+        assert kernels.threads() == 3
+        assert kernels.set_threads(None) == 3
+        assert kernels.threads() == len(os.sched_getaffinity(0))
+        for bad in (0, -1, 1.5, True, "2"):
+            with pytest.raises(FlexidError, match="positive integer"):
+                kernels.set_threads(bad)
+    finally:
+        kernels.set_threads(old)
+
+
+def test_thread_environment_variable():
+    code = "from flexid import kernels; print(kernels.threads())"
+    env = dict(os.environ, FLEXID_THREADS="5")
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "5"
+    env["FLEXID_THREADS"] = "none"
+    bad = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, timeout=120)  # fmt: skip
+    assert bad.returncode != 0 and "FLEXID_THREADS must be" in bad.stderr
+
+
+def test_compare_worker_processes_use_one_thread(monkeypatch):
+    # the worker processes of compare --workers share the cores already: one thread each
+    from flexid import _compare
+
+    sent = []
+
+    class Conn:
+        def send(self, msg):
+            sent.append(msg)
+
+        def recv(self):
+            return None
+
+    monkeypatch.setattr(_compare, "_exit_with_parent", lambda: None)
+    monkeypatch.setattr(_compare, "_context_from_payload", lambda payload: None)
+    old = kernels.set_threads(4)
+    try:
+        _compare._worker_main(Conn(), {})
+        assert kernels.threads() == 1
+        assert sent == [("ready", None)]
+    finally:
+        kernels.set_threads(old)
+
+
+# ------------------------------------------------------------------ the fitted numerator
+def fitted_numerator_problem(na, nb, initial):
+    """A simulation cost and stable denominators near the data's (poles at radius 0.9)."""
+    rng = np.random.default_rng(na * 10 + nb + (initial == "zero"))
+    u = rng.uniform(-1, 1, 600)
+    poles = 0.9 * np.exp(1j * np.linspace(0.3, 2.5, na // 2))
+    den = np.poly(np.r_[poles, poles.conj(), [0.5] * (na % 2)]).real
+    yv = signal.lfilter(np.r_[0.0, rng.normal(size=nb)], den, u) + 0.01 * rng.normal(size=600)
+    cost = ARXCost(ARXStructure(na, nb, 1), (u, yv), predictor="simulation", initial=initial)
+    a = den[1:] + 0.01 * rng.normal(size=(9, na))
+    return cost, a[is_stable_reference(a)]
+
+
+@pytest.mark.numerics
+@compiled
+@pytest.mark.parametrize("initial", ["measured", "zero"])
+@pytest.mark.parametrize("orders", [(2, 3), (8, 8), (5, 1), (1, 4)])
+def test_arx_fit_solves_the_least_squares_problem(simd, initial, orders):
+    # kernels.arx_fit (nb + 1 recursions, normal equations of the scaled columns, Cholesky,
+    # one refinement step) against the exact least-squares solution (SVD) of the reference
+    # route's regressors (lfilter).  Two parts:
+    # * the problems differ by the recursions' rounding, bounded element-wise by
+    #   ar_route_bound for every column and for the free response; the least-squares
+    #   perturbation theorem (Higham Thm 20.1) maps those relative perturbations eps_F, eps_r
+    #   to |dx| <= kappa e / (1 - kappa e) (2 |x| + (kappa + 1) |r| / |F|), e = max of them;
+    # * each solve's own rounding: lstsq_error (route_bounds.py) for each of the two, the
+    #   compiled one under the condition that its refinement converges, kappa^2 eps < 1/2
+    #   (asserted): then one refinement step from the normal equations reaches the accuracy of
+    #   a backward-stable solve (Higham sec. 20.5).
+    na, nb = orders
+    cost, a = fitted_numerator_problem(na, nb, initial)
+    start = cost.structure.start
+    offset = 0 if initial == "measured" else start
+    state0 = cost._state if initial == "measured" else np.zeros(na)
+    reg = cost._phi_u_rows
+    b, ok = kernels.arx_fit(a, reg, state0, cost._target, offset)
+    assert ok.all() and b.shape == (a.shape[0], nb)
+    forced = np.vstack([np.zeros((1, reg.shape[0])), reg.T])
+    for i, row in enumerate(a):
+        rows = np.repeat(row[None], nb + 1, 0)
+        states = np.zeros((nb + 1, na))
+        states[0] = state0
+        y = kernels.ar_recursion_reference(rows, forced, states)
+        dy = ar_route_bound(rows, forced, states, y)[:, offset:]
+        F, r = y[1:, offset:].T, cost._target - y[0, offset:]
+        sv = np.linalg.svd(F, compute_uv=False)
+        kappa = sv[0] / sv[-1]
+        assert kappa**2 * EPS < 0.5
+        exact = np.linalg.lstsq(F, r, rcond=None)[0]
+        resid = float(np.linalg.norm(r - F @ exact))
+        e = max(np.linalg.norm(dy[1:]) / sv[0], np.linalg.norm(dy[0]) / np.linalg.norm(r))
+        assert kappa * e < 0.5
+        perturbation = kappa * e / (1 - kappa * e) * (
+            2 * np.linalg.norm(exact) + (kappa + 1) * resid / sv[0])  # fmt: skip
+        bound = perturbation + 2 * lstsq_error(F, exact, resid)
+        assert np.linalg.norm(b[i] - exact) <= bound
+
+
+@compiled
+def test_fitted_numerator_compiled_and_numpy_routes_agree(monkeypatch):
+    # ARXCost.fit_numerator takes kernels.arx_fit on the compiled backend; its rows then feed
+    # the same cost as the NumPy route's.  Both solve the same problem (the regressors by
+    # the same recursion, bit for bit on one instruction set): the difference is the two
+    # solves' rounding, each within lstsq_error of the exact solution
+    cost, a = fitted_numerator_problem(8, 8, "measured")
+    monkeypatch.setattr(kernels, "BACKEND", "c")
+    got = cost.fit_numerator(a)
+    monkeypatch.setattr(kernels, "BACKEND", "numpy")
+    ref = cost.fit_numerator(a)
+    np.testing.assert_array_equal(got[:, :8], ref[:, :8])
+    for i, row in enumerate(a):
+        nb, na = 8, 8
+        forced = np.vstack([np.zeros((1, cost.K)), cost._phi_u_rows.T])
+        states = np.zeros((nb + 1, na))
+        states[0] = cost._state
+        y = kernels.ar_recursion_reference(np.repeat(row[None], nb + 1, 0), forced, states)
+        F, r = y[1:].T, cost._target - y[0]
+        exact = np.linalg.lstsq(F, r, rcond=None)[0]
+        resid = float(np.linalg.norm(r - F @ exact))
+        # both within 2 lstsq_error of the exact solution of the reference's problem, whose
+        # regressors differ from either route's by rounding far below it (first test)
+        assert np.linalg.norm(got[i, 8:] - ref[i, 8:]) <= 8 * lstsq_error(F, exact, resid)
+
+
+@compiled
+def test_arx_fit_rejects_bad_arguments_and_flags_singular_rows():
+    a = np.array([[-0.5], [0.2]])
+    reg = np.zeros((50, 2))  # zero regressors: a singular Gram matrix
+    _, ok = kernels.arx_fit(a, reg, np.zeros(1), np.ones(50), 0)
+    assert not ok.any()
+    with pytest.raises(ValueError, match="arx_fit"):
+        kernels.arx_fit(a, reg, np.zeros(2), np.ones(50), 0)
+    with pytest.raises(ValueError, match="arx_fit"):
+        kernels.arx_fit(a, reg, np.zeros(1), np.ones(49), 0)
+    with pytest.raises(ValueError, match="arx_fit"):
+        kernels.arx_fit(np.zeros((2, 17)), reg, np.zeros(17), np.ones(50), 0)
+
+
+@compiled
+def test_arx_fit_does_not_depend_on_the_thread_count(simd):
+    from flexid import _kernels
+
+    cost, a = fitted_numerator_problem(4, 3, "measured")
+    a = np.vstack([a] * 5)
+    outs = []
+    for n_threads in (1, 2, 3, 16):
+        b, ok = np.empty((a.shape[0], 3)), np.empty(a.shape[0], np.uint8)
+        _kernels.arx_fit(a, cost._phi_u_rows, cost._state, cost._target, 0, b, ok, n_threads)
+        outs.append(b)
+    for b in outs[1:]:
+        np.testing.assert_array_equal(b, outs[0])
+
+
+@compiled
+def test_rows_the_compiled_fit_cannot_solve_take_the_numpy_route(monkeypatch):
+    cost, a = fitted_numerator_problem(3, 2, "measured")
+    real = kernels.arx_fit
+
+    def flaky(*args):
+        b, ok = real(*args)
+        ok[::2] = False
+        return b, ok
+
+    monkeypatch.setattr(kernels, "BACKEND", "c")
+    want = cost._simulation_numerators_numpy(a, 0, cost._state)
+    monkeypatch.setattr(kernels, "arx_fit", flaky)
+    got = cost.fit_numerator(a)[:, 3:]
+    np.testing.assert_array_equal(got[::2], want[::2])  # recomputed by the NumPy route
+    np.testing.assert_array_equal(got[1::2], real(a, cost._phi_u_rows, cost._state,
+                                                   cost._target, 0)[0][1::2])  # fmt: skip
+
+
+@compiled
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork")
+def test_threads_after_fork():
+    # the helper threads are kept between calls; a child made by fork has none and must
+    # start its own (pthread_atfork), not wait for the parent's
+    code = """
+import os, sys, numpy as np
+from flexid import _kernels
+rng = np.random.default_rng(3)
+a, b, reg = rng.random((64, 4)) * 0.1, rng.random((64, 3)), rng.random((500, 3))
+out = np.empty(64)
+_kernels.arx_run(a, b, reg, np.zeros(4), None, None, out, 2)  # the parent's helpers start
+pid = os.fork()
+if pid == 0:
+    child = np.empty(64)
+    _kernels.arx_run(a, b, reg, np.zeros(4), None, None, child, 2)
+    same = np.array_equal(child, out)
+    _kernels.arx_run(a, b, reg, np.zeros(4), None, None, child, 3)
+    os._exit(0 if same and np.array_equal(child, out) else 1)
+_, status = os.waitpid(pid, 0)
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+
+
+@compiled
+def test_threads_from_several_python_threads():
+    # the kernels run without the GIL: Python threads may call them at once (one of them
+    # owns the helper threads, the others run alone); every result as on one thread
+    from concurrent.futures import ThreadPoolExecutor
+
+    from flexid import _kernels
+
+    rng = np.random.default_rng(4)
+    a, b, reg, state, target = problem(rng, 40, 6, 4, 800, False)
+    want = np.empty(40)
+    _kernels.arx_run(a, b, reg, state, target, None, want, 1)
+
+    def run(_):
+        got = np.empty(40)
+        _kernels.arx_run(a, b, reg, state, target, None, got, 2)
+        return got
+
+    with ThreadPoolExecutor(4) as pool:
+        for got in pool.map(run, range(32)):
+            np.testing.assert_array_equal(got, want)
