@@ -136,6 +136,8 @@ def documented_in_base(cls: type, name: str) -> bool:
 
 def failures(name: str, obj: object) -> list[tuple[str, str]]:
     """The ``(code, message)`` pairs of :data:`CHECKED` that numpydoc reports for ``obj``."""
+    if inspect.isfunction(obj):
+        obj = inspect.unwrap(obj)  # the function a checking decorator wraps, as written
     with warnings.catch_warnings():
         # numpydoc also warns about an unknown section; GL06 reports it
         warnings.simplefilter("ignore", UserWarning)

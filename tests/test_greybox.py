@@ -363,3 +363,24 @@ def test_greybox_command_names_a_missing_channel(tmp_path, capsys):
     assert main(["greybox", str(path), "--dt", "0.1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "main_rotor" in err[0]
+
+
+@COMPILED
+def test_a_population_gives_the_same_numbers_on_any_number_of_threads():
+    """The compiled RK4 splits a population into groups of 4 rotors between threads; each
+    group is computed as one thread computes it, so the results are equal to the last bit."""
+    from flexid import kernels
+
+    model = twin_rotor_pitch()
+    rng = np.random.default_rng(5)
+    lo, hi = model.search_bounds()
+    theta = model.full(model.from_search(lo + (hi - lo) * rng.random((18, model.n_free))))
+    u = rng.uniform(-1.0, 1.0, (400, 1))
+    before = kernels.set_threads(1)
+    try:
+        one = model.simulate(theta, u, 0.1)
+        kernels.set_threads(2)
+        two = model.simulate(theta, u, 0.1)
+    finally:
+        kernels.set_threads(before)
+    assert np.array_equal(one, two, equal_nan=True)

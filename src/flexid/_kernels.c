@@ -20,7 +20,7 @@
  *       b (P, nb), reg (K, nb) the input regressors of every step (shared by all
  *       candidates), so that no (P, K) array of forced terms is formed.
  *
- *   twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law)
+ *   twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads])
  *       The twin rotor's RK4 (flexid.envs.twin_rotor_physics: the equations of its batched
  *       ``derivatives`` and ``_rk4``, with the constants divided out once and sin, cos and
  *       tanh as inline polynomials, 4 rotors per SIMD vector): x (B, 7) states, updated in
@@ -1020,23 +1020,21 @@ TRS_BLOCK(trs_block_lock_sq, 1, 1)
 typedef void (*trs_block_fn)(const trs_consts *, double *, const double *, double *,
                              Py_ssize_t, Py_ssize_t, Py_ssize_t, long, double);
 
-static void trs_run(const double *p, Py_ssize_t p_stride, double *x, const double *u,
-                    double *out, Py_ssize_t S, Py_ssize_t B, long n_sub, double h, int lock,
-                    int square)
+/* Rotors g .. g + 3 of a run, all its samples. */
+static void trs_group(const double *p, Py_ssize_t p_stride, double *x, const double *u,
+                      double *out, Py_ssize_t S, Py_ssize_t B, Py_ssize_t g, long n_sub,
+                      double h, int lock, int square)
 {
     static const trs_block_fn blocks[2][2] = {
         {trs_block, trs_block_sq},
         {trs_block_lock, trs_block_lock_sq},
     };
     trs_consts c;
-    const trs_block_fn block = blocks[lock != 0][square != 0];
-    for (Py_ssize_t g = 0; g < B; g += 4) {
-        /* lanes past the last rotor take the block's first parameters (they run at rest) */
-        const double *lanes[4];
-        for (Py_ssize_t j = 0; j < 4; ++j) lanes[j] = p + p_stride * (g + j < B ? g + j : g);
-        trs_fold(lanes, &c);
-        block(&c, x, u, out, S, B, g, n_sub, h);
-    }
+    /* lanes past the last rotor take the block's first parameters (they run at rest) */
+    const double *lanes[4];
+    for (Py_ssize_t j = 0; j < 4; ++j) lanes[j] = p + p_stride * (g + j < B ? g + j : g);
+    trs_fold(lanes, &c);
+    blocks[lock != 0][square != 0](&c, x, u, out, S, B, g, n_sub, h);
 }
 #else
 /* Without GCC's vector extensions: the equations as written in the reference route. */
@@ -1069,14 +1067,16 @@ static void trs_derivatives(const double *p, const double *x, double u1, double 
     d[6] = dmr;
 }
 
-static void trs_run(const double *params, Py_ssize_t p_stride, double *x, const double *u,
-                    double *out, Py_ssize_t S, Py_ssize_t B, long n_sub, double h, int lock,
-                    int square)
+/* Rotors g .. g + 3 of a run (each rotor's samples in turn: rotors are independent). */
+static void trs_group(const double *params, Py_ssize_t p_stride, double *x, const double *u,
+                      double *out, Py_ssize_t S, Py_ssize_t B, Py_ssize_t g, long n_sub,
+                      double h, int lock, int square)
 {
     double k1[7], k2[7], k3[7], k4[7], y[7];
     const double hh = 0.5 * h, h6 = h / 6.0;
-    for (Py_ssize_t s = 0; s < S; ++s) {
-        for (Py_ssize_t b = 0; b < B; ++b) {
+    const Py_ssize_t end = (g + 4 < B) ? g + 4 : B;
+    for (Py_ssize_t b = g; b < end; ++b) {
+        for (Py_ssize_t s = 0; s < S; ++s) {
             const double *p = params + p_stride * b;
             double *xb = x + 7 * b;
             const double u1 = u[2 * (s * B + b)], u2 = u[2 * (s * B + b) + 1];
@@ -1097,6 +1097,28 @@ static void trs_run(const double *params, Py_ssize_t p_stride, double *x, const 
 }
 #endif
 
+/* A twin rotor run as a job of units of 4 rotors (one SIMD vector each). */
+typedef struct {
+    const double *p;
+    Py_ssize_t p_stride;
+    double *x;
+    const double *u;
+    double *out;
+    Py_ssize_t S, B;
+    long n_sub;
+    double h;
+    int lock, square;
+} trs_job;
+
+static int trs_unit(const void *ctx, Py_ssize_t unit, void **scratch)
+{
+    const trs_job *J = (const trs_job *)ctx;
+    (void)scratch;
+    trs_group(J->p, J->p_stride, J->x, J->u, J->out, J->S, J->B, 4 * unit, J->n_sub, J->h,
+              J->lock, J->square);
+    return 0;
+}
+
 static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
 {
     PyObject *objs[4];
@@ -1105,9 +1127,9 @@ static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
     static const char *names[4] = {"params", "x", "u", "out"};
     long n_sub;
     double h;
-    int lock, square;
-    if (!PyArg_ParseTuple(args, "OOOOldpp", &objs[0], &objs[1], &objs[2], &objs[3], &n_sub, &h,
-                          &lock, &square))
+    int lock, square, n_threads = 1;
+    if (!PyArg_ParseTuple(args, "OOOOldpp|i", &objs[0], &objs[1], &objs[2], &objs[3], &n_sub, &h,
+                          &lock, &square, &n_threads))
         return NULL;
     PyObject *result = NULL;
     for (int i = 0; i < 4; ++i) {
@@ -1138,10 +1160,13 @@ static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "twin_rotor_run: out must be (S, B, 7)");
         goto done;
     }
+    const trs_job job = {
+        (const double *)bufs[0].buf, rows ? TRS_PARAMS : 0, (double *)bufs[1].buf,
+        (const double *)bufs[2].buf, have[3] ? (double *)bufs[3].buf : NULL, S, B, n_sub, h,
+        lock, square,
+    };
     Py_BEGIN_ALLOW_THREADS
-    trs_run((const double *)bufs[0].buf, rows ? TRS_PARAMS : 0, (double *)bufs[1].buf,
-            (const double *)bufs[2].buf, have[3] ? (double *)bufs[3].buf : NULL, S, B, n_sub, h,
-            lock, square);
+    run_units(&job, trs_unit, (B + 3) / 4, n_threads < 1 ? 1 : n_threads);
     Py_END_ALLOW_THREADS
     result = Py_None;
     Py_INCREF(result);
@@ -1448,7 +1473,7 @@ static PyMethodDef methods[] = {
      "arx_run(a, b, reg, state, target, y_out, sse_out[, threads]): batched ARX recursion, "
      "the input part computed from the regressor rows reg (see module)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
-     "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law): twin rotor RK4; "
+     "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads]): twin rotor RK4; "
      "params (22,) shared or (B, 22) per rotor."},
 #if defined(__GNUC__)
     {"arx_fit", py_arx_fit, METH_VARARGS,
