@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from flexid.optimisers import Optimiser, Param
+from flexid.optimisers import Optimiser, Param, SearchGenerator, SearchSpace
 
 
 class PopulationAnnealing(Optimiser):
@@ -28,6 +28,9 @@ class PopulationAnnealing(Optimiser):
 
     name = "annealing"
     reference = "Kirkpatrick, Gelatt & Vecchi, Science 220(4598):671-680, 1983"
+    bounds = "clip"
+    bounds_note = "Every proposal is clipped to the box."
+    stays_in_box = True
     chains = Param(int, 20, "number of parallel chains", low=1)
     temperature = Param(float, 1.0, "initial temperature (cost units)", low=0.0, low_open=True)
     cooling = Param(
@@ -35,7 +38,7 @@ class PopulationAnnealing(Optimiser):
     )
     step = Param(float, 0.1, "initial step as a fraction of the box width", low=0.0, low_open=True)
 
-    def search(self, space, rng: np.random.Generator):
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
         X = space.initial_population(self.chains)
         F = yield X
         width = space.upper - space.lower
