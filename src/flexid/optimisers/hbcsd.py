@@ -6,6 +6,8 @@ Registered as ``"hbcsd"`` with the paper's settings as ``hbcsd-paper-manipulator
 
 from __future__ import annotations
 
+from collections.abc import Generator
+
 import numpy as np
 
 from ._params import Optimiser, Param, SearchGenerator
@@ -150,7 +152,25 @@ class HBCSD(Optimiser):
     c2_theta = Param(float, 1.0, "angle law c2", low=0.0, low_open=True)
     clip = Param(bool, False, "clip moved points to the box (deviation)")
 
-    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
+    def start(self, space: SearchSpace) -> Generator[np.ndarray, np.ndarray, tuple]:
+        """The initial population and its costs, and the personal bests phase 1 keeps.
+
+        Parameters
+        ----------
+        space : SearchSpace
+
+        Returns
+        -------
+        tuple
+            ``(X, J, Pb, Jb, personal_bests)`` (``yield from`` it): the population and its
+            costs, the personal bests and their costs, and the callback that updates them
+            from every evaluated batch.
+
+        Yields
+        ------
+        ndarray, shape (P, n)
+            The shared initial population (its costs are sent back).
+        """
         X = space.initial_population(self.population)
         J = (yield X).copy()
         Pb, Jb = X.copy(), J.copy()
@@ -159,6 +179,10 @@ class HBCSD(Optimiser):
             upd = J < Jb
             Pb[upd], Jb[upd] = X[upd], J[upd]
 
+        return X, J, Pb, Jb, personal_bests
+
+    def search(self, space: SearchSpace, rng: np.random.Generator) -> SearchGenerator:
+        X, J, Pb, Jb, personal_bests = yield from self.start(space)
         # ---- phase 1: chemotaxis with personal bests
         for _ in range(self.n_chemotactic):
             X, J, _ = yield from chemotactic_step(

@@ -100,14 +100,7 @@ class HBCSDScaled(HBCSD):
             The initial population, the chemotactic batches, then the spiral's points; the
             driver sends back their costs, shape (P,).
         """
-        X = space.initial_population(self.population)
-        J = (yield X).copy()
-        Pb, Jb = X.copy(), J.copy()
-
-        def personal_bests(X: np.ndarray, J: np.ndarray) -> None:
-            upd = J < Jb
-            Pb[upd], Jb[upd] = X[upd], J[upd]
-
+        X, J, Pb, Jb, personal_bests = yield from self.start(space)
         if space.max_fe is None:
             share, steps = math.inf, (
                 UNSCALED_STEPS if self.n_chemotactic is None else self.n_chemotactic
