@@ -210,6 +210,23 @@ class GreyBoxCost:
             return metric_from_sse(self.metric, sse, self.K * self.y.shape[1], self.weight,
                                    self._std)
 
+    def values(self, Z: Any) -> np.ndarray:
+        """The estimated parameters' values of search coordinates, within their bounds.
+
+        Parameters
+        ----------
+        Z : array_like, shape (P, n_params) or (n_params,)
+            Search coordinates (``log10`` of a log-scaled parameter); a point outside the
+            search box is read as its nearest point of the box.
+
+        Returns
+        -------
+        ndarray, same shape
+            Physical values; ``10 ** log10(bound)`` can round past a bound, so they are
+            clipped to the bounds.
+        """
+        return np.clip(self.model.from_search(Z), self.lower, self.upper)
+
     def problem(self, name: str = "") -> Problem:
         """The problem an optimiser solves: this cost over the model's search box.
 
@@ -230,7 +247,7 @@ class GreyBoxCost:
         lower, upper = model.search_bounds()
 
         def objective(Z: np.ndarray) -> np.ndarray:
-            return self(np.clip(model.from_search(Z), self.lower, self.upper))
+            return self(self.values(Z))
 
         return Problem(objective, lower, upper, name=name or model.name)
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -119,9 +120,9 @@ class GreyBoxEstimationProblem:
         """The start: the estimated parameters' given values, shape (n_free,)."""
         return self.structure.theta
 
-    @property
+    @cached_property
     def cost_ls(self) -> float:
-        """The cost at :attr:`theta_ls`."""
+        """The cost at :attr:`theta_ls` (one simulation, made once)."""
         return float(self.cost(self.theta_ls[None, :])[0])
 
     def theta(self, z: Any) -> np.ndarray:
@@ -135,10 +136,7 @@ class GreyBoxEstimationProblem:
         -------
         ndarray, same shape
         """
-        lo, hi = self.structure.search_bounds()
-        values = self.structure.from_search(np.clip(np.asarray(z, dtype=float), lo, hi))
-        # 10 ** log10(bound) can round past the bound: the values are clipped as the cost's
-        return np.clip(values, self.cost.lower, self.cost.upper)
+        return self.cost.values(z)  # the map the optimisers' objective uses
 
     def describe(self) -> str:
         """One line: what is searched and on which scale.
