@@ -35,7 +35,7 @@ import numpy as np
 from . import kernels
 from ._validate import checked_keywords
 from .envs import twin_rotor_physics as trs
-from .errors import ConfigError, UnknownKeywordError
+from .errors import ConfigError, FlexidError, UnknownKeywordError
 from .greybox import GreyBoxModel, GreyParameter, ParameterSet
 from .plants import get_plant
 
@@ -264,6 +264,8 @@ def _as_model(obj: Any, where: str, options: dict[str, Any]) -> GreyBoxModel:
     if callable(obj):
         try:
             made = obj(**options)
+        except FlexidError:  # a parameter change the model refuses says so itself
+            raise
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"grey-box model {where}: its factory failed: {exc}") from None
         if isinstance(made, GreyBoxModel):
@@ -275,7 +277,7 @@ def _as_model(obj: Any, where: str, options: dict[str, Any]) -> GreyBoxModel:
     )
 
 
-def _from_file(reference: str, options: dict[str, Any]) -> GreyBoxModel:
+def _from_file(reference: str) -> Any:
     """``path/to/file.py:NAME``: the object NAME of a Python file, run as a module."""
     import importlib.util
     import sys
@@ -306,7 +308,31 @@ def _from_file(reference: str, options: dict[str, Any]) -> GreyBoxModel:
             f"grey-box model {reference!r}: {str(path)!r} has no {attr or '(empty name)'!r}"
             + (f" (its models: {', '.join(found)})" if found else "")
         )
-    return _as_model(getattr(module, attr), repr(reference), options)
+    return getattr(module, attr)
+
+
+def _source(name: str) -> Any:
+    """What a name stands for: a model or a factory (built-in, registered, file, installed)."""
+    from .errors import UnknownNameError
+
+    if name in GREYBOX_MODELS:
+        return GREYBOX_MODELS[name]
+    if name in _REGISTERED:
+        return _REGISTERED[name]
+    if ":" in name and name.rpartition(":")[0].endswith(".py"):
+        return _from_file(name)
+    points = _entry_points()
+    if name in points:
+        try:
+            return points[name].load()
+        except Exception as exc:  # a broken package must say so, not crash flexid
+            raise ConfigError(
+                f"grey-box model {name!r} ({points[name].value}) failed to load: "
+                f"{type(exc).__name__}: {exc}"
+            ) from None
+    raise UnknownNameError(
+        "grey-box model", name, (*available_greybox_models(), "path/to/file.py:NAME")
+    )
 
 
 def greybox_model(name: str, **options: Any) -> GreyBoxModel:
@@ -337,17 +363,14 @@ def greybox_model(name: str, **options: Any) -> GreyBoxModel:
         A file that does not exist, fails to run or lacks ``NAME``; an object that is not a
         model.
     """
-    from .errors import UnknownNameError
-
     if not isinstance(name, str):
         raise ConfigError(f"a grey-box model is named by a string, got {type(name).__name__}")
+    source, where = _source(name), repr(name)
     if options:  # what the options may name: the model's parameters, its factory's keywords
-        base = greybox_model(name)
-        factory = GREYBOX_MODELS.get(name) or _REGISTERED.get(name)
-        takes = set(base.names)
-        if callable(factory) and not isinstance(factory, GreyBoxModel):
+        takes = set(_as_model(source, where, {}).names)
+        if callable(source) and not isinstance(source, GreyBoxModel):
             takes |= {
-                p.name for p in inspect.signature(factory).parameters.values()
+                p.name for p in inspect.signature(source).parameters.values()
                 if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)
             }
         extra = sorted(set(options) - takes)
@@ -356,25 +379,7 @@ def greybox_model(name: str, **options: Any) -> GreyBoxModel:
                 f"greybox_model({name!r}) got unknown option(s) {', '.join(map(repr, extra))}; "
                 f"it takes {', '.join(sorted(takes))}"
             )
-    if name in GREYBOX_MODELS:
-        return GREYBOX_MODELS[name](**options)
-    if name in _REGISTERED:
-        return _as_model(_REGISTERED[name], repr(name), options)
-    if ":" in name and name.rpartition(":")[0].endswith(".py"):
-        return _from_file(name, options)
-    points = _entry_points()
-    if name in points:
-        try:
-            obj = points[name].load()
-        except Exception as exc:  # a broken package must say so, not crash flexid
-            raise ConfigError(
-                f"grey-box model {name!r} ({points[name].value}) failed to load: "
-                f"{type(exc).__name__}: {exc}"
-            ) from None
-        return _as_model(obj, repr(name), options)
-    raise UnknownNameError(
-        "grey-box model", name, (*available_greybox_models(), "path/to/file.py:NAME")
-    )
+    return _as_model(source, where, options)
 
 
 def definition_digest(name: str) -> str:
