@@ -702,6 +702,37 @@ def _structure_options(p: argparse.ArgumentParser, default: str, scope: str = ""
     p.add_argument("--nk", help=f"input delay in samples per input (default 1{tail})")
 
 
+_DT_HELP = (
+    "sample time in seconds if the file lacks it (default: from a time column, else 1 s, said "
+    "in the output)"
+)
+
+
+def _record_options(p: argparse.ArgumentParser, *, mat: bool = False) -> None:
+    """The channels and sample time of a record file, alike on every command that reads one."""
+    what = "columns or .mat variables" if mat else "columns"
+    p.add_argument(
+        "--inputs",
+        help=f"input {what} (names or 0-based indices; default: a flexid file's own, else "
+        "columns u, u1, ...)",
+    )
+    p.add_argument(
+        "--outputs",
+        help=f"output {what} (names or 0-based indices; default: a flexid file's own, else "
+        "columns y, y1, ...)",
+    )
+    if mat:
+        p.add_argument(
+            "--variable",
+            help=".mat file: the structure to read, or the matrix whose columns indices name "
+            "(default: the only one)",
+        )
+    p.add_argument(
+        "--output", help="which output to model when there are several (default: the only one)"
+    )
+    p.add_argument("--dt", type=float, help=_DT_HELP)
+
+
 def _parameter_options(p: argparse.ArgumentParser) -> None:
     """``--set``, ``--fix`` and ``--free``: a grey-box model's parameters."""
     p.add_argument(
@@ -827,30 +858,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     i.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     i.add_argument("--split", type=float, help="estimation share (default 2/3) or sample index")
-    i.add_argument(
-        "--inputs",
-        help="input columns or .mat variables (names or 0-based indices; default: a flexid "
-        "file's own, else columns u, u1, ...)",
-    )
-    i.add_argument(
-        "--outputs",
-        help="output columns or .mat variables (names or 0-based indices; default: a flexid "
-        "file's own, else columns y, y1, ...)",
-    )
-    i.add_argument(
-        "--variable",
-        help=".mat file: the structure to read, or the matrix whose columns indices name "
-        "(default: the only one)",
-    )
-    i.add_argument(
-        "--output",
-        help="which output to model when there are several (default: the only one)",
-    )
-    i.add_argument(
-        "--dt", type=float,
-        help="sample time in seconds if the file lacks it (default: from a time column, else 1 "
-        "s, said in the output)",
-    )
+    _record_options(i, mat=True)
     i.add_argument("--detrend", action="store_true", help="remove the estimation means")
     i.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
     i.add_argument(
@@ -951,25 +959,7 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("--nk", help="input delay in samples (default 1)")
     se.add_argument("--criterion", default="simulation", help="simulation | aic | fpe | mdl")
     se.add_argument("--initial", default="estimate", help="estimate | zero | measured")
-    se.add_argument(
-        "--inputs",
-        help="input columns (names or 0-based indices; default: a flexid file's own, else u, u1,"
-        " ...)",
-    )
-    se.add_argument(
-        "--outputs",
-        help="output columns (names or 0-based indices; default: a flexid file's own, else y, "
-        "y1, ...)",
-    )
-    se.add_argument(
-        "--output",
-        help="which output to model when there are several (default: the only one)",
-    )
-    se.add_argument(
-        "--dt", type=float,
-        help="sample time in seconds if the file lacks it (default: from a time column, else 1 "
-        "s, said in the output)",
-    )
+    _record_options(se)
     se.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
     se.add_argument("--figure", help="write the selection figure (PNG) here (default: none)")
     se.add_argument("--json", action="store_true", help="print a machine-readable result")
@@ -1024,11 +1014,7 @@ def build_parser() -> argparse.ArgumentParser:
     gb.add_argument("--json", action="store_true", help="machine-readable result")
     gb.add_argument("--no-progress", action="store_true", help="no progress bar")
     gb.add_argument("--split", type=_value, help="estimation share (default 2/3) or split index")
-    gb.add_argument(
-        "--dt", type=float,
-        help="sample time in seconds if the file lacks it (default: from a time column, else 1 "
-        "s, said in the output)",
-    )
+    gb.add_argument("--dt", type=float, help=_DT_HELP)
     gb.set_defaults(func=_cmd_greybox)
 
     li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
