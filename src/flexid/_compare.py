@@ -793,10 +793,11 @@ def _execute_dask(ctx: _Context, tasks: Sequence[tuple], scheduler: Any) -> Iter
         except OSError as exc:
             raise ConfigError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from None
     try:
-        # a key of its own (hash=False): a content-hashed key is shared with another
-        # comparison of the same data on this scheduler, and that one's release of it would
-        # cancel these runs ("lost dependencies")
-        payload = client.scatter(ctx.payload(), broadcast=True, hash=False)
+        # one future with a key of its own: a dict given to scatter is scattered value by
+        # value under its own keys ("spec", "est", "val"), and a content-hashed key
+        # (hash=True) is shared too; another comparison on this scheduler releasing a shared
+        # key cancels these runs ("lost dependencies")
+        (payload,) = client.scatter([ctx.payload()], broadcast=True, hash=False)
         futures = [client.submit(_run_task, payload, task, pure=False) for task in tasks]
         for future in dask_completed(futures):
             yield future.result()
