@@ -254,7 +254,7 @@ def test_a_large_csv_loads_in_a_bounded_multiple_of_its_arrays(tmp_path):
 
 
 def test_the_block_reader_keeps_the_row_by_row_values_and_errors(tmp_path):
-    import flexid.data
+    import flexid._files
 
     rng = np.random.default_rng(1)
     values = rng.standard_normal((30_000, 2))  # ~1.2 MB of text: several blocks
@@ -266,7 +266,7 @@ def test_the_block_reader_keeps_the_row_by_row_values_and_errors(tmp_path):
     lines.insert(25_001, ",")
     path = tmp_path / "mixed.csv"
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    assert path.stat().st_size > 2 * flexid.data._CSV_BLOCK_CHARS
+    assert path.stat().st_size > 2 * flexid._files._CSV_BLOCK_CHARS
     data = load(path)
     np.testing.assert_array_equal(np.column_stack([data.u[:, 0], data.y[:, 0]]), values)
 

@@ -23,7 +23,7 @@ from flexid.arx import ARXStructure
 from flexid.data import IOData
 from flexid.diagnostics import fit_percent
 from flexid.errors import DataError, UnknownNameError
-from flexid.polynomial import INITIAL_RULES, PolynomialStructure
+from flexid.polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
 from flexid.validation import validate
 from numerics import EPS, assert_close_to_terms, route_tolerance
 from route_bounds import ar_route_bound, lstsq_error
@@ -275,7 +275,7 @@ def test_arx_to_polynomial_predicts_and_simulates_the_same():
     a = np.array([1.0, -1.2, 0.5])
     y = lfilter([0.0, 0.0, 1.0, 0.4, -0.2], a, u) + 0.05 * rng.normal(size=n)
     arx = ARXStructure(2, 3, 2).least_squares(u, y, dt=0.01)
-    poly = arx.to_polynomial()
+    poly = PolynomialModel.from_arx(arx)
     s = arx.structure
     assert poly.structure == PolynomialStructure.arx(2, 3, 2) and poly.structure.kind == "arx"
     assert poly.structure.start == s.start
@@ -324,7 +324,7 @@ def test_arx_keeps_its_own_routes_for_measured_and_zero():
                                   arx.simulate(u, y_init=y[:s])[s:])
     np.testing.assert_array_equal(reps["zero"].y_simulation, arx.simulate(u)[s:])
     np.testing.assert_array_equal(
-        reps["estimate"].y_simulation, arx.to_polynomial().simulate(u, y, initial="estimate")[s:]
+        reps["estimate"].y_simulation, PolynomialModel.from_arx(arx).simulate(u, y, initial="estimate")[s:]
     )
     for rep in reps.values():
         np.testing.assert_array_equal(rep.y_one_step, arx.predict(u, y)[s:])

@@ -10,12 +10,9 @@ from __future__ import annotations
 
 import html
 from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .data import IOData
-
-__all__ = ["block", "details", "escape", "iodata_html", "key_values", "paragraph", "table"]
+__all__ = ["block", "details", "escape", "key_values", "paragraph", "table"]
 
 _TABLE = '<table class="flexid">'
 _LEFT = 'style="text-align: left"'
@@ -91,22 +88,3 @@ def block(title: str, *parts: str) -> str:
         '<div class="flexid-summary">'
         f"<p><strong>{escape(title)}</strong></p>" + "".join(parts) + "</div>"
     )
-
-
-def iodata_html(data: IOData) -> str:
-    """The display of a record: the line of its ``repr`` and the statistics of ``describe()``.
-
-    Parameters
-    ----------
-    data : IOData
-        The record.
-
-    Returns
-    -------
-    str
-        HTML with one row per channel (kind, name, unit, mean, std, min, max), formatted as
-        :meth:`IOData.describe` formats them.
-    """
-    rows: list[Sequence[str]] = [["channel", "kind", "unit", "mean", "std", "min", "max"]]
-    rows += [(name, kind, *stats) for kind, name, *stats in data._channel_stats()]
-    return block(repr(data), table(rows, left=3))

@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ._identify import Identification, _indent, data_info, timings
+from ._identification import Identification, _indent, data_info, timings
 from ._json import jsonable
 from .config import CostSpec, SearchSpec
 from .data import IOData, load

@@ -25,7 +25,6 @@ if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on 
     import control
     from scipy import signal
 
-    from .polynomial import PolynomialModel
 
 __all__ = ["ARX", "ARXStructure"]
 
@@ -461,32 +460,6 @@ class ARX:
         return float(np.abs(p).max()) if p.size else 0.0
 
     # ------------------------------------------------------------------ export
-    def to_polynomial(self) -> PolynomialModel:
-        """The same model as a :class:`~flexid.polynomial.PolynomialModel`.
-
-        Returns
-        -------
-        PolynomialModel
-            Of ``PolynomialStructure.arx(na, nb, nk)``, with the same ``theta`` (the order
-            is the same), ``dt``, ``param_std`` and ``noise_variance``; its predictors take
-            the initial-condition rules of :mod:`flexid.polynomial`.
-
-        Raises
-        ------
-        ModelOrderError
-            If every ``nb`` is 0 (a pure AR model has no polynomial-family form).
-        """
-        from .polynomial import PolynomialModel, PolynomialStructure
-
-        s = self.structure
-        return PolynomialModel(
-            PolynomialStructure.arx(s.na, s.nb, s.nk),
-            self.theta,
-            dt=self.dt,
-            param_std=None if self.param_std is None else self.param_std.copy(),
-            noise_variance=self.noise_variance,
-        )
-
     def to_control(self) -> control.TransferFunction:
         """The model as a python-control transfer function.
 

@@ -20,7 +20,7 @@ File formats:
 * **DaISy-style** ``.dat`` / ``.txt``: whitespace-separated numbers, optional ``%`` or ``#``
   comment lines; the user names the input and output columns (0-based indices).
 * **MATLAB** ``.mat`` (v4 to v7, read only): an iddata-like structure (fields ``y``, ``u``,
-  ``Ts``...) or plain variables; see :func:`flexid._matfile.read_mat`.
+  ``Ts``...) or plain variables; see :meth:`IOData.from_mat`.
 """
 
 from __future__ import annotations
@@ -31,20 +31,29 @@ import json
 import os
 import warnings
 import zipfile
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ._files import (
+    CSV_MAGIC,
+    RecordParts,
+    median_step,
+    read_csv,
+    read_dat,
+    read_mat,
+    write_bytes,
+    write_text,
+)
+from ._html import block, table
 from ._json import jsonable
 from ._validate import checked_keywords, integer, is_integer, positive_real, real
 from .errors import DataError, DataFileError, DataWarning, UnknownKeywordError, check_finite
 
 __all__ = ["IOData", "load", "prepare_data", "save"]
 
-_CSV_MAGIC = "# flexid-iodata "
 _FORMAT_VERSION = 1
 
 
@@ -467,13 +476,13 @@ class IOData:
         """
         path = Path(path)
         buffer = io.StringIO()
-        buffer.write(_CSV_MAGIC + json.dumps(self._header(), sort_keys=True) + "\n")
+        buffer.write(CSV_MAGIC + json.dumps(self._header(), sort_keys=True) + "\n")
         writer = csv.writer(buffer, lineterminator="\n")
         writer.writerow(["time", *self.input_names, *self.output_names])
         table = np.column_stack([self.time, self._u, self._y])
         for row in table:
             writer.writerow([repr(float(v)) for v in row])
-        _write_text(path, buffer.getvalue())
+        write_text(path, buffer.getvalue())
         return path
 
     def to_npz(self, path: str | os.PathLike) -> Path:
@@ -493,7 +502,7 @@ class IOData:
         meta = np.array(json.dumps(self._header(), sort_keys=True))
         buffer = io.BytesIO()
         np.savez(buffer, u=self._u, y=self._y, dt=np.array(self.dt), meta=meta)
-        _write_bytes(path, buffer.getvalue())
+        write_bytes(path, buffer.getvalue())
         return path
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -617,7 +626,7 @@ class IOData:
         about three times the bytes of the record's float64 arrays, whatever its length.
         """
         path = Path(path)
-        header, columns, table = _read_csv(path)
+        header, columns, table = read_csv(path)
         if header is not None:
             n_u = len(header.get("input_names", []))
             n_y = len(header.get("output_names", []))
@@ -676,29 +685,8 @@ class IOData:
             Column indices out of range, NaN/inf, too few samples.
         """
         path = Path(path)
-        text = _read_text(path)
-        rows = []
-        numbers: list[int] = []
-        for lineno, line in enumerate(text.splitlines(), start=1):
-            stripped = line.strip()
-            if not stripped or stripped[0] in "%#":
-                continue
-            rows.append(stripped.replace(",", " ").split())
-            numbers.append(lineno)
-        if not rows:
-            raise DataFileError(f"{path}: no numeric rows")
-        width = len(rows[0])
-        table = np.empty((len(rows), width))
-        for i, (row, lineno) in enumerate(zip(rows, numbers)):
-            if len(row) != width:
-                raise DataFileError(
-                    f"{path}: line {lineno}: {len(row)} column(s), expected {width}"
-                )
-            try:
-                table[i] = [float(v) for v in row]
-            except ValueError:
-                bad = next(v for v in row if not _is_float(v))
-                raise DataFileError(f"{path}: line {lineno}: {bad!r} is not a number") from None
+        table = read_dat(path)
+        width = table.shape[1]
         ins = [inputs] if isinstance(inputs, (int, np.integer)) else list(inputs)
         outs = [outputs] if isinstance(outputs, (int, np.integer)) else list(outputs)
         for j in (*ins, *outs):
@@ -715,6 +703,74 @@ class IOData:
             output_names=output_names,
             metadata=meta,
         )
+
+    @classmethod
+    def from_mat(
+        cls,
+        path: str | os.PathLike,
+        inputs: Sequence[str | int] | str | int | None = None,
+        outputs: Sequence[str | int] | str | int | None = None,
+        dt: float | None = None,
+        *,
+        variable: str | None = None,
+        metadata: Mapping[str, Any] | None = None,
+    ) -> IOData:
+        """Read a record from a MATLAB ``.mat`` file (v4, v5 or v7).
+
+        Parameters
+        ----------
+        path : path-like
+            The file.
+        inputs, outputs : str, int or sequence of them, optional
+            For an iddata-like structure: the channels to keep (names from
+            ``InputName``/``OutputName`` or 0-based indices); default all.  For plain
+            variables: variable names (every column of the variable), ``"name[j]"`` (column
+            ``j`` of a matrix, 0-based) or integers (columns of the file's only matrix, or of
+            ``variable``); default the variables named ``u``/``u<k>`` and ``y``/``y<k>``.
+        dt : float, optional
+            Sample time in seconds; overrides the file's.  Default: the structure's ``Ts``
+            (converted from its ``TimeUnit``), a ``Ts``/``dt`` variable, the median step of a
+            ``t``/``time`` variable, else 1.0 recorded as assumed in ``metadata["dt_assumed"]``.
+        variable : str, optional
+            The variable to read when the file holds several structures, or the matrix whose
+            columns integer ``inputs``/``outputs`` index.
+        metadata : mapping, optional
+            Extra metadata to merge in.
+
+        Returns
+        -------
+        IOData
+            ``u`` of shape ``(N, n_u)`` and ``y`` of shape ``(N, n_y)``; ``metadata["source"]``
+            is the file and ``metadata["mat_variable"]`` the structure read, if any.
+
+        Raises
+        ------
+        DataFileError
+            For a missing, unreadable or non-MAT file, a v7.3 (HDF5) file, a MATLAB object or a
+            multi-experiment structure.
+        DataError
+            For a missing variable or field, non-numeric, complex, empty, 3-D or non-finite
+            values, signals of different lengths, a bad sample time; the message names the file
+            and the variable.
+        """
+        path = Path(path)
+        parts = read_mat(path, inputs, outputs, dt, variable=variable, metadata=metadata)
+        return cls._from_parts(parts, path)
+
+    @classmethod
+    def _from_parts(cls, parts: RecordParts, path: Path) -> IOData:
+        """The record of a file's parts; an invalid record's error names the file."""
+        try:
+            data = cls(parts.u, parts.y, parts.dt, **parts.options)
+        except DataError as exc:
+            raise DataError(f"{path}: {exc}") from None
+        if parts.channels is not None:
+            inputs, outputs, where = parts.channels
+            try:
+                data = data.select(inputs, outputs)
+            except DataError as exc:
+                raise DataError(f"{path}: {where}: {exc}") from None
+        return data
 
     def describe(self) -> str:
         """A short human-readable description: length, sample time, channel statistics.
@@ -758,216 +814,14 @@ class IOData:
         return rows
 
     def _repr_html_(self) -> str:
-        """The notebook display: the numbers of :meth:`describe` in an HTML table."""
-        from ._html import iodata_html
-
-        return iodata_html(self)
+        """The notebook display: the line of its ``repr`` and, one row per channel (kind,
+        name, unit, mean, std, min, max), the numbers of :meth:`describe` formatted alike."""
+        rows: list[Sequence[str]] = [["channel", "kind", "unit", "mean", "std", "min", "max"]]
+        rows += [(name, kind, *stats) for kind, name, *stats in self._channel_stats()]
+        return block(repr(self), table(rows, left=3))
 
 
 # ---------------------------------------------------------------------- helpers
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-@contextmanager
-def _text_file(path: Path) -> Iterator[None]:
-    """Turn the errors of reading ``path`` as UTF-8 text into one-line DataFileErrors."""
-    try:
-        yield
-    except DataFileError:  # an OSError too: already said in one line
-        raise
-    except FileNotFoundError:
-        raise DataFileError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise DataFileError(f"{path}: is a directory, not a data file") from None
-    except UnicodeDecodeError:
-        raise DataFileError(f"{path}: not a text file (cannot decode as UTF-8)") from None
-    except OSError as exc:
-        raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
-
-
-def _read_text(path: Path) -> str:
-    with _text_file(path), open(path, encoding="utf-8", newline="") as handle:
-        return handle.read()
-
-
-#: Characters of CSV text parsed at a time by :func:`_read_csv` (whole lines, so a block may
-#: be one line longer).  A block is held as Python strings (1 byte a character and about 50
-#: a line) and, by NumPy's parser, as UCS4 (4 bytes a character): about 1.5 MB whatever the
-#: file's size or line length.  Blocks of a few thousand lines are long enough that NumPy's
-#: parser, not the Python loop over blocks, sets the pace.
-_CSV_BLOCK_CHARS = 1 << 18
-
-
-def _read_csv(path: Path) -> tuple[dict | None, list[str], np.ndarray]:
-    """The flexid metadata line, the column names and the numeric rows of a CSV file.
-
-    The file is read in blocks of whole lines, about :data:`_CSV_BLOCK_CHARS` characters
-    each, straight into one preallocated float64 table (its rows counted beforehand from the
-    newline bytes), so a read needs the table plus one block: the file's text is never held
-    whole, nor split into Python strings and lists (hundreds of bytes a sample).  Each block
-    goes through :func:`numpy.loadtxt`; a block it refuses (a quoted cell, an empty row, a
-    bad cell, a row of the wrong width) is read again row by row by :func:`_parse_rows`,
-    which accepts exactly what :class:`float` does and names the line and the column of an
-    error.  Both parse a number with the same correctly rounded conversion, so the table
-    does not depend on which path read a block.
-
-    Parameters
-    ----------
-    path : pathlib.Path
-        The file.
-
-    Returns
-    -------
-    header : dict or None
-        The JSON of a ``# flexid-iodata`` first line, else None.
-    columns : list of str
-        The header row's column names.
-    table : ndarray, shape (N, len(columns))
-        The numeric rows (blank rows skipped).
-
-    Raises
-    ------
-    DataFileError
-        A missing, unreadable or non-UTF-8 file, no header row, an empty or numeric header,
-        malformed metadata, a row of the wrong width or a cell that is not a number.
-    """
-    with _text_file(path):
-        capacity = _count_lines(path)
-        with open(path, encoding="utf-8") as handle:
-            return _read_csv_lines(path, handle, capacity)
-
-
-def _count_lines(path: Path) -> int:
-    """Lines of a file (a last line without a newline counts), from its newline bytes."""
-    count, last = 0, b"\n"
-    with open(path, "rb") as handle:
-        while chunk := handle.read(1 << 20):
-            count += chunk.count(b"\n")
-            last = chunk[-1:]
-    return count + (last != b"\n")
-
-
-def _read_csv_lines(
-    path: Path, handle: io.TextIOBase, capacity: int
-) -> tuple[dict | None, list[str], np.ndarray]:
-    """:func:`_read_csv` on an open file of at most ``capacity`` lines (more only if it has
-    lone ``\\r`` line ends: then the table grows)."""
-    header: dict | None = None
-    lineno = 0  # 1-based number of the last line read
-    line = ""
-    for line in handle:
-        lineno += 1
-        if lineno == 1 and line.startswith(_CSV_MAGIC):
-            try:
-                header = json.loads(line[len(_CSV_MAGIC) :])
-            except json.JSONDecodeError as exc:
-                raise DataFileError(f"{path}: line 1: malformed flexid metadata ({exc})") from None
-            continue
-        if line.strip() and not line.startswith("#"):
-            break
-    else:
-        raise DataFileError(f"{path}: no header row and no data")
-    head = next(csv.reader([line]), [])
-    columns = [c.strip() for c in head]
-    if not columns or any(not c for c in columns):
-        raise DataFileError(f"{path}: line {lineno}: empty column name in the header")
-    if all(_is_float(c) for c in columns):
-        raise DataFileError(
-            f"{path}: line {lineno}: the first row is numeric; a CSV file needs a "
-            "header row with column names (use a .dat file for bare numbers)"
-        )
-    width = len(columns)
-    table = np.empty((max(capacity - lineno, 0), width))
-    filled = 0
-    while lines := handle.readlines(_CSV_BLOCK_CHARS):
-        block = _parse_block(lines, width, path, lineno + 1, columns)
-        lineno += len(lines)
-        if filled + block.shape[0] > table.shape[0]:
-            grown = np.empty((2 * (filled + block.shape[0]), width))
-            grown[:filled] = table[:filled]
-            table = grown
-        table[filled : filled + block.shape[0]] = block
-        filled += block.shape[0]
-    return header, columns, table[:filled]
-
-
-def _parse_block(
-    lines: list[str], width: int, path: Path, first_line: int, columns: list
-) -> np.ndarray:
-    """Rows of a block of CSV lines, shape (n, width): NumPy's parser, else row by row."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # loadtxt warns of a block with no data rows
-            block = np.loadtxt(lines, delimiter=",", comments=None, dtype=float, ndmin=2)
-    except ValueError:
-        block = None
-    if block is not None and block.shape[1] == width and block.shape[0] > 0:
-        return block
-    return _parse_rows(list(csv.reader(lines)), width, path, first_line, columns)
-
-
-def _write_text(path: Path, text: str) -> None:
-    _write_bytes(path, text.encode("utf-8"))
-
-
-def _write_bytes(path: Path, payload: bytes) -> None:
-    """Write atomically: a temporary file in the same folder, then rename."""
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        with open(tmp, "wb") as handle:
-            handle.write(payload)
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
-        raise DataFileError(f"{path}: cannot write ({exc.strerror or exc})") from None
-
-
-def _median_step(times: np.ndarray) -> tuple[float, bool]:
-    """The median step of a time vector and whether every step is within 0.1 % of it.
-
-    Parameters
-    ----------
-    times : ndarray, shape (N,)
-        Sample instants in seconds, N >= 2.
-
-    Returns
-    -------
-    step : float
-        The median of the N - 1 steps, in seconds (not checked here).
-    uniform : bool
-        Whether all steps are close to it (relative 1e-3, absolute 1e-12 s).
-    """
-    steps = np.diff(times)
-    step = float(np.median(steps))
-    return step, bool(np.allclose(steps, step, rtol=1e-3, atol=1e-12))
-
-
-def _parse_rows(rows: list, width: int, path: Path, first_line: int, columns: list) -> np.ndarray:
-    body = [(i, r) for i, r in enumerate(rows) if r and any(c.strip() for c in r)]
-    table = np.empty((len(body), width))
-    for k, (i, row) in enumerate(body):
-        lineno = first_line + i
-        if len(row) != width:
-            raise DataFileError(f"{path}: line {lineno}: {len(row)} field(s), expected {width}")
-        for j, cell in enumerate(row):
-            try:
-                table[k, j] = float(cell)
-            except ValueError:
-                raise DataFileError(
-                    f"{path}: line {lineno}, column {columns[j]!r}: "
-                    f"{cell.strip()!r} is not a number"
-                ) from None
-    return table
-
-
 def _columns_of(table: np.ndarray, index: list[int]) -> np.ndarray:
     """Columns ``index`` of ``table``: a view when they are adjacent and in order (IOData
     copies its arrays anyway, so a large record is not copied twice)."""
@@ -1013,7 +867,7 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
     if dt is None:
         if time_cols and table.shape[0] >= 2:
             times = table[:, time_cols[0]]
-            dt, uniform = _median_step(times)
+            dt, uniform = median_step(times)
             if not uniform:
                 meta["dt_note"] = "time column not uniform; dt is its median step"
                 steps = np.diff(times)
@@ -1045,11 +899,9 @@ def _reader_options(reader: Any) -> set[str]:
 
 
 def _readers() -> dict[str, Any]:
-    from ._matfile import read_mat
-
     return {
         ".csv": IOData.from_csv, ".npz": _NPZ_OPTIONS, ".dat": IOData.from_dat,
-        ".txt": IOData.from_dat, ".mat": read_mat,
+        ".txt": IOData.from_dat, ".mat": IOData.from_mat,
     }
 
 
@@ -1070,7 +922,7 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
 
     Keyword options are passed to :meth:`IOData.from_csv`, :meth:`IOData.from_npz`,
     :meth:`IOData.from_dat` or, for MATLAB files (v4-v7, plain variables or an iddata-like
-    structure), :func:`flexid._matfile.read_mat`.
+    structure), :meth:`IOData.from_mat`.
 
     Parameters
     ----------
@@ -1123,9 +975,7 @@ def load(path: str | os.PathLike, **options: Any) -> IOData:
             )
         return IOData.from_dat(path, **options)
     if suffix == ".mat":
-        from ._matfile import read_mat
-
-        data = read_mat(path, **options)
+        data = IOData.from_mat(path, **options)
         note = data.metadata.get("dt_note")
         if note:  # a MAT file has no flexid metadata: the note is this read's
             warnings.warn(

@@ -33,7 +33,7 @@ from .errors import (
 from .greybox import GreyBoxModel
 from .objective import ARXCost
 from .optimisers import Problem
-from .parametrisation import PARAMETRISATIONS, Parametrisation, make_parametrisation
+from .parametrisation import PARAMETRISATIONS, Parametrisation, SearchBox, make_parametrisation
 from .polynomial import STRUCTURES, PolynomialStructure
 from .polynomial import structure as _named_structure
 from .stability import is_stable
@@ -61,35 +61,6 @@ __all__ = [
 ]
 
 # ================================================================================ search box
-@dataclass(frozen=True)
-class SearchBox:
-    """The box an optimiser searches, and the rule that made it.
-
-    Attributes
-    ----------
-    lower, upper : ndarray, shape (n_params,)
-        Bounds in the parameter order of :class:`~flexid.arx.ARXStructure`
-        (``a1..a_na``, then the ``b`` coefficients of each input).
-    rule : str
-        How the bounds were chosen (recorded with every result).
-    """
-
-    lower: np.ndarray
-    upper: np.ndarray
-    rule: str
-
-    def to_dict(self) -> dict[str, Any]:
-        """The box as a JSON-safe dictionary.
-
-        Returns
-        -------
-        dict
-            ``{"rule": str, "lower": list of float, "upper": list of float}`` (n_params
-            values each).
-        """
-        return {"rule": self.rule, "lower": self.lower.tolist(), "upper": self.upper.tolist()}
-
-
 def _round_up(value: float) -> float:
     """Round up to one significant digit (0.061 -> 0.07, 3.2 -> 4)."""
     if value <= 0 or not math.isfinite(value):

@@ -29,6 +29,7 @@ from .errors import ConfigError
 from .greybox import GreyBoxModel
 from .greybox_cost import GreyBoxCost
 from .optimisers import Problem
+from .parametrisation import SearchBox
 
 __all__ = ["GreyBoxEstimationProblem", "GreyBoxReference", "build_greybox_problem"]
 
@@ -255,8 +256,6 @@ def build_greybox_problem(
     DataError
         A record without the model's channels.
     """
-    from .estimation import SearchBox
-
     if cost.predictor != "simulation":
         raise ConfigError(
             f"grey-box model {model.name!r} is fitted on the simulation cost (it has no "

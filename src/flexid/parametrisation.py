@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -46,6 +47,7 @@ __all__ = [
     "Parametrisation",
     "PoleParametrisation",
     "ReflectionParametrisation",
+    "SearchBox",
     "make_parametrisation",
 ]
 
@@ -110,6 +112,35 @@ def _fmt(x: float) -> str:
 
 
 # --------------------------------------------------------------------------- base class
+
+
+@dataclass(frozen=True)
+class SearchBox:
+    """The box an optimiser searches, and the rule that made it.
+
+    Attributes
+    ----------
+    lower, upper : ndarray, shape (n_params,)
+        Bounds in the parameter order of :class:`~flexid.arx.ARXStructure`
+        (``a1..a_na``, then the ``b`` coefficients of each input).
+    rule : str
+        How the bounds were chosen (recorded with every result).
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    rule: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """The box as a JSON-safe dictionary.
+
+        Returns
+        -------
+        dict
+            ``{"rule": str, "lower": list of float, "upper": list of float}`` (n_params
+            values each).
+        """
+        return {"rule": self.rule, "lower": self.lower.tolist(), "upper": self.upper.tolist()}
 
 
 class Parametrisation(ABC):

@@ -59,13 +59,12 @@ from scipy import linalg, signal
 
 from ._json import jsonable
 from ._validate import checked_keywords, integer, positive_real
+from .arx import ARX, ARXStructure
 from .config import STRUCTURE_NAMES
 from .errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
     import control
-
-    from .arx import ARXStructure
 
 __all__ = [
     "INITIAL_RULES",
@@ -485,8 +484,6 @@ class PolynomialStructure:
         -------
         ARXStructure
         """
-        from .arx import ARXStructure
-
         if self.kind != "arx":
             raise ModelOrderError(f"{self!r} is not an ARX structure")
         return ARXStructure(self.na, self.nb, self.nk)
@@ -963,6 +960,36 @@ class PolynomialModel:
             "stable": self.is_stable,
             "max_pole_radius": self.max_pole_radius,
         }
+
+    @classmethod
+    def from_arx(cls, model: ARX) -> PolynomialModel:
+        """An ARX model as a polynomial model of the same structure and parameters.
+
+        Parameters
+        ----------
+        model : ARX
+            The model (:class:`~flexid.arx.ARX`).
+
+        Returns
+        -------
+        PolynomialModel
+            Of ``PolynomialStructure.arx(na, nb, nk)``, with the same ``theta`` (the order
+            is the same), ``dt``, ``param_std`` and ``noise_variance``; its predictors take
+            the initial-condition rules of :mod:`flexid.polynomial`.
+
+        Raises
+        ------
+        ModelOrderError
+            If every ``nb`` is 0 (a pure AR model has no polynomial-family form).
+        """
+        s = model.structure
+        return cls(
+            PolynomialStructure.arx(s.na, s.nb, s.nk),
+            model.theta,
+            dt=model.dt,
+            param_std=None if model.param_std is None else model.param_std.copy(),
+            noise_variance=model.noise_variance,
+        )
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> PolynomialModel:

@@ -30,6 +30,7 @@ import numpy as np
 
 from ._json import jsonable
 from ._validate import checked_keywords, positive_real
+from .arx import ARX
 from .data import IOData
 from .diagnostics import (
     CorrelationTest,
@@ -651,6 +652,8 @@ def _model_dt(model: Any) -> float | None:
 
 def _as_polynomial(model: Any) -> PolynomialModel:
     """The polynomial form of an ARX-like model, for the ``"estimate"`` rule."""
+    if isinstance(model, ARX):
+        return PolynomialModel.from_arx(model)
     to_polynomial = getattr(model, "to_polynomial", None)
     if callable(to_polynomial):
         return to_polynomial()

@@ -8,17 +8,23 @@ optimiser shares for a seed.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from .._validate import positive_int
 from ..errors import OptimiserError
-
-if TYPE_CHECKING:
-    from ._driver import _Run
+from ._budget import Budget
 
 __all__ = ["Objective", "Problem", "SearchSpace"]
+
+
+class _Run(Protocol):
+    """What a search space needs of the driver's run (:mod:`flexid.optimisers._driver`)."""
+
+    budget: Budget
+
+    def end_iteration(self, phase: str) -> None: ...
 
 Objective = Callable[[np.ndarray], np.ndarray]
 

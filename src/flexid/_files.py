@@ -1,6 +1,10 @@
-"""Read input-output records from MATLAB ``.mat`` files (formats v4, v5 and v7).
+"""Record files: CSV, DAT and MATLAB ``.mat`` files read into arrays, and atomic writes.
 
-Two layouts are understood:
+Nothing here builds an :class:`~flexid.data.IOData`: a reader returns the arrays and the
+keyword arguments of a record (:class:`RecordParts`), which :mod:`flexid.data` turns into
+one, so the file formats sit below the record type and never import it.
+
+MATLAB files (formats v4, v5 and v7). Two layouts are understood:
 
 * **an iddata-like structure**: a struct variable with the fields ``y`` and ``u`` (or
   ``OutputData`` and ``InputData``) and ``Ts``, as MATLAB gives with ``s = struct(data)``
@@ -19,20 +23,61 @@ channels; row and column vectors are both one channel.  v7.3 files are HDF5, whi
 
 from __future__ import annotations
 
+import csv
+import io
+import json
 import math
 import os
 import re
-from collections.abc import Mapping, Sequence
+import warnings
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ._validate import is_integer
-from .data import IOData, _median_step
 from .errors import DataError, DataFileError, check_finite
 
-__all__ = ["read_mat"]
+__all__ = [
+    "CSV_MAGIC",
+    "RecordParts",
+    "median_step",
+    "read_csv",
+    "read_dat",
+    "read_mat",
+    "write_bytes",
+    "write_text",
+]
+
+#: First characters of the metadata line of a CSV file written by flexid.
+CSV_MAGIC = "# flexid-iodata "
+
+
+class RecordParts(NamedTuple):
+    """A record as a file holds it: what :class:`~flexid.data.IOData` is built from.
+
+    Attributes
+    ----------
+    u : ndarray, shape (N, n_u)
+    y : ndarray, shape (N, n_y)
+    dt : float
+        Sample time [s].
+    options : dict
+        The other keyword arguments of :class:`~flexid.data.IOData` (names, units,
+        metadata).
+    channels : tuple or None
+        ``(inputs, outputs, where)``: the channels to keep of the record
+        (:meth:`~flexid.data.IOData.select`), and what in the file they are chosen from (for
+        the error message); None keeps all.
+    """
+
+    u: np.ndarray
+    y: np.ndarray
+    dt: float
+    options: dict[str, Any]
+    channels: tuple[Any, Any, str] | None = None
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 #: MATLAB writes a 512-byte text header before the HDF5 superblock of a v7.3 file.
@@ -71,44 +116,18 @@ def read_mat(
     *,
     variable: str | None = None,
     metadata: Mapping[str, Any] | None = None,
-) -> IOData:
-    """Read a record from a MATLAB ``.mat`` file (v4, v5 or v7).
+) -> RecordParts:
+    """The parts of the record in a MATLAB file (:meth:`flexid.data.IOData.from_mat`).
 
     Parameters
     ----------
     path : path-like
-        The file.
-    inputs, outputs : str, int or sequence of them, optional
-        For an iddata-like structure: the channels to keep (names from
-        ``InputName``/``OutputName`` or 0-based indices); default all.  For plain
-        variables: variable names (every column of the variable), ``"name[j]"`` (column
-        ``j`` of a matrix, 0-based) or integers (columns of the file's only matrix, or of
-        ``variable``); default the variables named ``u``/``u<k>`` and ``y``/``y<k>``.
-    dt : float, optional
-        Sample time in seconds; overrides the file's.  Default: the structure's ``Ts``
-        (converted from its ``TimeUnit``), a ``Ts``/``dt`` variable, the median step of a
-        ``t``/``time`` variable, else 1.0 recorded as assumed in ``metadata["dt_assumed"]``.
-    variable : str, optional
-        The variable to read when the file holds several structures, or the matrix whose
-        columns integer ``inputs``/``outputs`` index.
-    metadata : mapping, optional
-        Extra metadata to merge in.
+    inputs, outputs, dt, variable, metadata
+        As :meth:`flexid.data.IOData.from_mat` takes them.
 
     Returns
     -------
-    IOData
-        ``u`` of shape ``(N, n_u)`` and ``y`` of shape ``(N, n_y)``; ``metadata["source"]``
-        is the file and ``metadata["mat_variable"]`` the structure read, if any.
-
-    Raises
-    ------
-    DataFileError
-        For a missing, unreadable or non-MAT file, a v7.3 (HDF5) file, a MATLAB object or a
-        multi-experiment structure.
-    DataError
-        For a missing variable or field, non-numeric, complex, empty, 3-D or non-finite
-        values, signals of different lengths, a bad sample time; the message names the file
-        and the variable.
+    RecordParts
     """
     path = Path(path)
     contents, version = _load(path)
@@ -119,7 +138,7 @@ def read_mat(
     else:
         data = _from_variables(path, contents, variable, inputs, outputs, dt, meta)
     if metadata:
-        data.metadata.update(metadata)
+        data.options["metadata"].update(metadata)
     return data
 
 
@@ -315,7 +334,7 @@ def _from_struct(
     outputs: Any,
     dt: float | None,
     meta: dict[str, Any],
-) -> IOData:
+) -> RecordParts:
     meta["mat_variable"] = name
     found_y = _field(struct, "y", "OutputData")
     found_u = _field(struct, "u", "InputData")
@@ -358,10 +377,7 @@ def _from_struct(
         output_units=texts("OutputUnit", y.shape[1]),
     )
     if inputs is not None or outputs is not None:
-        try:
-            data = data.select(inputs, outputs)
-        except DataError as exc:
-            raise DataError(f"{path}: structure {name!r}: {exc}") from None
+        data = data._replace(channels=(inputs, outputs, f"structure {name!r}"))
     return data
 
 
@@ -396,7 +412,7 @@ def _step_of(times: np.ndarray, n_samples: int, path: Path, what: str, meta: dic
         raise DataError(
             f"{path}: the time vector {what!r} has {times.size} entries for {n_samples} samples"
         )
-    step, uniform = _median_step(times)
+    step, uniform = median_step(times)
     if not (math.isfinite(step) and step > 0):
         raise DataError(f"{path}: the time vector {what!r} is not increasing")
     if not uniform:
@@ -413,7 +429,7 @@ def _from_variables(
     outputs: Any,
     dt: float | None,
     meta: dict[str, Any],
-) -> IOData:
+) -> RecordParts:
     def default(prefix: str) -> list[str]:
         return sorted(
             (k for k in contents if k == prefix or (k.startswith(prefix) and k[1:].isdigit())),
@@ -540,16 +556,262 @@ def _record(
     output_names: list[str] | None,
     meta: dict[str, Any],
     **units: Any,
-) -> IOData:
+) -> RecordParts:
+    options = {"input_names": input_names, "output_names": output_names, "metadata": meta}
+    return RecordParts(u, y, dt, {**options, **units})
+
+
+# ---------------------------------------------------------------------- text files
+def _is_float(text: str) -> bool:
     try:
-        return IOData(
-            u,
-            y,
-            dt,
-            input_names=input_names,
-            output_names=output_names,
-            metadata=meta,
-            **units,
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+@contextmanager
+def _text_file(path: Path) -> Iterator[None]:
+    """Turn the errors of reading ``path`` as UTF-8 text into one-line DataFileErrors."""
+    try:
+        yield
+    except DataFileError:  # an OSError too: already said in one line
+        raise
+    except FileNotFoundError:
+        raise DataFileError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise DataFileError(f"{path}: is a directory, not a data file") from None
+    except UnicodeDecodeError:
+        raise DataFileError(f"{path}: not a text file (cannot decode as UTF-8)") from None
+    except OSError as exc:
+        raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+
+
+def _read_text(path: Path) -> str:
+    with _text_file(path), open(path, encoding="utf-8", newline="") as handle:
+        return handle.read()
+
+
+#: Characters of CSV text parsed at a time by :func:`read_csv` (whole lines, so a block may
+#: be one line longer).  A block is held as Python strings (1 byte a character and about 50
+#: a line) and, by NumPy's parser, as UCS4 (4 bytes a character): about 1.5 MB whatever the
+#: file's size or line length.  Blocks of a few thousand lines are long enough that NumPy's
+#: parser, not the Python loop over blocks, sets the pace.
+_CSV_BLOCK_CHARS = 1 << 18
+
+
+def read_csv(path: Path) -> tuple[dict | None, list[str], np.ndarray]:
+    """The flexid metadata line, the column names and the numeric rows of a CSV file.
+
+    The file is read in blocks of whole lines, about :data:`_CSV_BLOCK_CHARS` characters
+    each, straight into one preallocated float64 table (its rows counted beforehand from the
+    newline bytes), so a read needs the table plus one block: the file's text is never held
+    whole, nor split into Python strings and lists (hundreds of bytes a sample).  Each block
+    goes through :func:`numpy.loadtxt`; a block it refuses (a quoted cell, an empty row, a
+    bad cell, a row of the wrong width) is read again row by row by :func:`_parse_rows`,
+    which accepts exactly what :class:`float` does and names the line and the column of an
+    error.  Both parse a number with the same correctly rounded conversion, so the table
+    does not depend on which path read a block.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+
+    Returns
+    -------
+    header : dict or None
+        The JSON of a ``# flexid-iodata`` first line, else None.
+    columns : list of str
+        The header row's column names.
+    table : ndarray, shape (N, len(columns))
+        The numeric rows (blank rows skipped).
+
+    Raises
+    ------
+    DataFileError
+        A missing, unreadable or non-UTF-8 file, no header row, an empty or numeric header,
+        malformed metadata, a row of the wrong width or a cell that is not a number.
+    """
+    with _text_file(path):
+        capacity = _count_lines(path)
+        with open(path, encoding="utf-8") as handle:
+            return _read_csv_lines(path, handle, capacity)
+
+
+def _count_lines(path: Path) -> int:
+    """Lines of a file (a last line without a newline counts), from its newline bytes."""
+    count, last = 0, b"\n"
+    with open(path, "rb") as handle:
+        while chunk := handle.read(1 << 20):
+            count += chunk.count(b"\n")
+            last = chunk[-1:]
+    return count + (last != b"\n")
+
+
+def _read_csv_lines(
+    path: Path, handle: io.TextIOBase, capacity: int
+) -> tuple[dict | None, list[str], np.ndarray]:
+    """:func:`read_csv` on an open file of at most ``capacity`` lines (more only if it has
+    lone ``\\r`` line ends: then the table grows)."""
+    header: dict | None = None
+    lineno = 0  # 1-based number of the last line read
+    line = ""
+    for line in handle:
+        lineno += 1
+        if lineno == 1 and line.startswith(CSV_MAGIC):
+            try:
+                header = json.loads(line[len(CSV_MAGIC) :])
+            except json.JSONDecodeError as exc:
+                raise DataFileError(f"{path}: line 1: malformed flexid metadata ({exc})") from None
+            continue
+        if line.strip() and not line.startswith("#"):
+            break
+    else:
+        raise DataFileError(f"{path}: no header row and no data")
+    head = next(csv.reader([line]), [])
+    columns = [c.strip() for c in head]
+    if not columns or any(not c for c in columns):
+        raise DataFileError(f"{path}: line {lineno}: empty column name in the header")
+    if all(_is_float(c) for c in columns):
+        raise DataFileError(
+            f"{path}: line {lineno}: the first row is numeric; a CSV file needs a "
+            "header row with column names (use a .dat file for bare numbers)"
         )
-    except DataError as exc:
-        raise DataError(f"{path}: {exc}") from None
+    width = len(columns)
+    table = np.empty((max(capacity - lineno, 0), width))
+    filled = 0
+    while lines := handle.readlines(_CSV_BLOCK_CHARS):
+        block = _parse_block(lines, width, path, lineno + 1, columns)
+        lineno += len(lines)
+        if filled + block.shape[0] > table.shape[0]:
+            grown = np.empty((2 * (filled + block.shape[0]), width))
+            grown[:filled] = table[:filled]
+            table = grown
+        table[filled : filled + block.shape[0]] = block
+        filled += block.shape[0]
+    return header, columns, table[:filled]
+
+
+def _parse_block(
+    lines: list[str], width: int, path: Path, first_line: int, columns: list
+) -> np.ndarray:
+    """Rows of a block of CSV lines, shape (n, width): NumPy's parser, else row by row."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # loadtxt warns of a block with no data rows
+            block = np.loadtxt(lines, delimiter=",", comments=None, dtype=float, ndmin=2)
+    except ValueError:
+        block = None
+    if block is not None and block.shape[1] == width and block.shape[0] > 0:
+        return block
+    return _parse_rows(list(csv.reader(lines)), width, path, first_line, columns)
+
+
+def write_text(path: Path, text: str) -> None:
+    """Write ``text`` as UTF-8, atomically (:func:`write_bytes`)."""
+    write_bytes(path, text.encode("utf-8"))
+
+
+def write_bytes(path: Path, payload: bytes) -> None:
+    """Write ``payload`` atomically: a temporary file in the same folder, then a rename.
+
+    Raises
+    ------
+    DataFileError
+        When the folder cannot be written; no temporary file is left behind.
+    """
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, "wb") as handle:
+            handle.write(payload)
+        os.replace(tmp, path)
+    except OSError as exc:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise DataFileError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+def median_step(times: np.ndarray) -> tuple[float, bool]:
+    """The median step of a time vector and whether every step is within 0.1 % of it.
+
+    Parameters
+    ----------
+    times : ndarray, shape (N,)
+        Sample instants in seconds, N >= 2.
+
+    Returns
+    -------
+    step : float
+        The median of the N - 1 steps, in seconds (not checked here).
+    uniform : bool
+        Whether all steps are close to it (relative 1e-3, absolute 1e-12 s).
+    """
+    steps = np.diff(times)
+    step = float(np.median(steps))
+    return step, bool(np.allclose(steps, step, rtol=1e-3, atol=1e-12))
+
+
+def _parse_rows(rows: list, width: int, path: Path, first_line: int, columns: list) -> np.ndarray:
+    body = [(i, r) for i, r in enumerate(rows) if r and any(c.strip() for c in r)]
+    table = np.empty((len(body), width))
+    for k, (i, row) in enumerate(body):
+        lineno = first_line + i
+        if len(row) != width:
+            raise DataFileError(f"{path}: line {lineno}: {len(row)} field(s), expected {width}")
+        for j, cell in enumerate(row):
+            try:
+                table[k, j] = float(cell)
+            except ValueError:
+                raise DataFileError(
+                    f"{path}: line {lineno}, column {columns[j]!r}: "
+                    f"{cell.strip()!r} is not a number"
+                ) from None
+    return table
+
+
+def read_dat(path: Path) -> np.ndarray:
+    """The numeric table of a whitespace-separated (DaISy-style) file.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file; lines starting with ``%`` or ``#`` and blank lines are skipped, commas
+        count as spaces.
+
+    Returns
+    -------
+    ndarray, shape (N, width)
+
+    Raises
+    ------
+    DataFileError
+        A missing or unreadable file, no numeric rows, ragged rows or a non-numeric entry
+        (the message gives the line).
+    """
+    text = _read_text(path)
+    rows = []
+    numbers: list[int] = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped[0] in "%#":
+            continue
+        rows.append(stripped.replace(",", " ").split())
+        numbers.append(lineno)
+    if not rows:
+        raise DataFileError(f"{path}: no numeric rows")
+    width = len(rows[0])
+    table = np.empty((len(rows), width))
+    for i, (row, lineno) in enumerate(zip(rows, numbers)):
+        if len(row) != width:
+            raise DataFileError(
+                f"{path}: line {lineno}: {len(row)} column(s), expected {width}"
+            )
+        try:
+            table[i] = [float(v) for v in row]
+        except ValueError:
+            bad = next(v for v in row if not _is_float(v))
+            raise DataFileError(f"{path}: line {lineno}: {bad!r} is not a number") from None
+    return table

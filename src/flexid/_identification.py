@@ -1,0 +1,371 @@
+"""The result of an identification: :class:`Identification`, its report and its summary.
+
+:func:`flexid.identify` makes one; the grey-box identification's result
+(:class:`~flexid._identify_greybox.GreyBoxIdentification`) extends it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from ._json import jsonable
+from .arx import ARX
+from .config import SearchSpec
+from .data import IOData
+from .diagnostics import format_fit
+from .estimation import SearchBox
+from .objective import ARXCost
+from .optimisers import History
+from .polynomial import PolynomialStructure
+from .validation import ValidationReport
+
+__all__ = ["Identification", "data_info", "timings"]
+
+
+# ================================================================================ result
+@dataclass
+class Identification:
+    """The outcome of :func:`identify`.
+
+    Attributes
+    ----------
+    model : ARX or PolynomialModel
+        The identified model (:class:`~flexid.arx.ARX` for the ARX structure).
+    optimiser : str
+        Optimiser name (``"ls"`` for least squares, ``"oe"`` for the output-error
+        reference).
+    params : dict
+        The optimiser's hyper-parameters.
+    cost : ARXCost or PolynomialCost
+        The cost that was minimised (on the estimation record).
+    cost_value : float
+        Cost of ``model`` under it.
+    cost_ls : float
+        Cost of the least-squares estimate under it (the reference).
+    box : SearchBox
+        The search box (for ``"ls"``: the box an optimiser would have searched).
+    result : OptimizeResult or None
+        The optimiser's result (``None`` for least squares and the output-error reference).
+    estimation, validation : ValidationReport
+        Validation on the estimation and on the held-out record.
+    seed : int or None
+        Seed of the optimiser run.
+    timings : dict
+        Seconds spent: ``setup_s``, ``optimise_s``, ``validate_s`` and ``total_s``.
+    data_info : dict
+        The records used: ``description``, ``n_estimation``, ``n_validation``, ``dt`` (s),
+        ``inputs``, ``output``, ``output_unit`` and ``source``.
+    search : dict
+        The search space (:meth:`flexid.estimation.EstimationProblem.to_dict` plus a
+        ``description``).
+    output_error : OEResult, PEMResult or None
+        The Levenberg-Marquardt result when ``optimiser`` is ``"oe"`` or ``"pem"``, else
+        None.
+    """
+
+    model: ARX
+    optimiser: str
+    params: dict
+    cost: ARXCost
+    cost_value: float
+    cost_ls: float
+    box: SearchBox
+    result: Any
+    estimation: ValidationReport
+    validation: ValidationReport
+    seed: int | None
+    timings: dict = field(default_factory=dict)
+    data_info: dict = field(default_factory=dict)
+    search: dict = field(default_factory=dict)
+    output_error: Any = None
+
+    @property
+    def history(self) -> History | None:
+        """Best cost against function evaluations (``None`` for least squares)."""
+        return None if self.result is None else self.result.history
+
+    @property
+    def nfev(self) -> int:
+        """Function evaluations used (0 for least squares; simulations for ``"oe"``)."""
+        if self.output_error is not None:
+            return int(self.output_error.nfev_equivalent)
+        return 0 if self.result is None else int(self.result.nfev)
+
+    def _title(self) -> str:
+        s = self.model.structure
+        name = (
+            repr(s)
+            if isinstance(s, PolynomialStructure)
+            else f"ARX(na={s.na}, nb={list(s.nb)}, nk={list(s.nk)})"
+        )
+        return f"{name} identified by {self.optimiser}" + (
+            f" (seed {self.seed})" if self.seed is not None else ""
+        )
+
+    def _items(self) -> list[tuple[str, str]]:
+        """The labelled header lines of :meth:`summary` (shared with the notebook display)."""
+        items = [
+            ("data", self.data_info.get("description", "")),
+            ("cost", self.cost.describe()),
+            ("search box", self.search.get("box_rule", self.box.rule)),
+        ]
+        if self.search:
+            items.append(("search space", self.search.get("description", "")))
+        if self.output_error is not None:
+            oe = self.output_error
+            text = (
+                f"Levenberg-Marquardt, {len(oe.runs)} runs (starts and continuations), "
+                f"{oe.nfev} residual + {oe.njev} Jacobian evaluations"
+            )
+            if hasattr(oe, "optimality"):
+                where = (
+                    "a local minimum"
+                    if oe.local_minimum
+                    else ("on the pole-radius cap" if oe.on_cap else "not a local minimum")
+                )
+                text += f"; first-order optimality {oe.optimality:.2g}: {where}"
+            items.append(("search", text))
+        if self.result is not None:
+            items.append(
+                (
+                    "search",
+                    f"{self.result.nfev} FE, {self.result.nit} iterations, {self.result.message}",
+                )
+            )
+        ratio = self.cost_value / self.cost_ls if self.cost_ls > 0 else float("nan")
+        ls_name = (
+            "ARX least squares read as the structure"
+            if isinstance(self.model.structure, PolynomialStructure)
+            else "least squares"
+        )
+        items.append(
+            (
+                "final cost",
+                f"{self.cost_value:.6g}  ({ls_name} {self.cost_ls:.6g}, ratio {ratio:.4g})",
+            )
+        )
+        items.append(
+            (
+                "time",
+                f"optimise {self.timings.get('optimise_s', 0):.3f} s, "
+                f"validate {self.timings.get('validate_s', 0):.3f} s",
+            )
+        )
+        return items
+
+    def advice(self) -> str | None:
+        """One plain line when the model should not be trusted, with what to try next.
+
+        Checked: an optimiser's final cost more than 10 % above the least-squares cost (the
+        exact optimum of the one-step ARX cost, and where the other searches start), a pole
+        on the search space's radius cap (the search ran into its boundary), the held-out
+        whiteness or cross-correlation test failing (the structure does not describe the
+        data), a negative held-out simulation fit.
+
+        Returns
+        -------
+        str or None
+            ``"warning: ...: try ..."``, or None when none of these holds.
+        """
+        problems: list[str] = []
+        tries: list[str] = []
+        structure = self.model.structure
+        arx = not isinstance(structure, PolynomialStructure) or structure.kind == "arx"
+        reference = "optimiser='ls'" if arx and self.cost.predictor == "one-step" else (
+            "optimiser='oe'" if arx else "optimiser='pem'"
+        )
+        if self.result is not None:
+            if self.cost_ls > 0 and self.cost_value > 1.1 * self.cost_ls:
+                problems.append(
+                    f"the final cost is {self.cost_value / self.cost_ls:.3g} times the "
+                    "least-squares cost"
+                )
+                tries.append(f"{reference} (the reference) or a larger budget")
+            r_max = float(self.search.get("r_max", SearchSpec().r_max))
+            radius = self.validation.stability.max_pole_radius
+            if math.isfinite(radius) and radius >= r_max * (1.0 - 1e-9):
+                problems.append(f"a pole sits on the radius cap {r_max:g}")
+                tries.append(f"{reference} (the reference) or a larger budget")
+        if not self.validation.linear_passed:
+            problems.append("the held-out correlation tests fail")
+            tries.append("another structure or higher orders (flexid select)")
+        if self.validation.fit_simulation < 0:
+            problems.append(
+                f"the held-out simulation fit is {format_fit(self.validation.fit_simulation)} %"
+            )
+        if not problems:
+            return None
+        unique = list(dict.fromkeys(tries))
+        return "warning: " + "; ".join(problems) + (
+            ": try " + ", or ".join(unique) if unique else ""
+        )
+
+    def summary(self) -> str:
+        """A readable multi-line account: data, search, cost, model, validation, advice.
+
+        Returns
+        -------
+        str
+            The header lines (data, cost, search, final cost, time), the model's
+            :meth:`~flexid.ARX.summary`, the validation summaries of both records and, when
+            the model should not be trusted, one last line that says why (:meth:`advice`).
+        """
+        lines = [self._title()]
+        lines += [f"  {label:<12}: {value}" for label, value in self._items()]
+        lines.append("")
+        lines.append(self.model.summary())
+        lines.append("")
+        lines.append("Estimation record")
+        lines.append(_indent(self.estimation.summary()))
+        lines.append("Validation record (held out)")
+        lines.append(_indent(self.validation.summary()))
+        advice = self.advice()
+        if advice:
+            lines.append(advice)
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        """The notebook display: the numbers of :meth:`summary`, the long parts collapsed."""
+        from . import _html
+
+        rows = [["", "estimation", "validation (held out)"]]
+        columns = [_report_column(r) for r in (self.estimation, self.validation)]
+        for label, est, val in zip(_REPORT_ROWS, *columns):
+            rows.append([label, est, val])
+        return _html.block(
+            self._title(),
+            _html.key_values(self._items()),
+            _html.table(rows),
+            _html.details("model", self.model.summary()),
+            _html.details("estimation record", self.estimation.summary()),
+            _html.details("validation record (held out)", self.validation.summary()),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Machine-readable result (JSON-safe): coefficients, cost, fits, stability, timings.
+
+        Non-finite numbers are ``None`` (see :func:`flexid._json.jsonable`).
+
+        Returns
+        -------
+        dict
+            ``structure``, ``optimiser``, ``params``, ``seed``, ``cost`` (description,
+            value, least squares), ``search``, ``model`` (:meth:`~flexid.ARX.to_dict`),
+            ``estimation`` and ``validation`` (:meth:`ValidationReport.to_dict`),
+            ``timings`` (s) and ``data``.
+        """
+        m = self.model
+        return jsonable(
+            {
+                "structure": _structure_dict(m.structure),
+                "optimiser": self.optimiser,
+                "params": self.params,
+                "seed": self.seed,
+                "cost": {
+                    "description": self.cost.describe(),
+                    "value": self.cost_value,
+                    "least_squares": self.cost_ls,
+                },
+                "search": {
+                    "space": self.search,
+                    "box": self.box.to_dict(),
+                    "nfev": self.nfev,
+                    "nit": 0 if self.result is None else int(self.result.nit),
+                    "message": "least squares (closed form)"
+                    if self.result is None
+                    else self.result.message,
+                },
+                "model": m.to_dict(),
+                "estimation": self.estimation.to_dict(),
+                "validation": self.validation.to_dict(),
+                "timings": {k: round(v, 6) for k, v in self.timings.items()},
+                "data": self.data_info,
+            }
+        )
+
+
+def _structure_dict(structure: Any) -> dict[str, Any]:
+    """The structure's name and orders (an ARX structure's as before, with its name)."""
+    if isinstance(structure, PolynomialStructure):
+        return structure.to_dict()
+    return {
+        "structure": "arx",
+        "na": structure.na,
+        "nb": list(structure.nb),
+        "nk": list(structure.nk),
+    }
+
+
+_REPORT_ROWS = (
+    "samples",
+    "fit one-step %",
+    "fit simulation %",
+    "RMSE one-step",
+    "RMSE simulation",
+    "error range one-step",
+    "correlation tests",
+    "largest pole radius",
+    "spectral peak measured, Hz",
+    "spectral peak model, Hz",
+)
+
+
+def _report_column(report: ValidationReport) -> list[str]:
+    """One report's entries of the notebook table, formatted as its ``summary()`` does."""
+    lo, hi = report.error_range_one_step
+    st = report.stability
+    return [
+        f"{report.n_samples}",
+        format_fit(report.fit_one_step),
+        format_fit(report.fit_simulation) + (" (diverged)" if report.simulation_diverged else ""),
+        f"{report.rmse_one_step:.4g}",
+        f"{report.rmse_simulation:.4g}",
+        f"[{lo:.4g}, {hi:.4g}]",
+        "PASS" if report.passed else "FAIL",
+        f"{st.max_pole_radius:.5f}" + ("" if st.stable else " (UNSTABLE)"),
+        f"{report.peak_measured:.4g}",
+        f"{report.peak_model:.4g}",
+    ]
+
+
+def _indent(text: str, prefix: str = "  ") -> str:
+    return "\n".join(prefix + line if line else line for line in text.splitlines())
+
+
+# ================================================================================ identify
+
+
+def timings(t_start: float, t_opt: float, t_val: float, t_end: float) -> dict[str, float]:
+    """Seconds spent setting up, optimising and validating, and in all (an identification's)."""
+    return {
+        "setup_s": t_opt - t_start,
+        "optimise_s": t_val - t_opt,
+        "validate_s": t_end - t_val,
+        "total_s": t_end - t_start,
+    }
+
+
+def data_info(
+    est: IOData, n_validation: int, inputs: list[str], outputs: list[str], unit: str,
+    metadata: Mapping[str, Any],
+) -> dict[str, Any]:
+    """What an identification says of its records (:attr:`Identification.data_info`)."""
+    assumed = bool(metadata.get("dt_assumed"))  # no time column, no dt given
+    named = f"output {outputs[0]!r}" if len(outputs) == 1 else f"outputs {outputs}"
+    return {
+        "description": (
+            f"{est.n_samples} estimation + {n_validation} validation samples, dt {est.dt:g} s"
+            f"{' (ASSUMED: the record has no time column; give --dt or dt=)' if assumed else ''}"
+            f", inputs {inputs}, {named}"
+        ),
+        "n_estimation": est.n_samples,
+        "n_validation": n_validation,
+        "dt": est.dt,
+        "inputs": inputs,
+        "output": outputs[0],
+        "output_unit": unit,
+        "source": metadata.get("source") or metadata.get("plant"),
+    }
