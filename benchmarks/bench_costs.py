@@ -30,8 +30,8 @@ import roofline
 from scipy import signal
 
 from flexid import kernels
-from flexid.arx import ARXStructure
-from flexid.objective import ARXCost
+from flexid.costs.arx import ARXCost
+from flexid.models.arx import ARXStructure
 from flexid.stability import is_stable
 
 

@@ -29,9 +29,9 @@ from bench_costs import interleaved_medians
 
 import flexid
 from flexid import kernels
+from flexid.costs.greybox import GreyBoxCost
 from flexid.envs import twin_rotor_physics as trs
-from flexid.greybox_cost import GreyBoxCost
-from flexid.greybox_models import twin_rotor_pitch
+from flexid.models.greybox_library import twin_rotor_pitch
 
 P = 64
 N = 2000

@@ -30,10 +30,10 @@ from bench_costs import interleaved_medians
 from scipy import signal
 
 from flexid import kernels
-from flexid.arx import ARXStructure
-from flexid.objective import ARXCost
-from flexid.polynomial import structure
-from flexid.polynomial_cost import PolynomialCost
+from flexid.costs.arx import ARXCost
+from flexid.costs.polynomial import PolynomialCost
+from flexid.models.arx import ARXStructure
+from flexid.models.polynomial import structure
 from flexid.polynomial_space import PolynomialSpace
 
 N = 1500

@@ -1,14 +1,14 @@
 """Every optimiser on the twin rotor's pitch grey-box, against the gradient reference.
 
 The record: the paper-twin-rotor preset (lab encoder, data seed 0), 3,000 samples; the first
-2,000 estimate, the last 1,000 validate.  The model: :func:`flexid.greybox_models.
-twin_rotor_pitch` (six parameters estimated, searched in their log-scaled box).  Each
-optimiser runs ``--runs`` times (seeds 0, 1, ...) at ``--budget`` evaluations on the same
-cost (:class:`flexid.GreyBoxCost`, the package's default metric) with the initial
-populations every optimiser shares for a seed (:func:`flexid.minimize`).  The reference is
-:func:`flexid.greyest` from the manual's values and 3 random starts; a second reference run
-starts from the manual's values with ``Mg`` 3x and ``T11`` 1/3x off, alone, to show whether
-local search finds the optimum from there.
+2,000 estimate, the last 1,000 validate.  The model:
+:func:`flexid.models.greybox_library.twin_rotor_pitch` (six parameters estimated, searched
+in their log-scaled box).  Each optimiser runs ``--runs`` times (seeds 0, 1, ...) at
+``--budget`` evaluations on the same cost (:class:`flexid.GreyBoxCost`, the package's
+default metric) with the initial populations every optimiser shares for a seed
+(:func:`flexid.minimize`).  The reference is :func:`flexid.greyest` from the manual's values
+and 3 random starts; a second reference run starts from the manual's values with ``Mg`` 3x
+and ``T11`` 1/3x off, alone, to show whether local search finds the optimum from there.
 
 Printed per optimiser: the median and best final cost over the reference's, the runs that
 reach it (within 0.1 %), the median held-out simulation fit (:func:`flexid.validate`,
@@ -32,9 +32,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 
 import flexid
+from flexid.costs.greybox import GreyBoxCost
 from flexid.envs.twin_rotor_physics import TwinRotorParameters
-from flexid.greybox_cost import GreyBoxCost
-from flexid.greybox_models import twin_rotor_pitch
+from flexid.models.greybox_library import twin_rotor_pitch
 
 OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de", "cmaes", "random-search")
 REACH = 1e-3  # a run "reaches" the reference within 0.1 % of its cost

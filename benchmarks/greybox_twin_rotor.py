@@ -1,7 +1,7 @@
 """The twin rotor's pitch grey-box fitted by the reference, validated on the held-out third.
 
 For each seed: the paper-twin-rotor preset read through the encoder (lab sensors); the
-pitch model (:func:`flexid.greybox_models.twin_rotor_pitch`) fitted by
+pitch model (:func:`flexid.models.greybox_library.twin_rotor_pitch`) fitted by
 :func:`flexid.greyest` on the first 2/3 from the manual's values with ``Mg``, ``T11`` and
 ``a1`` 1.6x, 2.7x and 0.37x off; then simulated from rest over the whole record (the
 estimation part runs the model into the held-out third, as the plant itself did) and
@@ -25,7 +25,7 @@ from _table import print_table
 
 import flexid
 from flexid.envs.twin_rotor_physics import TwinRotorParameters
-from flexid.greybox_models import twin_rotor_pitch
+from flexid.models.greybox_library import twin_rotor_pitch
 
 
 def held_out(model, data) -> tuple[float, bool, bool]:

@@ -22,7 +22,7 @@ import numpy as np
 from _table import print_table
 
 import flexid
-from flexid.polynomial import structure
+from flexid.models.polynomial import structure
 
 PRESET_SAMPLES = 2300  # the paper-manipulator preset's length
 ESTIMATION = 1533  # its first 2/3, select's default split

@@ -38,10 +38,10 @@ import time
 import numpy as np
 import scipy.signal
 
-from flexid.arx import ARXStructure
 from flexid.datasets import generate
 from flexid.diagnostics import fit_percent, residual_tests
 from flexid.envs import beam, twin_rotor_physics
+from flexid.models.arx import ARXStructure
 from flexid.validation import validate
 
 
@@ -90,7 +90,7 @@ def run_pem(
     data, n: int, nc: int, nd: int, targets: np.ndarray, tol: float, band: tuple[float, float]
 ) -> dict:
     """One seed of an output-error / Box-Jenkins model: fit on 2/3, numbers on the last 1/3."""
-    from flexid.polynomial import structure
+    from flexid.models.polynomial import structure
     from flexid.prediction_error import pem
 
     train, _ = data.split(2 / 3)

@@ -1,4 +1,4 @@
-"""Tests of flexid.arx: MATLAB convention, exact recovery, prediction, simulation, export.
+"""Tests of flexid.models.arx: MATLAB convention, exact recovery, prediction, simulation, export.
 
 Noise-free data are made by a plain loop (``simulate_arx``), so "exact" recovery,
 prediction and simulation agree with them up to rounding only: those comparisons use the
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from flexid.arx import ARX, ARXStructure
 from flexid.data import IOData
 from flexid.errors import DataError, ModelOrderError
+from flexid.models.arx import ARX, ARXStructure
 from numerics import assert_close_to_terms, route_tolerance
 from route_bounds import ar_route_bound, lstsq_error, propagate, recovery_error
 

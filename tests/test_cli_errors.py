@@ -17,11 +17,11 @@ import pytest
 
 import flexid.datasets
 from flexid import identify
-from flexid.arx import ARXStructure
 from flexid.cli import main
 from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.data import IOData, load
 from flexid.errors import BudgetError, DataFileError, FlexidError
+from flexid.models.arx import ARXStructure
 from flexid.validation import validate
 from test_cli import _record
 

@@ -152,7 +152,7 @@ def test_select_fails_the_candidates_the_input_cannot_determine():
 )
 def test_check_excitation_names_the_order_found_and_needed(u, structure, found, need):
     from flexid.estimation import check_excitation
-    from flexid.polynomial import structure as named
+    from flexid.models.polynomial import structure as named
 
     data = IOData(u, _response(u), input_names="torque")
     with pytest.raises(DataError, match=rf"input 'torque' .*order {found}\b.*needs order {need}\b"):
@@ -162,7 +162,7 @@ def test_check_excitation_names_the_order_found_and_needed(u, structure, found, 
 def test_check_excitation_accepts_what_the_input_does_determine():
     from flexid.errors import FlexidWarning
     from flexid.estimation import check_excitation
-    from flexid.polynomial import structure as named
+    from flexid.models.polynomial import structure as named
 
     cases = [
         (CONSTANT, named("arx", na=2, nb=1)),  # order 1 for one b coefficient
@@ -205,7 +205,7 @@ def test_the_records_of_the_paper_pass_without_warnings():
     from flexid.datasets import generate
     from flexid.errors import FlexidWarning
     from flexid.estimation import check_excitation, model_structure
-    from flexid.polynomial import structure as named
+    from flexid.models.polynomial import structure as named
 
     manipulator = generate("manipulator", preset="paper-manipulator", seed=0)
     twin_rotor = generate("twin-rotor", preset="paper-twin-rotor", seed=0)

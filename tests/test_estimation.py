@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from flexid import compare, identify
-from flexid.arx import ARXStructure
 from flexid.config import (
     PAPER_SEARCH,
     ComparisonSpec,
@@ -22,10 +21,11 @@ from flexid.config import (
     OptimiserSpec,
     SearchSpec,
 )
+from flexid.costs.arx import ARXCost
 from flexid.data import IOData, save
 from flexid.errors import ConfigError, ModelOrderError, UnknownNameError
 from flexid.estimation import build_problem, check_search, model_structure
-from flexid.objective import ARXCost
+from flexid.models.arx import ARXStructure
 from flexid.stability import is_stable, max_pole_radius, pole_radius_batched
 
 A_TRUE = np.array([-1.5, 0.7])  # poles 0.75 +- 0.37j, radius 0.84

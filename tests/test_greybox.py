@@ -14,12 +14,12 @@ import pytest
 from scipy import signal
 
 import flexid
+from flexid.costs.greybox import GreyBoxCost
 from flexid.envs import twin_rotor_physics as trs
 from flexid.errors import ConfigError, DataError, UnknownNameError
-from flexid.greybox import GreyBoxModel, GreyParameter
-from flexid.greybox_cost import GreyBoxCost
 from flexid.greybox_fit import greyest
-from flexid.greybox_models import greybox_model, twin_rotor_coupled, twin_rotor_pitch
+from flexid.models.greybox import GreyBoxModel, GreyParameter
+from flexid.models.greybox_library import greybox_model, twin_rotor_coupled, twin_rotor_pitch
 from numerics import assert_close_to_terms
 from test_twin_rotor import trajectory_bound
 

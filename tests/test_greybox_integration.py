@@ -21,9 +21,9 @@ import pytest
 import flexid
 from flexid.cli import main
 from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec, load_config
+from flexid.costs.greybox import GreyBoxCost
 from flexid.errors import ConfigError, DataError, UnknownNameError
-from flexid.greybox_cost import GreyBoxCost
-from flexid.greybox_models import (
+from flexid.models.greybox_library import (
     available_greybox_models,
     greybox_model,
     register_greybox_model,
@@ -101,7 +101,7 @@ def test_register_and_entry_point(model_file, tmp_path, monkeypatch):
         with pytest.raises(ConfigError, match="built-in"):
             register_greybox_model("twin-rotor-pitch", model)
     finally:
-        from flexid import greybox_models
+        from flexid.models import greybox_library as greybox_models
 
         greybox_models._REGISTERED.pop("test-spring")
     # an installed package's entry point (what `pip install` writes), found by name

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from flexid import identify, search_box
-from flexid.arx import ARXStructure
 from flexid.data import IOData
 from flexid.errors import ConfigError, DataError, ModelOrderError, UnknownNameError
+from flexid.models.arx import ARXStructure
 from flexid.stability import is_stable
 from numerics import EPS
 from route_bounds import recovery_error

@@ -24,9 +24,9 @@ import pytest
 from scipy import signal
 
 from flexid import kernels
-from flexid.arx import ARXStructure
+from flexid.costs.arx import ARXCost
 from flexid.errors import FlexidError
-from flexid.objective import ARXCost
+from flexid.models.arx import ARXStructure
 from flexid.stability import is_stable_reference
 from numerics import EPS, assert_close_to_terms
 from route_bounds import ar_route_bound, lstsq_error, sse_route_bound

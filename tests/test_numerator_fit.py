@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from flexid import identify
-from flexid.arx import ARXStructure
 from flexid.config import CostSpec, SearchSpec
+from flexid.costs.arx import ARXCost
 from flexid.errors import ConfigError, DataError, UnknownNameError
 from flexid.estimation import build_problem, check_search
-from flexid.objective import ARXCost
+from flexid.models.arx import ARXStructure
 from flexid.optimisers import minimize
 from flexid.output_error import output_error
 from flexid.stability import is_stable, pole_radius_batched

@@ -1,4 +1,4 @@
-"""Tests of flexid.objective: batched costs equal plain loops; least squares is the optimum.
+"""Tests of flexid.costs.arx: batched costs equal plain loops; least squares is the optimum.
 
 The batched costs (GEMMs, the compiled or NumPy recursion, the QR form of the one-step SSE)
 and the plain loops are two routes to one number: they are compared within the rounding
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from flexid.arx import ARXStructure
+from flexid.costs.arx import METRICS, ARXCost, simulate_population
 from flexid.data import IOData
 from flexid.errors import DataError, UnknownNameError
-from flexid.objective import METRICS, ARXCost, simulate_population
+from flexid.models.arx import ARXStructure
 from numerics import EPS, assert_close_to_terms, route_tolerance
 from route_bounds import ar_route_bound, lstsq_error, sse_route_bound
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from flexid.arx import ARXStructure
+from flexid.costs.arx import METRICS, ARXCost
 from flexid.errors import ConfigError, DataError
-from flexid.objective import METRICS, ARXCost
+from flexid.models.arx import ARXStructure
 from flexid.output_error import (
     OEResult,
     _mirror,

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from flexid.arx import ARXStructure
 from flexid.errors import ConfigError, DataError, FlexidError, UnknownNameError
+from flexid.models.arx import ARXStructure
 from flexid.parametrisation import (
     PARAMETRISATIONS,
     Parametrisation,

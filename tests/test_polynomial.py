@@ -1,4 +1,4 @@
-"""The polynomial model family (flexid.polynomial), checked against independent routes.
+"""The polynomial model family (flexid.models.polynomial), checked against independent routes.
 
 The independent route is a cascade of ``scipy.signal.lfilter`` calls written from the model
 equation ``A y = B/F u + C/D e``, and data made from a known innovation sequence ``e``: the
@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from flexid.arx import ARXStructure
 from flexid.errors import DataError, ModelOrderError, UnknownNameError
-from flexid.polynomial import (
+from flexid.models.arx import ARXStructure
+from flexid.models.polynomial import (
     STRUCTURES,
     PolynomialModel,
     PolynomialStructure,

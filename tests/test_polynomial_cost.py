@@ -1,12 +1,13 @@
 """The batched prediction-error costs of the polynomial family and their search space.
 
-Independent routes: :func:`flexid.polynomial.run_predictor` (one model, ``scipy.signal.lfilter``
-and ``scipy.linalg.lstsq``) and a cascade of ``lfilter`` calls written from the model
-equation.  The batched cost builds the same filter by batched polynomial products, a GEMM
-against lagged data and the compiled (or NumPy) recursion, so the two agree to rounding:
-filters here have every root within radius 0.9, so the recursion's rounding error grows by at
-most ``1/(1-0.9)^order``-bounded factors, and the bound 1e-9 relative to the SSE is thousands
-of times the measured differences (1e-15 to 1e-13) yet far below any modelling difference.
+Independent routes: :func:`flexid.models.polynomial.run_predictor` (one model,
+``scipy.signal.lfilter`` and ``scipy.linalg.lstsq``) and a cascade of ``lfilter`` calls
+written from the model equation.  The batched cost builds the same filter by batched
+polynomial products, a GEMM against lagged data and the compiled (or NumPy) recursion, so
+the two agree to rounding: filters here have every root within radius 0.9, so the
+recursion's rounding error grows by at most ``1/(1-0.9)^order``-bounded factors, and the
+bound 1e-9 relative to the SSE is thousands of times the measured differences (1e-15 to
+1e-13) yet far below any modelling difference.
 """
 
 from __future__ import annotations
@@ -15,10 +16,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from flexid.costs.polynomial import PolynomialCost, poly_mul_rows
 from flexid.errors import ConfigError, DataError
+from flexid.models.polynomial import PolynomialStructure, run_predictor, structure
 from flexid.optimisers import Budget, available, minimize
-from flexid.polynomial import PolynomialStructure, run_predictor, structure
-from flexid.polynomial_cost import PolynomialCost, poly_mul_rows
 from flexid.polynomial_space import PolynomialSpace
 
 N = 600
@@ -173,7 +174,7 @@ def test_bad_cost_input_gets_a_typed_error():
 def test_least_squares_start_reads_arx_least_squares_as_the_structure():
     u, y = _record(1)
     cost = PolynomialCost(STRUCTS["oe"], (u, y))
-    from flexid.arx import ARXStructure
+    from flexid.models.arx import ARXStructure
 
     arx = ARXStructure(2, 2, 1).least_squares(u, y)
     np.testing.assert_allclose(cost.theta_ls, np.r_[arx.theta[2:], arx.theta[:2]])

@@ -17,12 +17,12 @@ import pytest
 from scipy import signal
 
 from flexid import IOData
-from flexid.arx import ARXStructure
+from flexid.costs.arx import ARXCost
 from flexid.datasets import generate
 from flexid.errors import ConfigError, DataError, ModelOrderError
-from flexid.objective import ARXCost
+from flexid.models.arx import ARXStructure
+from flexid.models.polynomial import PolynomialStructure, run_predictor, structure
 from flexid.output_error import output_error
-from flexid.polynomial import PolynomialStructure, run_predictor, structure
 from flexid.prediction_error import (
     OPTIMALITY_THRESHOLD,
     PEMResult,
@@ -94,7 +94,7 @@ def _fit(name: str, initial: str) -> tuple[PEMResult, np.ndarray, np.ndarray, np
 
 
 def _reference_errors(s, theta, u, y, initial):
-    """``y - yhat`` of flexid.polynomial.run_predictor over t >= start."""
+    """``y - yhat`` of flexid.models.polynomial.run_predictor over t >= start."""
     den, num_y, nums = s.model(theta).predictor_polynomials(1)
     yhat, _ = run_predictor(den, num_y, nums, u, y, s.start, initial)
     return (y - yhat)[s.start :]

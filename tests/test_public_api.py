@@ -45,7 +45,9 @@ PUBLIC_PACKAGES = public_modules(packages_only=True)
 def test_the_walk_finds_the_public_modules():
     for name in ("flexid", "flexid.config", "flexid.envs", "flexid.optimisers", "flexid.signals"):
         assert name in PUBLIC_MODULES
-    assert PUBLIC_PACKAGES == ["flexid", "flexid.envs", "flexid.optimisers"]
+    assert PUBLIC_PACKAGES == [
+        "flexid", "flexid.costs", "flexid.envs", "flexid.models", "flexid.optimisers"
+    ]
     assert not any(part.startswith("_") for m in PUBLIC_MODULES for part in m.split("."))
 
 

@@ -12,9 +12,9 @@ import pytest
 from scipy import signal
 
 import flexid
-from flexid.arx import ARXStructure
 from flexid.errors import ConfigError, ModelOrderError, UnknownNameError
-from flexid.polynomial import structure
+from flexid.models.arx import ARXStructure
+from flexid.models.polynomial import structure
 from flexid.selection import DEFAULT_GRIDS, Selection, arx_grid, select
 from numerics import EPS, route_tolerance
 

@@ -21,7 +21,7 @@ from flexid.cli import main
 from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec, spec_from_mapping
 from flexid.data import IOData
 from flexid.errors import ConfigError, ModelOrderError, UnknownNameError
-from flexid.polynomial import structure
+from flexid.models.polynomial import structure
 
 N = 1800
 B_TRUE = np.array([0.5, 0.3])

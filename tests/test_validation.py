@@ -51,7 +51,7 @@ class LoopARX:
     """Reference ARX written with plain loops: A(q) y(t) = sum_i B_i(q) u_i(t - nk_i).
 
     ``a = [1, a1, .., a_na]``, ``b[i] = [b0, .., b_{nb-1}]`` acting on u_i(t - nk_i - j).
-    Independent of flexid.arx, duck-typed to its API.
+    Independent of flexid.models.arx, duck-typed to its API.
     """
 
     def __init__(self, a, b, nk, dt=1.0):

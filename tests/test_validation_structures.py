@@ -19,11 +19,11 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from flexid.arx import ARXStructure
 from flexid.data import IOData
 from flexid.diagnostics import fit_percent
 from flexid.errors import DataError, UnknownNameError
-from flexid.polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
+from flexid.models.arx import ARXStructure
+from flexid.models.polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
 from flexid.validation import validate
 from numerics import EPS, assert_close_to_terms, route_tolerance
 from route_bounds import ar_route_bound, lstsq_error
@@ -324,7 +324,8 @@ def test_arx_keeps_its_own_routes_for_measured_and_zero():
                                   arx.simulate(u, y_init=y[:s])[s:])
     np.testing.assert_array_equal(reps["zero"].y_simulation, arx.simulate(u)[s:])
     np.testing.assert_array_equal(
-        reps["estimate"].y_simulation, PolynomialModel.from_arx(arx).simulate(u, y, initial="estimate")[s:]
+        reps["estimate"].y_simulation,
+        PolynomialModel.from_arx(arx).simulate(u, y, initial="estimate")[s:],
     )
     for rep in reps.values():
         np.testing.assert_array_equal(rep.y_one_step, arx.predict(u, y)[s:])

@@ -12,14 +12,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ._json import jsonable
-from .arx import ARX
 from .config import SearchSpec
+from .costs.arx import ARXCost
 from .data import IOData
 from .diagnostics import format_fit
 from .estimation import SearchBox
-from .objective import ARXCost
+from .models.arx import ARX
+from .models.polynomial import PolynomialStructure
 from .optimisers import History
-from .polynomial import PolynomialStructure
 from .validation import ValidationReport
 
 __all__ = ["Identification", "data_info", "timings"]
@@ -33,7 +33,7 @@ class Identification:
     Attributes
     ----------
     model : ARX or PolynomialModel
-        The identified model (:class:`~flexid.arx.ARX` for the ARX structure).
+        The identified model (:class:`~flexid.models.arx.ARX` for the ARX structure).
     optimiser : str
         Optimiser name (``"ls"`` for least squares, ``"oe"`` for the output-error
         reference).

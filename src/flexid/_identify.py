@@ -32,9 +32,9 @@ from .config import (
 from .data import IOData, prepare_data
 from .errors import BudgetError, ConfigError
 from .estimation import build_problem, greybox_of, structure_of
-from .greybox import GreyBoxModel
+from .models.greybox import GreyBoxModel
+from .models.polynomial import PolynomialStructure, _check_initial
 from .optimisers import Budget, minimize
-from .polynomial import PolynomialStructure, _check_initial
 from .validation import validate
 
 __all__ = ["Identification", "identify"]
@@ -89,16 +89,16 @@ def identify(
         model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` (``nb`` defaults to ``na``, ``nk`` to 1;
         one ``nb``/``nk`` per input for several inputs).
     structure : {"arx", "armax", "oe", "bj", "greybox"}, PolynomialStructure or GreyBoxModel
-        The model structure (:mod:`flexid.polynomial`): a name, whose orders are given as
+        The model structure (:mod:`flexid.models.polynomial`): a name, whose orders are given as
         ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (only those the structure has, e.g.
         ``structure="oe", nb=16, nf=16``), or a whole structure (then no orders); or a
-        grey-box model (:class:`~flexid.greybox.GreyBoxModel`, or ``"greybox"`` with
+        grey-box model (:class:`~flexid.models.greybox.GreyBoxModel`, or ``"greybox"`` with
         ``greybox``): its estimated parameters are fitted on the simulation cost, by
         ``optimiser`` or the reference :func:`flexid.greybox_fit.greyest` (``"pem"``), and it
         is validated by running it on from the record's start into the held-out part.
     greybox : str or GreyBoxModel, optional
         The grey-box model of ``structure="greybox"``: a name of
-        :func:`flexid.greybox_models.greybox_model` (``"twin-rotor-pitch"``, a registered or
+        :func:`flexid.models.greybox_library.greybox_model` (``"twin-rotor-pitch"``, a registered or
         installed model, or ``"path/to/file.py:NAME"``).
     nc, nd, nf : int, optional
         Orders of ``C``, ``D`` and ``F`` (``nf`` one per input) for ``structure``.

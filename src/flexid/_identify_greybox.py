@@ -22,8 +22,8 @@ from .data import IOData, load
 from .diagnostics import format_fit
 from .errors import ConfigError
 from .estimation import build_problem
-from .greybox import GreyBoxModel
 from .greybox_estimation import START_NAME
+from .models.greybox import GreyBoxModel
 from .optimisers import Budget, minimize
 from .validation import ValidationReport, validate
 
@@ -35,7 +35,7 @@ class GreyBoxIdentification(Identification):
     """The outcome of :func:`flexid.identify` for a grey-box model.
 
     As :class:`~flexid.Identification`, with ``model`` the fitted
-    :class:`~flexid.greybox.GreyBoxModel`, ``cost_ls`` the cost at the parameters' given
+    :class:`~flexid.models.greybox.GreyBoxModel`, ``cost_ls`` the cost at the parameters' given
     values (the start; a grey-box model has no least squares) and, for ``optimiser="pem"``,
     ``output_error`` the :class:`~flexid.greybox_estimation.GreyBoxReference` with standard
     errors and identifiability.

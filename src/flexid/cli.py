@@ -512,7 +512,7 @@ def _greybox_from_args(args: argparse.Namespace, name: str | None) -> Any:
             raise ConfigError("--set, --fix and --free change a grey-box model's parameters: "
                               "give --structure greybox --greybox NAME")
         return None
-    from .greybox_models import greybox_model
+    from .models.greybox_library import greybox_model
 
     model = greybox_model(name)
     return model.with_parameters(**changes) if changes else model
@@ -638,7 +638,7 @@ def _list_presets(args: argparse.Namespace) -> None:
 
 
 def _list_greybox(args: argparse.Namespace) -> None:
-    from .greybox_models import available_greybox_models, greybox_model
+    from .models.greybox_library import available_greybox_models, greybox_model
 
     for name in available_greybox_models():
         try:

@@ -103,9 +103,10 @@ OUTPUT_ERROR = "oe"
 PREDICTION_ERROR = "pem"
 #: The ``optimiser`` names of the references, which take no FE budget.
 REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR)
-#: The named model structures (their orders: :data:`flexid.polynomial.STRUCTURES`).
+#: The named model structures (their orders: :data:`flexid.models.polynomial.STRUCTURES`).
 STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
-#: The structure name of a grey-box model (:mod:`flexid.greybox`), beside the polynomial ones.
+#: The structure name of a grey-box model (:mod:`flexid.models.greybox`), beside the
+#: polynomial ones.
 GREYBOX = "greybox"
 
 
@@ -115,7 +116,7 @@ def auto_initial(structure: str) -> str:
     ``"measured"`` for ARX (the setting of the paper's experiments, kept as it was) and
     ``"estimate"`` for every other structure: their predictors are recursive, and starting a
     lightly damped high-order recursion from measured outputs excites a transient that is not
-    the model's (see :mod:`flexid.polynomial`).
+    the model's (see :mod:`flexid.models.polynomial`).
 
     Parameters
     ----------
@@ -242,14 +243,14 @@ class ModelSpec:
         Input delay in samples, for every input or one per input (default 1).
     structure : {"arx", "armax", "oe", "bj"}
         The structure (default ``"arx"``, the paper's); its orders are those of
-        :data:`flexid.polynomial.STRUCTURES`.
+        :data:`flexid.models.polynomial.STRUCTURES`.
     nc, nd : int or None
         Orders of ``C`` and ``D`` (``armax``, ``bj``).
     nf : int, list of int or None
         Order of ``F``, for every input or one per input (``oe``, ``bj``).
     greybox : str or None
         With ``structure = "greybox"``: the grey-box model's name
-        (:func:`flexid.greybox_models.greybox_model`: a built-in, registered or installed
+        (:func:`flexid.models.greybox_library.greybox_model`: a built-in, registered or installed
         model, or ``"path/to/file.py:NAME"``, relative to the configuration file).
     parameters : dict
         With ``structure = "greybox"``: parameter changes, ``name -> value`` (a new value)
@@ -310,7 +311,7 @@ class ModelSpec:
         """
         if self.structure != GREYBOX:
             raise ConfigError(f"[model] structure {self.structure!r} is not a grey-box model")
-        from .greybox_models import greybox_model
+        from .models.greybox_library import greybox_model
 
         model = greybox_model(self.greybox)
         return model.with_parameters(**self.parameters) if self.parameters else model
@@ -337,7 +338,7 @@ class ModelSpec:
         if self.structure == "arx":
             return {k: d[k] for k in ("na", "nb", "nk")}
         if self.structure == GREYBOX:
-            from .greybox_models import definition_digest
+            from .models.greybox_library import definition_digest
 
             model = self.greybox_model()
             return {
@@ -369,7 +370,7 @@ class ModelSpec:
 
 @dataclass(frozen=True)
 class CostSpec:
-    """The cost the optimisers minimise (see :class:`flexid.objective.ARXCost`).
+    """The cost the optimisers minimise (see :class:`flexid.costs.arx.ARXCost`).
 
     Attributes
     ----------

@@ -20,8 +20,8 @@ import numpy as np
 from scipy import linalg
 
 from ._validate import checked_keywords, is_integer, positive_real
-from .arx import ARXStructure
 from .config import CostSpec, SearchSpec, auto_initial
+from .costs.arx import ARXCost
 from .data import IOData
 from .errors import (
     ConfigError,
@@ -30,12 +30,12 @@ from .errors import (
     ModelOrderError,
     UnknownNameError,
 )
-from .greybox import GreyBoxModel
-from .objective import ARXCost
+from .models.arx import ARXStructure
+from .models.greybox import GreyBoxModel
+from .models.polynomial import STRUCTURES, PolynomialStructure
+from .models.polynomial import structure as _named_structure
 from .optimisers import Problem
 from .parametrisation import PARAMETRISATIONS, Parametrisation, SearchBox, make_parametrisation
-from .polynomial import STRUCTURES, PolynomialStructure
-from .polynomial import structure as _named_structure
 from .stability import is_stable
 
 if TYPE_CHECKING:  # pragma: no cover - the references load on first use
@@ -188,7 +188,7 @@ def structure_of(
     ----------
     structure : str, PolynomialStructure or None
         ``None`` (ARX from ``na``, ``nb``, ``nk``), a name of
-        :data:`flexid.polynomial.STRUCTURES` with its orders, or a structure (no orders).
+        :data:`flexid.models.polynomial.STRUCTURES` with its orders, or a structure (no orders).
     n_inputs : int
         Inputs of the record (a scalar ``nb``, ``nf`` or ``nk`` applies to each).
     **orders : int, sequence of int or None
@@ -197,7 +197,7 @@ def structure_of(
     Returns
     -------
     ARXStructure or PolynomialStructure
-        An :class:`~flexid.arx.ARXStructure` for ARX (the paper's path, unchanged),
+        An :class:`~flexid.models.arx.ARXStructure` for ARX (the paper's path, unchanged),
         otherwise the polynomial structure.
 
     Raises
@@ -252,7 +252,7 @@ def greybox_of(structure: Any, greybox: str | GreyBoxModel | None) -> GreyBoxMod
     structure : str, structure object, GreyBoxModel or None
     greybox : str, GreyBoxModel or None
         The model of ``structure="greybox"`` (a name of
-        :func:`flexid.greybox_models.greybox_model`).
+        :func:`flexid.models.greybox_library.greybox_model`).
 
     Returns
     -------
@@ -277,7 +277,7 @@ def greybox_of(structure: Any, greybox: str | GreyBoxModel | None) -> GreyBoxMod
             )
         if isinstance(greybox, GreyBoxModel):
             return greybox
-        from .greybox_models import greybox_model
+        from .models.greybox_library import greybox_model
 
         return greybox_model(greybox)
     if greybox is not None:
@@ -856,7 +856,7 @@ def check_search(search: SearchSpec) -> None:
         raise UnknownNameError("initial population rule", search.init, INIT_RULES)
     if search.numerator not in NUMERATOR_RULES:
         raise UnknownNameError("numerator rule", search.numerator, NUMERATOR_RULES)
-    from .objective import PENALTY_KINDS
+    from .costs.arx import PENALTY_KINDS
 
     if search.penalty not in PENALTY_KINDS:
         raise UnknownNameError("stability penalty", search.penalty, PENALTY_KINDS)
@@ -872,7 +872,7 @@ class PolynomialEstimationProblem(EstimationProblem):
     """The search problem of a polynomial structure (ARMAX, OE, BJ, general).
 
     As :class:`EstimationProblem`, with ``cost`` a
-    :class:`~flexid.polynomial_cost.PolynomialCost` and ``parametrisation`` a
+    :class:`~flexid.costs.polynomial.PolynomialCost` and ``parametrisation`` a
     :class:`~flexid.polynomial_space.PolynomialSpace`; the reference is the prediction-error
     method (:func:`flexid.prediction_error.pem`), Levenberg-Marquardt from several starts.
 
@@ -982,7 +982,7 @@ def _build_polynomial(
     bounds: Any = "auto",
 ) -> PolynomialEstimationProblem:
     """:func:`build_problem` for a structure other than ARX."""
-    from .polynomial_cost import PolynomialCost
+    from .costs.polynomial import PolynomialCost
     from .polynomial_space import PolynomialSpace
 
     objective = PolynomialCost(structure, est, **asdict(cost), penalty_kind=search.penalty)

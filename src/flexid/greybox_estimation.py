@@ -1,7 +1,7 @@
 """The search problem of a grey-box identification, in the interface the polynomial ones share.
 
 :func:`flexid.estimation.build_problem` returns a :class:`GreyBoxEstimationProblem` for a
-:class:`~flexid.greybox.GreyBoxModel`, so ``identify`` and ``compare`` run a grey-box model
+:class:`~flexid.models.greybox.GreyBoxModel`, so ``identify`` and ``compare`` run a grey-box model
 exactly as they run a polynomial structure: every optimiser searches the same
 :class:`~flexid.optimisers.Problem` (the estimated parameters in their bounds, ``log10`` of
 those that span decades) with the same shared initial population and exact budget, and the
@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from .config import CostSpec, SearchSpec
+from .costs.greybox import GreyBoxCost
 from .errors import ConfigError
-from .greybox import GreyBoxModel
-from .greybox_cost import GreyBoxCost
+from .models.greybox import GreyBoxModel
 from .optimisers import Problem
 from .parametrisation import SearchBox
 
@@ -243,7 +243,7 @@ def build_greybox_problem(
         Recorded only.
     bounds : "auto"
         A grey-box model is searched in its parameters' bounds; change them on the model
-        (:meth:`GreyBoxModel.with_parameters <flexid.greybox.GreyBoxModel.with_parameters>`).
+        (:meth:`GreyBoxModel.with_parameters <flexid.models.greybox.GreyBoxModel.with_parameters>`).
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """Gradient reference for grey-box models: what a MATLAB ``nlgreyest`` user would run.
 
-:func:`greyest` minimises the simulation error of a :class:`~flexid.greybox.GreyBoxModel`
+:func:`greyest` minimises the simulation error of a :class:`~flexid.models.greybox.GreyBoxModel`
 by a trust-region Gauss-Newton/Levenberg-Marquardt method
 (:func:`scipy.optimize.least_squares`, ``method="trf"``, within the parameters' bounds) from
 several starts, and reports what a user needs to trust the result: the parameters with
@@ -10,7 +10,7 @@ the search ended at a local minimum and which parameters sit on a bound.
 Notes
 -----
 **Coordinates.**  Each estimated parameter is searched in ``s`` in ``[0, 1]``, its search
-box (:meth:`GreyBoxModel.search_bounds <flexid.greybox.GreyBoxModel.search_bounds>`:
+box (:meth:`GreyBoxModel.search_bounds <flexid.models.greybox.GreyBoxModel.search_bounds>`:
 ``log10`` of the value for log-scaled parameters) mapped linearly, so the problem is well
 scaled whatever the units.
 
@@ -48,10 +48,10 @@ import numpy as np
 from scipy import optimize
 
 from ._validate import checked_keywords, integer, real
+from .costs.greybox import GreyBoxCost
 from .diagnostics import fit_percent
 from .errors import ConfigError
-from .greybox import GreyBoxModel
-from .greybox_cost import GreyBoxCost
+from .models.greybox import GreyBoxModel
 
 __all__ = ["EXACT", "OPTIMALITY", "UNIDENTIFIABLE", "GreyBoxResult", "GreyBoxRun", "greyest"]
 
@@ -260,7 +260,7 @@ def greyest(
     ----------
     data : IOData or (u, y)
         Estimation record (channels read by name, see
-        :func:`flexid.greybox_cost.record_for`).
+        :func:`flexid.costs.greybox.record_for`).
     model : GreyBoxModel
     starts : int
         Random starts, uniform in the search box, after the first start (the parameters'
@@ -286,7 +286,7 @@ def greyest(
     ConfigError
         A model with nothing to estimate, a bad ``starts``, ``x0`` or ``max_nfev``.
     DataError
-        A record without the model's channels (see :func:`flexid.greybox_cost.record_for`).
+        A record without the model's channels (see :func:`flexid.costs.greybox.record_for`).
     """
     cost = GreyBoxCost(model, data, metric="rmse", dt=dt)
     n = cost.n_params

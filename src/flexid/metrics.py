@@ -1,7 +1,7 @@
 """The cost metrics: one table of name, formula and description, and the one conversion.
 
-Every cost of flexid (:class:`~flexid.objective.ARXCost`,
-:class:`~flexid.polynomial_cost.PolynomialCost`, :class:`~flexid.greybox_cost.GreyBoxCost`)
+Every cost of flexid (:class:`~flexid.costs.arx.ARXCost`,
+:class:`~flexid.costs.polynomial.PolynomialCost`, :class:`~flexid.costs.greybox.GreyBoxCost`)
 turns the sums of squared errors of a population into its metric by :func:`metric_from_sse`,
 and the names it accepts, the command line's help and the documentation's table of metrics
 are read from :data:`METRIC_TABLE`.

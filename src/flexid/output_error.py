@@ -4,7 +4,7 @@ On the simulation (output-error) cost least squares is not the optimum: it minim
 equation error, which weights high frequencies and is biased under output noise.  MATLAB's
 ``oe``/``pem`` refine an initial estimate by Gauss-Newton/Levenberg-Marquardt on the
 simulation residuals ``e(t) = y(t) - y_sim(t)``; :func:`output_error` does the same on an
-:class:`~flexid.objective.ARXCost` with ``predictor="simulation"``, from several stable
+:class:`~flexid.costs.arx.ARXCost` with ``predictor="simulation"``, from several stable
 starts, and returns the best stable result.  It is the fair reference an optimiser's result
 on the simulation cost is compared with.
 
@@ -58,9 +58,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ._validate import integer, positive_int, real
+from .costs.arx import ARXCost
 from .errors import ConfigError, DataError
 from .kernels import ar_recursion
-from .objective import ARXCost
 from .stability import is_stable, pole_radius_batched
 
 __all__ = ["OEResult", "OERun", "output_error", "simulation_jacobian", "simulation_residuals"]

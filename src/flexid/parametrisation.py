@@ -2,7 +2,7 @@
 
 A metaheuristic searches a box; a :class:`Parametrisation` maps points of that box (the
 *search vector* ``z``) to ARX parameters ``theta = [a_1 .. a_na, b ...]`` in the order of
-:class:`flexid.arx.ARXStructure`.  Three maps are provided:
+:class:`flexid.models.arx.ARXStructure`.  Three maps are provided:
 
 ``"coefficients"``
     The identity over a box of ``a`` and ``b`` coefficients.  Most of a coefficient box is
@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 
 from ._validate import integer, real
-from .arx import ARXStructure
 from .errors import ConfigError, DataError, UnknownNameError
+from .models.arx import ARXStructure
 from .stability import is_stable, poles_batched, reflection_coefficients
 
 __all__ = [
@@ -121,7 +121,7 @@ class SearchBox:
     Attributes
     ----------
     lower, upper : ndarray, shape (n_params,)
-        Bounds in the parameter order of :class:`~flexid.arx.ARXStructure`
+        Bounds in the parameter order of :class:`~flexid.models.arx.ARXStructure`
         (``a1..a_na``, then the ``b`` coefficients of each input).
     rule : str
         How the bounds were chosen (recorded with every result).

@@ -711,110 +711,126 @@ def selection_figure(
     floor = low - pad
     kinds = list(dict.fromkeys(c.kind for c in drawn))
 
-    def draw(ax, value):
-        for kind in kinds:
-            color, marker = _STRUCTURE_STYLE.get(kind, _STRUCTURE_STYLE["polynomial"])
-            group = sorted((c for c in drawn if c.kind == kind), key=lambda c: c.n_params)
-            d = np.array([c.n_params for c in group], float)
-            v = np.array([value(c) for c in group], float)
-            if value is _fit:  # clipped fits (and diverging runs) on the lower edge
-                v = np.where(v >= low, v, floor)
-            # the line joins the best value at each d (ARMAX and BJ have several per d)
-            ds = np.unique(d)
-            best = [np.nanmax(v[d == x]) if value is _fit else np.nanmin(v[d == x]) for x in ds]
-            name = "grey-box" if kind == "greybox" else kind.upper()
-            ax.plot(ds, best, "-", color=color, lw=1.2, alpha=0.7, label=name)
-            for c, x, y in zip(group, d, v):
-                clipped = value is _fit and not (c.fit_simulation >= low)
-                ax.plot(
-                    x,
-                    y,
-                    "v" if clipped else marker,
-                    ms=7,
-                    mec=color,
-                    mew=1.5,
-                    mfc=color if c.passed else "white",
-                    zorder=3,
-                )
-                if not c.stable:
-                    ax.plot(x, y, "x", ms=9, mew=1.5, color="k", zorder=4)
-
-    draw(ax_fit, _fit)
+    _draw_candidates(ax_fit, drawn, kinds, _fit, low, floor)
     ax_fit.set_ylim(floor - pad * 0.5, min(high + pad, 100.0 + pad))
     ax_fit.set_xlabel("number of parameters d")
     ax_fit.set_ylabel("held-out simulation fit [%]")
     ax_fit.set_title("Held-out simulation fit (filled: passes every correlation test)")
     ax_fit.grid(True, alpha=0.3)
-    # legend entries for the marker meanings, after the structures
-    ax_fit.plot([], [], "o", mec="0.3", mfc="0.3", label="passes tests")
-    ax_fit.plot([], [], "o", mec="0.3", mfc="white", label="fails tests")
-    if any(not c.stable for c in drawn):
-        ax_fit.plot([], [], "x", color="k", mew=1.5, label="unstable")
-    if any(not (c.fit_simulation >= low) for c in drawn):
-        ax_fit.plot([], [], "v", mec="0.3", mfc="white", label=f"fit < {low:.0f} %")
-    ax_fit.legend(loc="lower right", fontsize=8, ncol=2)
+    _marker_legend(ax_fit, drawn, low)
 
     best = selection.best
     d_all = [c.n_params for c in drawn] or [0]
     x_mid = 0.5 * (min(d_all) + max(d_all))
-    # labels point at their marker from the side with more room
-    side = 1 if best is not None and best.n_params > x_mid else -1
     title = (
         f"Structure selection: {len(selection.candidates)} candidates, "
         f"{sum(c.passed for c in selection.candidates)} pass every correlation test"
     )
     if best is not None and best.ok:
-        y = best.fit_simulation if best.fit_simulation >= low else floor
-        passing = best.passed and best.stable
-        word = "recommended" if passing else "fallback (fails the tests)"
-        ax_fit.plot(best.n_params, y, "o", ms=17, mfc="none", mec="k", mew=2, zorder=5)
-        ax_fit.annotate(
-            word,
-            xy=(best.n_params, y),
-            xytext=(-14 * side, -34),
-            textcoords="offset points",
-            ha="right" if side > 0 else "left",
-            fontsize=9,
-            fontweight="bold",
-            bbox={"boxstyle": "round", "fc": "lightyellow", "ec": "0.5"},
-            arrowprops={"arrowstyle": "->", "color": "k", "lw": 1.2},
-            zorder=6,
-        )
-        title += (
-            f"\n{word}: {best.label}, held-out simulation fit "
-            f"{best.fit_simulation:.2f} %, d = {best.n_params}"
-        )
+        title += _mark_recommendation(ax_fit, best, low, floor, x_mid)
     if criterion:
-        ax_ic = axes[0, 1]
-        draw(ax_ic, _aic)
-        if best is not None and best.ok:
-            ax_ic.plot(best.n_params, _aic(best), "o", ms=17, mfc="none", mec="k", mew=2)
-        scored = [c for c in drawn if np.isfinite(_aic(c))]
-        if scored:
-            low_aic = min(scored, key=_aic)
-            if low_aic is not best:
-                left = 1 if low_aic.n_params > x_mid else -1
-                ax_ic.annotate(
-                    f"AIC minimum:\n{low_aic.label}",
-                    xy=(low_aic.n_params, _aic(low_aic)),
-                    xytext=(-14 * left, 30),
-                    textcoords="offset points",
-                    ha="right" if left > 0 else "left",
-                    fontsize=8,
-                    bbox={"boxstyle": "round", "fc": "white", "ec": "0.5"},
-                    arrowprops={"arrowstyle": "->", "color": "0.3"},
-                )
-        ax_ic.set_xlabel("number of parameters d")
-        ax_ic.set_ylabel("normalized AIC, log V + 2d/K")
-        ax_ic.set_title("Information criterion (estimation data)")
-        ax_ic.grid(True, alpha=0.3)
-        ax_ic.xaxis.set_major_locator(MaxNLocator(integer=True))
+        _criterion_panel(axes[0, 1], drawn, kinds, best, x_mid)
     ax_fit.xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.suptitle(title)
     fig.tight_layout()
     if path is not None:
         return _save(fig, Path(path))
     return fig
+
+
+def _draw_candidates(ax, drawn, kinds, value, low: float, floor: float) -> None:
+    """One line (the best value at each ``d``) and one marker per candidate, per structure."""
+    for kind in kinds:
+        color, marker = _STRUCTURE_STYLE.get(kind, _STRUCTURE_STYLE["polynomial"])
+        group = sorted((c for c in drawn if c.kind == kind), key=lambda c: c.n_params)
+        d = np.array([c.n_params for c in group], float)
+        v = np.array([value(c) for c in group], float)
+        if value is _fit:  # clipped fits (and diverging runs) on the lower edge
+            v = np.where(v >= low, v, floor)
+        # the line joins the best value at each d (ARMAX and BJ have several per d)
+        ds = np.unique(d)
+        best = [np.nanmax(v[d == x]) if value is _fit else np.nanmin(v[d == x]) for x in ds]
+        name = "grey-box" if kind == "greybox" else kind.upper()
+        ax.plot(ds, best, "-", color=color, lw=1.2, alpha=0.7, label=name)
+        for c, x, y in zip(group, d, v):
+            clipped = value is _fit and not (c.fit_simulation >= low)
+            ax.plot(
+                x,
+                y,
+                "v" if clipped else marker,
+                ms=7,
+                mec=color,
+                mew=1.5,
+                mfc=color if c.passed else "white",
+                zorder=3,
+            )
+            if not c.stable:
+                ax.plot(x, y, "x", ms=9, mew=1.5, color="k", zorder=4)
+
+
+def _marker_legend(ax, drawn, low: float) -> None:
+    """The legend: the structures, then what the marker styles mean."""
+    ax.plot([], [], "o", mec="0.3", mfc="0.3", label="passes tests")
+    ax.plot([], [], "o", mec="0.3", mfc="white", label="fails tests")
+    if any(not c.stable for c in drawn):
+        ax.plot([], [], "x", color="k", mew=1.5, label="unstable")
+    if any(not (c.fit_simulation >= low) for c in drawn):
+        ax.plot([], [], "v", mec="0.3", mfc="white", label=f"fit < {low:.0f} %")
+    ax.legend(loc="lower right", fontsize=8, ncol=2)
+
+
+def _mark_recommendation(ax, best, low: float, floor: float, x_mid: float) -> str:
+    """Ring and label the recommended candidate; the title's line about it."""
+    # the label points at its marker from the side with more room
+    side = 1 if best.n_params > x_mid else -1
+    y = best.fit_simulation if best.fit_simulation >= low else floor
+    word = "recommended" if best.passed and best.stable else "fallback (fails the tests)"
+    ax.plot(best.n_params, y, "o", ms=17, mfc="none", mec="k", mew=2, zorder=5)
+    ax.annotate(
+        word,
+        xy=(best.n_params, y),
+        xytext=(-14 * side, -34),
+        textcoords="offset points",
+        ha="right" if side > 0 else "left",
+        fontsize=9,
+        fontweight="bold",
+        bbox={"boxstyle": "round", "fc": "lightyellow", "ec": "0.5"},
+        arrowprops={"arrowstyle": "->", "color": "k", "lw": 1.2},
+        zorder=6,
+    )
+    return (
+        f"\n{word}: {best.label}, held-out simulation fit "
+        f"{best.fit_simulation:.2f} %, d = {best.n_params}"
+    )
+
+
+def _criterion_panel(ax, drawn, kinds, best, x_mid: float) -> None:
+    """The AIC panel: the same styles, the recommendation ringed, the AIC's own minimum."""
+    from matplotlib.ticker import MaxNLocator
+
+    _draw_candidates(ax, drawn, kinds, _aic, -np.inf, -np.inf)
+    if best is not None and best.ok:
+        ax.plot(best.n_params, _aic(best), "o", ms=17, mfc="none", mec="k", mew=2)
+    scored = [c for c in drawn if np.isfinite(_aic(c))]
+    if scored:
+        low_aic = min(scored, key=_aic)
+        if low_aic is not best:
+            left = 1 if low_aic.n_params > x_mid else -1
+            ax.annotate(
+                f"AIC minimum:\n{low_aic.label}",
+                xy=(low_aic.n_params, _aic(low_aic)),
+                xytext=(-14 * left, 30),
+                textcoords="offset points",
+                ha="right" if left > 0 else "left",
+                fontsize=8,
+                bbox={"boxstyle": "round", "fc": "white", "ec": "0.5"},
+                arrowprops={"arrowstyle": "->", "color": "0.3"},
+            )
+    ax.set_xlabel("number of parameters d")
+    ax.set_ylabel("normalized AIC, log V + 2d/K")
+    ax.set_title("Information criterion (estimation data)")
+    ax.grid(True, alpha=0.3)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
 
 
 def _fit(c) -> float:

@@ -7,7 +7,7 @@ lattice coefficients; ``"coefficients"``: the coefficients themselves), so every
 ``"poles"`` and ``"reflection"`` boxes is a valid model: ``A``, ``F_j`` and ``D`` stable and
 ``C`` minimum phase (its roots in the same space, so ``1/C`` is a stable filter).  ``B``
 enters the predictor linearly: with ``numerator="fit"`` it is not searched but fitted by
-:meth:`flexid.polynomial_cost.PolynomialCost.fit_numerator` (variable projection); with
+:meth:`flexid.costs.polynomial.PolynomialCost.fit_numerator` (variable projection); with
 ``"search"`` it is searched in a box.
 """
 
@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from .arx import ARXStructure
 from .errors import ConfigError
+from .models.arx import ARXStructure
+from .models.polynomial import PolynomialStructure
 from .parametrisation import Parametrisation, make_parametrisation
-from .polynomial import PolynomialStructure
 
 __all__ = ["PolynomialSpace"]
 

@@ -1,6 +1,6 @@
 """The prediction-error reference of polynomial models (MATLAB ``pem``, ``oe``, ``armax``, ``bj``).
 
-For a :class:`~flexid.polynomial.PolynomialStructure`
+For a :class:`~flexid.models.polynomial.PolynomialStructure`
 ``A y = sum_j B_j/F_j u_j(t - nk_j) + C/D e``, :func:`pem` minimises the sum of squared
 one-step prediction errors
 
@@ -14,8 +14,8 @@ orders.
 
 Notes
 -----
-* **Initial conditions** (the meaning of :func:`flexid.polynomial.run_predictor`, which is the
-  reference for one ``theta``):
+* **Initial conditions** (the meaning of :func:`flexid.models.polynomial.run_predictor`,
+  which is the reference for one ``theta``):
 
   ``"zero"``
       every filter from rest at ``t = 0``: ``e`` is the cascade ``D/C (A y - sum_j w_j)``,
@@ -102,8 +102,11 @@ from scipy import linalg, signal
 from scipy.optimize import least_squares
 
 from ._validate import checked_keywords, integer, real
-from .arx import _io_arrays
+from .costs.polynomial import orthogonal_numerators
 from .errors import ConfigError, DataError
+from .models.arx import _io_arrays
+from .models.polynomial import PolynomialModel, PolynomialStructure, _check_initial, _poly_mul
+from .models.polynomial import structure as _named_structure
 from .output_error import (
     _REJECT_FACTOR,
     _SM_ITERATIONS,
@@ -113,9 +116,6 @@ from .output_error import (
     _perturbed_a,
     _random_a,
 )
-from .polynomial import PolynomialModel, PolynomialStructure, _check_initial, _poly_mul
-from .polynomial import structure as _named_structure
-from .polynomial_cost import orthogonal_numerators
 from .stability import pole_radius_batched
 
 __all__ = [
@@ -869,13 +869,13 @@ def _lifted_caps(r_max: float) -> list[float]:
 
 # =================================================================================== checks
 def _check_structure(structure: Any) -> PolynomialStructure:
-    from .arx import ARXStructure
+    from .models.arx import ARXStructure
 
     if isinstance(structure, ARXStructure):
         return PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
     if not isinstance(structure, PolynomialStructure):
         raise ConfigError(
-            "structure must be a PolynomialStructure (flexid.polynomial.structure(...)) or an "
+            "structure must be a PolynomialStructure (flexid.structure(...)) or an "
             f"ARXStructure, got {type(structure).__name__}"
         )
     return structure
@@ -931,7 +931,7 @@ def prediction_errors(
     """One-step prediction errors ``e = D/C (A y - sum_j B_j/F_j u_j(t - nk_j))``.
 
     The reference route (``scipy.signal.lfilter``), under an initial-condition rule (see the
-    module docstring); equal to ``y - yhat`` of :func:`flexid.polynomial.run_predictor` with
+    module docstring); equal to ``y - yhat`` of :func:`flexid.models.polynomial.run_predictor` with
     ``model.predictor_polynomials(1)`` over ``t >= structure.start``.
 
     Parameters
@@ -1028,8 +1028,8 @@ def pem(
         Single-output record: ``u`` shape (N,) or (N, n_u), ``y`` shape (N,); an IOData's
         ``dt`` (s) goes to the model (1.0 for a tuple).
     structure : PolynomialStructure
-        From :func:`flexid.polynomial.structure` (an :class:`~flexid.arx.ARXStructure` is
-        accepted too).
+        From :func:`flexid.models.polynomial.structure` (an
+        :class:`~flexid.models.arx.ARXStructure` is accepted too).
     initial : {"estimate", "zero", "measured"}, optional
         Initial-condition rule of the prediction errors (default ``"estimate"``, MATLAB's).
     starts : int, optional
@@ -1078,26 +1078,7 @@ def pem(
     rng = np.random.default_rng(seed)
     prob = _Problem(s, u, y, initial)
 
-    start_list = [(k, _with_noise_model(prob, th, r_max)) for k, th in _plant_starts(prob)]
-    if any(s.nf) and (s.nc or s.nd) and not s.na:
-        # the output-error model itself (C = D = 1), which the noise model then refines
-        oe_plant = _output_error_plant(prob, s, u, y, initial, tol)
-        start_list.append(("output-error", _make_admissible(prob, oe_plant, r_max)))
-    if not start_list:  # every linear fit broke down (rank-deficient data): start from B only
-        start_list = [("least-squares", _make_admissible(prob, np.zeros(prob.n), r_max))]
-    if s.kind != "arx" and prob.rooted:
-        base = start_list[0][1]
-        for i in range(starts):
-            perturbed = i % 2 == 0
-            start_list.append(
-                (
-                    "perturbed" if perturbed else "random",
-                    _extra_start(prob, base, rng, perturbed, r_max),
-                )
-            )
-    if x0 is not None:
-        start_list.append(("x0", _make_admissible(prob, x0, r_max)))
-
+    start_list = _starts(prob, u, y, initial, tol, starts, rng, r_max, x0)
     runs: list[PEMRun] = []
     for kind, th in start_list:
         floor = min((r.sse for r in runs), default=np.inf)
@@ -1110,43 +1091,14 @@ def pem(
                 runs.append(_run_lm(prob, run.theta, kind, None, tol, r_max, _CHUNKS - 1))
     best = int(np.argmin([r.sse for r in runs]))
     message = f"best of {len(start_list)} start(s): {runs[best].kind} ({runs[best].message})"
-    cap = r_max
-    for lifted in _lifted_caps(r_max):
-        if prob.max_radius(runs[best].theta) < cap - _CAP_TOLERANCE:
-            break
-        run = _run_lm(prob, runs[best].theta, f"cap r_max={lifted:g}", max_nfev, tol, lifted)
-        runs.append(run)
-        message += f"; on the cap {cap:g}, continued with the cap {lifted:g}"
-        cap = lifted
-        if run.sse < runs[best].sse:
-            best = len(runs) - 1
-            message += f" (SSE {run.sse0:.6g} -> {run.sse:.6g})"
-
+    best, cap, note = _off_the_cap(prob, runs, best, r_max, max_nfev, tol)
+    e, jac = prob.errors(runs[best].theta, True)
+    best, note_polish, e, jac = _polish(prob, runs, best, cap, max_nfev, tol, e, jac)
+    message += note + note_polish
     theta = runs[best].theta.copy()
-    e, jac = prob.errors(theta, True)
-    if (
-        _optimality(e, jac) >= OPTIMALITY_THRESHOLD
-        and prob.max_radius(theta) < cap - _CAP_TOLERANCE
-    ):
-        # Gauss-Newton converges only linearly on a large-residual (misspecified) fit, and
-        # MINPACK's ftol test can stop it while the gradient is still well above the
-        # threshold: continue once with tighter tolerances
-        polish_tol = max(tol * _POLISH_FACTOR, _POLISH_FLOOR)
-        run = _run_lm(prob, theta, "polish", max_nfev, polish_tol, cap)
-        runs.append(run)
-        if run.sse <= runs[best].sse:
-            best = len(runs) - 1
-            theta = run.theta.copy()
-            e, jac = prob.errors(theta, True)
-            message += f"; polished with tol {polish_tol:g}"
     sse = float(e @ e)
-    k, d = prob.K, prob.n
-    sigma2 = sse / (k - d)
-    _, sv, vt = linalg.svd(jac, full_matrices=False)
-    inv_sq = np.zeros_like(sv)
-    ok = sv > sv[0] * 1e-14 if sv.size else sv.astype(bool)
-    inv_sq[ok] = 1.0 / sv[ok] ** 2
-    param_std = np.sqrt(sigma2 * np.sum(vt.T**2 * inv_sq, axis=1))
+    k = prob.K
+    sigma2, param_std = _noise_and_std(e, jac, k, prob.n)
     optimality = _optimality(e, jac)
     max_radius = prob.max_radius(theta)
     on_cap = bool(prob.rooted) and max_radius >= cap - _CAP_TOLERANCE
@@ -1171,6 +1123,97 @@ def pem(
         stable=model.is_stable,
         predictor_stable=model.predictor_stable,
     )
+
+
+def _starts(
+    prob: _Problem, u: np.ndarray, y: np.ndarray, initial: str, tol: float, starts: int,
+    rng: np.random.Generator, r_max: float, x0: np.ndarray | None,
+) -> list[tuple[str, np.ndarray]]:
+    """``(kind, theta)`` of every start of :func:`pem`, each admissible (module notes)."""
+    s = prob.s
+    start_list = [(k, _with_noise_model(prob, th, r_max)) for k, th in _plant_starts(prob)]
+    if any(s.nf) and (s.nc or s.nd) and not s.na:
+        # the output-error model itself (C = D = 1), which the noise model then refines
+        oe_plant = _output_error_plant(prob, s, u, y, initial, tol)
+        start_list.append(("output-error", _make_admissible(prob, oe_plant, r_max)))
+    if not start_list:  # every linear fit broke down (rank-deficient data): start from B only
+        start_list = [("least-squares", _make_admissible(prob, np.zeros(prob.n), r_max))]
+    if s.kind != "arx" and prob.rooted:
+        base = start_list[0][1]
+        for i in range(starts):
+            perturbed = i % 2 == 0
+            start_list.append(
+                (
+                    "perturbed" if perturbed else "random",
+                    _extra_start(prob, base, rng, perturbed, r_max),
+                )
+            )
+    if x0 is not None:
+        start_list.append(("x0", _make_admissible(prob, x0, r_max)))
+    return start_list
+
+
+def _off_the_cap(
+    prob: _Problem, runs: list[PEMRun], best: int, r_max: float, max_nfev: int | None,
+    tol: float,
+) -> tuple[int, float, str]:
+    """Continue the best run with lifted pole-radius caps while it ends on the cap.
+
+    Returns the best run's index, the cap it ended under, and the note for the message; the
+    new runs are appended to ``runs``.
+    """
+    message = ""
+    cap = r_max
+    for lifted in _lifted_caps(r_max):
+        if prob.max_radius(runs[best].theta) < cap - _CAP_TOLERANCE:
+            break
+        run = _run_lm(prob, runs[best].theta, f"cap r_max={lifted:g}", max_nfev, tol, lifted)
+        runs.append(run)
+        message += f"; on the cap {cap:g}, continued with the cap {lifted:g}"
+        cap = lifted
+        if run.sse < runs[best].sse:
+            best = len(runs) - 1
+            message += f" (SSE {run.sse0:.6g} -> {run.sse:.6g})"
+    return best, cap, message
+
+
+def _polish(
+    prob: _Problem, runs: list[PEMRun], best: int, cap: float, max_nfev: int | None,
+    tol: float, e: np.ndarray, jac: np.ndarray,
+) -> tuple[int, str, np.ndarray, np.ndarray]:
+    """One more run with tighter tolerances when the best one stopped short of first-order
+    optimality inside the cap.
+
+    ``e`` and ``jac`` are the best run's errors and Jacobian; returned are the best run's
+    index, the note for the message, and its errors and Jacobian.
+    """
+    if (
+        _optimality(e, jac) < OPTIMALITY_THRESHOLD
+        or prob.max_radius(runs[best].theta) >= cap - _CAP_TOLERANCE
+    ):
+        return best, "", e, jac
+    # Gauss-Newton converges only linearly on a large-residual (misspecified) fit, and
+    # MINPACK's ftol test can stop it while the gradient is still well above the threshold
+    polish_tol = max(tol * _POLISH_FACTOR, _POLISH_FLOOR)
+    run = _run_lm(prob, runs[best].theta.copy(), "polish", max_nfev, polish_tol, cap)
+    runs.append(run)
+    if run.sse <= runs[best].sse:
+        e, jac = prob.errors(run.theta.copy(), True)
+        return len(runs) - 1, f"; polished with tol {polish_tol:g}", e, jac
+    return best, "", e, jac
+
+
+def _noise_and_std(
+    e: np.ndarray, jac: np.ndarray, k: int, d: int
+) -> tuple[float, np.ndarray]:
+    """The noise variance ``SSE / (K - d)`` and the parameters' standard errors from the
+    Jacobian's SVD (directions with singular values below 1e-14 of the largest get none)."""
+    sigma2 = float(e @ e) / (k - d)
+    _, sv, vt = linalg.svd(jac, full_matrices=False)
+    inv_sq = np.zeros_like(sv)
+    ok = sv > sv[0] * 1e-14 if sv.size else sv.astype(bool)
+    inv_sq[ok] = 1.0 / sv[ok] ** 2
+    return sigma2, np.sqrt(sigma2 * np.sum(vt.T**2 * inv_sq, axis=1))
 
 
 def _pem_options() -> set[str]:

@@ -1,18 +1,19 @@
 """Order and structure selection (MATLAB ``arxstruc``/``selstruc``, ``aic``, ``fpe``).
 
 :func:`select` fits every candidate of a grid of polynomial structures (ARX, ARMAX, OE, BJ;
-:mod:`flexid.polynomial`) on the estimation part of a record, validates each on the held-out
-part (:func:`flexid.validation.validate`), scores each by the information criteria, and
+:mod:`flexid.models.polynomial`) on the estimation part of a record, validates each on the
+held-out part (:func:`flexid.validation.validate`), scores each by the information criteria, and
 recommends one.  The result is a :class:`Selection`.
 
 Notes
 -----
 **Fitting.**  ARX candidates are fitted by least squares; the regressor matrix of the largest
 orders in the grid is built once and every candidate is a QR solve of its own columns over
-its own rows ``t >= start``, which is exactly what :meth:`flexid.arx.ARXStructure.least_squares`
-computes for that order alone (the ``arxstruc`` trick of sharing one regressor matrix; unlike
-``arxstruc``, each order keeps all the samples it can use).  The other structures are fitted
-by :func:`flexid.prediction_error.pem` (Levenberg-Marquardt from ``2 + starts`` starts).
+its own rows ``t >= start``, which is exactly what
+:meth:`flexid.models.arx.ARXStructure.least_squares` computes for that order alone (the
+``arxstruc`` trick of sharing one regressor matrix; unlike ``arxstruc``, each order keeps all
+the samples it can use).  The other structures are fitted by
+:func:`flexid.prediction_error.pem` (Levenberg-Marquardt from ``2 + starts`` starts).
 
 **Criteria** (Ljung, *System Identification*, 2nd ed., sec. 16.4), with ``V = SSE / K`` the
 mean squared one-step prediction error on the estimation part, ``K = N - start`` the number of
@@ -87,7 +88,7 @@ from .errors import (
     ModelOrderError,
     UnknownNameError,
 )
-from .polynomial import (
+from .models.polynomial import (
     STRUCTURES,
     PolynomialModel,
     PolynomialStructure,
@@ -515,7 +516,7 @@ class Selection:
             ``criterion``, ``note``, ``initial``, ``max_lag``, ``n_estimation``,
             ``n_validation``, ``dt`` (s), ``parsimony``, ``wall_time`` (s), ``best`` (the
             index of the recommendation in ``candidates``, or None), ``best_model``
-            (:meth:`PolynomialModel.to_dict <flexid.polynomial.PolynomialModel.to_dict>` or
+            (:meth:`PolynomialModel.to_dict <flexid.models.polynomial.PolynomialModel.to_dict>` or
             None), ``ranking`` (candidate indices sorted by the criterion) and
             ``candidates`` (:meth:`Candidate.to_dict` each, grid order).  Non-finite numbers
             are None.
@@ -667,8 +668,8 @@ def _candidate_structures(
     structures = list(structures)
     if not structures:
         raise ConfigError(f"structures is empty; give names from {tuple(STRUCTURES)}")
-    from .arx import ARXStructure
-    from .greybox import GreyBoxModel
+    from .models.arx import ARXStructure
+    from .models.greybox import GreyBoxModel
 
     names: list[str] = []
     fixed: list[PolynomialStructure] = []
@@ -681,7 +682,7 @@ def _candidate_structures(
         elif isinstance(s, GreyBoxModel):
             greybox.append(s)
         elif isinstance(s, str) and s.lower().startswith(GREYBOX_PREFIX):
-            from .greybox_models import greybox_model
+            from .models.greybox_library import greybox_model
 
             greybox.append(greybox_model(s[len(GREYBOX_PREFIX):]))
         else:
@@ -728,7 +729,7 @@ def arx_grid(
     The regressor matrix of the largest orders (``-y(t-1) .. -y(t-na_max)`` and each input's
     lags ``0 .. max(nk + nb - 1)``, zero before ``t = 0``) is built once; each order is the
     QR solve of its own columns over its own rows ``t >= start``, the same numbers as
-    :meth:`flexid.arx.ARXStructure.least_squares` for that order alone.
+    :meth:`flexid.models.arx.ARXStructure.least_squares` for that order alone.
 
     Parameters
     ----------
@@ -745,8 +746,8 @@ def arx_grid(
     Returns
     -------
     list
-        Per structure, a :class:`~flexid.polynomial.PolynomialModel` with ``param_std`` and
-        ``noise_variance = SSE / (K - d)`` as :meth:`~flexid.arx.ARXStructure.least_squares`
+        Per structure, a :class:`~flexid.models.polynomial.PolynomialModel` with ``param_std`` and
+        ``noise_variance = SSE / (K - d)`` as :meth:`~flexid.models.arx.ARXStructure.least_squares`
         gives them, or the :class:`~flexid.errors.DataError` raised for a rank-deficient
         regression (an input that does not excite that order).
 
@@ -766,7 +767,7 @@ def _arx_fits(
 ) -> list[tuple[PolynomialModel | FlexidError, float, float]]:
     """:func:`arx_grid` with each fit's SSE and seconds (its solve plus a share of the
     regressor matrix)."""
-    from .arx import _io_arrays
+    from .models.arx import _io_arrays
 
     t_build = time.perf_counter()
     u, y = _io_arrays(u, y)
@@ -894,11 +895,11 @@ def select(
         Single-output record (``u`` shape (N,) or (N, n_u), ``y`` shape (N,)); a path is read
         with :func:`flexid.data.load`.
     structures : str, PolynomialStructure, GreyBoxModel or sequence of them, optional
-        Structure names from :data:`flexid.polynomial.STRUCTURES` (``"arx"``, ``"armax"``,
+        Structure names from :data:`flexid.models.polynomial.STRUCTURES` (``"arx"``, ``"armax"``,
         ``"oe"``, ``"bj"``; each gets its grid from ``orders``), and/or
-        :class:`~flexid.polynomial.PolynomialStructure` objects (each one candidate as it
-        is), and/or grey-box models (:class:`~flexid.greybox.GreyBoxModel` objects or
-        ``"greybox:NAME"`` with a name of :func:`flexid.greybox_models.greybox_model`): each
+        :class:`~flexid.models.polynomial.PolynomialStructure` objects (each one candidate as it
+        is), and/or grey-box models (:class:`~flexid.models.greybox.GreyBoxModel` objects or
+        ``"greybox:NAME"`` with a name of :func:`flexid.models.greybox_library.greybox_model`): each
         one candidate, fitted by :func:`flexid.greybox_fit.greyest` (``starts`` random
         starts), its loss the simulation error (its only predictor) and its ``d`` the
         estimated parameters, validated by running on from the record's start.  Default
@@ -919,7 +920,7 @@ def select(
     validation : IOData, (u, y) tuple or path, optional
         A separate validation record; then all of ``data`` is for estimation.
     initial : {"estimate", "zero", "measured"}, optional
-        Initial-condition rule (:data:`flexid.polynomial.INITIAL_RULES`) of the prediction
+        Initial-condition rule (:data:`flexid.models.polynomial.INITIAL_RULES`) of the prediction
         errors minimised by PEM and of the validation's predictors (default ``"estimate"``,
         MATLAB's).
     criterion : {"simulation", "aic", "fpe", "mdl", "bic"}, optional
@@ -1100,36 +1101,50 @@ def _recommend(
         c for c in ok if c.passed and c.stable and math.isfinite(c.fit_simulation)
     ]
     if eligible:
-        top = max(eligible, key=lambda c: c.fit_simulation)
-        limit = (1.0 + parsimony) * (100.0 - top.fit_simulation)
-        close = [c for c in eligible if 100.0 - c.fit_simulation <= limit]
-        best = min(close, key=lambda c: (c.n_params, -c.fit_simulation))
-        note = (
-            f"Recommended {best.label}: held-out simulation fit "
-            f"{format_fit(best.fit_simulation)} % with {best.n_params} parameters; "
-            f"{len(eligible)} of {len(candidates)} candidates pass every correlation test "
-            "and are stable"
+        return _recommend_passing(eligible, ok, len(candidates), criterion, parsimony)
+    return _fallback(ok, criterion)
+
+
+def _recommend_passing(
+    eligible: list[Candidate], ok: list[Candidate], n_candidates: int, criterion: str,
+    parsimony: float,
+) -> tuple[Candidate, str]:
+    """The fewest parameters within ``parsimony`` of the best fit among the candidates that
+    pass every test while stable, and the note saying so (and what a criterion alone picks)."""
+    top = max(eligible, key=lambda c: c.fit_simulation)
+    limit = (1.0 + parsimony) * (100.0 - top.fit_simulation)
+    close = [c for c in eligible if 100.0 - c.fit_simulation <= limit]
+    best = min(close, key=lambda c: (c.n_params, -c.fit_simulation))
+    note = (
+        f"Recommended {best.label}: held-out simulation fit "
+        f"{format_fit(best.fit_simulation)} % with {best.n_params} parameters; "
+        f"{len(eligible)} of {n_candidates} candidates pass every correlation test "
+        "and are stable"
+    )
+    if best is top:
+        note += ", and it fits best of them."
+    else:
+        note += (
+            f".  The best of them, {top.label} ({format_fit(top.fit_simulation)} %, "
+            f"{top.n_params} parameters), is within {parsimony:.3g} (relative) of its "
+            "simulation error, so the one with fewer parameters is recommended."
         )
-        if best is top:
-            note += ", and it fits best of them."
-        else:
-            note += (
-                f".  The best of them, {top.label} ({format_fit(top.fit_simulation)} %, "
-                f"{top.n_params} parameters), is within {parsimony:.3g} (relative) of its "
-                "simulation error, so the one with fewer parameters is recommended."
-            )
-        ic = criterion if criterion != "simulation" else "aic"
-        by_ic = min(ok, key=lambda c: c.score(ic))
-        if by_ic is not best:
-            note += (
-                f"  {ic.upper()} alone would pick {by_ic.label} (held-out simulation fit "
-                f"{format_fit(by_ic.fit_simulation)} %, correlation tests "
-                f"{'pass' if by_ic.passed else 'fail'})."
-            )
-        return best, note
+    ic = criterion if criterion != "simulation" else "aic"
+    by_ic = min(ok, key=lambda c: c.score(ic))
+    if by_ic is not best:
+        note += (
+            f"  {ic.upper()} alone would pick {by_ic.label} (held-out simulation fit "
+            f"{format_fit(by_ic.fit_simulation)} %, correlation tests "
+            f"{'pass' if by_ic.passed else 'fail'})."
+        )
+    return best, note
+
+
+def _fallback(ok: list[Candidate], criterion: str) -> tuple[Candidate, str]:
+    """When no candidate passes every test while stable: the best stable one by
+    ``criterion``, and a note on why it fails and what to try."""
     stable = [c for c in ok if c.stable]
-    pool = stable or ok
-    best = min(pool, key=lambda c: c.score(criterion))
+    best = min(stable or ok, key=lambda c: c.score(criterion))
     note = (
         f"NO CANDIDATE PASSES every correlation test while stable: this is only the best "
         f"{'stable ' if stable else ''}candidate by {criterion} ({CRITERIA[criterion]}): "

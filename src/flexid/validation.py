@@ -9,7 +9,7 @@ Notes
 Initial conditions
     A predictor with an internal state (every simulation; the one-step predictor of a
     structure with a noise filter ``C`` or an ``F``) needs its state at ``t = start``; the
-    rule (:data:`INITIAL_RULES`, shared with :mod:`flexid.polynomial`) is ``"estimate"`` (the
+    rule (:data:`INITIAL_RULES`, shared with :mod:`flexid.models.polynomial`) is ``"estimate"`` (the
     state fitted by least squares to the measured output over ``t >= start``, MATLAB
     ``compare``'s default and :func:`validate`'s), ``"zero"`` (the model run from rest over
     the whole record) or ``"measured"`` (the recursion started from the measured outputs
@@ -30,7 +30,6 @@ import numpy as np
 
 from ._json import jsonable
 from ._validate import checked_keywords, positive_real
-from .arx import ARX
 from .data import IOData
 from .diagnostics import (
     CorrelationTest,
@@ -45,7 +44,8 @@ from .diagnostics import (
     rmse,
 )
 from .errors import DataError, FlexidError, ModelOrderError, check_finite
-from .polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure, _check_initial
+from .models.arx import ARX
+from .models.polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure, _check_initial
 
 __all__ = [
     "INITIAL_RULES",
@@ -513,7 +513,7 @@ def _linearised_poles(model: Any, dt: float) -> np.ndarray:
     X = np.repeat(x0[None, :], 2 * n, axis=0)
     X[np.arange(n), np.arange(n)] += step
     X[n + np.arange(n), np.arange(n)] -= step
-    from .greybox import ParameterSet
+    from .models.greybox import ParameterSet
 
     theta = np.repeat(model.nominal[None, :], 2 * n, axis=0)
     u = np.zeros((2 * n, len(model.inputs)))
@@ -528,7 +528,7 @@ def _validate_greybox(
     output: str | None = None,
 ) -> ValidationReport:
     """:func:`validate` for a grey-box model: simulated from its own initial state."""
-    from .greybox_cost import record_for
+    from .costs.greybox import record_for
 
     u_full, y_all, sample_time = record_for(model, data, dt)
     if output is None:
@@ -703,13 +703,13 @@ def validate(
     Parameters
     ----------
     model : PolynomialModel, GreyBoxModel or ARX-like
-        A :class:`~flexid.polynomial.PolynomialModel` (ARX, ARMAX, OE, BJ), a single-output
-        :class:`~flexid.greybox.GreyBoxModel` at its parameters' values (an output-error
+        A :class:`~flexid.models.polynomial.PolynomialModel` (ARX, ARMAX, OE, BJ), a single-output
+        :class:`~flexid.models.greybox.GreyBoxModel` at its parameters' values (an output-error
         model: its one-step prediction is its simulation, run from its own initial state at
         the record's start and, with ``split``, on through the estimation part, whatever
         ``initial`` says; the report names that rule, and its poles are those of the model
         linearised at its initial state), or an
-        :class:`~flexid.arx.ARX` or a model duck-typed to it (``structure.start``,
+        :class:`~flexid.models.arx.ARX` or a model duck-typed to it (``structure.start``,
         ``predict(u, y)``, ``simulate(u, y_init=None)``, ``poles()``, ``zeros(input=i)``,
         optionally ``dt``; for ``initial="estimate"`` also ``to_polynomial()``, or ``a``,
         ``b`` and ``structure.na``/``nb``/``nk``).
@@ -724,7 +724,7 @@ def validate(
         the state at ``t = start`` fitted by least squares to the measured output (default,
         as MATLAB ``compare``), the model run from rest over the whole record, or the
         recursion started from the measured outputs before ``start``.  For an ARX model
-        ``"measured"`` and ``"zero"`` run :meth:`ARX.simulate <flexid.arx.ARX.simulate>`
+        ``"measured"`` and ``"zero"`` run :meth:`ARX.simulate <flexid.models.arx.ARX.simulate>`
         and ``"estimate"`` its polynomial form.
     split : float or int, optional
         Validate on the *second* part of ``data.split(split)`` only (a fraction in (0, 1) or
@@ -754,7 +754,7 @@ def validate(
         input count does not match the data.
     """
     initial = _check_initial(initial)
-    from .greybox import GreyBoxModel
+    from .models.greybox import GreyBoxModel
 
     if isinstance(model, GreyBoxModel):
         return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt,

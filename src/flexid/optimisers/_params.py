@@ -152,6 +152,16 @@ class Param:
             if self.none_ok:
                 return None
             raise HyperParameterError(f"{where} must not be None")
+        value = self._typed(value, where)
+        if self.choices is not None and value not in self.choices:
+            raise HyperParameterError(f"{where} must be {self.range_text()}, got {value!r}")
+        if self.kind in (int, float) and not self._in_range(value):
+            raise HyperParameterError(f"{where} must lie in {self.range_text()}, got {value!r}")
+        return value
+
+    def _typed(self, value: Any, where: str) -> Any:
+        """``value`` (not None) as :attr:`kind`: a bool only for a bool parameter, an integer
+        for an int, a finite number for a float, a string for a str."""
         kind = self.kind
         if kind is bool:
             if isinstance(value, (bool, np.bool_)):
@@ -161,12 +171,11 @@ class Param:
             raise HyperParameterError(f"{where} must be {kind.__name__}, got the boolean {value!r}")
         if kind is int:
             if isinstance(value, (int, np.integer)):
-                value = int(value)
-            else:
-                raise HyperParameterError(
-                    f"{where} must be an integer, got {type(value).__name__} {value!r}"
-                )
-        elif kind is float:
+                return int(value)
+            raise HyperParameterError(
+                f"{where} must be an integer, got {type(value).__name__} {value!r}"
+            )
+        if kind is float:
             if not isinstance(value, (int, float, np.integer, np.floating)):
                 raise HyperParameterError(
                     f"{where} must be a number, got {type(value).__name__} {value!r}"
@@ -174,20 +183,20 @@ class Param:
             value = float(value)
             if not math.isfinite(value):
                 raise HyperParameterError(f"{where} must be finite, got {value!r}")
-        elif kind is str and not isinstance(value, str):
+            return value
+        if kind is str and not isinstance(value, str):
             raise HyperParameterError(f"{where} must be a string, got {value!r}")
-        if self.choices is not None and value not in self.choices:
-            raise HyperParameterError(f"{where} must be {self.range_text()}, got {value!r}")
-        if kind in (int, float):
-            too_low = self.low is not None and (
-                value < self.low or (self.low_open and value == self.low)
-            )
-            too_high = self.high is not None and (
-                value > self.high or (self.high_open and value == self.high)
-            )
-            if too_low or too_high:
-                raise HyperParameterError(f"{where} must lie in {self.range_text()}, got {value!r}")
         return value
+
+    def _in_range(self, value: float) -> bool:
+        """Whether a number lies within ``low``/``high`` (each open or closed)."""
+        too_low = self.low is not None and (
+            value < self.low or (self.low_open and value == self.low)
+        )
+        too_high = self.high is not None and (
+            value > self.high or (self.high_open and value == self.high)
+        )
+        return not (too_low or too_high)
 
     def describe(self) -> dict[str, Any]:
         """A plain description of the hyper-parameter.

@@ -6,7 +6,7 @@ fixed, read without the encoders (the model's outputs are the exact angles; the 
 quantisation is the measurement error the fit leaves).  With flexid's compiled kernels a
 population runs in the plant's compiled RK4, each rotor with its own parameters, four per
 SIMD vector; otherwise in :meth:`GreyBoxModel.simulate_reference
-<flexid.greybox.GreyBoxModel.simulate_reference>`.
+<flexid.models.greybox.GreyBoxModel.simulate_reference>`.
 
 What a record can determine (and so what is fixed).  Pitch's equation
 ``I1 psi'' = a1 tau1 |tau1| + b1 tau1 - Mg sin(psi) - B1psi psi' - B2psi sgn(psi')`` holds
@@ -32,12 +32,12 @@ from typing import Any
 
 import numpy as np
 
-from . import kernels
-from ._validate import checked_keywords
-from .envs import twin_rotor_physics as trs
-from .errors import ConfigError, FlexidError, UnknownKeywordError
+from .. import kernels
+from .._validate import checked_keywords
+from ..envs import twin_rotor_physics as trs
+from ..errors import ConfigError, FlexidError, UnknownKeywordError
+from ..plants import get_plant
 from .greybox import GreyBoxModel, GreyParameter, ParameterSet
-from .plants import get_plant
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -158,7 +158,7 @@ def twin_rotor_pitch(*, thrust_law: str = "signed_square", **overrides: Any) -> 
         The plant's thrust law (:data:`flexid.envs.twin_rotor_physics.THRUST_LAWS`).
     **overrides
         Parameter changes, as :meth:`GreyBoxModel.with_parameters
-        <flexid.greybox.GreyBoxModel.with_parameters>` takes them.
+        <flexid.models.greybox.GreyBoxModel.with_parameters>` takes them.
 
     Returns
     -------
@@ -204,7 +204,7 @@ def twin_rotor_coupled(*, thrust_law: str = "signed_square", **overrides: Any) -
 GREYBOX_MODELS = {"twin-rotor-pitch": twin_rotor_pitch, "twin-rotor-coupled": twin_rotor_coupled}
 
 #: Entry-point group through which an installed package offers grey-box models: each entry
-#: names a :class:`~flexid.greybox.GreyBoxModel` or a function returning one.
+#: names a :class:`~flexid.models.greybox.GreyBoxModel` or a function returning one.
 ENTRY_POINT_GROUP = "flexid.greybox_models"
 
 _REGISTERED: dict[str, GreyBoxModel | Callable[..., GreyBoxModel]] = {}
@@ -313,7 +313,7 @@ def _from_file(reference: str) -> Any:
 
 def _source(name: str) -> Any:
     """What a name stands for: a model or a factory (built-in, registered, file, installed)."""
-    from .errors import UnknownNameError
+    from ..errors import UnknownNameError
 
     if name in GREYBOX_MODELS:
         return GREYBOX_MODELS[name]
@@ -344,12 +344,12 @@ def greybox_model(name: str, **options: Any) -> GreyBoxModel:
         ``"twin-rotor-pitch"``, ``"twin-rotor-coupled"``, a name given to
         :func:`register_greybox_model` or offered by an installed package (entry-point group
         ``flexid.greybox_models``), or ``"path/to/file.py:NAME"``: the object ``NAME`` (a
-        :class:`~flexid.greybox.GreyBoxModel` or a function returning one) of that Python
+        :class:`~flexid.models.greybox.GreyBoxModel` or a function returning one) of that Python
         file, as ``examples/greybox_mass_spring.py:MODEL``.
     **options
         Passed to the model's function (``thrust_law``, parameter changes); for a model
         object, parameter changes (:meth:`GreyBoxModel.with_parameters
-        <flexid.greybox.GreyBoxModel.with_parameters>`).
+        <flexid.models.greybox.GreyBoxModel.with_parameters>`).
 
     Returns
     -------

@@ -15,7 +15,7 @@ BJ         ``bj(data, [nb nc nd nf nk])``  1    ✔    ✔    ✔    ✔
 =========  ==============================  ===  ===  ===  ===  ===
 
 The parameter vector is ``theta = [a, b_1, .., b_m, c, d, f_1, .., f_m]`` (MATLAB's ``getpvec``
-order for ``idpoly``); for ARX it is exactly :class:`flexid.arx.ARXStructure`'s.
+order for ``idpoly``); for ARX it is exactly :class:`flexid.models.arx.ARXStructure`'s.
 
 Notes
 -----
@@ -57,11 +57,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy import linalg, signal
 
-from ._json import jsonable
-from ._validate import checked_keywords, integer, positive_real
+from .._json import jsonable
+from .._validate import checked_keywords, integer, positive_real
+from ..config import STRUCTURE_NAMES
+from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
 from .arx import ARX, ARXStructure
-from .config import STRUCTURE_NAMES
-from .errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
     import control
@@ -478,7 +478,9 @@ class PolynomialStructure:
         return PolynomialModel(self, theta, dt=dt)
 
     def arx_structure(self) -> ARXStructure:
-        """The :class:`~flexid.arx.ARXStructure` of an ARX structure (ModelOrderError otherwise).
+        """The :class:`~flexid.models.arx.ARXStructure` of an ARX structure.
+
+        Raises :class:`~flexid.errors.ModelOrderError` for another structure.
 
         Returns
         -------
@@ -722,7 +724,7 @@ class PolynomialModel:
         return den, num_y, nums_u
 
     def _signals(self, u: Any, y: Any, need_y: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        from .data import IOData
+        from ..data import IOData
 
         if isinstance(u, IOData):
             if y is not None:
@@ -875,14 +877,14 @@ class PolynomialModel:
     @property
     def is_stable(self) -> bool:
         """True if every pole of the plant (``A`` and every ``F_j``) is inside the unit circle."""
-        from .stability import is_stable
+        from ..stability import is_stable
 
         return all(bool(is_stable(p[None, 1:])[0]) for p in (self.a, *self.f) if p.size > 1)
 
     @property
     def predictor_stable(self) -> bool:
         """True if the one-step predictor is stable: ``C`` and every ``F_j`` inside the circle."""
-        from .stability import is_stable
+        from ..stability import is_stable
 
         return all(bool(is_stable(p[None, 1:])[0]) for p in (self.c, *self.f) if p.size > 1)
 
@@ -968,14 +970,14 @@ class PolynomialModel:
         Parameters
         ----------
         model : ARX
-            The model (:class:`~flexid.arx.ARX`).
+            The model (:class:`~flexid.models.arx.ARX`).
 
         Returns
         -------
         PolynomialModel
             Of ``PolynomialStructure.arx(na, nb, nk)``, with the same ``theta`` (the order
             is the same), ``dt``, ``param_std`` and ``noise_variance``; its predictors take
-            the initial-condition rules of :mod:`flexid.polynomial`.
+            the initial-condition rules of :mod:`flexid.models.polynomial`.
 
         Raises
         ------

@@ -1,10 +1,10 @@
 """The simulation (output-error) cost of a grey-box model, for a population of parameter sets.
 
 ``X`` of shape ``(P, n_free)`` (the estimated parameters' physical values, in the order of
-:attr:`GreyBoxModel.free <flexid.greybox.GreyBoxModel.free>`) in, ``(P,)`` costs out.  Each
+:attr:`GreyBoxModel.free <flexid.models.greybox.GreyBoxModel.free>`) in, ``(P,)`` costs out.  Each
 row is simulated from the model's initial state over the whole record (one batched run,
-:meth:`GreyBoxModel.simulate <flexid.greybox.GreyBoxModel.simulate>`) and scored on the
-error ``y - y_sim`` by the metrics of :data:`flexid.objective.METRICS`.  With several outputs
+:meth:`GreyBoxModel.simulate <flexid.models.greybox.GreyBoxModel.simulate>`) and scored on the
+error ``y - y_sim`` by the metrics of :data:`flexid.costs.arx.METRICS`.  With several outputs
 each output's error is divided by that output's standard deviation first, so that outputs in
 different units weigh alike (the costs are then dimensionless).
 
@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import real
-from .config import CostSpec
-from .errors import DataError, UnknownNameError
-from .greybox import GreyBoxModel
-from .objective import METRICS, metric_from_sse, population
-from .optimisers import Problem
+from .._validate import real
+from ..config import CostSpec
+from ..errors import DataError, UnknownNameError
+from ..models.greybox import GreyBoxModel
+from ..optimisers import Problem
+from .arx import METRICS, metric_from_sse, population
 
 __all__ = ["GreyBoxCost", "record_for"]
 
@@ -55,7 +55,7 @@ def record_for(model: GreyBoxModel, data: Any, dt: float | None = None) -> tuple
         A channel the model reads that the record does not have (named), a pair with the
         wrong number of columns, non-finite samples, a missing sample time.
     """
-    from .data import IOData
+    from ..data import IOData
 
     if isinstance(data, IOData):
         picked = []
@@ -108,7 +108,7 @@ class GreyBoxCost:
     data : IOData or (u, y)
         Estimation record (see :func:`record_for`).
     metric : str
-        One of :data:`flexid.objective.METRICS` (default the package's default cost).
+        One of :data:`flexid.costs.arx.METRICS` (default the package's default cost).
     weight : float
         ``w`` of the paper's cost.
     dt : float, optional
@@ -231,7 +231,7 @@ class GreyBoxCost:
         """The problem an optimiser solves: this cost over the model's search box.
 
         The optimiser searches the estimated parameters in their search coordinates
-        (:meth:`GreyBoxModel.search_bounds <flexid.greybox.GreyBoxModel.search_bounds>`:
+        (:meth:`GreyBoxModel.search_bounds <flexid.models.greybox.GreyBoxModel.search_bounds>`:
         ``log10`` of a log-scaled parameter); a point ``z`` costs ``self(from_search(z))``.
 
         Parameters

@@ -21,14 +21,14 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
-from . import kernels
-from ._validate import real
-from .arx import ARXStructure, _io_arrays
-from .config import CostSpec
-from .errors import DataError, UnknownNameError
-from .kernels import ar_recursion, arx_recursion
-from .metrics import METRICS, metric_from_sse
-from .stability import is_stable, pole_radius_batched
+from .. import kernels
+from .._validate import real
+from ..config import CostSpec
+from ..errors import DataError, UnknownNameError
+from ..kernels import ar_recursion, arx_recursion
+from ..metrics import METRICS, metric_from_sse
+from ..models.arx import ARXStructure, _io_arrays
+from ..stability import is_stable, pole_radius_batched
 
 __all__ = [
     "INITIAL",
@@ -163,7 +163,7 @@ class ARXCost:
         the recursion starts at ``t = start`` (``"measured"``; ``"auto"`` is the same), or
         every signal is zero before ``t = 0`` (``"zero"``).  Either way the error is over
         ``t >= start``.  (The rule ``"estimate"`` is
-        :class:`~flexid.polynomial_cost.PolynomialCost`'s, which covers ARX too.)
+        :class:`~flexid.costs.polynomial.PolynomialCost`'s, which covers ARX too.)
 
     Attributes
     ----------

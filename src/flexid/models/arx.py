@@ -16,10 +16,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy import linalg
 
-from ._json import jsonable
-from ._validate import integer, positive_real
-from .errors import DataError, ModelOrderError, check_finite
-from .stability import is_stable as _is_stable
+from .._json import jsonable
+from .._validate import integer, positive_real
+from ..errors import DataError, ModelOrderError, check_finite
+from ..stability import is_stable as _is_stable
 
 if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on first use
     import control
@@ -42,7 +42,7 @@ def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
 
 def _io_arrays(u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
     """``u`` (N, n_u) and ``y`` (N,) as checked float arrays; ``u`` may be an IOData."""
-    from .data import IOData
+    from ..data import IOData
 
     if isinstance(u, IOData):
         if y is not None:
@@ -230,7 +230,7 @@ class ARXStructure:
             With ``param_std`` from ``sigma^2 (Phi' Phi)^-1`` and
             ``noise_variance = SSE / (K - n_params)``.
         """
-        from .data import IOData
+        from ..data import IOData
 
         if isinstance(u, IOData):
             dt = u.dt
@@ -384,7 +384,7 @@ class ARX:
         """
         from scipy import signal
 
-        from .data import IOData
+        from ..data import IOData
 
         if isinstance(u, IOData):
             y_meas = u.y[:, 0] if u.n_outputs == 1 else None

@@ -30,8 +30,8 @@ Writing your own model::
 A built-in model may also carry a compiled simulator (``compiled``) with the same
 semantics; :meth:`GreyBoxModel.simulate` uses it when flexid's compiled kernels run
 (:mod:`flexid.kernels`), and :meth:`GreyBoxModel.simulate_reference` is the NumPy route the
-tests hold it to.  The twin rotor's models are in :mod:`flexid.greybox_models`; the cost an
-optimiser minimises is :class:`flexid.greybox_cost.GreyBoxCost`, the gradient reference
+tests hold it to.  The twin rotor's models are in :mod:`flexid.models.greybox_library`; the cost an
+optimiser minimises is :class:`flexid.costs.greybox.GreyBoxCost`, the gradient reference
 :func:`flexid.greybox_fit.greyest`.
 """
 
@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, DataError, UnknownNameError
+from ..errors import ConfigError, DataError, UnknownNameError
 
 __all__ = ["SCALES", "GreyBoxModel", "GreyParameter", "ParameterSet"]
 
@@ -451,7 +451,7 @@ class GreyBoxModel:
         ModelOrderError
             Fewer samples than twice the estimated parameters (or than 2).
         """
-        from .errors import ModelOrderError
+        from ..errors import ModelOrderError
 
         need = max(2, 2 * self.n_free)
         if n_samples < need:
@@ -634,7 +634,7 @@ class GreyBoxModel:
         n_sub = self.n_substeps(dt)
         x0 = self.x0 if x0 is None else np.asarray(x0, dtype=float)
         x0 = np.broadcast_to(x0, (theta.shape[0], len(self.states)))
-        from .kernels import BACKEND
+        from ..kernels import BACKEND
 
         route = self.compiled if (self.compiled and BACKEND == "c" and not reference) else None
         if route is None:

@@ -1,8 +1,8 @@
 """Batched prediction-error costs of the polynomial family (ARMAX, OE, BJ, general).
 
 A population ``X`` of shape ``(P, n_params)`` (``theta`` in
-:class:`~flexid.polynomial.PolynomialStructure` order) in, ``(P,)`` costs out.  Two
-predictors, as for ARX (:class:`flexid.objective.ARXCost`):
+:class:`~flexid.models.polynomial.PolynomialStructure` order) in, ``(P,)`` costs out.  Two
+predictors, as for ARX (:class:`flexid.costs.arx.ARXCost`):
 
 * **one-step**: the structure's own prediction error ``e = D/C (A y - sum_j B_j/F_j u_j)``;
 * **simulation**: ``e = y - sum_j B_j/(A F_j) u_j`` (no noise model: a structure with ``C`` or
@@ -10,7 +10,7 @@ predictors, as for ARX (:class:`flexid.objective.ARXCost`):
 
 How a population is evaluated
     Each candidate's predictor is one filter ``den yhat = num_y y + sum_j num_j u_j``
-    (:meth:`flexid.polynomial.PolynomialModel.predictor_polynomials`).  The numerators of the
+    (:meth:`flexid.models.polynomial.PolynomialModel.predictor_polynomials`).  The numerators of the
     whole population are batched polynomial products, their action on the record one GEMM
     against lagged copies of the data, and the recursion ``1/den`` the batched recursion of
     :func:`flexid.kernels.ar_recursion` (compiled when built).  Initial-condition rules:
@@ -36,13 +36,13 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
-from ._validate import real
-from .config import CostSpec
-from .errors import ConfigError, DataError, UnknownNameError
-from .kernels import ar_recursion
-from .objective import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
-from .polynomial import PolynomialStructure, _check_initial
-from .stability import is_stable, pole_radius_batched
+from .._validate import real
+from ..config import CostSpec
+from ..errors import ConfigError, DataError, UnknownNameError
+from ..kernels import ar_recursion
+from ..models.polynomial import PolynomialStructure, _check_initial
+from ..stability import is_stable, pole_radius_batched
+from .arx import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
 
 __all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows"]
 
@@ -209,10 +209,10 @@ class PolynomialCost:
     ----------
     structure : PolynomialStructure
         Orders (any structure of the family; ARX is accepted, and equals
-        :class:`~flexid.objective.ARXCost` on the rules both have).
+        :class:`~flexid.costs.arx.ARXCost` on the rules both have).
     data : IOData or (u, y)
         Estimation record (single output).
-    metric, weight, penalty, penalty_kind : see :class:`~flexid.objective.ARXCost`
+    metric, weight, penalty, penalty_kind : see :class:`~flexid.costs.arx.ARXCost`
         The error measure and the stability penalty (a candidate with ``A``, ``F_j`` or ``D``
         not stable, or ``C`` not minimum phase, costs the penalty plus the cost of the zero
         prediction).
@@ -247,7 +247,7 @@ class PolynomialCost:
         initial: str = "estimate",
         penalty_kind: str = "flat",
     ) -> None:
-        from .arx import _io_arrays
+        from ..models.arx import _io_arrays
 
         if not isinstance(structure, PolynomialStructure):
             raise ConfigError(
@@ -625,7 +625,7 @@ class PolynomialCost:
 
     # ------------------------------------------------------------------ least-squares start
     def _least_squares_start(self) -> np.ndarray:
-        from .arx import ARXStructure
+        from ..models.arx import ARXStructure
 
         s = self.structure
         theta = np.full(self.n_params, np.nan)

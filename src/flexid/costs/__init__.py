@@ -1,0 +1,41 @@
+"""The batched costs of the model structures: a population ``(P, n)`` in, ``(P,)`` out.
+
+:mod:`flexid.costs.arx`
+    :class:`~flexid.costs.arx.ARXCost`: ARX's one-step and simulation costs, penalties,
+    the least-squares reference, and the pieces every cost shares (``population``, the
+    predictor and penalty names).
+:mod:`flexid.costs.polynomial`
+    :class:`~flexid.costs.polynomial.PolynomialCost`: the prediction-error and simulation
+    costs of the polynomial family, with variable projection of ``B``.
+:mod:`flexid.costs.greybox`
+    :class:`~flexid.costs.greybox.GreyBoxCost`: a grey-box model's simulation cost.
+
+The metrics a cost reports are :mod:`flexid.metrics`.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+# public name -> submodule that defines it (imported on first use, so importing one
+# submodule does not import the others)
+_LAZY = {
+    "ARXCost": "arx",
+    "PolynomialCost": "polynomial",
+    "GreyBoxCost": "greybox",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -1,0 +1,50 @@
+"""The model structures: what a record is identified as.
+
+:mod:`flexid.models.arx`
+    ARX (MATLAB's ``na, nb, nk``): regressors, least squares, simulation (the paper's
+    structure).
+:mod:`flexid.models.polynomial`
+    The polynomial family ``A y = B/F u + C/D e`` (ARX, ARMAX, OE, BJ and the general
+    form): orders, predictors, the initial-condition rules, exports.
+:mod:`flexid.models.greybox`
+    Grey-box models: a plant's equations with named, bounded physical parameters.
+:mod:`flexid.models.greybox_library`
+    The named grey-box models: built in (the twin rotor's), registered, in a file or in an
+    installed package.
+
+Their batched costs are in :mod:`flexid.costs`; the front door :mod:`flexid` exports the
+classes.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+# public name -> submodule that defines it (imported on first use, so importing one
+# submodule does not import the others)
+_LAZY = {
+    "ARX": "arx",
+    "ARXStructure": "arx",
+    "PolynomialStructure": "polynomial",
+    "PolynomialModel": "polynomial",
+    "structure": "polynomial",
+    "GreyBoxModel": "greybox",
+    "GreyParameter": "greybox",
+    "greybox_model": "greybox_library",
+    "register_greybox_model": "greybox_library",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
