@@ -349,26 +349,32 @@ class ComparisonResult:
         failed = {k: v.get("errors") for k, v in self.stats.items() if v.get("failed")}
         for label, errors in failed.items():
             lines.append(f"  {label}: failed runs: {'; '.join(errors or [])}")
+        conclusion = self._conclusion()
+        if conclusion:
+            lines += ["", conclusion]
+        return lines
+
+    def _conclusion(self) -> str:
+        """The rank-sum conclusion: the lowest median and who is not significantly worse."""
         tests = [(k, v["test"]) for k, v in self.stats.items() if "test" in v]
         best = [k for k, t in tests if t["best"]]
-        if best:
-            tested = [(k, t) for k, t in tests if not t["best"] and not math.isnan(t["p_holm"])]
-            untested = [k for k, t in tests if not t["best"] and math.isnan(t["p_holm"])]
-            same = [k for k, t in tested if not t["significant"]]
-            text = f"Lowest median cost: {best[0]}"
-            if untested:
-                text += (
-                    " (of the optimisers with two or more finished runs; not tested: "
-                    f"{', '.join(untested)})"
-                )
-            text += ". "
-            if same:
-                text += f"Not significantly different (rank-sum, Holm, 5 %): {', '.join(same)}."
-            elif tested:
-                text += "Every other tested optimiser is significantly worse (rank-sum, Holm, 5 %)."
-            lines.append("")
-            lines.append(text.rstrip())
-        return lines
+        if not best:
+            return ""
+        tested = [(k, t) for k, t in tests if not t["best"] and not math.isnan(t["p_holm"])]
+        untested = [k for k, t in tests if not t["best"] and math.isnan(t["p_holm"])]
+        same = [k for k, t in tested if not t["significant"]]
+        text = f"Lowest median cost: {best[0]}"
+        if untested:
+            text += (
+                " (of the optimisers with two or more finished runs; not tested: "
+                f"{', '.join(untested)})"
+            )
+        text += ". "
+        if same:
+            text += f"Not significantly different (rank-sum, Holm, 5 %): {', '.join(same)}."
+        elif tested:
+            text += "Every other tested optimiser is significantly worse (rank-sum, Holm, 5 %)."
+        return text.rstrip()
 
     def _repr_html_(self) -> str:
         """The notebook display: the header and both tables of :meth:`summary` in HTML."""

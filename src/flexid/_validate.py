@@ -199,30 +199,40 @@ def real(
     if value is None and none_ok:
         return None
     number = float(value) if _is_real(value) else None
-    ok = number is not None and not math.isnan(number)
-    if ok and not allow_inf:
-        ok = math.isfinite(number)
-    if ok and minimum is not None:
-        ok = number > minimum if low_open else number >= minimum
-    if ok and maximum is not None:
-        ok = number < maximum if high_open else number <= maximum
-    if not ok:
-        if unit:
-            name = f"{name} [{unit}]"
-        if number is None:
-            raise error(f"{name} must be a number, got {value!r}")
-        if minimum == 0 and low_open and maximum is None:
-            wanted = "positive" if allow_inf else "positive and finite"
-        else:
-            interval = _interval(minimum, maximum, low_open, high_open)
-            finite = "" if allow_inf else "finite"
-            wanted = " and ".join(filter(None, [finite, interval])) or "a number"
-        if allow_inf:
-            wanted += " (not NaN)"
-        if none_ok:
-            wanted += ", or None"
-        raise error(f"{name} must be {wanted}, got {value!r}")
-    return number
+    if number is not None and _within(number, minimum, maximum, low_open, high_open, allow_inf):
+        return number
+    if unit:
+        name = f"{name} [{unit}]"
+    if number is None:
+        raise error(f"{name} must be a number, got {value!r}")
+    wanted = _wanted(minimum, maximum, low_open, high_open, allow_inf)
+    raise error(f"{name} must be {wanted}{', or None' if none_ok else ''}, got {value!r}")
+
+
+def _within(
+    number: float, minimum: float | None, maximum: float | None, low_open: bool,
+    high_open: bool, allow_inf: bool,
+) -> bool:
+    """Whether ``number`` is not NaN, finite unless ``allow_inf``, and within the bounds."""
+    if math.isnan(number) or (not allow_inf and not math.isfinite(number)):
+        return False
+    if minimum is not None and not (number > minimum if low_open else number >= minimum):
+        return False
+    return maximum is None or (number < maximum if high_open else number <= maximum)
+
+
+def _wanted(
+    minimum: float | None, maximum: float | None, low_open: bool, high_open: bool,
+    allow_inf: bool,
+) -> str:
+    """What :func:`real` accepts, in words: ``"positive and finite"``, ``"finite and >= 1"``."""
+    if minimum == 0 and low_open and maximum is None:
+        wanted = "positive" if allow_inf else "positive and finite"
+    else:
+        interval = _interval(minimum, maximum, low_open, high_open)
+        finite = "" if allow_inf else "finite"
+        wanted = " and ".join(filter(None, [finite, interval])) or "a number"
+    return wanted + (" (not NaN)" if allow_inf else "")
 
 
 def positive_real(value: Any, name: str, *, error: type[FlexidError], unit: str = "") -> float:

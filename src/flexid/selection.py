@@ -668,6 +668,23 @@ def _candidate_structures(
     structures = list(structures)
     if not structures:
         raise ConfigError(f"structures is empty; give names from {tuple(STRUCTURES)}")
+    names, fixed, greybox = _requested(structures)
+    made = _from_grids(names, orders, nk, n_inputs)
+    out: list[PolynomialStructure] = []
+    for s in [*made, *fixed]:
+        if s.n_inputs != n_inputs:
+            raise ModelOrderError(
+                f"{s!r} has {s.n_inputs} input(s) but the record has {n_inputs}; give nb, nf "
+                "and nk one value per input (or one value for all)"
+            )
+        if s not in out:
+            out.append(s)
+    return out + greybox  # a grey-box model reads its channels by name
+
+
+def _requested(structures: list[Any]) -> tuple[list[str], list[PolynomialStructure], list]:
+    """The names to take from the order grids, the structures given whole, and the grey-box
+    models, of the entries of ``structures``."""
     from .models.arx import ARXStructure
     from .models.greybox import GreyBoxModel
 
@@ -689,6 +706,11 @@ def _candidate_structures(
             key = _check_name(s)
             if key not in names:
                 names.append(key)
+    return names, fixed, greybox
+
+
+def _from_grids(names: list[str], orders: Any, nk: Any, n_inputs: int) -> list:
+    """The structures of the order grids of ``names``; an entry's error names the entry."""
     made: list[PolynomialStructure] = []
     for name, entries in _grids(names, orders).items():
         for i, entry in enumerate(entries):
@@ -704,16 +726,7 @@ def _candidate_structures(
                 raise ModelOrderError(
                     f"orders entry {i} of {name} ({_entry_text(entry)}): {exc}"
                 ) from None
-    out: list[PolynomialStructure] = []
-    for s in [*made, *fixed]:
-        if s.n_inputs != n_inputs:
-            raise ModelOrderError(
-                f"{s!r} has {s.n_inputs} input(s) but the record has {n_inputs}; give nb, nf "
-                "and nk one value per input (or one value for all)"
-            )
-        if s not in out:
-            out.append(s)
-    return out + greybox  # a grey-box model reads its channels by name
+    return made
 
 
 def _entry_text(entry: Mapping[str, Any]) -> str:

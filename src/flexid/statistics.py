@@ -177,6 +177,14 @@ def summarise(
         median_time=float(np.median([r["wall_time"] for r in ok])),
         stable_rate=float(np.mean([bool(r.get("stable")) for r in ok])),
     )
+    out["reach"] = _reach(ok, reference, targets)
+    out.update(_validation_medians(ok))
+    return out
+
+
+def _reach(ok: list[Mapping[str, Any]], reference: float, targets: Sequence[float]) -> dict:
+    """Per target ``reference * (1 + t)``: the share of runs that reach it, their median FE
+    and every run's FE (inf where a run never does)."""
     reach = {}
     for t in targets:
         fe = np.array([fe_to_target(r["history"], reference * (1 + t)) for r in ok])
@@ -187,7 +195,13 @@ def summarise(
             "median_fe": float(np.median(fe[hit])) if hit.any() else math.nan,
             "fe": fe.tolist(),
         }
-    out["reach"] = reach
+    return reach
+
+
+def _validation_medians(ok: list[Mapping[str, Any]]) -> dict[str, float]:
+    """Medians of the runs' validation figures (NaN where no run has one) and the share of
+    runs whose correlation tests pass."""
+    out = {}
     for key in ("fit_one_step", "fit_simulation", "error_min", "error_max"):
         values = np.array([r.get("validation", {}).get(key, math.nan) for r in ok], dtype=float)
         out[key] = float(np.nanmedian(values)) if np.isfinite(values).any() else math.nan
