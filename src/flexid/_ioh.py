@@ -370,12 +370,15 @@ def _dat_text(runs: Sequence[Mapping[str, Any]], header: str) -> str:
 
 
 def _write_algorithm(
-    folder: Path, result: ComparisonResult, label: str, runs: list, layout: str, dim: int
+    folder: Path, result: ComparisonResult, label: str, runs: list, layout: str, dim: int,
+    *, function_id: int = FUNCTION_ID, function_name: str | None = None, suite: str = SUITE,
 ) -> None:
-    fname = _name(result.spec.name)
-    data_dir = f"data_f{FUNCTION_ID}_{fname}"
-    dat = f"{data_dir}/IOHprofiler_f{FUNCTION_ID}_DIM{dim}.dat"
-    (folder / data_dir).mkdir(parents=True)
+    """Write one optimiser's runs on one function (a comparison) into ``folder``."""
+    fname = _name(function_name or result.spec.name)
+    fid = function_id
+    data_dir = f"data_f{fid}_{fname}"
+    dat = f"{data_dir}/IOHprofiler_f{fid}_DIM{dim}.dat"
+    (folder / data_dir).mkdir(parents=True, exist_ok=True)
     header = _JSON_HEADER if layout == "json" else _INFO_HEADER
     (folder / dat).write_text(_dat_text(runs, header), encoding="utf-8")
     info = _algorithm_info(result, label)
@@ -394,8 +397,8 @@ def _write_algorithm(
             )
         meta = {
             "version": IOH_VERSION,
-            "suite": SUITE,
-            "function_id": FUNCTION_ID,
+            "suite": suite,
+            "function_id": fid,
             "function_name": fname,
             "maximization": False,
             "algorithm": {"name": label, "info": info},
@@ -404,12 +407,12 @@ def _write_algorithm(
             "attributes": _JSON_HEADER.split(),
             "scenarios": [{"dimension": dim, "path": dat, "runs": run_entries}],
         }
-        path = folder / f"IOHprofiler_f{FUNCTION_ID}_{fname}.json"
+        path = folder / f"IOHprofiler_f{fid}_{fname}.json"
         path.write_text(json.dumps(meta, indent=2, allow_nan=False) + "\n", encoding="utf-8")
         return
     head = [
-        f'suite = "{SUITE}"',
-        f"funcId = {FUNCTION_ID}",
+        f'suite = "{suite}"',
+        f"funcId = {fid}",
         f'funcName = "{fname}"',
         f"DIM = {dim}",
         'maximization = "F"',
@@ -421,7 +424,7 @@ def _write_algorithm(
         for r in runs
     ]
     text = ", ".join(head) + "\n%\n" + ", ".join([dat, *entries]) + "\n"
-    (folder / f"IOHprofiler_f{FUNCTION_ID}_{fname}.info").write_text(text, encoding="utf-8")
+    (folder / f"IOHprofiler_f{fid}_{fname}.info").write_text(text, encoding="utf-8")
 
 
 def _quote(text: str) -> str:

@@ -75,6 +75,13 @@ class _Formatter(argparse.RawDescriptionHelpFormatter):
 
 # What each subcommand does and one example of it (its --help shows both)
 _SUBCOMMANDS = {
+    "suite": (
+        "The benchmark suite of identification problems (plants and records x structures x "
+        "costs x instances): list its problems, run optimisers on all or some of them "
+        "(resumable, stored), report the runtime distributions, ranking and an IOHprofiler "
+        "export.",
+        "flexid suite run --optimisers de,pso,cmaes --workers 2 && flexid suite report",
+    ),
     "generate": (
         "Simulate a plant (its Gymnasium environment) and write the record with its metadata.",
         "flexid generate manipulator --preset paper-manipulator --seed 0 -o man.csv",
@@ -671,6 +678,110 @@ _LISTS = {
 }
 
 
+_SUITE_STORE = DEFAULT_OUT / "suite.sqlite"
+
+
+def _suite_of(args: argparse.Namespace) -> Any:
+    """The suite (setting, records, subset, runs and budget) the options name."""
+    from dataclasses import replace
+
+    from .suite import get_suite
+
+    _check_positive(args.runs, "--runs")
+    _check_positive(args.budget_per_dim, "--budget-per-dim")
+    suite = get_suite(args.setting, records=args.records)
+    changes = {k: v for k, v in (("runs", args.runs), ("budget_per_dim", args.budget_per_dim))
+               if v is not None}  # fmt: skip
+    if changes:
+        version = suite.version
+        suite = replace(suite, **changes)
+        suite.__dict__["version"] = version  # runs and budget: the experiment's, not the suite's
+    return suite.subset(args.problems)
+
+
+def _cmd_suite(args: argparse.Namespace) -> int:
+    from .suite import load_suite, run_suite
+
+    suite = _suite_of(args)
+    store = Path(args.store) if args.store else _SUITE_STORE
+    if args.action == "list":
+        rows = [{"name": p.name, **p.groups, "instance": p.instance} for p in suite.problems]
+        if args.json:
+            print(json.dumps({"suite": suite.label, "version": suite.version,
+                              "budget_per_dim": suite.budget_per_dim, "runs": suite.runs,
+                              "problems": rows}, indent=2))  # fmt: skip
+            return 0
+        print(f"{suite.label} version {suite.version}: {len(rows)} problems, {suite.runs} runs "
+              f"of {suite.budget_per_dim} FE per dimension")  # fmt: skip
+        for row in rows:
+            print(f"  {row['name']}")
+        return 0
+    if args.action == "run":
+        _check_positive(args.workers, "--workers")
+        names = _names(args.optimisers)
+        if not names:
+            raise ConfigError("flexid suite run needs --optimisers NAME[,NAME...]")
+        show = not (args.no_progress or args.json)
+        result = run_suite(
+            suite, names, store=store, workers=args.workers, scheduler=args.scheduler,
+            progress=(lambda name, i, n: print(f"[{i + 1}/{n}] {name}", flush=True))
+            if show else None,
+        )  # fmt: skip
+    else:
+        result = load_suite(store, suite)
+    if args.json:
+        print(json.dumps({"version": result.version, "ranking": result.ranking(),
+                          "table": result.table()}, indent=2, default=float))  # fmt: skip
+    else:
+        print(result.summary())
+    if args.action == "report":
+        out = Path(args.out) if args.out else store.parent / "suite-report"
+        _write_suite_report(result, out, figures=not args.no_figures, by=args.by)
+        if not args.json:
+            print(f"\nreport: {out}")
+    return 0
+
+
+def _write_suite_report(result: Any, out: Path, *, figures: bool, by: str) -> None:
+    """The suite's table, summary, ECDF figure and IOHprofiler export in ``out``, built in a
+    folder next to it and renamed into place once whole."""
+    import shutil
+    import tempfile
+
+    from ._ioh import _replace_dir
+
+    if not result.results:
+        raise ConfigError(f"no problem of {result.suite.label} has runs in the store")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staged = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        lines = ["| problem | dim | reference | optimiser | median / reference | solved 1e-3 "
+                 "| below reference | runs |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        for row in result.table():
+            mark = "" if row["verified"] else " *"
+            lines.append(
+                f"| {row['problem']} | {row['dim']} | {row['reference']:.6g}{mark} | "
+                f"{row['label']} | {row['median']:.4g} | {row['solved']} | {row['below']} | "
+                f"{row['runs']} |"
+            )
+        lines += ["", "\\* the reference is not at a verified local minimum: a run below it "
+                  "is news, not an error."]  # fmt: skip
+        (staged / "problems.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+        (staged / "summary.txt").write_text(result.summary() + "\n", encoding="utf-8")
+        result.export_ioh(staged / "ioh")
+        if figures:
+            from .plots import PlottingUnavailable, suite_figure
+
+            try:
+                suite_figure(result, staged / "ecdf.png", by=by)
+            except PlottingUnavailable:
+                pass
+        _replace_dir(staged, out)
+    except BaseException:
+        shutil.rmtree(staged, ignore_errors=True)
+        raise
+
+
 def _cmd_list(args: argparse.Namespace) -> int:
     _LISTS[args.what](args)
     return 0
@@ -1016,6 +1127,32 @@ def build_parser() -> argparse.ArgumentParser:
     gb.add_argument("--split", type=_value, help="estimation share (default 2/3) or split index")
     gb.add_argument("--dt", type=float, help=_DT_HELP)
     gb.set_defaults(func=_cmd_greybox)
+
+    su = sub.add_parser("suite", help="the benchmark suite: list, run or report")
+    su.add_argument("action", choices=["list", "run", "report"], help="what to do")
+    su.add_argument("--setting", default="small", choices=["small", "full"],
+                    help="the suite's setting (default small)")  # fmt: skip
+    su.add_argument("--records", help="folder of real records whose problems join (default: "
+                    "none; e.g. ../shared/data/real)")  # fmt: skip
+    su.add_argument(
+        "--problems", nargs="+", metavar="NAME",
+        help="only these problems or groups (default: all; see suite list)",
+    )
+    su.add_argument("--optimisers", help="run: comma-separated registered names (required)")
+    su.add_argument("--runs", type=int, help="runs per optimiser and problem (default: the "
+                    "setting's)")  # fmt: skip
+    su.add_argument("--budget-per-dim", type=int, help="FE per dimension of a run (default: the "
+                    "setting's)")  # fmt: skip
+    su.add_argument("--store", help=f"SQLite result store (default {_SUITE_STORE})")
+    su.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    su.add_argument("--scheduler", help="dask scheduler address (default: none, local)")
+    su.add_argument("--out", "-o", help="report: folder (default suite-report/ next to the store)")
+    su.add_argument("--by", default="structure", choices=["structure", "plant", "cost"],
+                    help="report: the ECDF's group panels (default structure)")  # fmt: skip
+    su.add_argument("--no-figures", action="store_true", help="report: no ECDF figure")
+    su.add_argument("--no-progress", action="store_true", help="no progress lines")
+    su.add_argument("--json", action="store_true", help="machine-readable output")
+    su.set_defaults(func=_cmd_suite)
 
     li = sub.add_parser("list", help="list optimisers, signals, plants, presets or environments")
     li.add_argument(

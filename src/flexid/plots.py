@@ -9,7 +9,7 @@ needed.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -40,6 +40,7 @@ __all__ = [
     "plot_time_response",
     "reference_name",
     "selection_figure",
+    "suite_figure",
 ]
 
 
@@ -839,3 +840,73 @@ def _fit(c) -> float:
 
 def _aic(c) -> float:
     return c.aic_normalized
+
+
+# ================================================================================ suite
+def _suite_panel(ax, ecdf: Mapping[str, Mapping[str, Any]], budget: float, title: str) -> None:
+    """One runtime-distribution panel: a step curve per optimiser, its area in the legend."""
+    ranked = sorted(ecdf.items(), key=lambda kv: -kv[1]["area"])
+    for i, (label, curve) in enumerate(ranked):
+        x = np.concatenate([[1.0], np.maximum(curve["x"], 1.0), [budget]])
+        last = curve["fraction"][-1] if curve["fraction"].size else 0.0
+        f = np.concatenate([[0.0], curve["fraction"], [last]])
+        ax.step(x, f, where="post", lw=1.6, label=f"{label} ({curve['area']:.2f})", **_style(i))
+    ax.set_xscale("log")
+    ax.set_xlim(1.0, budget)
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("function evaluations / dimension")
+    ax.set_title(title, fontsize=10)
+    _readable_log_ticks(ax)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def suite_figure(result: Any, path: str | Path | None = None, *, by: str | None = "structure"):
+    """Runtime distributions of a suite: every problem, and per group (COCO's ECDF).
+
+    The left panel aggregates every (problem, target, run) triple of the suite; the others
+    split the problems by ``by`` (one panel per value).  A curve rises when a run first gets
+    within ``reference * (1 + d)`` of a problem's reference, for the 31 precisions ``d`` from
+    100 to 1e-4 (:data:`flexid.suite.PRECISIONS`); the legend gives each optimiser's area
+    under its curve (1: every target at the first evaluation), best first.
+
+    Parameters
+    ----------
+    result : SuiteResult
+        From :func:`flexid.suite.run_suite` or :func:`flexid.suite.load_suite`.
+    path : str or pathlib.Path, optional
+        Write the figure there as a PNG (and close it).
+    by : {"structure", "plant", "cost"} or None
+        The group of the other panels; None draws the aggregate alone.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or pathlib.Path
+        The figure, or ``path`` when one is given.
+    """
+    plt = _plt()
+    budget = float(result.suite.budget_per_dim)
+    values: list[str] = []
+    if by is not None:
+        values = list(dict.fromkeys(
+            p.groups[by] for p in result.suite.problems if p.name in result.results
+        ))  # fmt: skip
+    n = 1 + len(values)
+    fig, axes = plt.subplots(1, n, figsize=(4.6 * n + 1.8, 4.2), squeeze=False, sharey=True,
+                             layout="constrained")  # fmt: skip
+    _suite_panel(axes[0, 0], result.ecdf(), budget,
+                 f"all {len(result.results)} problems")  # fmt: skip
+    for ax, value in zip(axes[0, 1:], values):
+        count = sum(p.groups[by] == value for p in result.suite.problems
+                    if p.name in result.results)  # fmt: skip
+        _suite_panel(ax, result.ecdf({by: value}), budget, f"{by} {value} ({count} problems)")
+    axes[0, 0].set_ylabel("fraction of (problem, target, run) triples")
+    for ax in axes[0]:
+        ax.legend(loc="upper left", fontsize=7, title="optimiser (area)", title_fontsize=7)
+    fig.suptitle(
+        f"{result.suite.label} {result.version}: {result.suite.runs} runs of "
+        f"{result.suite.budget_per_dim} FE per dimension; targets reference x (1 + d), "
+        "d = 100 ... 1e-4"
+    )
+    if path is not None:
+        return _save(fig, Path(path))
+    return fig
