@@ -104,6 +104,9 @@ class SuiteProblem:
     spec : ComparisonSpec
         Data, model, cost and search of the problem (its optimisers, runs and budget are the
         suite run's).
+    file_sha256 : str or None
+        SHA-256 of a record file's bytes when the problem was made (None for a simulated
+        plant's record, which its data specification defines).
     """
 
     name: str
@@ -112,6 +115,7 @@ class SuiteProblem:
     cost: str
     instance: str
     spec: ComparisonSpec = field(repr=False)
+    file_sha256: str | None = None
 
     @property
     def groups(self) -> dict[str, str]:
@@ -124,14 +128,14 @@ class SuiteProblem:
         Returns
         -------
         dict
-            The name, the groups, and the data, model, cost, search and bounds of its
-            specification; a record file adds the SHA-256 of its bytes.
+            The name, the groups, the instance, and the data, model, cost, search and bounds
+            of its specification; a record file adds the SHA-256 of its bytes.
         """
         d = self.spec.to_dict()
-        out = {"name": self.name, **self.groups, "instance": self.instance}
+        out = {"name": self.name, "groups": self.groups, "instance": self.instance}
         out.update({k: d[k] for k in ("data", "model", "cost", "search", "bounds") if k in d})
-        if self.spec.data.file is not None:
-            out["file_sha256"] = _file_digest(Path(self.spec.data.file))
+        if self.file_sha256 is not None:
+            out["file_sha256"] = self.file_sha256
         return out
 
 
@@ -301,7 +305,11 @@ def _record_problems(records: str | os.PathLike) -> list[SuiteProblem]:
         if not path.exists():
             continue
         data = DataSpec(file=str(path.resolve()), **columns)
-        out += [_problem(plant, model, predictor, data, "record") for model, predictor in models]
+        digest = _file_digest(path)
+        out += [
+            replace(_problem(plant, model, predictor, data, "record"), file_sha256=digest)
+            for model, predictor in models
+        ]
     if not out:
         raise DataError(
             f"records: {folder} holds none of the suite's records "
@@ -316,8 +324,8 @@ def get_suite(setting: str = "small", *, records: str | os.PathLike | None = Non
 
     ``"small"``: the manipulator (ARX(8,8,1) one-step and simulation, OE(8,8,1), BJ(8,2,2,8,1))
     and the twin rotor (ARX(5,5,1), OE(4,4,1), the pitch grey-box model) of their lab presets,
-    data seeds 0 and 1, 2 runs at 100 FE per dimension.  ``"full"``: data seeds 0-4, each at
-    the preset's noise and at 5 %, 5 runs at 1,000 FE per dimension.
+    data seeds 0 and 1, 3 runs at 500 FE per dimension.  ``"full"``: data seeds 0-4, each at
+    the preset's noise and at 5 %, 5 runs at 2,000 FE per dimension.
 
     Parameters
     ----------
@@ -340,10 +348,10 @@ def get_suite(setting: str = "small", *, records: str | os.PathLike | None = Non
         raise UnknownNameError("suite setting", setting, SETTINGS)
     if setting == "small":
         problems = _plant_problems(seeds=(0, 1), noise=(None,))
-        budget_per_dim, runs = 100, 2
+        budget_per_dim, runs = 500, 3
     else:
         problems = _plant_problems(seeds=range(5), noise=(None, "5%"))
-        budget_per_dim, runs = 1000, 5
+        budget_per_dim, runs = 2000, 5
     if records is not None:
         problems += _record_problems(records)
     return Suite(setting, tuple(problems), budget_per_dim, runs)
