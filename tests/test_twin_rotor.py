@@ -22,20 +22,22 @@ from gymnasium.utils.env_checker import check_env
 from scipy import signal
 
 import flexid  # noqa: F401  (registers the environments)
-from flexid.envs import twin_rotor_physics
+from flexid.envs import twin_rotor_physics, twin_rotor_steppers
 from flexid.envs.twin_rotor import TwinRotorEnv, TwinRotorVectorEnv
 from flexid.envs.twin_rotor_physics import (
     THRUST_LAWS,
-    BatchStepper,
-    CompiledBatchStepper,
-    CompiledScalarStepper,
-    ScalarStepper,
     TwinRotorParameters,
     derivatives,
     pitch_linear_mode,
     reference_trajectory,
     simulate,
     step_states,
+)
+from flexid.envs.twin_rotor_steppers import (
+    BatchStepper,
+    CompiledBatchStepper,
+    CompiledScalarStepper,
+    ScalarStepper,
 )
 from flexid.errors import ActionError, DataError, PlantParameterError
 from numerics import EPS, assert_close_to_terms
@@ -171,7 +173,7 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law, route):
     # runs the reference's equations in C with the constants divided out once (possibly with
     # FMA) and sin, cos and tanh within a few eps of the exact values: rounding only.
     if route == "compiled":
-        if twin_rotor_physics._compiled() is None:
+        if twin_rotor_steppers._compiled() is None:
             pytest.skip("the compiled kernels are not running")
         scalar_cls, batch_cls = CompiledScalarStepper, CompiledBatchStepper
     else:
@@ -218,7 +220,7 @@ def test_compiled_batch_rows_equal_the_reference(lock_yaw, thrust_law):
     # sin, cos and tanh are within a few eps of the exact values (absolute), inside the 16 eps
     # per derivative the bound gives the terms they multiply.  A row computed with another
     # row's input, state or constants, or a wrong quadrant, is off by orders of magnitude.
-    if twin_rotor_physics._compiled() is None:
+    if twin_rotor_steppers._compiled() is None:
         pytest.skip("the compiled kernels are not running")
     rng = np.random.default_rng(33)
     n, rows = 30, 11
