@@ -24,9 +24,10 @@ Notes
 -----
 :func:`derivatives` is the model: the one statement of the equations, batched over a leading
 axis.  :func:`step_states` (RK4 over one sample) and :func:`reference_trajectory` integrate
-it; they are the reference route, and :func:`step_states` is the plant's pure transition
-(:attr:`flexid.plants.Plant.transition`).  The faster routes that compute the same RK4
-samples, and that :func:`simulate` and the environments run, are in
+it; they are the reference route.  With :func:`outputs`, :func:`initial_state` and
+:func:`input_limits`, :func:`step_states` is one of the plant's pure functions
+(:class:`flexid.plants.PlantFunctions`, its transition).  The faster routes that compute the
+same RK4 samples, and that :func:`simulate` and the environments run, are in
 :mod:`flexid.envs.twin_rotor_steppers`; the tests hold them to :func:`step_states`.
 
 References
@@ -58,8 +59,11 @@ __all__ = [
     "TwinRotorParameters",
     "clip_inputs",
     "derivatives",
+    "initial_state",
+    "input_limits",
     "measure",
     "noise_floor",
+    "outputs",
     "pitch_linear_mode",
     "reference_trajectory",
     "simulate",
@@ -403,6 +407,9 @@ def _rk4(x: np.ndarray, u: np.ndarray, p: TwinRotorParameters, dt: float, stages
 def step_states(x: np.ndarray, u: np.ndarray, p: TwinRotorParameters, dt: float) -> np.ndarray:
     """Reference route: advance a batch of states over one sample with the inputs held.
 
+    The plant's pure transition (:attr:`flexid.plants.PlantFunctions.transition`): the
+    steppers of :mod:`flexid.envs.twin_rotor_steppers` are held to it.
+
     Parameters
     ----------
     x : ndarray, shape (B, 7)
@@ -418,6 +425,64 @@ def step_states(x: np.ndarray, u: np.ndarray, p: TwinRotorParameters, dt: float)
     ndarray, shape (B, 7)
     """
     return _rk4(x, u, p, dt)
+
+
+def outputs(
+    x: np.ndarray, u: np.ndarray, params: TwinRotorParameters, dt: float
+) -> np.ndarray:
+    """The outputs of a batch of states, before the encoders: the plant's output function.
+
+    Parameters
+    ----------
+    x : ndarray, shape (B, 7)
+        States, columns :data:`STATE_NAMES`.
+    u : ndarray, shape (B, 2)
+        Motor voltages [V]; not used (no direct feed-through).
+    params : TwinRotorParameters
+        Not used (the outputs are states).
+    dt : float
+        Sample time [s]; not used.
+
+    Returns
+    -------
+    ndarray, shape (B, 4)
+        :data:`OUTPUT_NAMES` [rad, rad, rad/s, rad/s].
+    """
+    return np.asarray(x, dtype=float)[:, _OUTPUT_COLUMNS]
+
+
+def initial_state(params: TwinRotorParameters, dt: float) -> np.ndarray:
+    """The state at rest, where records and episodes start.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters
+        Not used (rest is the same for every rotor).
+    dt : float
+        Sample time [s]; not used.
+
+    Returns
+    -------
+    ndarray, shape (7,)
+        Zeros, columns :data:`STATE_NAMES`.
+    """
+    return np.zeros(7)
+
+
+def input_limits(params: TwinRotorParameters) -> tuple[np.ndarray, np.ndarray]:
+    """The motor voltages' range, ``+-u_max`` for both rotors.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters
+        Their ``u_max`` [V] is the limit.
+
+    Returns
+    -------
+    low, high : ndarray, shape (2,)
+        ``-u_max`` and ``u_max`` [V] for the main and tail rotor.
+    """
+    return np.full(2, -params.u_max), np.full(2, params.u_max)
 
 
 def _check_dt(dt: Any) -> float:
