@@ -45,8 +45,8 @@ __all__ = [
 ]
 
 PURE_FUNCTIONS = ("transition", "output", "initial_state", "input_limits", "reward", "terminal")
-"""The fields of :class:`Plant` that name (or hold) its pure functions, in signature order of
-:class:`PlantFunctions`."""
+"""The fields of :class:`Plant` that name (or hold) its pure functions, in the order of the
+fields of :class:`PlantFunctions`."""
 
 # The positional arguments each pure function is called with, for the signature check.
 _ARGUMENTS = {
