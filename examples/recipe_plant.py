@@ -3,14 +3,16 @@
 Run:  python examples/recipe_plant.py
 
 A first-order lag (a tank's level behind a valve), in the shape every plant has: a frozen
-parameter dataclass, pure batched physics (``step`` advances any number of tanks one
-sample; ``simulate`` is that step over a record), the measurement chain (``measure``,
-``noise_floor``, ``IDEAL_SENSORS``) and the names and units of its outputs; a thin
-Gymnasium environment that calls the same ``step`` and reads its names and units from the
-registry; and one ``register_plant`` call with its presets and its built-in comparison.
-``flexid.generate``, ``gymnasium.make``, ``flexid compare --plant`` (``default_spec``) and
-the command line's help then know it.  The script checks that least squares recovers the
-plant's exact discretisation from an ideal-sensor record.
+parameter dataclass; its pure functions, batched over any number of tanks (``step_states``
+advances the states one sample, ``outputs`` reads the level from a state, ``initial_state``
+is rest); ``simulate``, that step over a record; the measurement chain (``measure``,
+``noise_floor``, ``IDEAL_SENSORS``) and the names and units of its outputs; and one
+``register_plant`` call with its pure functions, its presets and its built-in comparison.
+There is no environment class: ``gymnasium.make("recipe/Lag-v0")`` is flexid's generic
+environment around ``step_states``.  ``flexid.generate``, ``flexid compare --plant``
+(``default_spec``) and the command line's help know the plant too.  The script checks that
+least squares recovers the plant's exact discretisation from an ideal-sensor record, and that
+the environment steps the same function.
 """
 
 from __future__ import annotations
@@ -20,11 +22,10 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-from gymnasium import spaces
 
 import flexid
 from flexid.config import default_spec
-from flexid.plants import Plant, get_plant, register_plant
+from flexid.plants import Plant, register_plant
 
 OUTPUT_NAMES = ("level",)
 OUTPUT_UNITS = ("m",)
@@ -50,14 +51,18 @@ class LagParameters:
     level_noise: float = 1e-3
 
 
-def step(level: np.ndarray, valve: np.ndarray, params: LagParameters, dt: float) -> np.ndarray:
+def step_states(
+    level: np.ndarray, valve: np.ndarray, params: LagParameters, dt: float
+) -> np.ndarray:
     """One sample of any number of tanks: the exact discretisation, the input held.
+
+    The plant's transition: the state is the level.
 
     Parameters
     ----------
-    level : ndarray, shape (B,)
+    level : ndarray, shape (B, 1)
         Levels [m] now.
-    valve : ndarray, shape (B,)
+    valve : ndarray, shape (B, 1)
         Valve voltages [V] held over the sample.
     params : LagParameters
     dt : float
@@ -65,15 +70,53 @@ def step(level: np.ndarray, valve: np.ndarray, params: LagParameters, dt: float)
 
     Returns
     -------
-    ndarray, shape (B,)
+    ndarray, shape (B, 1)
         Levels one sample later.
     """
     a = np.exp(-dt / params.tau)
     return a * level + (1.0 - a) * params.gain * valve
 
 
+def outputs(level: np.ndarray, valve: np.ndarray, params: LagParameters, dt: float) -> np.ndarray:
+    """The outputs of states: the level itself (the valve does not act on it at once).
+
+    Parameters
+    ----------
+    level : ndarray, shape (B, 1)
+        Levels [m].
+    valve : ndarray, shape (B, 1)
+        Valve voltages [V]; not used.
+    params : LagParameters
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    ndarray, shape (B, 1)
+        Levels [m].
+    """
+    return np.array(level, dtype=float)
+
+
+def initial_state(params: LagParameters, dt: float) -> np.ndarray:
+    """An empty tank.
+
+    Parameters
+    ----------
+    params : LagParameters
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    ndarray, shape (1,)
+        Level [m].
+    """
+    return np.zeros(1)
+
+
 def simulate(u: np.ndarray, params: LagParameters, dt: float) -> np.ndarray:
-    """The level over a record from rest: ``step`` sample by sample.
+    """The level over a record from rest: ``step_states`` sample by sample.
 
     Parameters
     ----------
@@ -89,10 +132,10 @@ def simulate(u: np.ndarray, params: LagParameters, dt: float) -> np.ndarray:
         Levels [m], read before each sample's input acts.
     """
     y = np.zeros((u.size, 1))
-    level = np.zeros(1)
+    level = initial_state(params, dt)[None]
     for k in range(u.size):  # one tank: the recursion is the record's
-        y[k, 0] = level[0]
-        level = step(level, u[k : k + 1], params, dt)
+        y[k] = outputs(level, u[k : k + 1, None], params, dt)[0]
+        level = step_states(level, u[k : k + 1, None], params, dt)
     return y
 
 
@@ -125,29 +168,6 @@ def noise_floor(params: LagParameters) -> np.ndarray:
     return np.array([params.level_noise])
 
 
-class LagEnv(gymnasium.Env):
-    """The tank as a Gymnasium environment: the physics' ``step``, nothing re-implemented."""
-
-    def __init__(self) -> None:
-        self.plant = get_plant("lag")
-        self.params = LagParameters()
-        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float64)
-        self.observation_space = spaces.Box(-np.inf, np.inf, (1,), np.float64)
-        self.level = np.zeros(1)
-
-    def reset(
-        self, *, seed: int | None = None, options: dict | None = None
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        super().reset(seed=seed)
-        self.level = np.zeros(1)
-        return self.level.copy(), {}
-
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        valve = np.clip(np.asarray(action, dtype=float).reshape(1), -1.0, 1.0)
-        self.level = step(self.level, valve, self.params, self.plant.dt)
-        return self.level.copy(), -float(self.level[0] ** 2), False, False, {}
-
-
 register_plant(
     Plant(
         name="lag",
@@ -158,9 +178,13 @@ register_plant(
         dt=0.1,
         n_samples=600,
         signal_options={"low": -1.0, "high": 1.0},
-        env_id="recipe/Lag-v0",
+        env_id="recipe/Lag-v0",  # no env_entry_point: flexid's generic environment
         simulate=lambda module, u, params, dt: (module.simulate(u[:, 0], params, dt), u),
-        env_entry_point=f"{__name__}:LagEnv",
+        transition="step_states",
+        output="outputs",
+        initial_state="initial_state",
+        # the valve's range: the default, the excitation's signal_options low and high;
+        # reward -level^2 and no termination: the defaults too
         max_episode_steps=50,
         presets={"lag-steps": {"description": "random steps held 1 s", "signal": "aprbs",
                                "n_samples": 600}},
@@ -177,10 +201,10 @@ def main() -> None:
     a_hat, b_hat = -ident.model.a[1], ident.model.b[0][0]  # A = 1 + a1 q^-1, B = b1 q^-1
     exact = np.allclose([a_hat, b_hat], [a, (1 - a) * 2.0], rtol=1e-9)
     print(f"least squares recovers the exact discretisation: {exact}")
-    env = gymnasium.make("recipe/Lag-v0")
+    env = gymnasium.make("recipe/Lag-v0", sensors="ideal")  # the sensor's noise off
     obs, _ = env.reset(seed=0)
     for _ in range(5):
-        obs, *_ = env.step(np.array([1.0]))
+        obs, *_ = env.step(np.array([1.0]))  # the valve fully open: 1 V
     print(f"the environment steps the same physics: {np.isclose(obs[0], 2.0 * (1 - a**5))}")
     spec = default_spec(plant="lag", runs=1, budget=100)
     print(f"built-in comparison from the record: {spec.data.preset == 'lag-steps'}")

@@ -16,6 +16,7 @@ from scipy import signal
 import flexid
 from flexid.costs.greybox import GreyBoxCost
 from flexid.envs import twin_rotor_physics as trs
+from flexid.envs import twin_rotor_steppers
 from flexid.errors import ConfigError, DataError, UnknownNameError
 from flexid.greybox_fit import greyest
 from flexid.models.greybox import GreyBoxModel, GreyParameter
@@ -25,7 +26,8 @@ from test_twin_rotor import trajectory_bound
 
 PITCH_TRUE = {n: getattr(trs.TwinRotorParameters(), n) for n in twin_rotor_pitch().free}
 COMPILED = pytest.mark.skipif(
-    trs._compiled() is None, reason="twin-rotor fits need the compiled kernels' speed"
+    twin_rotor_steppers._compiled() is None,
+    reason="twin-rotor fits need the compiled kernels' speed",
 )
 
 
@@ -129,7 +131,7 @@ def test_twin_rotor_models_are_the_plant(coupled):
     columns = [0, 2] if coupled else [0]
     volts = u if coupled else np.column_stack([u[:, 0], np.zeros(n)])
     routes = {"numpy": model.simulate_reference(theta, u, 0.1)}
-    if trs._compiled() is not None:
+    if twin_rotor_steppers._compiled() is not None:
         routes["compiled"] = model.simulate(theta, u, 0.1)
     for i in range(3):
         p = trs.TwinRotorParameters(

@@ -199,7 +199,8 @@ def test_compiled_twin_rotor_run_checks_buffers_and_fills_out():
     # the argument checks, and out holding the state after each sample.  The same kernel on
     # the same rotors with and without out does the same arithmetic: equal exactly.
     from flexid import _kernels
-    from flexid.envs.twin_rotor_physics import TwinRotorParameters, _kernel_params
+    from flexid.envs.twin_rotor_physics import TwinRotorParameters
+    from flexid.envs.twin_rotor_steppers import _kernel_params
 
     k = _kernel_params(TwinRotorParameters())
     rng = np.random.default_rng(5)

@@ -16,6 +16,7 @@ from flexid.envs import beam
 from flexid.envs._render import Canvas
 from flexid.envs.manipulator import FlexibleManipulatorEnv, FlexibleManipulatorVectorEnv
 from flexid.errors import ActionError, PlantParameterError
+from flexid.plants import get_plant
 from numerics import EPS, assert_close_to_terms, route_tolerance
 
 ENV_ID = "flexid/FlexibleManipulator-v0"
@@ -373,3 +374,44 @@ def test_envs_pickle_and_step_identically():
     a = np.full((3, 1), 0.2)
     for _ in range(70):
         np.testing.assert_array_equal(venv.step(a)[0], vclone.step(a)[0])
+
+
+@pytest.mark.numerics
+@pytest.mark.parametrize("chain", ["lab", "ideal"])
+def test_environments_step_the_plants_transition(chain):
+    """The envs' steps (beam.Stepper on one state, or on the batch of the vector env) equal
+    the plant's pure transition (the registry's PlantFunctions.transition) from the same
+    state, and their outputs its output function at zero torque."""
+    f = get_plant("manipulator").functions()
+    assert f.transition is beam.step_states
+    physics = {**SMALL, "payload_mass": 0.01, **(beam.IDEAL_SENSORS if chain == "ideal" else {})}
+    env = FlexibleManipulatorEnv(**physics)
+    venv = FlexibleManipulatorVectorEnv(3, angle_limit=10.0, **physics)
+    p, dt = env.params, env.dt
+    model = beam.discrete_model(p, dt)
+    assert p.is_linear  # one exact step x A^T + tau B per sample
+    n_x = model.n_states
+    # Tolerance: a step is one (n_x + 1)-term sum per state, x A^T + tau B, computed by a
+    # vector-matrix product (single env), a matrix product over the batch (vector env, the
+    # transition): two routes, so route_tolerance(n_x + 1) times the terms |x| |A^T| + |tau|
+    # |B| (tests/numerics.py), compared one step at a time from the same state.  The outputs
+    # C x: route_tolerance(n_x) times |x| |C^T|.
+    a_t, b, c_t = np.abs(model.A.T), np.abs(model.B[:, 0]), np.abs(model.C.T)
+    np.testing.assert_array_equal(f.initial_state(p, dt), np.zeros(n_x))
+    env.reset(seed=0)
+    venv.reset(seed=0)
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        tau = rng.uniform(-0.3, 0.3, 3)
+        x = env.state.copy()
+        env.step(np.array([tau[0]]))
+        want = f.transition(x[None], tau[:1, None], p, dt)[0]
+        assert_close_to_terms(env.state, want, np.abs(x) @ a_t + abs(tau[0]) * b,
+                              route_tolerance(n_x + 1))  # fmt: skip
+        xs = venv.state.copy()
+        _, _, _, _, info = venv.step(tau[:, None])
+        want = f.transition(xs, tau[:, None], p, dt)
+        assert_close_to_terms(venv.state, want, np.abs(xs) @ a_t + np.abs(tau)[:, None] * b,
+                              route_tolerance(n_x + 1))  # fmt: skip
+        y = f.output(venv.state, np.zeros((3, 1)), p, dt)
+        assert_close_to_terms(info["outputs"], y, np.abs(venv.state) @ c_t, route_tolerance(n_x))

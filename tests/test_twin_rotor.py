@@ -4,10 +4,12 @@ Physics checks (1-5 % of documented values) are modelling tolerances.  The refer
 (:func:`derivatives` stepped by :func:`step_states`, batched NumPy), the fast scalar route
 (``ScalarStepper``: Python ``math``, behind ``simulate`` and the single environment) and the
 fast batched route (``BatchStepper``, behind the vector environment) are routes to one RK4
-trajectory: NumPy's sin/cos/tanh may be SIMD code on one CPU and libm on another, and the fast
-routes order and group the same operations differently, so they are compared within a
-rounding bound propagated along the trajectory (``trajectory_bound``), and carry the
-``numerics`` mark.  What the locked yaw axis holds at 0 is compared exactly.
+trajectory, the plant's pure transition (``step_states``, the registry's
+``PlantFunctions.transition``) stepped sample by sample (``plant_trajectory``).  NumPy's
+sin/cos/tanh may be SIMD code on one CPU and libm on another, and the fast routes order and
+group the same operations differently, so they are compared within a rounding bound
+propagated along the trajectory (``trajectory_bound``), and carry the ``numerics`` mark.
+What the locked yaw axis holds at 0 is compared exactly.
 """
 
 from __future__ import annotations
@@ -22,14 +24,10 @@ from gymnasium.utils.env_checker import check_env
 from scipy import signal
 
 import flexid  # noqa: F401  (registers the environments)
-from flexid.envs import twin_rotor_physics
+from flexid.envs import twin_rotor_physics, twin_rotor_steppers
 from flexid.envs.twin_rotor import TwinRotorEnv, TwinRotorVectorEnv
 from flexid.envs.twin_rotor_physics import (
     THRUST_LAWS,
-    BatchStepper,
-    CompiledBatchStepper,
-    CompiledScalarStepper,
-    ScalarStepper,
     TwinRotorParameters,
     derivatives,
     pitch_linear_mode,
@@ -37,8 +35,29 @@ from flexid.envs.twin_rotor_physics import (
     simulate,
     step_states,
 )
+from flexid.envs.twin_rotor_steppers import (
+    BatchStepper,
+    CompiledBatchStepper,
+    CompiledScalarStepper,
+    ScalarStepper,
+)
 from flexid.errors import ActionError, DataError, PlantParameterError
+from flexid.plants import get_plant
 from numerics import EPS, assert_close_to_terms
+
+PLANT_FUNCTIONS = get_plant("twin-rotor").functions()
+
+
+def plant_trajectory(u, p: TwinRotorParameters, dt: float = 0.1, x0=None) -> np.ndarray:
+    """States (K + 1, 7) from ``x0`` (default the plant's initial state) under the voltages
+    ``u`` (K, 2), by the plant's pure transition one sample at a time: the reference."""
+    f = PLANT_FUNCTIONS
+    x = (f.initial_state(p, dt) if x0 is None else np.asarray(x0, dtype=float))[None]
+    out = [x[0]]
+    for k in range(len(u)):
+        x = f.transition(x, np.asarray(u, dtype=float)[k : k + 1], p, dt)
+        out.append(x[0])
+    return np.array(out)
 
 
 def derivative_terms(x: np.ndarray, u: np.ndarray, p: TwinRotorParameters) -> np.ndarray:
@@ -171,7 +190,7 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law, route):
     # runs the reference's equations in C with the constants divided out once (possibly with
     # FMA) and sin, cos and tanh within a few eps of the exact values: rounding only.
     if route == "compiled":
-        if twin_rotor_physics._compiled() is None:
+        if twin_rotor_steppers._compiled() is None:
             pytest.skip("the compiled kernels are not running")
         scalar_cls, batch_cls = CompiledScalarStepper, CompiledBatchStepper
     else:
@@ -180,7 +199,7 @@ def test_fast_routes_equal_the_reference(lock_yaw, thrust_law, route):
     n = 150
     p = TwinRotorParameters(lock_yaw=lock_yaw, thrust_law=thrust_law)
     u, x0 = _random_record(rng, n, lock_yaw)
-    ref = reference_trajectory(u, p, 0.1, x0)
+    ref = plant_trajectory(u, p, 0.1, x0)
     bound = trajectory_bound(x0, u, p, 0.1)
     assert bound.max() < 1e-9  # the bound is not vacuous
     scalar = scalar_cls(p, 0.1)
@@ -218,7 +237,7 @@ def test_compiled_batch_rows_equal_the_reference(lock_yaw, thrust_law):
     # sin, cos and tanh are within a few eps of the exact values (absolute), inside the 16 eps
     # per derivative the bound gives the terms they multiply.  A row computed with another
     # row's input, state or constants, or a wrong quadrant, is off by orders of magnitude.
-    if twin_rotor_physics._compiled() is None:
+    if twin_rotor_steppers._compiled() is None:
         pytest.skip("the compiled kernels are not running")
     rng = np.random.default_rng(33)
     n, rows = 30, 11
@@ -238,13 +257,31 @@ def test_compiled_batch_rows_equal_the_reference(lock_yaw, thrust_law):
         states.append(batch.state)
     states = np.array(states)
     for i in range(rows):
-        ref = reference_trajectory(u[:, i], p, 0.1, x0[i])
+        ref = plant_trajectory(u[:, i], p, 0.1, x0[i])
         bound = trajectory_bound(x0[i], u[:, i], p, 0.1)
         assert_close_to_terms(states[:, i], ref, bound, 1.0)
 
 
+def test_the_plants_pure_functions_are_the_models():
+    f = PLANT_FUNCTIONS
+    assert f.transition is step_states
+    rng = np.random.default_rng(3)
+    p = TwinRotorParameters()
+    u, x0 = _random_record(rng, 40, False)
+    # the same function on the same numbers in the same order: the same trajectory
+    x = plant_trajectory(u, p, 0.1, x0)
+    np.testing.assert_array_equal(x, reference_trajectory(u, p, 0.1, x0))
+    np.testing.assert_array_equal(f.output(x, np.zeros((len(x), 2)), p, 0.1), x[:, [0, 2, 1, 3]])
+    np.testing.assert_array_equal(f.initial_state(p, 0.1), np.zeros(7))
+    low, high = f.input_limits(TwinRotorParameters(u_max=2.0))
+    np.testing.assert_array_equal(low, [-2.0, -2.0])
+    np.testing.assert_array_equal(high, [2.0, 2.0])
+
+
 @pytest.mark.numerics
 def test_environments_equal_the_reference():
+    # The single environment steps the scalar route, the vector environment the batch route;
+    # tolerance: trajectory_bound, as in test_fast_routes_equal_the_reference.
     rng = np.random.default_rng(8)
     n = 60
     actions = rng.uniform(-1.3, 1.3, (n, 2))  # some out of the box: clipped
@@ -252,7 +289,7 @@ def test_environments_equal_the_reference():
     env = TwinRotorEnv()
     p = env.params
     env.reset(seed=0)
-    ref = reference_trajectory(volts, p, 0.1)
+    ref = plant_trajectory(volts, p, 0.1)
     bound = trajectory_bound(np.zeros(7), volts, p, 0.1)
     for k in range(n):
         obs, reward, terminated, truncated, info = env.step(actions[k])
@@ -280,8 +317,8 @@ def test_environments_equal_the_reference():
     for i in range(m):
         first, second = volts[:horizon, i], volts[horizon + 1 :, i]
         episodes.append([
-            (reference_trajectory(first, p), trajectory_bound(np.zeros(7), first, p, 0.1)),
-            (reference_trajectory(second, p), trajectory_bound(np.zeros(7), second, p, 0.1)),
+            (plant_trajectory(first, p), trajectory_bound(np.zeros(7), first, p, 0.1)),
+            (plant_trajectory(second, p), trajectory_bound(np.zeros(7), second, p, 0.1)),
         ])  # fmt: skip
     for k in range(2 * horizon + 1):
         obs, reward, terminated, truncated, _ = vec.step(acts[k])

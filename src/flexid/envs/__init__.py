@@ -7,6 +7,10 @@
     Twin rotor MIMO system, Feedback 33-949S phenomenological model
     (:mod:`flexid.envs.twin_rotor`).
 
+A plant registered without an environment class of its own gets the generic
+:class:`~flexid.envs.plant_env.PlantEnv` (and :class:`~flexid.envs.plant_env.PlantVectorEnv`)
+built from its pure functions (:class:`flexid.plants.PlantFunctions`).
+
 Importing this module registers the environment of every plant in
 :data:`flexid.plants.PLANTS` (and imports Gymnasium); a plant registered later
 (:func:`flexid.plants.register_plant`) has its environment registered at once.  ``import
@@ -29,23 +33,36 @@ TWIN_ROTOR_ID = get_plant("twin-rotor").env_id
 
 __all__ = ["MANIPULATOR_ID", "TWIN_ROTOR_ID", "register_environments"]
 
+_GENERIC_ENTRY_POINT = "flexid.envs.plant_env:PlantEnv"
+_GENERIC_VECTOR_ENTRY_POINT = "flexid.envs.plant_env:PlantVectorEnv"
+
 
 def register_environments() -> None:
     """Register the environment of every plant in :data:`flexid.plants.PLANTS` (idempotent).
 
-    A plant without an ``env_entry_point`` has none; an id already registered is left as it
-    is.
+    A plant without an ``env_entry_point`` gets the generic
+    :class:`~flexid.envs.plant_env.PlantEnv` when it gives a transition (its name is the
+    environment's ``plant`` keyword), else none; an id already registered is left as it is.
     """
     registry = gymnasium.envs.registration.registry
     for plant in list(PLANTS.values()):
-        if plant.env_entry_point is None or plant.env_id in registry:
+        if plant.env_id in registry:
             continue
-        gymnasium.register(
-            id=plant.env_id,
-            entry_point=plant.env_entry_point,
-            vector_entry_point=plant.vector_entry_point,
-            max_episode_steps=plant.max_episode_steps,
-        )
+        if plant.env_entry_point is not None:
+            gymnasium.register(
+                id=plant.env_id,
+                entry_point=plant.env_entry_point,
+                vector_entry_point=plant.vector_entry_point,
+                max_episode_steps=plant.max_episode_steps,
+            )
+        elif plant.transition is not None:
+            gymnasium.register(
+                id=plant.env_id,
+                entry_point=_GENERIC_ENTRY_POINT,
+                vector_entry_point=plant.vector_entry_point or _GENERIC_VECTOR_ENTRY_POINT,
+                max_episode_steps=plant.max_episode_steps,
+                kwargs={"plant": plant.name},
+            )
 
 
 register_environments()

@@ -24,6 +24,10 @@ Everything here is a pure function of a frozen :class:`BeamParameters`; the disc
 model is cached per ``(params, dt)``.  The exact modal frequencies of the continuous
 hub-beam (:func:`exact_frequencies`) are the validation reference for the finite-difference
 model (:func:`natural_frequencies`).
+
+The plant's pure functions (:class:`flexid.plants.PlantFunctions`) are :func:`step_states`
+(the exact discretisation of one sample, :class:`Stepper`'s step), :func:`outputs` and
+:func:`initial_state`; the environments step the same :class:`Stepper`.
 """
 
 from __future__ import annotations
@@ -56,12 +60,15 @@ __all__ = [
     "discrete_model",
     "exact_frequencies",
     "fd_matrices",
+    "initial_state",
     "measure",
     "measured_model",
     "natural_frequencies",
     "node_positions",
     "noise_floor",
+    "outputs",
     "simulate",
+    "step_states",
 ]
 
 OUTPUT_NAMES: tuple[str, ...] = ("hub_angle", "hub_velocity", "tip_deflection", "tip_acceleration")
@@ -1195,6 +1202,83 @@ def _simulate_coulomb(u: np.ndarray, p: BeamParameters, model: BeamModel, x0) ->
         y[:, k] = stepper.outputs(x, u[:, k])
         x = stepper.step(x, u[:, k])
     return y
+
+
+@functools.lru_cache(maxsize=32)
+def _stepper(p: BeamParameters, dt: float) -> Stepper:
+    return Stepper(p, dt)
+
+
+def step_states(
+    x: np.ndarray, u: np.ndarray, params: BeamParameters, dt: float
+) -> np.ndarray:
+    """States one sample later, the commanded torque held: the plant's pure transition.
+
+    The exact zero-order-hold discretisation of :class:`Stepper` (with Coulomb friction, its
+    substeps), the model cached per ``(params, dt)``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (B, n_x)
+        States ``[q; q'; chain]`` (:class:`BeamModel`'s ``n_states``; rad, m, rad/s, m/s and
+        the chain's own states).
+    u : ndarray, shape (B, 1)
+        Commanded hub torque [N m] held over the sample.
+    params : BeamParameters
+        The beam and its chain.
+    dt : float
+        Sample time [s], in (0, 0.1].
+
+    Returns
+    -------
+    ndarray, shape (B, n_x)
+        The states at the end of the sample.
+    """
+    stepper = _stepper(_params(params), _check_dt(dt))
+    return stepper.step(np.asarray(x, dtype=float), np.asarray(u, dtype=float)[:, 0])
+
+
+def outputs(x: np.ndarray, u: np.ndarray, params: BeamParameters, dt: float) -> np.ndarray:
+    """The outputs of a batch of states, before the digital sensors: ``C x + D (u - friction)``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (B, n_x)
+        States, as for :func:`step_states`.
+    u : ndarray, shape (B, 1)
+        Commanded hub torque [N m] acting at those states (the tip acceleration feels it
+        directly).
+    params : BeamParameters
+        The beam and its chain.
+    dt : float
+        Sample time [s] (the anti-aliasing filter's cutoff depends on it).
+
+    Returns
+    -------
+    ndarray, shape (B, 4)
+        :data:`OUTPUT_NAMES` in :data:`OUTPUT_UNITS`, before the encoder's steps
+        (:func:`measure`).
+    """
+    stepper = _stepper(_params(params), _check_dt(dt))
+    return stepper.outputs(np.asarray(x, dtype=float), np.asarray(u, dtype=float)[:, 0])
+
+
+def initial_state(params: BeamParameters, dt: float) -> np.ndarray:
+    """The state at rest, where records and episodes start.
+
+    Parameters
+    ----------
+    params : BeamParameters
+        The beam and its chain (they set the number of states).
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    ndarray, shape (n_x,)
+        Zeros.
+    """
+    return np.zeros(discrete_model(params, dt).n_states)
 
 
 _DEFAULT = BeamParameters()

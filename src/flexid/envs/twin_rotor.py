@@ -4,8 +4,8 @@
 (:class:`TwinRotorVectorEnv`, used by ``gymnasium.make_vec(...,
 vectorization_mode="vector_entry_point")``).  The physics is
 :mod:`flexid.envs.twin_rotor_physics`: the single environment steps with its
-:class:`~flexid.envs.twin_rotor_physics.ScalarStepper`, the vector environment with its
-:class:`~flexid.envs.twin_rotor_physics.BatchStepper`; a thin shell, as the manipulator's
+:class:`~flexid.envs.twin_rotor_steppers.ScalarStepper`, the vector environment with its
+:class:`~flexid.envs.twin_rotor_steppers.BatchStepper`; a thin shell, as the manipulator's
 environments are over :mod:`flexid.envs.beam`.
 """
 
@@ -24,7 +24,8 @@ from ..errors import ActionError, PlantParameterError
 from ..plants import Plant, get_plant
 from . import sensors
 from ._vector import BatchedVectorEnv
-from .twin_rotor_physics import TwinRotorParameters, batch_stepper, scalar_stepper
+from .twin_rotor_physics import TwinRotorParameters
+from .twin_rotor_steppers import batch_stepper, scalar_stepper
 
 __all__ = [
     "ACTION_NAMES",
@@ -115,7 +116,7 @@ class TwinRotorEnv(gymnasium.Env):
     """Twin rotor MIMO system: regulate pitch and yaw to a set point.
 
     The state (``state``, shape (7,), :data:`~flexid.envs.twin_rotor_physics.STATE_NAMES`) is
-    stepped by a :class:`~flexid.envs.twin_rotor_physics.ScalarStepper`.
+    stepped by a :class:`~flexid.envs.twin_rotor_steppers.ScalarStepper`.
 
     Parameters
     ----------

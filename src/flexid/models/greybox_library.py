@@ -35,6 +35,7 @@ import numpy as np
 from .. import kernels
 from .._validate import checked_keywords
 from ..envs import twin_rotor_physics as trs
+from ..envs import twin_rotor_steppers
 from ..errors import ConfigError, FlexidError, UnknownKeywordError
 from ..plants import get_plant
 from .greybox import GreyBoxModel, GreyParameter, ParameterSet
@@ -114,14 +115,15 @@ def _twin_rotor(
     def output(x: np.ndarray, u: np.ndarray, p: ParameterSet) -> np.ndarray:
         return x[:, columns]
 
-    base_vector = trs._kernel_params(base)
-    kernel_columns = [trs.KERNEL_PARAMETERS.index(n) for n in names if n in trs.KERNEL_PARAMETERS]
-    model_columns = [i for i, n in enumerate(names) if n in trs.KERNEL_PARAMETERS]
+    base_vector = twin_rotor_steppers._kernel_params(base)
+    kernel_names = twin_rotor_steppers.KERNEL_PARAMETERS
+    kernel_columns = [kernel_names.index(n) for n in names if n in kernel_names]
+    model_columns = [i for i, n in enumerate(names) if n in kernel_names]
 
     def compiled(
         theta: np.ndarray, u: np.ndarray, dt: float, n_sub: int, x0: np.ndarray
     ) -> np.ndarray:
-        c = trs._compiled()
+        c = twin_rotor_steppers._compiled()
         n_pop, n = theta.shape[0], u.shape[0]
         params = np.repeat(base_vector[None, :], n_pop, axis=0)
         params[:, kernel_columns] = theta[:, model_columns]
