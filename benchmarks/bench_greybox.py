@@ -6,7 +6,7 @@ drawn in the model's search box.  Rows, in the same run (interleaved medians):
 * the batched cost (:class:`flexid.GreyBoxCost`): the population in the plant's compiled
   RK4, one parameter row per rotor, four rotors per SIMD vector;
 * a loop over the 64 candidates of today's fastest single-rotor route,
-  :func:`flexid.envs.twin_rotor_physics.simulate` (the same compiled RK4, one rotor), plus
+  :func:`flexid.envs.twin_rotor_steppers.simulate` (the same compiled RK4, one rotor), plus
   its squared error;
 * the batched cost by the NumPy route (the reference), on 8 candidates.
 
@@ -31,6 +31,7 @@ import flexid
 from flexid import kernels
 from flexid.costs.greybox import GreyBoxCost
 from flexid.envs import twin_rotor_physics as trs
+from flexid.envs import twin_rotor_steppers
 from flexid.models.greybox_library import twin_rotor_pitch
 
 P = 64
@@ -53,7 +54,7 @@ def main() -> None:
             params = trs.TwinRotorParameters(
                 lock_yaw=True, encoder_counts=None, **dict(zip(model.names, row.tolist()))
             )
-            e = y - trs.simulate(u, params, data.dt)[:, 0]
+            e = y - twin_rotor_steppers.simulate(u, params, data.dt)[:, 0]
             out[i] = e @ e
         return out
 

@@ -40,7 +40,8 @@ from flexid.envs.manipulator import (  # noqa: E402
     FlexibleManipulatorVectorEnv,
 )
 from flexid.envs.twin_rotor import TwinRotorEnv, TwinRotorVectorEnv  # noqa: E402
-from flexid.envs.twin_rotor_physics import reference_trajectory, simulate  # noqa: E402
+from flexid.envs.twin_rotor_physics import reference_trajectory  # noqa: E402
+from flexid.envs.twin_rotor_steppers import simulate  # noqa: E402
 
 N_ENVS = 64
 

@@ -69,7 +69,11 @@ def imports(name: str, path: Path, known: set[str]) -> set[str]:
                 target = ".".join(base + ([node.module] if node.module else []))
             else:
                 target = node.module or ""
-            candidates = [target] + [f"{target}.{alias.name}" for alias in node.names]
+            submodules = [f"{target}.{alias.name}" for alias in node.names]
+            # ``from . import sensors`` needs the submodule; the package itself only for a
+            # name its ``__init__`` defines
+            whole = any(m not in known for m in submodules)
+            candidates = ([target] if whole else []) + submodules
         elif isinstance(node, ast.Import):
             candidates = [alias.name for alias in node.names]
         else:

@@ -32,7 +32,6 @@ from flexid.envs.twin_rotor_physics import (
     derivatives,
     pitch_linear_mode,
     reference_trajectory,
-    simulate,
     step_states,
 )
 from flexid.envs.twin_rotor_steppers import (
@@ -40,6 +39,7 @@ from flexid.envs.twin_rotor_steppers import (
     CompiledBatchStepper,
     CompiledScalarStepper,
     ScalarStepper,
+    simulate,
 )
 from flexid.errors import ActionError, DataError, PlantParameterError
 from flexid.plants import get_plant

@@ -353,7 +353,9 @@ def _simulate_manipulator(module, u, params, dt):
 
 
 def _simulate_twin_rotor(module, u, params, dt):
-    return module.simulate(u, params, dt=dt), module.clip_inputs(u, params)
+    from .envs.twin_rotor_steppers import simulate  # the fast route of the physics module
+
+    return simulate(u, params, dt=dt), module.clip_inputs(u, params)
 
 
 def _negative_output_energy(output: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:

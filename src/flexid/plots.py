@@ -860,7 +860,9 @@ def _suite_panel(ax, ecdf: Mapping[str, Mapping[str, Any]], budget: float, title
     ax.grid(True, which="both", alpha=0.3)
 
 
-def suite_figure(result: Any, path: str | Path | None = None, *, by: str | None = "structure"):
+def suite_figure(
+    result: Any, path: str | Path | None = None, *, by: str | None = "structure"
+) -> Figure | Path:
     """Runtime distributions of a suite: every problem, and per group (COCO's ECDF).
 
     The left panel aggregates every (problem, target, run) triple of the suite; the others

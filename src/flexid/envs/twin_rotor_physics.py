@@ -66,7 +66,6 @@ __all__ = [
     "outputs",
     "pitch_linear_mode",
     "reference_trajectory",
-    "simulate",
     "step_states",
     "substeps",
     "thrust",
@@ -553,38 +552,3 @@ def reference_trajectory(
         x = step_states(x, u[k : k + 1], p, dt)
         out[k + 1] = x[0]
     return out
-
-
-def simulate(
-    u: Any, params: TwinRotorParameters | None = None, dt: float = 0.1, x0: Any = None
-) -> np.ndarray:
-    """Response of the twin rotor to sampled motor voltages (held over each sample).
-
-    Parameters
-    ----------
-    u : array_like, shape (N, 2)
-        Main and tail rotor voltages [V]; clipped to ``+-u_max``.  Shape (N,) drives the main
-        rotor only.
-    params : TwinRotorParameters, optional
-        Default :class:`TwinRotorParameters` ``()``.
-    dt : float
-        Sample time [s], > 0; default 0.1.
-    x0 : array_like, shape (7,), optional
-        Initial state (default rest), columns :data:`STATE_NAMES`; with ``lock_yaw`` its yaw
-        rate must be 0.
-
-    Returns
-    -------
-    ndarray, shape (N, 4)
-        :data:`OUTPUT_NAMES` at ``t = k dt``.
-
-    Notes
-    -----
-    Computed by the compiled RK4 when the kernels run, else by
-    :class:`~flexid.envs.twin_rotor_steppers.ScalarStepper`;
-    :func:`reference_trajectory` gives the same samples up to rounding.
-    """
-    from .twin_rotor_steppers import scalar_stepper  # the steppers import this module
-
-    p, u, dt, x = _run_arguments(u, params, dt, x0)
-    return scalar_stepper(p, dt).run(u, x)[:-1, _OUTPUT_COLUMNS]

@@ -45,6 +45,7 @@ from .twin_rotor_physics import (
     TwinRotorParameters,
     _check_dt,
     _rk4,
+    _run_arguments,
     substeps,
     thrust,
 )
@@ -56,6 +57,7 @@ __all__ = [
     "ScalarStepper",
     "batch_stepper",
     "scalar_stepper",
+    "simulate",
 ]
 
 
@@ -702,3 +704,37 @@ def batch_stepper(
     if _compiled() is not None:
         return CompiledBatchStepper(params, dt, batch)
     return BatchStepper(params, dt, batch)
+
+
+def simulate(
+    u: Any, params: TwinRotorParameters | None = None, dt: float = 0.1, x0: Any = None
+) -> np.ndarray:
+    """Response of the twin rotor to sampled motor voltages (held over each sample).
+
+    Parameters
+    ----------
+    u : array_like, shape (N, 2)
+        Main and tail rotor voltages [V]; clipped to ``+-u_max``.  Shape (N,) drives the main
+        rotor only.
+    params : TwinRotorParameters, optional
+        Default :class:`~flexid.envs.twin_rotor_physics.TwinRotorParameters` ``()``.
+    dt : float
+        Sample time [s], > 0; default 0.1.
+    x0 : array_like, shape (7,), optional
+        Initial state (default rest), columns
+        :data:`~flexid.envs.twin_rotor_physics.STATE_NAMES`; with ``lock_yaw`` its yaw rate
+        must be 0.
+
+    Returns
+    -------
+    ndarray, shape (N, 4)
+        :data:`~flexid.envs.twin_rotor_physics.OUTPUT_NAMES` at ``t = k dt``.
+
+    Notes
+    -----
+    Computed by the compiled RK4 when the kernels run, else by :class:`ScalarStepper`;
+    :func:`~flexid.envs.twin_rotor_physics.reference_trajectory` gives the same samples up
+    to rounding.
+    """
+    p, u, dt, x = _run_arguments(u, params, dt, x0)
+    return scalar_stepper(p, dt).run(u, x)[:-1, _OUTPUT_COLUMNS]
