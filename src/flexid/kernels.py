@@ -385,7 +385,23 @@ def initial_state_fit_reference(
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Reference path of :func:`initial_state_fit` (NumPy; the same steps and sums).
 
-    Parameters and returns as for :func:`initial_state_fit`.
+    Parameters
+    ----------
+    a : ndarray, shape (P, n)
+    num : ndarray, shape (P, nb)
+    reg : ndarray, shape (K, nb)
+    target : ndarray, shape (K,)
+    basis : ndarray, shape (P, n, n)
+    energies : ndarray, shape (P, n)
+    want_errors : bool
+        As for :func:`initial_state_fit`.
+
+    Returns
+    -------
+    sse : ndarray, shape (P,)
+    errors : ndarray, shape (P, K), or None
+    coef : ndarray, shape (P, n)
+        As for :func:`initial_state_fit`.
     """
     a = np.ascontiguousarray(a, dtype=float)
     p, n = a.shape
