@@ -13,7 +13,9 @@ Rows (microseconds per candidate, and the ratio to the ARX simulation cost of th
   candidates drawn in the pole space and for candidates next to the plant's own poles;
 
 each under the initial-condition rules the cost has (ARX: ``measured``; the structures:
-``zero``, ``estimate`` and ``measured``).
+``zero``, ``estimate`` and ``measured``).  Under ``estimate`` at given parameters the
+structures' rows time the one-pass fit of the initial state
+(:func:`flexid.kernels.initial_state_fit`).
 
 Run:  python benchmarks/bench_structures.py
 """

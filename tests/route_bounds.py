@@ -165,3 +165,29 @@ def spiral_step_bound(xs, r, D, dr=0.0, dtheta=0.0, lower=None) -> np.ndarray:
         propagated += np.linalg.norm(point_error(np.asarray(xs)))
         out = out + EPS * (2 * size + 2 * low) + (1 + r) * propagated
     return out
+
+
+# ------------------------------------------------------------------ estimated initial state
+def initial_state_fit_bound(
+    gram_dev: np.ndarray, fitted: np.ndarray, resid: np.ndarray, rest: np.ndarray, k: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds on the errors and SSE of two routes that fit the free responses differently.
+
+    Both routes solve the same normal equations in the basis ``P_m / den`` normalised to
+    unit energy, whose Gram matrix is within 1.02 of the identity over the record (measured
+    on lightly damped order-16 denominators up to radius 0.999).  One sums the Gram matrix
+    of ``n`` computed responses; the other takes it as ``I - Q Q^T`` from the step-down
+    energies, so their matrices differ by ``gram_dev`` (2-norm, per row), the
+    non-orthogonality of the rounded ``P_m``.  The right-hand sides differ by as much for
+    the same reason (the same responses correlated with ``e``).  To first order the fitted
+    coefficients then move by ``G^-1 (dG c + dr)``, at most ``2 gram_dev |c|`` each with
+    ``|G^-1| <= 1.02`` (a factor 2 of margin for the first order), so the fitted response
+    (``fitted``, its 2-norm) by ``4 gram_dev |fitted|``; ``rest`` bounds the 2-norm of the
+    difference of the two errors from rest (:func:`ar_route_bound`), which the fit passes
+    on unchanged at most.  The SSE moves by ``2 |resid| d + d^2`` (Cauchy-Schwarz, ``resid``
+    the 2-norm of the error after the fit), plus its own rounding (``k`` samples).
+
+    Returns ``(d, dsse)``: bounds on ``|e1 - e2|`` (2-norm) and ``|sse1 - sse2|``, per row.
+    """
+    d = 4 * gram_dev * fitted + 2 * rest
+    return d, 2 * resid * d + d * d + route_tolerance(k + 2) * resid * resid

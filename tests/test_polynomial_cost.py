@@ -228,3 +228,74 @@ def test_every_registered_optimiser_identifies_every_structure_with_valid_candid
         model = s.model(est.theta(result.x))
         assert model.is_stable and model.predictor_stable
         assert result.fun <= est.cost_ls * 1.5  # a search, not a failure
+
+
+def _lightly_damped(radius: float) -> np.ndarray:
+    """Order 16, 8 modes of ``radius`` (the benchmark's plant at 0.99)."""
+    poles = radius * np.exp(1j * np.array([0.05, 0.15, 0.3, 0.6, 0.9, 1.4, 2.0, 2.6]))
+    return np.poly(np.r_[poles, poles.conj()]).real
+
+
+@pytest.mark.parametrize(
+    "case", ["order 16 at radius 0.99", "order 16 at radius 0.999", "order 2 well damped"]
+)
+def test_estimated_state_by_one_pass_equals_n_recursions(case):
+    """The one-pass fit (step-down energies, tail Gram matrix, anti-causal right-hand side)
+    equals the fit of the ``n`` free responses computed one by one, within
+    ``route_bounds.initial_state_fit_bound``: both solve the same normal equations, which
+    differ by the non-orthogonality of the rounded basis (measured here) and the routes'
+    rounding of the error from rest."""
+    from route_bounds import ar_route_bound, initial_state_fit_bound
+
+    rng = np.random.default_rng(3)
+    if case == "order 2 well damped":
+        s = PolynomialStructure.oe(2, 2, 1)
+        u, y = _record(1)
+        f = np.array([-0.6, 0.25])  # poles at radius 0.5
+        X = np.tile(np.r_[0.5, 0.3, f], (4, 1)) + 0.01 * rng.standard_normal((4, 4))
+    else:
+        s = PolynomialStructure.oe(16, 16, 1)
+        a = _lightly_damped(float(case.split()[-1]))
+        u = rng.uniform(-0.3, 0.3, (1500, 1))
+        y = signal.lfilter(np.r_[0.0, 0.05 * rng.standard_normal(16)], a, u[:, 0])
+        y += signal.lfilter([1.0, 0.5], [1.0, -0.9], 0.01 * rng.standard_normal(1500))
+        X = np.zeros((4, 32))
+        X[:, :16] = 0.05 * rng.standard_normal((4, 16))
+        X[:, 16:] = a[1:] + 1e-9 * rng.standard_normal((4, 16))
+    cost = PolynomialCost(s, (u, y), metric="sse", initial="estimate")
+    X = X[cost._admissible(X)]
+    den, num_y, nums = cost._predictor(cost._parts(X))
+    n = den.shape[1] - 1
+    sse, e_new = cost._estimated(den, num_y, nums, want_errors=True)
+    e_old = cost._estimated_by_recursions(den, num_y, nums)
+    # the Gram matrices of both routes, in the basis normalised by the step-down energies
+    from flexid import kernels
+    from flexid.costs.polynomial import _energies, orthogonal_numerators
+
+    T = orthogonal_numerators(den, n)
+    E = _energies(den, T)
+    free = cost._free_responses(den)
+    g_old = free @ free.transpose(0, 2, 1) / np.sqrt(E[:, :, None] * E[:, None, :])
+    width = kernels.FREE_WINDOW * n
+    impulse = np.zeros((den.shape[0], cost.K + width))
+    impulse[:, 0] = 1.0
+    h = kernels.ar_recursion_reference(den[:, 1:], impulse, np.zeros(n))
+    s0 = kernels._basis_window(T, h, 0, width) / np.sqrt(E)[:, :, None]
+    sk = kernels._basis_window(T, h, cost.K, width) / np.sqrt(E)[:, :, None]
+    qt = np.linalg.solve(s0 @ s0.transpose(0, 2, 1), s0 @ sk.transpose(0, 2, 1))
+    g_new = np.eye(n) - qt.transpose(0, 2, 1) @ qt
+    assert np.linalg.cond(g_new).max() < 1.02  # the premise of the bound
+    gram_dev = np.linalg.norm(g_old - g_new, ord=2, axis=(1, 2))
+    forced = cost._forced(num_y, nums)
+    y_rest = kernels.ar_recursion_reference(den[:, 1:], forced, np.zeros(n))
+    e_rest = cost._target - y_rest
+    terms = sum(np.abs(num) @ np.abs(lags[: num.shape[1]]) for num, lags in zip(nums, cost._ulags))
+    rest = np.linalg.norm(
+        ar_route_bound(den[:, 1:], forced, np.zeros(n), y_rest, terms, nums[0].shape[1]), axis=1
+    )
+    fitted = np.linalg.norm(e_rest - e_old, axis=1)
+    resid = np.linalg.norm(e_old, axis=1)
+    d, dsse = initial_state_fit_bound(gram_dev, fitted, resid, rest, cost.K)
+    assert (np.linalg.norm(e_new - e_old, axis=1) <= d).all()
+    assert (np.abs(sse - resid**2) <= dsse).all()
+    np.testing.assert_array_equal(cost.sse(X), sse)  # the SSE-only pass: the same sums

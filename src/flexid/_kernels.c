@@ -1177,7 +1177,7 @@ done:
 }
 
 /* ------------------------------------------------------------------ numerator fit */
-/* Variable projection of the simulation cost (flexid.objective.ARXCost.fit_numerator): for
+/* Variable projection of the simulation cost (flexid.costs.arx.ARXCost.fit_numerator): for
  * each denominator a (P, na), the b (P, nb) minimising sum_{t >= offset} (target(t - offset)
  * - y(t))^2 where y = g_0 + sum_j b_j g_j, g_0 the free response from state0 and g_j the
  * response to the regressor column reg[:, j - 1] from rest (all signals over t = 0..T-1).
@@ -1463,6 +1463,10 @@ static PyObject *py_simd(PyObject *self, PyObject *args)
     return Py_BuildValue("(ss)", ar_simd_names[ar_simd], ar_simd_names[ar_simd_best]);
 }
 
+#if defined(__GNUC__)
+static PyObject *py_free_fit(PyObject *self, PyObject *args); /* defined at the end */
+#endif
+
 static PyMethodDef methods[] = {
     {"schur_cohn", py_schur_cohn, METH_VARARGS,
      "schur_cohn(a, out): strict stability of monic denominators a (P, n) into out (P,) uint8."},
@@ -1479,6 +1483,12 @@ static PyMethodDef methods[] = {
     {"arx_fit", py_arx_fit, METH_VARARGS,
      "arx_fit(a, reg, state0, target, offset, b_out, ok_out[, threads]): least-squares "
      "numerators of the simulation cost for denominators a (see the module)."},
+#endif
+#if defined(__GNUC__)
+    {"free_fit", py_free_fit, METH_VARARGS,
+     "free_fit(a, num, reg, target, basis, energies, window, errors_out, sse_out, coef_out"
+     "[, threads]): errors of 1/den filters with the initial state fitted (see the end of "
+     "the module)."},
 #endif
     {"simd", py_simd, METH_VARARGS,
      "simd([name]): (in use, best) instruction sets of ar_run/arx_run; with a name ('generic', "
@@ -1501,3 +1511,343 @@ PyMODINIT_FUNC PyInit__kernels(void)
     ar_simd_select(ar_simd_best);
     return PyModule_Create(&module);
 }
+
+/* ------------------------------------------------------------------ estimated initial state */
+/* free_fit(a, num, reg, target, basis, energies, window, errors_out, sse_out, coef_out[,
+ * threads]): the error of 1/den filters with the initial state fitted by least squares
+ * (flexid.kernels.initial_state_fit, whose docstring gives the method).  a (P, n) the
+ * a_1..a_n of each den, num (P, nb) rows some stride apart, reg (K, nb), target (K,),
+ * basis (P, n, n) the numerators P_m, energies (P, n) the energies of P_m/den over t >= 0,
+ * window the samples L of the basis windows, errors_out (P, K) or None, sse_out (P,),
+ * coef_out (P, n).  sse_out is NaN where a Cholesky factorisation breaks down.
+ *
+ * Per block of 4 candidates (one per lane), four recursions of 1/den in the transposed
+ * direct form with the state in registers: the error from rest e (input part computed here
+ * from reg), the impulse response h over K + L samples, the anti-causal recursion over e
+ * (the right-hand side), and the fitted free response, removed from e; then the small
+ * algebra of the normalised basis on 4 lanes at once. */
+#if defined(__GNUC__)
+#define FREE_MAXN 24
+
+/* y(t) = f(t) + z_0, z_k <- z_(k+1) - a_(k+1) y(t), z_(n-1) <- -a_n y(t): one step of the
+ * recursion with the state Z in registers */
+#define FREE_STEP(Z, A, f, yt, n)                                                             \
+    do {                                                                                      \
+        (yt) = (f) + (Z)[0];                                                                  \
+        _Pragma("GCC unroll 24") for (int k_ = 0; k_ < (n) - 1; ++k_)                         \
+            (Z)[k_] = (Z)[k_ + 1] - (A)[k_] * (yt);                                           \
+        (Z)[(n) - 1] = -(A)[(n) - 1] * (yt);                                                  \
+    } while (0)
+
+typedef struct {
+    const double *a, *num, *reg, *target, *basis, *energies;
+    Py_ssize_t P, n, nb, K, L, num_stride;
+    double *errors, *sse, *coef;
+} free_job;
+
+/* Cholesky of the symmetric positive definite G (n x n, lower triangle read and written) on
+ * every lane; good[l] = 0 where a pivot is not positive and finite (that lane's factor is
+ * then the identity, so the other lanes go on) */
+static inline __attribute__((always_inline)) void
+free_cholesky(v4d *G, const int n, int good[4])
+{
+    for (int l = 0; l < 4; ++l) {
+        int ok = good[l];
+        for (int j = 0; j < n && ok; ++j) {
+            double d = G[j * n + j][l];
+            for (int k = 0; k < j; ++k) d -= G[j * n + k][l] * G[j * n + k][l];
+            if (!(d > 0) || !isfinite(d)) {
+                ok = 0;
+                break;
+            }
+            d = sqrt(d);
+            G[j * n + j][l] = d;
+            for (int i = j + 1; i < n; ++i) {
+                double v = G[i * n + j][l];
+                for (int k = 0; k < j; ++k) v -= G[i * n + k][l] * G[j * n + k][l];
+                G[i * n + j][l] = v / d;
+            }
+        }
+        if (!ok)
+            for (int i = 0; i < n; ++i)
+                for (int j = 0; j <= i; ++j) G[i * n + j][l] = i == j;
+        good[l] = ok;
+    }
+}
+
+/* v <- L^-1 v (lower) or L^-T v (upper: the transpose), L from free_cholesky */
+static inline __attribute__((always_inline)) void
+free_lower_solve(const v4d *Lm, v4d *v, const int n)
+{
+    for (int i = 0; i < n; ++i) {
+        v4d s = v[i];
+        for (int k = 0; k < i; ++k) s -= Lm[i * n + k] * v[k];
+        v[i] = s / Lm[i * n + i];
+    }
+}
+static inline __attribute__((always_inline)) void
+free_upper_solve(const v4d *Lm, v4d *v, const int n)
+{
+    for (int i = n - 1; i >= 0; --i) {
+        v4d s = v[i];
+        for (int k = i + 1; k < n; ++k) s -= Lm[k * n + i] * v[k];
+        v[i] = s / Lm[i * n + i];
+    }
+}
+
+static inline __attribute__((always_inline)) void
+free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
+{
+    const Py_ssize_t K = J->K, L = J->L, nb = J->nb, w = (J->P - q < 4) ? J->P - q : 4;
+    const double *reg = J->reg, *target = J->target;
+    const v4d zero = {0, 0, 0, 0};
+    v4d *ebuf = buf, *hbuf = buf + K, *S0 = hbuf + K + L, *SK = S0 + n * L;
+    v4d A[FREE_MAXN], Z[FREE_MAXN], Bv[64];
+    /* lanes past P run lane 0's candidate; their results are not written */
+    for (int i = 0; i < n; ++i)
+        for (int l = 0; l < 4; ++l) A[i][l] = J->a[(q + (l < w ? l : 0)) * n + i];
+    for (Py_ssize_t j = 0; j < nb; ++j)
+        for (int l = 0; l < 4; ++l) Bv[j][l] = J->num[(q + (l < w ? l : 0)) * J->num_stride + j];
+    /* 1. the error from rest */
+    for (int i = 0; i < n; ++i) Z[i] = zero;
+    for (Py_ssize_t t0 = 0; t0 < K; t0 += 8) {
+        /* the input part 8 samples at a time: 8 independent sums, not one chain of nb */
+        const int c = K - t0 < 8 ? (int)(K - t0) : 8;
+        v4d f[8];
+        for (int i = 0; i < 8; ++i) f[i] = zero;
+        for (Py_ssize_t j = 0; j < nb; ++j) {
+            const v4d bj = Bv[j];
+            for (int i = 0; i < c; ++i) f[i] += bj * reg[(t0 + i) * nb + j];
+        }
+        for (int i = 0; i < c; ++i) {
+            v4d yt;
+            FREE_STEP(Z, A, f[i], yt, n);
+            ebuf[t0 + i] = target[t0 + i] - yt;
+        }
+    }
+    /* 2. the impulse response over K + L samples */
+    for (int i = 0; i < n; ++i) Z[i] = zero;
+    {
+        v4d yt, f = zero + 1.0;
+        FREE_STEP(Z, A, f, yt, n);
+        hbuf[0] = yt;
+        for (Py_ssize_t t = 1; t < K + L; ++t) {
+            FREE_STEP(Z, A, zero, yt, n);
+            hbuf[t] = yt;
+        }
+    }
+    /* 3. w(i) = sum_(t >= i) h(t - i) e(t), the anti-causal recursion, for i < n */
+    v4d wv[FREE_MAXN];
+    for (int i = 0; i < n; ++i) Z[i] = wv[i] = zero;
+    for (Py_ssize_t t = K - 1; t >= 0; --t) {
+        v4d yt;
+        FREE_STEP(Z, A, ebuf[t], yt, n);
+        if (t < n) wv[t] = yt;
+    }
+    /* 4. the basis windows S0 = g(0 .. L-1), SK = g(K .. K+L-1), normalised to unit energy */
+    v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN];
+    for (int m = 0; m < n; ++m)
+        for (int l = 0; l < 4; ++l) {
+            const Py_ssize_t p = q + (l < w ? l : 0);
+            sc[m][l] = 1.0 / sqrt(J->energies[p * n + m]);
+            for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
+        }
+    /* per sample, the n sums side by side (independent chains) */
+    for (Py_ssize_t tau = 0; tau < L; ++tau) {
+        v4d s0[FREE_MAXN], sk[FREE_MAXN];
+        for (int m = 0; m < n; ++m) s0[m] = sk[m] = zero;
+        for (int i = 0; i < n; ++i) {
+            const v4d h0 = tau - i >= 0 ? hbuf[tau - i] : zero, hk = hbuf[K + tau - i];
+            for (int m = i; m < n; ++m) {
+                s0[m] += T[m * n + i] * h0;
+                sk[m] += T[m * n + i] * hk;
+            }
+        }
+        for (int m = 0; m < n; ++m) {
+            S0[m * L + tau] = s0[m] * sc[m];
+            SK[m * L + tau] = sk[m] * sc[m];
+        }
+    }
+    /* 5. Q^T = (S0 S0^T)^-1 S0 SK^T, the Gram matrix over the record I - Q Q^T */
+    v4d M0[FREE_MAXN * FREE_MAXN], QT[FREE_MAXN * FREE_MAXN], G[FREE_MAXN * FREE_MAXN];
+    for (int i = 0; i < n; ++i) {
+        /* row i of S0 S0^T and of SK S0^T, the sums side by side */
+        v4d s[FREE_MAXN], r[FREE_MAXN];
+        for (int j = 0; j < n; ++j) s[j] = r[j] = zero;
+        for (Py_ssize_t tau = 0; tau < L; ++tau) {
+            const v4d v = S0[i * L + tau];
+            for (int j = 0; j <= i; ++j) s[j] += v * S0[j * L + tau];
+        }
+        for (Py_ssize_t tau = 0; tau < L; ++tau) {
+            const v4d v = S0[i * L + tau];
+            for (int j = 0; j < n; ++j) r[j] += v * SK[j * L + tau];
+        }
+        for (int j = 0; j <= i; ++j) M0[i * n + j] = s[j];
+        for (int j = 0; j < n; ++j) QT[j * n + i] = r[j]; /* column j of S0 SK^T, as row j */
+    }
+    int good[4] = {1, 1, 1, 1};
+    free_cholesky(M0, n, good);
+    for (int j = 0; j < n; ++j) {
+        free_lower_solve(M0, QT + j * n, n);
+        free_upper_solve(M0, QT + j * n, n); /* row j of QT now column j of Q^T */
+    }
+    for (int i = 0; i < n; ++i) {
+        v4d s[FREE_MAXN];
+        for (int j = 0; j <= i; ++j) s[j] = zero;
+        for (int k = 0; k < n; ++k) {
+            const v4d v = QT[i * n + k];
+            for (int j = 0; j <= i; ++j) s[j] += v * QT[j * n + k];
+        }
+        for (int j = 0; j <= i; ++j) G[i * n + j] = (i == j ? zero + 1.0 : zero) - s[j];
+    }
+    /* 6. the right-hand side and the normalised solve */
+    v4d c[FREE_MAXN], Nc[FREE_MAXN];
+    for (int m = 0; m < n; ++m) {
+        v4d s = zero;
+        for (int i = 0; i <= m; ++i) s += T[m * n + i] * wv[i];
+        c[m] = s * sc[m];
+    }
+    free_cholesky(G, n, good);
+    free_lower_solve(G, c, n);
+    free_upper_solve(G, c, n);
+    for (int m = 0; m < n; ++m) c[m] *= sc[m];
+    for (int i = 0; i < n; ++i) {
+        v4d s = zero;
+        for (int m = i; m < n; ++m) s += T[m * n + i] * c[m];
+        Nc[i] = s;
+    }
+    /* 7. the fitted free response removed from e */
+    for (int i = 0; i < n; ++i) Z[i] = zero;
+    v4d sse = zero;
+    double *err = J->errors ? J->errors + q * K : NULL;
+    for (Py_ssize_t t = 0; t < K; ++t) {
+        v4d yt;
+        FREE_STEP(Z, A, t < n ? Nc[t] : zero, yt, n);
+        const v4d e = ebuf[t] - yt;
+        sse += e * e;
+        if (err)
+            for (Py_ssize_t l = 0; l < w; ++l) err[l * K + t] = e[l];
+    }
+    for (Py_ssize_t l = 0; l < w; ++l) {
+        J->sse[q + l] = good[l] ? sse[l] : NAN;
+        for (int m = 0; m < n; ++m) J->coef[(q + l) * n + m] = c[m][l];
+    }
+}
+
+typedef void (*free_quad_fn)(const free_job *, Py_ssize_t, v4d *);
+#if defined(AR_X86)
+#define FREE_QUAD(n)                                                                          \
+    static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
+    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
+    AR_TGT_V4 static void free_quad_v4_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
+#else
+#define FREE_QUAD(n)                                                                          \
+    static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
+#endif
+FREE_QUAD(1) FREE_QUAD(2) FREE_QUAD(3) FREE_QUAD(4) FREE_QUAD(5) FREE_QUAD(6)
+FREE_QUAD(7) FREE_QUAD(8) FREE_QUAD(9) FREE_QUAD(10) FREE_QUAD(11) FREE_QUAD(12)
+FREE_QUAD(13) FREE_QUAD(14) FREE_QUAD(15) FREE_QUAD(16) FREE_QUAD(17) FREE_QUAD(18)
+FREE_QUAD(19) FREE_QUAD(20) FREE_QUAD(21) FREE_QUAD(22) FREE_QUAD(23) FREE_QUAD(24)
+#define FREE_TABLE(p)                                                                         \
+    {                                                                                         \
+        NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
+            p##13, p##14, p##15, p##16, p##17, p##18, p##19, p##20, p##21, p##22, p##23, p##24 \
+    }
+static const free_quad_fn free_quads_generic[FREE_MAXN + 1] = FREE_TABLE(free_quad_g);
+#if defined(AR_X86)
+static const free_quad_fn free_quads_v3[FREE_MAXN + 1] = FREE_TABLE(free_quad_v3_);
+static const free_quad_fn free_quads_v4[FREE_MAXN + 1] = FREE_TABLE(free_quad_v4_);
+#endif
+
+typedef struct {
+    free_job J;
+    free_quad_fn fn;
+} free_ctx;
+
+/* Block u of a fit; the scratch holds e, h and the two basis windows of one block. */
+static int free_unit(const void *ctx, Py_ssize_t u, void **scratch)
+{
+    const free_ctx *c = (const free_ctx *)ctx;
+    if (!*scratch) {
+        const size_t count = (size_t)(2 * c->J.K + c->J.L + 2 * c->J.n * c->J.L);
+        *scratch = aligned_alloc(32, count * sizeof(v4d));
+        if (!*scratch) return -1;
+    }
+    c->fn(&c->J, 4 * u, (v4d *)*scratch);
+    return 0;
+}
+
+static PyObject *py_free_fit(PyObject *self, PyObject *args)
+{
+    PyObject *objs[9];
+    Py_buffer bufs[9];
+    int have[9] = {0}, n_threads = 1;
+    Py_ssize_t window, num_stride = 0;
+    static const char *names[9] = {"a",         "num",        "reg",     "target", "basis",
+                                   "energies",  "errors_out", "sse_out", "coef_out"};
+    if (!PyArg_ParseTuple(args, "OOOOOOnOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
+                          &objs[4], &objs[5], &window, &objs[6], &objs[7], &objs[8],
+                          &n_threads))
+        return NULL;
+    PyObject *result = NULL;
+    for (int i = 0; i < 9; ++i) {
+        if (objs[i] == Py_None) {
+            if (i == 6) continue;
+            PyErr_Format(PyExc_TypeError, "free_fit: %s is required", names[i]);
+            goto done;
+        }
+        if (i == 1) {
+            num_stride = get_rows(objs[1], &bufs[1], "free_fit", "num");
+            if (num_stride < 0) goto done;
+            have[1] = 1;
+            continue;
+        }
+        if (get_buffer(objs[i], &bufs[i], i >= 6, names[i]) < 0) goto done;
+        have[i] = 1;
+        if (check_format(&bufs[i], "d", names[i]) < 0) goto done;
+    }
+    const Py_ssize_t P = bufs[0].shape[0], n = bufs[0].ndim == 2 ? bufs[0].shape[1] : 0;
+    const Py_ssize_t nb = bufs[1].ndim == 2 ? bufs[1].shape[1] : -1;
+    const Py_ssize_t K = bufs[3].ndim == 1 ? bufs[3].shape[0] : 0;
+    if (bufs[0].ndim != 2 || n < 1 || n > FREE_MAXN || bufs[1].ndim != 2 ||
+        bufs[1].shape[0] != P || nb > 64 || bufs[2].ndim != 2 || bufs[2].shape[0] != K ||
+        bufs[2].shape[1] != nb || K < 1 || bufs[4].ndim != 3 || bufs[4].shape[0] != P ||
+        bufs[4].shape[1] != n || bufs[4].shape[2] != n || bufs[5].ndim != 2 ||
+        bufs[5].shape[0] != P || bufs[5].shape[1] != n || window < n ||
+        (have[6] && (bufs[6].ndim != 2 || bufs[6].shape[0] != P || bufs[6].shape[1] != K)) ||
+        bufs[7].ndim != 1 || bufs[7].shape[0] != P || bufs[8].ndim != 2 ||
+        bufs[8].shape[0] != P || bufs[8].shape[1] != n) {
+        PyErr_SetString(PyExc_ValueError,
+                        "free_fit: a (P, n) with 1 <= n <= 24, num (P, nb) with nb <= 64, reg "
+                        "(K, nb), target (K,), basis (P, n, n), energies (P, n), window >= n, "
+                        "errors_out (P, K) or None, sse_out (P,), coef_out (P, n)");
+        goto done;
+    }
+    free_ctx ctx;
+    ctx.J = (free_job){(const double *)bufs[0].buf, (const double *)bufs[1].buf,
+                       (const double *)bufs[2].buf, (const double *)bufs[3].buf,
+                       (const double *)bufs[4].buf, (const double *)bufs[5].buf,
+                       P, n, nb, K, window, num_stride,
+                       have[6] ? (double *)bufs[6].buf : NULL, (double *)bufs[7].buf,
+                       (double *)bufs[8].buf};
+#if defined(AR_X86)
+    ctx.fn = ar_simd == 2 ? free_quads_v4[n] : ar_simd == 1 ? free_quads_v3[n] : free_quads_generic[n];
+#else
+    ctx.fn = free_quads_generic[n];
+#endif
+    int rc;
+    Py_BEGIN_ALLOW_THREADS
+    rc = run_units(&ctx, free_unit, (P + 3) / 4, n_threads);
+    Py_END_ALLOW_THREADS
+    if (rc < 0) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < 9; ++i)
+        if (have[i]) PyBuffer_Release(&bufs[i]);
+    return result;
+}
+#endif

@@ -39,7 +39,7 @@ from scipy import linalg
 from .._validate import real
 from ..config import CostSpec
 from ..errors import ConfigError, DataError, UnknownNameError
-from ..kernels import ar_recursion
+from ..kernels import ar_recursion, initial_state_fit
 from ..models.polynomial import PolynomialStructure, _check_initial
 from ..stability import is_stable, pole_radius_batched
 from .arx import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
@@ -192,6 +192,26 @@ def orthogonal_numerators(den: np.ndarray, count: int) -> np.ndarray:
     return T
 
 
+def _energies(den: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """Energies over ``t >= 0`` of the impulse responses of ``P_m(q)/den(q)``, shape (P, n).
+
+    ``basis`` is :func:`orthogonal_numerators` ``(den, n)``.  The backward prediction
+    errors of ``1/den`` have the step-down's prediction-error variances,
+    ``E_m = 1 / prod_{j > m} (1 - k_j^2)``, with ``k_j`` the reflection coefficient of order
+    ``j``: the last coefficient of ``A_j``, i.e. ``basis[:, j, 0]`` for ``j < n`` and
+    ``den[:, n]``.  Rows whose step-down broke down (a plain-shift basis) are NaN.
+    """
+    n = den.shape[1] - 1
+    k = np.concatenate([basis[:, 1:, 0], den[:, n:]], axis=1)  # k_1 .. k_n
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        E = 1.0 / np.cumprod((1.0 - k * k)[:, ::-1], axis=1)[:, ::-1]
+    # a breakdown leaves the plain shifts, which are the step-down's own result only for
+    # den = 1 + a_n q^-n
+    broke = (basis == np.eye(n)).all(axis=(1, 2)) & (den[:, 1:n] != 0).any(axis=1)
+    E[broke | ~(np.isfinite(E) & (E > 0)).all(axis=1)] = np.nan
+    return E
+
+
 def _monic(x: np.ndarray) -> np.ndarray:
     return np.hstack([np.ones((x.shape[0], 1)), x])
 
@@ -304,6 +324,10 @@ class PolynomialCost:
         self._ylags = _lags(y, self._deg_y + 1, t0, self.N)
         self._ulags = [_lags(u[:, j], d + 1, t0, self.N) for j, d in enumerate(self._deg_u)]
         self._state = y[s.start - self._deg_den : s.start][::-1].copy()
+        # the regressors of the predictor's numerators, one row per sample (initial state
+        # estimated: the compiled pass forms the input part itself); num_y's leading
+        # coefficient is exactly zero, so its row is left out
+        self._reg = np.ascontiguousarray(np.concatenate([self._ylags[1:], *self._ulags]).T)
         self.theta_ls = self._least_squares_start()
         finite = bool(np.isfinite(self.theta_ls).all())
         self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
@@ -431,6 +455,9 @@ class PolynomialCost:
         ndarray, shape (P,)
             Over ``t >= start``, in output units squared.
         """
+        if self.initial == "estimate" and self._deg_den:
+            den, num_y, nums = self._predictor(self._parts(X))
+            return self._estimated(den, num_y, nums, want_errors=False)[0]
         return np.einsum("pk,pk->p", *(2 * (self.prediction_errors(X),)))
 
     def prediction_errors(self, X: np.ndarray) -> np.ndarray:
@@ -447,18 +474,52 @@ class PolynomialCost:
             Over ``t >= start``, in output units, under the cost's initial-condition rule.
         """
         den, num_y, nums = self._predictor(self._parts(X))
-        forced = self._forced(num_y, nums)
         n = den.shape[1] - 1
+        if self.initial == "estimate" and n:
+            return self._estimated(den, num_y, nums, want_errors=True)[1]
+        forced = self._forced(num_y, nums)
         if self.initial == "measured":
             yhat, _ = ar_recursion(den[:, 1:], forced, self._state[:n])
             return self._target - yhat
         yhat, _ = ar_recursion(den[:, 1:], forced, np.zeros(n))
-        e = self._target - yhat[:, self.start - self._t0 :]
-        if self.initial == "estimate" and n:
-            free = self._free_responses(den)
-            (x0,) = _least_squares_rows([free], e)
-            e = e - (x0[:, None, :] @ free)[:, 0]
-        return e
+        return self._target - yhat[:, self.start - self._t0 :]
+
+    def _estimated(
+        self, den: np.ndarray, num_y: np.ndarray, nums: list[np.ndarray], *, want_errors: bool
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """SSE (P,) and, when wanted, errors (P, K) with the initial state fitted.
+
+        One pass of :func:`flexid.kernels.initial_state_fit` per population: the error from
+        rest, the right-hand side of the free responses' least squares by one anti-causal
+        recursion, their Gram matrix from the step-down energies less the tail after the
+        record, and the error with the fitted free response removed.  Rows whose step-down
+        breaks down in rounding, or whose small solve fails, take the route of
+        :meth:`_estimated_by_recursions`.
+        """
+        n = den.shape[1] - 1
+        basis = orthogonal_numerators(den, n)
+        energies = _energies(den, basis)
+        num = np.concatenate([num_y[:, 1:], *nums], axis=1)  # num_y[:, 0] is exactly zero
+        sse, e, _ = initial_state_fit(
+            den[:, 1:], num, self._reg, self._target, basis, energies, want_errors=want_errors
+        )
+        bad = ~np.isfinite(sse)
+        if bad.any():
+            e_bad = self._estimated_by_recursions(den[bad], num_y[bad], [x[bad] for x in nums])
+            sse[bad] = np.einsum("pk,pk->p", e_bad, e_bad)
+            if e is not None:
+                e[bad] = e_bad
+        return sse, e
+
+    def _estimated_by_recursions(
+        self, den: np.ndarray, num_y: np.ndarray, nums: list[np.ndarray]
+    ) -> np.ndarray:
+        """Errors (P, K) with the initial state fitted: ``n`` recursions and least squares."""
+        yhat, _ = ar_recursion(den[:, 1:], self._forced(num_y, nums), np.zeros(den.shape[1] - 1))
+        e = self._target - yhat
+        free = self._free_responses(den)
+        (x0,) = _least_squares_rows([free], e)
+        return e - (x0[:, None, :] @ free)[:, 0]
 
     def _free_responses(self, den: np.ndarray) -> np.ndarray:
         """``(P, n, K)`` basis of the free responses of ``1/den`` from ``t = start``.
