@@ -16,10 +16,10 @@ from .config import SearchSpec
 from .costs.arx import ARXCost
 from .data import IOData
 from .diagnostics import format_fit
-from .estimation import SearchBox
 from .models.arx import ARX
 from .models.polynomial import PolynomialStructure
 from .optimisers import History
+from .parametrisation import SearchBox
 from .validation import ValidationReport
 
 __all__ = ["Identification", "data_info", "timings"]

@@ -48,7 +48,6 @@ __all__ = [
     "NUMERATOR_RULES",
     "EstimationProblem",
     "PolynomialEstimationProblem",
-    "SearchBox",
     "build_problem",
     "check_excitation",
     "check_search",
