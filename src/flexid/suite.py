@@ -767,37 +767,51 @@ def load_suite(store: str | os.PathLike | ResultStore, suite: Suite) -> SuiteRes
         wanted = {suite.comparison_name(p): p for p in suite.problems}
         found = [e for e in entries if e["name"] in wanted]
         if not found:
-            mine = f"{_PREFIX}{suite.label}@"
-            others = sorted({e["name"][len(mine):].split("/")[0] for e in entries
-                             if e["name"].startswith(mine)})  # fmt: skip
-            if others:
-                raise SuiteVersionError(
-                    f"{db.path}: the store holds suite {suite.label} version(s) "
-                    f"{', '.join(others)}, not {suite.version} (the problems' definitions "
-                    "changed); run the suite again into another store"
-                )
+            _refuse_other_versions(db, entries, suite)
         results, dims = {}, {}
         for entry in found:
-            problem = wanted[entry["name"]]
-            records = db.runs(entry["key"])
-            dim = _dimension_of(records, entry["key"])
-            spec = ComparisonSpec.from_dict(entry["spec"])
-            if spec.budget != suite.budget_per_dim * dim:
-                continue  # another budget per dimension: another experiment on the problem
-            # every optimiser ever run on the problem, not only the last run's list
-            labels: dict[str, OptimiserSpec] = {}
-            for r in records:
-                if r["label"] != LEAST_SQUARES and r["label"] not in labels:
-                    label = None if r["label"] == r["optimiser"] else r["label"]
-                    labels[r["label"]] = OptimiserSpec(r["optimiser"], dict(r["params"]), label)
-            spec = replace(spec, optimisers=tuple(labels.values()), runs=suite.runs)
-            results[problem.name] = ComparisonResult.from_records(spec, entry["key"], records)
-            dims[problem.name] = dim
+            read = _problem_result(db, entry, suite)
+            if read is not None:
+                name = wanted[entry["name"]].name
+                results[name], dims[name] = read
     finally:
         if db is not store:
             db.close()
     order = [p.name for p in suite.problems if p.name in results]
     return SuiteResult(suite, {n: results[n] for n in order}, {n: dims[n] for n in order})
+
+
+def _refuse_other_versions(db: ResultStore, entries: list[dict], suite: Suite) -> None:
+    """Raise SuiteVersionError when the store holds other versions of the suite."""
+    mine = f"{_PREFIX}{suite.label}@"
+    others = sorted({e["name"][len(mine):].split("/")[0] for e in entries
+                     if e["name"].startswith(mine)})  # fmt: skip
+    if others:
+        raise SuiteVersionError(
+            f"{db.path}: the store holds suite {suite.label} version(s) {', '.join(others)}, "
+            f"not {suite.version} (the problems' definitions changed); run the suite again "
+            "into another store"
+        )
+
+
+def _problem_result(
+    db: ResultStore, entry: Mapping[str, Any], suite: Suite
+) -> tuple[ComparisonResult, int] | None:
+    """A stored problem's result and dimension; None when it ran at another budget per
+    dimension (another experiment on the problem)."""
+    records = db.runs(entry["key"])
+    dim = _dimension_of(records, entry["key"])
+    spec = ComparisonSpec.from_dict(entry["spec"])
+    if spec.budget != suite.budget_per_dim * dim:
+        return None
+    # every optimiser ever run on the problem, not only the last run's list
+    labels: dict[str, OptimiserSpec] = {}
+    for r in records:
+        if r["label"] != LEAST_SQUARES and r["label"] not in labels:
+            label = None if r["label"] == r["optimiser"] else r["label"]
+            labels[r["label"]] = OptimiserSpec(r["optimiser"], dict(r["params"]), label)
+    spec = replace(spec, optimisers=tuple(labels.values()), runs=suite.runs)
+    return ComparisonResult.from_records(spec, entry["key"], records), dim
 
 
 def _dimension_of(records: Sequence[Mapping[str, Any]], key: str) -> int:

@@ -72,6 +72,32 @@ def _io_arrays(u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
     return u, y
 
 
+def _check_samples(structure: Any, n_samples: int, what: str) -> None:
+    """Raise ModelOrderError unless ``n_samples - structure.start > structure.n_params``.
+
+    Parameters
+    ----------
+    structure : ARXStructure or PolynomialStructure
+        Any structure with ``start`` and ``n_params``.
+    n_samples : int
+        Number of samples N of the record.
+    what : str
+        What the ``N - start`` samples give (``"equations"``, ``"error samples"``).
+
+    Raises
+    ------
+    ModelOrderError
+        If ``N - start <= n_params``.
+    """
+    k = n_samples - structure.start
+    if k <= structure.n_params:
+        raise ModelOrderError(
+            f"too few samples for {structure!r}: {n_samples} samples give {max(k, 0)} {what} "
+            f"for {structure.n_params} parameters (need more than "
+            f"{structure.start + structure.n_params} samples)"
+        )
+
+
 class ARXStructure:
     """The orders of an ARX model (MATLAB's ``[na nb nk]``).
 
@@ -164,13 +190,7 @@ class ARXStructure:
         ModelOrderError
             If ``N - start <= n_params``.
         """
-        k = n_samples - self.start
-        if k <= self.n_params:
-            raise ModelOrderError(
-                f"too few samples for {self!r}: {n_samples} samples give {max(k, 0)} "
-                f"equations for {self.n_params} parameters (need more than "
-                f"{self.start + self.n_params} samples)"
-            )
+        _check_samples(self, n_samples, "equations")
 
     def regressors(self, u: Any, y: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """Regressor matrix and target of the one-step equation ``y(t) = phi(t) theta + e(t)``.

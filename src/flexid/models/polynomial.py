@@ -61,7 +61,7 @@ from .._json import jsonable
 from .._validate import checked_keywords, integer, positive_real
 from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
-from .arx import ARX, ARXStructure
+from .arx import ARX, ARXStructure, _check_samples
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
     import control
@@ -453,13 +453,7 @@ class PolynomialStructure:
         ModelOrderError
             If ``N - start <= n_params``.
         """
-        k = n_samples - self.start
-        if k <= self.n_params:
-            raise ModelOrderError(
-                f"too few samples for {self!r}: {n_samples} samples give {max(k, 0)} "
-                f"error samples for {self.n_params} parameters (need more than "
-                f"{self.start + self.n_params} samples)"
-            )
+        _check_samples(self, n_samples, "error samples")
 
     def model(self, theta: Any, dt: float = 1.0) -> PolynomialModel:
         """A model of this structure with the given parameters.
