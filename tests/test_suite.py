@@ -229,8 +229,10 @@ def test_the_command_line_lists_runs_and_reports(tmp_path, capsys):
     assert listed["version"] == get_suite("small").version and len(listed["problems"]) == 14
     one = "twin-rotor/arx(5,5,1)/one-step/seed0"
     common = ["--problems", one, "--runs", "1", "--budget-per-dim", "3", "--store", str(store)]
-    assert main(["suite", "run", "--optimisers", "random-search", "--no-progress", *common]) == 0
+    ran = ["suite", "run", "--optimisers", "random-search", "--no-progress", "-o", str(out)]
+    assert main([*ran, *common]) == 0
     assert "Suite flexid-sysid-small" in capsys.readouterr().out
+    assert (out / "problems.md").exists()  # the run writes its report too
     assert main(["suite", "report", "-o", str(out), *common]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["ecdf.png", "ioh", "problems.md",
                                                      "summary.txt"]  # fmt: skip

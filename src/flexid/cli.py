@@ -734,11 +734,10 @@ def _cmd_suite(args: argparse.Namespace) -> int:
                           "table": result.table()}, indent=2, default=float))  # fmt: skip
     else:
         print(result.summary())
-    if args.action == "report":
-        out = Path(args.out) if args.out else store.parent / "suite-report"
-        _write_suite_report(result, out, figures=not args.no_figures, by=args.by)
-        if not args.json:
-            print(f"\nreport: {out}")
+    out = Path(args.out) if args.out else store.parent / "suite-report"
+    _write_suite_report(result, out, figures=not args.no_figures, by=args.by)
+    if not args.json:
+        print(f"\nreport: {out}")
     return 0
 
 
@@ -1146,10 +1145,13 @@ def build_parser() -> argparse.ArgumentParser:
     su.add_argument("--store", help=f"SQLite result store (default {_SUITE_STORE})")
     su.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
     su.add_argument("--scheduler", help="dask scheduler address (default: none, local)")
-    su.add_argument("--out", "-o", help="report: folder (default suite-report/ next to the store)")
+    su.add_argument(
+        "--out", "-o", help="run, report: the report's folder (default suite-report/ next to the "
+        "store)",
+    )
     su.add_argument("--by", default="structure", choices=["structure", "plant", "cost"],
-                    help="report: the ECDF's group panels (default structure)")  # fmt: skip
-    su.add_argument("--no-figures", action="store_true", help="report: no ECDF figure")
+                    help="the ECDF's group panels (default structure)")  # fmt: skip
+    su.add_argument("--no-figures", action="store_true", help="no ECDF figure")
     su.add_argument("--no-progress", action="store_true", help="no progress lines")
     su.add_argument("--json", action="store_true", help="machine-readable output")
     su.set_defaults(func=_cmd_suite)
