@@ -493,7 +493,7 @@ def lag_sum_basis(cost, row, offset, state0):
 @pytest.mark.parametrize("initial", ["measured", "zero"])
 @pytest.mark.parametrize("orders", [(2, 3), (8, 8), (5, 1), (1, 4), (3, 12)])
 @pytest.mark.parametrize("route", ["compiled", "numpy"])
-def test_arx_fit_shifted_solves_the_least_squares_problem(route, initial, orders):
+def test_arx_fit_shifted_solves_the_least_squares_problem(simd, route, initial, orders):
     # the fit by lag sums against the exact least-squares solution (SVD) of the reference
     # route's regressors (nb + 1 lfilter recursions).  Three parts, as for arx_fit:
     # * the regressors of the two routes differ by the recursions' rounding (ar_route_bound

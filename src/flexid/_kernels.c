@@ -399,6 +399,7 @@ static int run_units_serial(const void *ctx, unit_fn fn, Py_ssize_t n_units)
 
 #if defined(FLEXID_THREADS)
 #include <pthread.h>
+#include <time.h>
 typedef struct {
     const void *ctx;    /* read only while a claimed unit runs: the caller is waiting then */
     unit_fn fn;
@@ -448,14 +449,51 @@ static pool_shared *pool_job = NULL; /* the posted job (under pool_lock) */
 static unsigned long pool_gen = 0;   /* jobs posted so far (under pool_lock) */
 static int pool_helpers = 0;         /* helper threads started (under pool_lock) */
 static int pool_busy = 0;            /* a caller owns the helpers (atomic) */
+static int pool_sleepers = 0;        /* helpers blocked on pool_wake (under pool_lock) */
+
+/* Waking a sleeping thread costs the caller a system call and the helper tens of
+ * microseconds, as much as the whole job of one call of an optimiser's generation; the
+ * calls come back to back, so a thread first spins this long on the word it waits for. */
+#define POOL_SPIN_HELPER 1e-4 /* seconds: between the calls of a run */
+#define POOL_SPIN_CALLER 2e-5 /* seconds: for the last units a helper runs */
+static double pool_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+static inline void pool_pause(void)
+{
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+}
+/* Spins until *word differs from value (1) or the time is up (0). */
+static int pool_spin_ul(const unsigned long *word, unsigned long value, double seconds)
+{
+    const double end = pool_now() + seconds;
+    for (;;) {
+        for (int i = 0; i < 64; ++i) {
+            if (__atomic_load_n(word, __ATOMIC_ACQUIRE) != value) return 1;
+            pool_pause();
+        }
+        if (pool_now() > end) return 0;
+    }
+}
 
 static void *pool_helper(void *arg)
 {
     (void)arg;
     unsigned long seen = 0;
-    pthread_mutex_lock(&pool_lock);
     for (;;) {
-        while (!(pool_job && pool_gen != seen)) pthread_cond_wait(&pool_wake, &pool_lock);
+        pool_spin_ul(&pool_gen, seen, POOL_SPIN_HELPER);
+        pthread_mutex_lock(&pool_lock);
+        while (!(pool_job && pool_gen != seen)) {
+            if (!pool_job) seen = pool_gen; /* a job posted meanwhile is over */
+            ++pool_sleepers;
+            pthread_cond_wait(&pool_wake, &pool_lock);
+            --pool_sleepers;
+        }
         pool_shared *sh = pool_job;
         seen = pool_gen;
         __atomic_add_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
@@ -464,7 +502,6 @@ static void *pool_helper(void *arg)
         if (__atomic_add_fetch(&sh->joined, 1, __ATOMIC_ACQ_REL) <= sh->max_helpers)
             pool_claim(sh);
         pool_release(sh);
-        pthread_mutex_lock(&pool_lock);
     }
     return NULL;
 }
@@ -477,6 +514,7 @@ static void pool_after_fork(void)
     pool_job = NULL;
     pool_helpers = 0;
     pool_busy = 0;
+    pool_sleepers = 0;
 }
 #endif
 
@@ -512,10 +550,15 @@ static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_thre
             pthread_attr_destroy(&attr);
         }
         pool_job = sh;
-        ++pool_gen;
-        pthread_cond_broadcast(&pool_wake);
+        __atomic_store_n(&pool_gen, pool_gen + 1, __ATOMIC_RELEASE);
+        if (pool_sleepers) pthread_cond_broadcast(&pool_wake);
         pthread_mutex_unlock(&pool_lock);
         pool_claim(sh);
+        if (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units) {
+            const double end = pool_now() + POOL_SPIN_CALLER;
+            while (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units && pool_now() < end)
+                for (int i = 0; i < 64; ++i) pool_pause();
+        }
         if (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units) {
             pthread_mutex_lock(&sh->lock);
             sh->waiting = 1;
