@@ -560,6 +560,9 @@ def test_fitted_costs_are_the_plain_costs_of_the_fitted_rows():
     # (AR_BLOCK_IMPL itself, the same sums in the same order): exactly self(theta), also
     # for unstable and non-finite rows, which take the plain route
     cost, a = fitted_numerator_problem(8, 8, "measured")
+    theta, costs = cost.fitted(a)  # every row stable: one call of the kernel
+    np.testing.assert_array_equal(theta, cost.fit_numerator(a))
+    np.testing.assert_array_equal(costs, cost(theta))
     a = np.vstack([a, np.full(8, 0.9), a[:1] * np.nan, a])
     theta, costs = cost.fitted(a)
     np.testing.assert_array_equal(theta, cost.fit_numerator(a))
