@@ -1499,11 +1499,11 @@ done:
  * the inputs x(-j), ..., x(-1), whose responses are delayed impulse responses) and the free
  * response from state0 (which is the response to the inputs c_l = -sum_{i > l} a_i y(l - i)
  * at t = l < na).  So every regressor is a fixed combination F = M E of the basis M = [S^j v
- * (j < nb), S^l h (l < L)], L = max(na, nb - 1) (0 when the initial state and x(-i) are all
- * zero), whose Gram matrix and products with the target are sliding sums of products:
- * sum_{t >= offset} p(t - j) q(t - k) is the lag-(k - j) sum of p and q over the window plus
- * at most j terms at each end, so the (m + L)^2 products cost 3 (m + L) - 1 lag sums per
- * sample instead of (nb + 1)(na + nb) multiply-adds.  The normal equations of the
+ * (j < nb), S^l h (l < L)], L = max(na, nb - 1) (0, and h not run, when the initial state and
+ * x(-i) are all zero), whose Gram matrix and products with the target are sliding sums of
+ * products: sum_{t >= offset} p(t - j) q(t - k) is the lag-(k - j) sum of p and q over the
+ * window plus at most j terms at each end, so the (m + L)^2 products cost 3 (m + L) - 1 lag
+ * sums per sample instead of (nb + 1)(na + nb) multiply-adds.  The normal equations of the
  * column-scaled regressors are then solved once by Cholesky (no refinement: the accuracy is
  * that of the normal equations, kappa(F)^2 times the rounding of the sums; a row is flagged
  * (ok = 0) where the bound kappa(Gs) T eps that bounds it exceeds tol, or the factorisation
@@ -1547,17 +1547,27 @@ vp_rec_impl(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h, const int na)
         S[k] = zero + (k < T ? reg[k * nb] : 0.0);
         R[k] = zero + (k == 0 ? 1.0 : 0.0);
     }
-    for (Py_ssize_t t = 0; t < T; ++t) {
-        const v4d ys = S[0], yr = R[0];
-        v[t] = ys;
-        h[t] = yr;
-        for (int k = 0; k < na - 1; ++k) {
-            S[k] = S[k + 1] - A[k] * ys;
-            R[k] = R[k + 1] - A[k] * yr;
+    if (c->L) {
+        for (Py_ssize_t t = 0; t < T; ++t) {
+            const v4d ys = S[0], yr = R[0];
+            v[t] = ys;
+            h[t] = yr;
+            for (int k = 0; k < na - 1; ++k) {
+                S[k] = S[k + 1] - A[k] * ys;
+                R[k] = R[k + 1] - A[k] * yr;
+            }
+            const double f = t + na < T ? reg[(t + na) * nb] : 0.0;
+            S[na - 1] = f - A[na - 1] * ys;
+            R[na - 1] = zero - A[na - 1] * yr;
         }
+        return;
+    }
+    for (Py_ssize_t t = 0; t < T; ++t) { /* no delays of h in the basis: v alone */
+        const v4d ys = S[0];
+        v[t] = ys;
+        for (int k = 0; k < na - 1; ++k) S[k] = S[k + 1] - A[k] * ys;
         const double f = t + na < T ? reg[(t + na) * nb] : 0.0;
         S[na - 1] = f - A[na - 1] * ys;
-        R[na - 1] = zero - A[na - 1] * yr;
     }
 }
 
@@ -1630,9 +1640,9 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
     v4d Rvv[FIT_MAXNB], Rhv[FIT_MAXNB], Rtv[FIT_MAXNB], Rvh[AR_MAXNA + FIT_MAXNB],
         Rhh[AR_MAXNA + FIT_MAXNB], Rth[AR_MAXNA + FIT_MAXNB];
     vp_lags(v, NULL, 0, v, o, T, m, Rvv);
-    vp_lags(h, NULL, 0, v, o, T, m, Rhv);
     vp_lags(NULL, c->target, o, v, o, T, m, Rtv);
     if (L) {
+        vp_lags(h, NULL, 0, v - 1, o, T, m - 1, Rhv + 1); /* lags 1 .. m - 1 (0 is Rvh[0]) */
         vp_lags(v, NULL, 0, h, o, T, L, Rvh);
         vp_lags(h, NULL, 0, h, o, T, L, Rhh);
         vp_lags(NULL, c->target, o, h, o, T, L, Rth);
