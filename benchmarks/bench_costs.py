@@ -156,10 +156,11 @@ def main() -> None:
     f_roots = 10 * na**3  # np.roots: eigenvalues of the companion matrix, ~10 n^3
     f_lf = n * (na + 1 + nb + 1)  # lfilter: the numerator and denominator taps per sample
     # fitted numerator (README "Numerator"), by lag sums: two recursions (v, h), the lag sums
-    # of v, h and the target for the basis of nb + L delays (L = na here), the plain
-    # recursion at the solution; the route it replaced: nb + 1 recursions, the (nb, nb) Gram
-    # matrix and right-hand side twice (refinement), the residual, then the plain cost
-    f_fit = k * (2 * na + 3 * (nb + na) - 1) + f_sim + f_stab
+    # of v, h and the target for the basis of nb + L delays (L = na here; the nb - 1 sums of
+    # h with later v from the recursion instead), the plain recursion at the solution; the
+    # route it replaced: nb + 1 recursions, the (nb, nb) Gram matrix and right-hand side
+    # twice (refinement), the residual, then the plain cost
+    f_fit = k * (2 * na + 3 * (nb + na) - 1 - (nb - 1)) + f_sim + f_stab
     f_fit_old = k * ((nb + 1) * na + 2 * (nb * (nb + 1) // 2 + nb) + nb) + f_sim + 2 * f_stab
     rows = [
         ("one-step paper cost, batched (P=50)", t_one, P, f_one),

@@ -1503,13 +1503,15 @@ done:
  * x(-i) are all zero), whose Gram matrix and products with the target are sliding sums of
  * products: sum_{t >= offset} p(t - j) q(t - k) is the lag-(k - j) sum of p and q over the
  * window plus at most j terms at each end, so the (m + L)^2 products cost 3 (m + L) - 1 lag
- * sums per sample instead of (nb + 1)(na + nb) multiply-adds.  The normal equations of the
+ * sums per sample (m - 1 fewer over the whole window, see vp_solve_impl) instead of
+ * (nb + 1)(na + nb) multiply-adds.  The normal equations of the
  * column-scaled regressors are then solved once by Cholesky (no refinement: the accuracy is
  * that of the normal equations, kappa(F)^2 times the rounding of the sums; a row is flagged
  * (ok = 0) where the bound kappa(Gs) T eps that bounds it exceeds tol, or the factorisation
  * breaks down), and when sse is given the plain recursion of ar_run runs at the solution
  * (AR_BLOCK_IMPL itself, so the sums of squares are those of arx_run for the same b). */
 #define VP_PAD 32                          /* zeros stored before each signal */
+#define VP_TAIL 16                         /* samples of h run past T (>= nb - 1) */
 #define VP_MAXB (FIT_MAXNB + AR_MAXNA)      /* basis size m + L */
 
 typedef struct vp_ctx vp_ctx;
@@ -1558,6 +1560,12 @@ vp_rec_impl(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h, const int na)
             }
             const double f = t + na < T ? reg[(t + na) * nb] : 0.0;
             S[na - 1] = f - A[na - 1] * ys;
+            R[na - 1] = zero - A[na - 1] * yr;
+        }
+        for (Py_ssize_t t = T; t < T + VP_TAIL; ++t) { /* h past the window: end terms */
+            const v4d yr = R[0];
+            h[t] = yr;
+            for (int k = 0; k < na - 1; ++k) R[k] = R[k + 1] - A[k] * yr;
             R[na - 1] = zero - A[na - 1] * yr;
         }
         return;
@@ -1641,32 +1649,62 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
         Rhh[AR_MAXNA + FIT_MAXNB], Rth[AR_MAXNA + FIT_MAXNB];
     vp_lags(v, NULL, 0, v, o, T, m, Rvv);
     vp_lags(NULL, c->target, o, v, o, T, m, Rtv);
+    /* Over the whole window (o = 0), A h = delta gives the sums of h with delays of v past
+     * it without lag sums: with c(k) = sum_s h(s) v(s + k) (c(k) = Rvh[k] for k >= 0, Rhv[-k]
+     * for k < 0) and X(k) = sum_{T <= s < T - k} h(s) v(s + k) (the terms past the window),
+     *     c(k) = -X(k) - sum_{i = 1..na} a_i (c(k + i) + X(k + i)),   k = -1, -2, ...,
+     * the recursion of 1/A itself, run from Rvh[0 .. na - 1] (L >= na).  (The sums of h with
+     * itself follow from Yule-Walker equations too, but those lose accuracy as the poles near
+     * the unit circle: their matrix's inverse grows like sum h^2.) */
+    const int cont = L && o == 0;
     if (L) {
-        vp_lags(h, NULL, 0, v - 1, o, T, m - 1, Rhv + 1); /* lags 1 .. m - 1 (0 is Rvh[0]) */
+        if (!cont) vp_lags(h, NULL, 0, v - 1, o, T, m - 1, Rhv + 1); /* lags 1 .. m - 1 */
         vp_lags(v, NULL, 0, h, o, T, L, Rvh);
         vp_lags(h, NULL, 0, h, o, T, L, Rhh);
         vp_lags(NULL, c->target, o, h, o, T, L, Rth);
     }
+    if (cont) {
+        v4d Av[AR_MAXNA];
+        for (Py_ssize_t i = 0; i < na; ++i)
+            for (Py_ssize_t e = 0; e < 4; ++e)
+                Av[i][e] = c->a[(q + (e < w ? e : 0)) * c->a_stride + i];
+        /* index k + m - 1 holds lag k, k = -(m - 1) .. na - 1 */
+        v4d C[AR_MAXNA + FIT_MAXNB], X[AR_MAXNA + FIT_MAXNB];
+        const Py_ssize_t z = m - 1;
+        for (Py_ssize_t k = -z; k < na; ++k) {
+            v4d sx = zero;
+            for (Py_ssize_t s = T; s < T - k; ++s) sx += h[s] * v[s + k];
+            X[k + z] = sx;
+            if (k >= 0) C[k + z] = Rvh[k];
+        }
+        for (Py_ssize_t k = -1; k >= -z; --k) {
+            v4d acc = zero - X[k + z];
+            for (Py_ssize_t i = 1; i <= na; ++i)
+                acc -= Av[i - 1] * (C[k + i + z] + X[k + i + z]);
+            C[k + z] = acc;
+            Rhv[-k] = acc;
+        }
+    }
     v4d(*GM)[VP_MAXB] = (v4d(*)[VP_MAXB])work;
     v4d(*GE)[FIT_MAXNB] = (v4d(*)[FIT_MAXNB])(work + VP_MAXB * VP_MAXB);
-    /* G_M: basis b < m is S^b v, b >= m is S^(b - m) h */
-    for (Py_ssize_t b1 = 0; b1 < n; ++b1)
-        for (Py_ssize_t b2 = b1; b2 < n; ++b2) {
-            int p = b1 >= m, r = b2 >= m;
-            Py_ssize_t j = p ? b1 - m : b1, k = r ? b2 - m : b2;
-            if (j > k) {
-                const int tp = p;
-                const Py_ssize_t tj = j;
-                p = r, j = k, r = tp, k = tj;
+    /* G_M: basis b < m is S^b v, b >= m is S^(b - m) h.  The entry of (p, j) and (q, j + d)
+     * is the lag-d sum over the window [o - j, T - j) in the time of p: the sum over [o, T)
+     * plus the terms before o and minus those from T - j on, which grow by one at each end
+     * from j to j + 1 along a diagonal. */
+    for (int pq = 0; pq < 4; ++pq) {
+        const int p = pq & 1, r = pq >> 1; /* (v,v) (h,v) (v,h) (h,h) */
+        const Py_ssize_t np = p ? L : m, nq = r ? L : m;
+        const v4d *ps = p ? h : v, *qs = r ? h : v;
+        for (Py_ssize_t d = (p && !r) ? 1 : 0; d < nq; ++d) {
+            const v4d base = p == r ? (p ? Rhh[d] : Rvv[d]) : p ? Rhv[d] : Rvh[d];
+            v4d corr = zero;
+            for (Py_ssize_t j = 0; j < np && j + d < nq; ++j) {
+                if (j) corr += ps[o - j] * qs[o - j - d] - ps[T - j] * qs[T - j - d];
+                const Py_ssize_t b1 = p * m + j, b2 = r * m + j + d;
+                GM[b1][b2] = GM[b2][b1] = base + corr;
             }
-            const Py_ssize_t d = k - j;
-            const v4d *ps = p ? h : v, *qs = r ? h : v;
-            v4d val = p == r ? (p ? Rhh[d] : Rvv[d]) : p ? (d ? Rhv[d] : Rvh[0]) : Rvh[d];
-            /* the window of the pair is [o - j, T - j) in the time of p */
-            for (Py_ssize_t s = o - j; s < o; ++s) val += ps[s] * qs[s - d];
-            for (Py_ssize_t s = T - j; s < T; ++s) val -= ps[s] * qs[s - d];
-            GM[b1][b2] = GM[b2][b1] = val;
         }
+    }
     /* F = M E: E = identity on the v part, E[m + l][j] = x(-(j - l)) for l < j */
     for (Py_ssize_t b = 0; b < n; ++b)
         for (Py_ssize_t k = 0; k < m; ++k) {
@@ -1711,62 +1749,61 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
         rhs[i] /= sc[i];
         for (Py_ssize_t j = i; j < m; ++j) G[i][j] /= sc[i] * sc[j];
     }
-    /* Cholesky per lane; kappa(Gs) <= ||Gs||_F ||L^-1||_F^2 */
+    /* Cholesky in every lane at once (a lane whose pivot is not positive is marked and goes
+     * on with 1); kappa(Gs) <= ||Gs||_F ||L^-1||_F^2 */
+    v4d Lc[FIT_MAXNB][FIT_MAXNB], gf = zero, inv2 = zero;
+    int bad[4] = {0, 0, 0, 0};
+    for (Py_ssize_t i = 0; i < m; ++i)
+        for (Py_ssize_t j = 0; j <= i; ++j) {
+            Lc[i][j] = G[j][i];
+            gf += (i == j ? 1.0 : 2.0) * Lc[i][j] * Lc[i][j];
+        }
+    for (Py_ssize_t j = 0; j < m; ++j) {
+        v4d d = Lc[j][j];
+        for (Py_ssize_t k = 0; k < j; ++k) d -= Lc[j][k] * Lc[j][k];
+        for (int l = 0; l < 4; ++l) {
+            if (!(d[l] > 0) || !isfinite(d[l])) {
+                bad[l] = 1;
+                d[l] = 1.0;
+            } else {
+                d[l] = sqrt(d[l]);
+            }
+        }
+        Lc[j][j] = d;
+        for (Py_ssize_t i = j + 1; i < m; ++i) {
+            v4d t = Lc[i][j];
+            for (Py_ssize_t k = 0; k < j; ++k) t -= Lc[i][k] * Lc[j][k];
+            Lc[i][j] = t / d;
+        }
+    }
+    for (Py_ssize_t i = 0; i < m; ++i) {
+        v4d t = rhs[i];
+        for (Py_ssize_t k = 0; k < i; ++k) t -= Lc[i][k] * cf[k];
+        cf[i] = t / Lc[i][i];
+    }
+    for (Py_ssize_t i = m - 1; i >= 0; --i) {
+        v4d t = cf[i];
+        for (Py_ssize_t k = i + 1; k < m; ++k) t -= Lc[k][i] * cf[k];
+        cf[i] = t / Lc[i][i];
+    }
+    for (Py_ssize_t col = 0; col < m; ++col) { /* ||L^-1||_F^2, column by column */
+        v4d zc[FIT_MAXNB];
+        for (Py_ssize_t i = col; i < m; ++i) {
+            v4d t = zero + (i == col ? 1.0 : 0.0);
+            for (Py_ssize_t k = col; k < i; ++k) t -= Lc[i][k] * zc[k];
+            zc[i] = t / Lc[i][i];
+            inv2 += zc[i] * zc[i];
+        }
+    }
     for (int l = 0; l < w; ++l) {
-        double Lc[FIT_MAXNB][FIT_MAXNB], gf = 0.0;
-        int good = 1;
-        for (Py_ssize_t i = 0; i < m; ++i)
-            for (Py_ssize_t j = 0; j <= i; ++j) {
-                Lc[i][j] = G[j][i][l];
-                gf += (i == j ? 1.0 : 2.0) * Lc[i][j] * Lc[i][j];
-            }
-        for (Py_ssize_t j = 0; j < m && good; ++j) {
-            double d = Lc[j][j];
-            for (Py_ssize_t k = 0; k < j; ++k) d -= Lc[j][k] * Lc[j][k];
-            if (!(d > 0) || !isfinite(d)) {
-                good = 0;
-                break;
-            }
-            d = sqrt(d);
-            Lc[j][j] = d;
-            for (Py_ssize_t i = j + 1; i < m; ++i) {
-                double s = Lc[i][j];
-                for (Py_ssize_t k = 0; k < j; ++k) s -= Lc[i][k] * Lc[j][k];
-                Lc[i][j] = s / d;
-            }
-        }
-        double x[FIT_MAXNB], inv2 = 0.0;
-        if (good) {
-            for (Py_ssize_t i = 0; i < m; ++i) {
-                double s = rhs[i][l];
-                for (Py_ssize_t k = 0; k < i; ++k) s -= Lc[i][k] * x[k];
-                x[i] = s / Lc[i][i];
-            }
-            for (Py_ssize_t i = m - 1; i >= 0; --i) {
-                double s = x[i];
-                for (Py_ssize_t k = i + 1; k < m; ++k) s -= Lc[k][i] * x[k];
-                x[i] = s / Lc[i][i];
-            }
-            /* ||L^-1||_F^2, column by column of the inverse */
-            for (Py_ssize_t col = 0; col < m; ++col) {
-                double z[FIT_MAXNB];
-                for (Py_ssize_t i = col; i < m; ++i) {
-                    double s = i == col ? 1.0 : 0.0;
-                    for (Py_ssize_t k = col; k < i; ++k) s -= Lc[i][k] * z[k];
-                    z[i] = s / Lc[i][i];
-                    inv2 += z[i] * z[i];
-                }
-            }
-            good = sqrt(gf) * inv2 * (double)T * 2.220446049250313e-16 <= c->tol;
-        }
+        int good = !bad[l] && sqrt(gf[l]) * inv2[l] * (double)T * 2.220446049250313e-16 <= c->tol;
         for (Py_ssize_t i = 0; i < m; ++i) {
-            const double b = good ? x[i] / sc[i][l] : 0.0;
+            const double b = good ? cf[i][l] / sc[i][l] : 0.0;
             c->b_out[(q + l) * m + i] = b;
             good = good && isfinite(b);
         }
         c->ok[q + l] = (unsigned char)good;
     }
-    (void)cf;
 }
 
 #if defined(AR_X86)
@@ -1830,12 +1867,12 @@ static const vp_rec_fn vp_recs_v3[AR_MAXNA + 1] = AR_TABLE(vp_rec_v3_);
 static const vp_rec_fn vp_recs_v4[AR_MAXNA + 1] = AR_TABLE(vp_rec_v4_);
 #endif
 
-/* Block u: the two recursions into the scratch (2 (VP_PAD + T) vectors, zeros first, then
+/* Block u: the two recursions into the scratch (2 (VP_PAD + T + VP_TAIL) vectors, zeros first, then
  * the work of vp_solve_impl), the solve, and the plain recursion at the solution. */
 static int vp_unit(const void *ctx, Py_ssize_t u, void **scratch)
 {
     const vp_ctx *c = (const vp_ctx *)ctx;
-    const Py_ssize_t span = VP_PAD + c->T;
+    const Py_ssize_t span = VP_PAD + c->T + VP_TAIL;
     if (!*scratch) {
         const size_t nv = (size_t)(2 * span + VP_MAXB * (VP_MAXB + FIT_MAXNB));
         *scratch = calloc(nv, sizeof(v4d)); /* the leading zeros stay zero */

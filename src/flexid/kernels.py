@@ -76,7 +76,7 @@ _ARX_MAXNB = 64
 #: Largest ``kappa(Gs) T eps`` :func:`arx_fit_shifted` accepts (``Gs`` the column-scaled
 #: Gram matrix of the regressors, ``T`` samples): to first order the relative error of its
 #: ``b`` (the normal equations, solved once), so rows above it are flagged for the refined
-#: route.  At 1e-2 every row of the benchmark (kappa(F) ~ 5e3, about 1e-4) passes.
+#: route.  At 1e-2 every row of the benchmark (kappa(F) ~ 5e3: about 1e-5) passes.
 FIT_SHIFTED_TOL = 1e-2
 
 
@@ -468,9 +468,11 @@ def arx_fit_shifted(
     the pre-sample inputs ``x(-j) .. x(-1)``, whose responses are delayed impulse responses,
     and the free response from ``state0`` is the response to ``na`` inputs at the first
     samples.  Their Gram matrix and products with ``target`` are lag sums of ``v``, ``h``
-    and ``target`` (3 (nb + L) - 1 multiply-adds per sample, ``L = max(na, nb - 1)``, or 0
-    when ``state0`` and the pre-sample inputs are zero) plus a few terms at the ends of the
-    window, instead of ``nb + 1`` recursions and a Gram matrix.  The normal equations of the
+    and ``target`` (``3 (nb + L) - 1`` multiply-adds per sample, ``L = max(na, nb - 1)``, or
+    ``2 nb`` and no ``h`` when ``state0`` and the pre-sample inputs are zero; with
+    ``offset = 0`` the ``nb - 1`` sums of ``h`` with delays of ``v`` past it follow from
+    ``A h = delta`` instead) plus a few terms at the ends of the window, instead of
+    ``nb + 1`` recursions and a Gram matrix.  The normal equations of the
     column-scaled regressors are solved once (Cholesky): ``b`` is within about
     ``kappa(Gs) T eps`` relative of the exact least-squares solution (``tests/route_bounds.py``,
     ``vp_normal_bound``), and rows where that exceeds :data:`FIT_SHIFTED_TOL` come back with
@@ -517,6 +519,7 @@ def arx_fit_shifted(
     ok = np.empty(p, dtype=np.uint8)
     sse = np.empty(p) if want_sse else None
     work = p * reg.shape[0] * (2 * na + 3 * (nb + big_l) + (na + nb + 1 if want_sse else 0))
+    # (an upper bound of the multiply-adds: what the thread count needs)
     _c.arx_fit_shifted(a, reg, state0, target, int(offset), big_l, FIT_SHIFTED_TOL, b, ok, sse,
                        _threads_for(work))  # fmt: skip
     return b, ok.view(bool), sse
