@@ -338,28 +338,18 @@ def test_arx_fit_solves_the_least_squares_problem(simd, initial, orders):
 
 @compiled
 def test_fitted_numerator_compiled_and_numpy_routes_agree(monkeypatch):
-    # ARXCost.fit_numerator takes kernels.arx_fit on the compiled backend; its rows then feed
-    # the same cost as the NumPy route's.  Both solve the same problem (the regressors by
-    # the same recursion, bit for bit on one instruction set): the difference is the two
-    # solves' rounding, each within lstsq_error of the exact solution
+    # ARXCost.fit_numerator takes kernels.arx_fit_shifted on both backends (one input): the
+    # compiled lag sums and the NumPy ones (lfilter, einsum), each within the stated bound of
+    # the exact solution (test_arx_fit_shifted_solves_the_least_squares_problem), so within
+    # twice it of each other
     cost, a = fitted_numerator_problem(8, 8, "measured")
     monkeypatch.setattr(kernels, "BACKEND", "c")
     got = cost.fit_numerator(a)
     monkeypatch.setattr(kernels, "BACKEND", "numpy")
     ref = cost.fit_numerator(a)
     np.testing.assert_array_equal(got[:, :8], ref[:, :8])
-    for i, row in enumerate(a):
-        nb, na = 8, 8
-        forced = np.vstack([np.zeros((1, cost.K)), cost._phi_u_rows.T])
-        states = np.zeros((nb + 1, na))
-        states[0] = cost._state
-        y = kernels.ar_recursion_reference(np.repeat(row[None], nb + 1, 0), forced, states)
-        F, r = y[1:].T, cost._target - y[0]
-        exact = np.linalg.lstsq(F, r, rcond=None)[0]
-        resid = float(np.linalg.norm(r - F @ exact))
-        # both within 2 lstsq_error of the exact solution of the reference's problem, whose
-        # regressors differ from either route's by rounding far below it (first test)
-        assert np.linalg.norm(got[i, 8:] - ref[i, 8:]) <= 8 * lstsq_error(F, exact, resid)
+    for i, (_, bound, _) in enumerate(lag_sum_bounds(cost, a, "measured")):
+        assert np.linalg.norm(got[i, 8:] - ref[i, 8:]) <= 2 * bound
 
 
 @compiled
@@ -530,10 +520,10 @@ def test_arx_fit_shifted_on_lightly_damped_denominators(simd, route):
 
 
 def check_lag_sum_fit(cost, a, initial, route):
-    """The fit by lag sums of ``a`` against the exact solution, within the stated bound."""
+    """The fit by lag sums of ``a`` against the exact solution, within the stated bound, and
+    against the route of nb + 1 recursions (kernels.arx_fit) within the sum of both bounds."""
     na, nb = cost.structure.na, cost.n_params - cost.structure.na
-    start = cost.structure.start
-    offset = 0 if initial == "measured" else start
+    offset = 0 if initial == "measured" else cost.structure.start
     state0 = cost._state if initial == "measured" else np.zeros(na)
     reg = cost._phi_u_rows
     assert kernels.shifted_columns(reg)
@@ -542,8 +532,25 @@ def check_lag_sum_fit(cost, a, initial, route):
     else:
         b, ok = kernels.arx_fit_shifted_reference(a, reg, state0, cost._target, offset)
     assert ok.all() and b.shape == (a.shape[0], nb)
+    old = None
+    if kernels.compiled_available():
+        old = kernels.arx_fit(a, reg, state0, cost._target, offset)[0]
+    for i, (exact, bound, old_bound) in enumerate(lag_sum_bounds(cost, a, initial)):
+        assert np.linalg.norm(b[i] - exact) <= bound
+        if old is not None:
+            assert np.linalg.norm(b[i] - old[i]) <= bound + old_bound
+
+
+def lag_sum_bounds(cost, a, initial):
+    """Per row of ``a``: the exact least-squares ``b`` (SVD of the reference regressors), the
+    stated bound of the fit by lag sums, and that of the route of nb + 1 recursions."""
+    na, nb = cost.structure.na, cost.n_params - cost.structure.na
+    offset = 0 if initial == "measured" else cost.structure.start
+    state0 = cost._state if initial == "measured" else np.zeros(na)
+    reg = cost._phi_u_rows
     forced = np.vstack([np.zeros((1, reg.shape[0])), reg.T])
-    for i, row in enumerate(a):
+    out = []
+    for row in a:
         rows = np.repeat(row[None], nb + 1, 0)
         states = np.zeros((nb + 1, na))
         states[0] = state0
@@ -575,8 +582,10 @@ def check_lag_sum_fit(cost, a, initial, route):
         normal = normal_equations_error(M, E, gamma, cost._target, exact, a=row,
                                         v=vh[0], h=h_ext) if offset == 0 else \
             normal_equations_error(M, E, gamma, cost._target, exact)  # fmt: skip
-        bound = perturbation + normal + lstsq_error(F, exact, resid)
-        assert np.linalg.norm(b[i] - exact) <= bound
+        own = lstsq_error(F, exact, resid)
+        # arx_fit: the recursions' perturbation and its refined solve (first test above)
+        out.append((exact, perturbation + normal + own, perturbation + 2 * own))
+    return out
 
 
 def route_tolerance_terms(M, E):
