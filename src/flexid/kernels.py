@@ -385,9 +385,28 @@ def _boundary_size(reg: np.ndarray, state0: np.ndarray, na: int) -> int:
 def arx_fit_shifted_reference(
     a: np.ndarray, reg: np.ndarray, state0: np.ndarray, target: np.ndarray, offset: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Reference path of :func:`arx_fit_shifted`: ``lfilter`` and NumPy lag sums.
+    """Reference path of :func:`arx_fit_shifted`: ``lfilter`` and NumPy sums of products.
 
-    Parameters and returns as :func:`arx_fit_shifted` (without the sums of squares).
+    The same basis, combinations and flag as the compiled kernel; its Gram matrix is formed
+    from the delayed signals directly (``einsum`` over the window) rather than by lag sums.
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, na)
+        Stable denominators.
+    reg : ndarray, shape (T, nb)
+        The input regressors, delays of one signal.
+    state0 : ndarray, shape (na,)
+        ``[y(-1), ..., y(-na)]`` of the free response.
+    target : ndarray, shape (T - offset,)
+    offset : int
+
+    Returns
+    -------
+    b : ndarray, shape (P, nb)
+        Zero in the rows flagged.
+    ok : ndarray of bool, shape (P,)
+        As :func:`arx_fit_shifted`.
     """
     a = np.atleast_2d(np.asarray(a, dtype=float))
     reg = np.asarray(reg, dtype=float)
