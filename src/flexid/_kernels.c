@@ -453,8 +453,10 @@ static int pool_sleepers = 0;        /* helpers blocked on pool_wake (under pool
 
 /* Waking a sleeping thread costs the caller a system call and the helper tens of
  * microseconds, as much as the whole job of one call of an optimiser's generation; the
- * calls come back to back, so a thread first spins this long on the word it waits for. */
-#define POOL_SPIN_HELPER 1e-4 /* seconds: between the calls of a run */
+ * calls of a run come back after the optimiser's own work (about 0.2 ms a generation in
+ * Python), so a helper first spins this long on the word it waits for, and the caller on
+ * the units a helper still runs. */
+#define POOL_SPIN_HELPER 1e-3 /* seconds: between the calls of a run */
 #define POOL_SPIN_CALLER 2e-5 /* seconds: for the last units a helper runs */
 static double pool_now(void)
 {
