@@ -7,8 +7,12 @@ random +-0.3 input with small noise, population 50.  Compares, in the same run:
     of the residual vector ``y - Phi theta`` plus ``np.roots``;
 (b) the simulation paper cost (batched) against a per-candidate loop of ``np.roots`` +
     ``scipy.signal.lfilter`` (+ cost), and against a loop of ``lfilter`` alone;
-(c) the simulation cost of a larger population (P = 128) on one thread and on every core
-    this process may use (``flexid.kernels.set_threads``).
+(c) an FE with the fitted numerator (``ARXCost.fitted``, what the optimisers call with
+    ``numerator="fit"``) against a plain one, and the route of ``nb + 1`` recursions it
+    replaced;
+(d) the simulation cost and the fitted one of a larger population (P = 128), and a whole DE
+    run (population 64, the simulation cost with the fitted numerator), on one thread and on
+    every core this process may use (``flexid.kernels.set_threads``).
 
 Next to each cost: the multiply-adds one candidate needs, the rate this core's FMA
 throughput allows for them (benchmarks/roofline.py, measured at the start of the run) and
@@ -30,8 +34,12 @@ import roofline
 from scipy import signal
 
 from flexid import kernels
+from flexid.config import CostSpec, SearchSpec
 from flexid.costs.arx import ARXCost
+from flexid.data import IOData
+from flexid.estimation import build_problem
 from flexid.models.arx import ARXStructure
+from flexid.optimisers import minimize
 from flexid.stability import is_stable
 
 
@@ -116,6 +124,14 @@ def main() -> None:
 
         return run
 
+    # a whole run as identify starts it: DE (population 64) on the simulation cost with the
+    # fitted numerator, where a generation's own work (Python) comes between the calls
+    problem = build_problem(IOData(u[:, None], y[:, None]), s, CostSpec(predictor="simulation"),
+                            SearchSpec()).problem  # fmt: skip
+
+    def de_run():
+        return minimize("de", problem, 64 * 60, seed=1, params={"population": 64}).fun
+
     roof = roofline.measure()
     t = interleaved_medians(
         {
@@ -125,12 +141,20 @@ def main() -> None:
             "sim": on_threads(1, lambda: sim(X)),
             "sim_loop": loop_simulation,
             "lf": loop_lfilter_only,
-            "fit": on_threads(1, lambda: sim(sim.fit_numerator(X[:, :8]))),
+            # an FE of the optimisers' objective with numerator="fit": ARXCost.fitted
+            "fit": on_threads(1, lambda: sim.fitted(X[:, :8])[1]),
+            # the route of nb + 1 recursions it replaced, and then the plain cost
+            "fit_old": on_threads(1, lambda: sim(np.hstack([
+                X[:, :8], sim._simulation_numerators_refined(X[:, :8], 0, sim._state)]))),
         }
         | (  # threads only split the compiled kernels' work
             {
                 "big1": on_threads(1, lambda: sim(X_big)),
                 "bigN": on_threads(cores, lambda: sim(X_big)),
+                "bigfit1": on_threads(1, lambda: sim.fitted(X_big[:, :8])[1]),
+                "bigfitN": on_threads(cores, lambda: sim.fitted(X_big[:, :8])[1]),
+                "de1": on_threads(1, de_run),
+                "deN": on_threads(cores, de_run),
             }
             if kernels.BACKEND == "c"
             else {}
@@ -146,9 +170,13 @@ def main() -> None:
     f_sim = k * (nparam + 1)  # recursion na, input part nb, squared error 1 per sample
     f_roots = 10 * na**3  # np.roots: eigenvalues of the companion matrix, ~10 n^3
     f_lf = n * (na + 1 + nb + 1)  # lfilter: the numerator and denominator taps per sample
-    # fitted numerator (README "Numerator"): nb + 1 recursions, the (nb, nb) Gram matrix and
-    # right-hand side twice (refinement), the residual, then the plain cost
-    f_fit = k * ((nb + 1) * na + 2 * (nb * (nb + 1) // 2 + nb) + nb) + f_sim + 2 * f_stab
+    # fitted numerator (README "Numerator"), by lag sums: two recursions (v, h), the lag sums
+    # of v, h and the target for the basis of nb + L delays (L = na here; the nb - 1 sums of
+    # h with later v from the recursion instead), the plain recursion at the solution; the
+    # route it replaced: nb + 1 recursions, the (nb, nb) Gram matrix and right-hand side
+    # twice (refinement), the residual, then the plain cost
+    f_fit = k * (2 * na + 3 * (nb + na) - 1 - (nb - 1)) + f_sim + f_stab
+    f_fit_old = k * ((nb + 1) * na + 2 * (nb * (nb + 1) // 2 + nb) + nb) + f_sim + 2 * f_stab
     rows = [
         ("one-step paper cost, batched (P=50)", t_one, P, f_one),
         ("  of which: Schur-Cohn stability test", t_stab, P, f_stab),
@@ -157,11 +185,14 @@ def main() -> None:
         ("simulation loop: np.roots + lfilter + cost", t_sim_loop, P, f_sim + f_roots),
         ("loop of lfilter alone", t_lf, P, f_lf),
         ("simulation cost with fitted numerator", t["fit"], P, f_fit),
+        ("  by nb + 1 recursions (the former route)", t["fit_old"], P, f_fit_old),
     ]
     if "big1" in t:
         rows += [
             (f"simulation cost, P={P_big}, 1 thread", t["big1"], P_big, f_sim + f_stab),
             (f"simulation cost, P={P_big}, {cores} threads", t["bigN"], P_big, f_sim + f_stab),
+            (f"fitted numerator, P={P_big}, 1 thread", t["bigfit1"], P_big, f_fit),
+            (f"fitted numerator, P={P_big}, {cores} threads", t["bigfitN"], P_big, f_fit),
         ]
     n_stable = int(is_stable(X[:, :8]).sum())
     print(f"ARX(8,8,1), N = {n} samples (K = {k}), population {P} ({n_stable} stable)")
@@ -192,10 +223,16 @@ def main() -> None:
         lat = roof["latency"]
         print(f"  latency bounds of the recursion: {16 / (k * na * lat):,.0f} candidates/s "
               f"(direct form, 16 lanes), {4 / (k * lat):,.0f} (transposed, 4 lanes)")  # fmt: skip
-    print(f"fitted numerator over a plain evaluation:  {t['fit'] / t_sim:6.1f}x  (target <= 3x)")
+    print(f"fitted numerator over a plain evaluation:  {t['fit'] / t_sim:6.1f}x  (target <= 3x; "
+          f"the former route {t['fit_old'] / t_sim:.1f}x)")  # fmt: skip
     if "big1" in t:
         print(f"simulation, P={P_big}: {cores} threads over 1:  {t['big1'] / t['bigN']:6.2f}x "
               "(target >= 1.7x on 2 cores)")  # fmt: skip
+        print(f"fitted numerator, P={P_big}: {cores} threads over 1:  "
+              f"{t['bigfit1'] / t['bigfitN']:6.2f}x")  # fmt: skip
+        print(f"DE run (P=64, 60 generations), {cores} threads over 1: "
+              f"{t['de1'] / t['deN']:6.2f}x  ({t['de1'] * 1e3:.0f} ms on 1 thread; "
+              "target >= 1.7x)")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -191,3 +191,79 @@ def initial_state_fit_bound(
     """
     d = 4 * gram_dev * fitted + 2 * rest
     return d, 2 * resid * d + d * d + route_tolerance(k + 2) * resid * resid
+
+
+# ------------------------------------------------------------------ numerator fit by lag sums
+def _continuation_error(a, v, h, m, tol_lag):
+    """Bound on the lag sums ``c(k) = sum_s h(s) v(s + k)``, ``k = -1 .. -(m - 1)``, that the
+    kernel continues from ``c(0 .. na - 1)`` by the recursion of ``1/A``.
+
+    The computed ``c`` obeys the recursion plus a rounding ``eta(k)`` per step (a sum of
+    ``2 na + 2`` terms and the ``X`` terms past the window, ``m`` products each), and starts
+    from lag sums off by at most ``tol_lag``: the error is the response of ``1/A`` to both,
+    the start entering as ``na`` equivalent inputs of at most ``sum |a_i| tol_lag``, so at
+    most ``sum_j |h(j)| (sum |a_i| tol_lag + max |eta|)``.
+    """
+    na, T = a.size, v.size
+
+    def c_abs(k):
+        lo, hi = max(0, -k), min(T, T - k)
+        return float(np.abs(h[lo:hi] * v[lo + k : hi + k]).sum())
+
+    def x_abs(k):
+        return 0.0 if k >= 0 else float(np.abs(h[T : T - k] * v[T + k : T]).sum())
+
+    eta = max(
+        route_tolerance(2 * na + m + 2)
+        * (x_abs(k) + sum(abs(a[i - 1]) * (c_abs(k + i) + x_abs(k + i)) for i in range(1, na + 1)))
+        for k in range(-1, -m, -1)
+    ) if m > 1 else 0.0  # fmt: skip
+    gain = float(np.abs(h[: m + na]).sum())
+    return gain * (float(np.abs(a).sum()) * tol_lag + eta) + tol_lag
+
+
+def normal_equations_error(M: np.ndarray, E: np.ndarray, gamma: np.ndarray, target: np.ndarray,
+                           c: np.ndarray, *, a: np.ndarray | None = None,
+                           v: np.ndarray | None = None, h: np.ndarray | None = None) -> float:
+    """2-norm bound on ``b - b_exact`` of :func:`flexid.kernels.arx_fit_shifted`.
+
+    The regressors are ``F = M E`` and the free response ``M gamma`` (``M`` (K, n) the delayed
+    ``v`` and ``h`` over the window, see the kernel).  The route forms ``G = E^T M^T M E`` and
+    ``E^T M^T (target - M gamma)`` from lag sums of ``T + 2 n`` products, end terms and the
+    combinations by ``E`` (at most ``3 n`` more terms): each entry within ``(T + 3 n) eps``
+    times the same sum of magnitudes (``|E|^T |M|^T |M| |E|``, ...).  Over the whole window
+    with delays of ``h`` (``a``, ``v`` and ``h`` given: ``v`` over ``[0, T)``, ``h`` 16
+    samples further) the lag sums of ``h`` with delays of ``v`` past it come from ``A h =
+    delta`` instead, within :func:`_continuation_error`.  Cholesky adds a
+    backward error of ``gamma_(m+1) | |L| |L^T| |`` (Higham Thm 10.3), at most ``(m + 1) m^2
+    eps`` in the 2-norm for the column-scaled matrix ``Gs`` (unit diagonal, ``|L_ij| <= 1``).
+    With ``eta = ||Gs^-1||``, the perturbation of a linear system gives ``|dc| <= eta (|dr| +
+    |dG| |c|) / (1 - eta |dG|)`` for the scaled solution ``c`` (``b = c / s``): the normal
+    equations' ``kappa(F)^2`` (``eta ~ kappa(Fs)^2``) times the rounding of the sums, with no
+    refinement to reduce it.
+    """
+    K = M.shape[0]
+    n, m = E.shape
+    s = np.linalg.norm(M @ E, axis=0)
+    s[s == 0] = 1.0
+    absM, absE = np.abs(M), np.abs(E)
+    tol = route_tolerance(K + 3 * n)
+    dGM = tol * (absM.T @ absM)
+    big_l = n - m
+    if a is not None and big_l:
+        na = a.size
+        lag = route_tolerance(K) * max(
+            float(np.abs(v[d:]) @ np.abs(h[: K - d])) for d in range(na)
+        )  # the lag sums of v with delays of h that the continuation starts from
+        cont = _continuation_error(a, v, h, m, lag)
+        for j in range(big_l):  # (h delayed j, v delayed k > j)
+            dGM[m + j, j + 1 : m] += cont
+            dGM[j + 1 : m, m + j] += cont
+    dG = absE.T @ dGM @ absE / np.outer(s, s)
+    dr = (tol * absE.T @ (absM.T @ np.abs(target)) + absE.T @ (dGM @ np.abs(gamma))) / s
+    dG_norm = np.linalg.norm(dG) + (m + 1) * m * m * EPS
+    Fs = (M @ E) / s
+    eta = 1.0 / np.linalg.svd(Fs, compute_uv=False)[-1] ** 2
+    assert eta * dG_norm < 0.5, "the normal equations are too ill-conditioned for a bound"
+    dc = eta * (np.linalg.norm(dr) + dG_norm * np.linalg.norm(c * s)) / (1 - eta * dG_norm)
+    return float(dc / s.min())

@@ -29,7 +29,7 @@ from flexid.errors import FlexidError
 from flexid.models.arx import ARXStructure
 from flexid.stability import is_stable_reference
 from numerics import EPS, assert_close_to_terms
-from route_bounds import ar_route_bound, lstsq_error, sse_route_bound
+from route_bounds import ar_route_bound, lstsq_error, normal_equations_error, sse_route_bound
 from test_kernels import stable_denominators
 
 compiled = pytest.mark.skipif(
@@ -338,28 +338,18 @@ def test_arx_fit_solves_the_least_squares_problem(simd, initial, orders):
 
 @compiled
 def test_fitted_numerator_compiled_and_numpy_routes_agree(monkeypatch):
-    # ARXCost.fit_numerator takes kernels.arx_fit on the compiled backend; its rows then feed
-    # the same cost as the NumPy route's.  Both solve the same problem (the regressors by
-    # the same recursion, bit for bit on one instruction set): the difference is the two
-    # solves' rounding, each within lstsq_error of the exact solution
+    # ARXCost.fit_numerator takes kernels.arx_fit_shifted on both backends (one input): the
+    # compiled lag sums and the NumPy ones (lfilter, einsum), each within the stated bound of
+    # the exact solution (test_arx_fit_shifted_solves_the_least_squares_problem), so within
+    # twice it of each other
     cost, a = fitted_numerator_problem(8, 8, "measured")
     monkeypatch.setattr(kernels, "BACKEND", "c")
     got = cost.fit_numerator(a)
     monkeypatch.setattr(kernels, "BACKEND", "numpy")
     ref = cost.fit_numerator(a)
     np.testing.assert_array_equal(got[:, :8], ref[:, :8])
-    for i, row in enumerate(a):
-        nb, na = 8, 8
-        forced = np.vstack([np.zeros((1, cost.K)), cost._phi_u_rows.T])
-        states = np.zeros((nb + 1, na))
-        states[0] = cost._state
-        y = kernels.ar_recursion_reference(np.repeat(row[None], nb + 1, 0), forced, states)
-        F, r = y[1:].T, cost._target - y[0]
-        exact = np.linalg.lstsq(F, r, rcond=None)[0]
-        resid = float(np.linalg.norm(r - F @ exact))
-        # both within 2 lstsq_error of the exact solution of the reference's problem, whose
-        # regressors differ from either route's by rounding far below it (first test)
-        assert np.linalg.norm(got[i, 8:] - ref[i, 8:]) <= 8 * lstsq_error(F, exact, resid)
+    for i, (_, bound, _) in enumerate(lag_sum_bounds(cost, a, "measured")):
+        assert np.linalg.norm(got[i, 8:] - ref[i, 8:]) <= 2 * bound
 
 
 @compiled
@@ -402,6 +392,7 @@ def test_rows_the_compiled_fit_cannot_solve_take_the_numpy_route(monkeypatch):
         return b, ok
 
     monkeypatch.setattr(kernels, "BACKEND", "c")
+    cost._shifted = False  # the route of nb + 1 recursions (other structures' route)
     want = cost._simulation_numerators_numpy(a, 0, cost._state)
     monkeypatch.setattr(kernels, "arx_fit", flaky)
     got = cost.fit_numerator(a)[:, 3:]
@@ -458,3 +449,216 @@ def test_threads_from_several_python_threads():
     with ThreadPoolExecutor(4) as pool:
         for got in pool.map(run, range(32)):
             np.testing.assert_array_equal(got, want)
+
+
+# ------------------------------------------------------------------ the fit by lag sums
+def lag_sum_basis(cost, row, offset, state0):
+    """The reference route's basis ``M`` (delays of v and h by lfilter), ``E`` and ``gamma``."""
+    reg = cost._phi_u_rows
+    t_len, m = reg.shape
+    na = row.size
+    big_l = kernels._boundary_size(reg, state0, na)
+    den = np.r_[1.0, row]
+    impulse = np.zeros(t_len)
+    impulse[0] = 1.0
+    v = signal.lfilter([1.0], den, reg[:, 0])
+    h = signal.lfilter([1.0], den, impulse)
+
+    def delay(z, j):
+        return np.r_[np.zeros(j), z[: t_len - j]]
+
+    M = np.column_stack([delay(v, j) for j in range(m)] + [delay(h, j) for j in range(big_l)])
+    E = np.zeros((m + big_l, m))
+    E[:m] = np.eye(m)
+    for j in range(m):
+        for l_ in range(min(j, big_l)):
+            E[m + l_, j] = reg[0, j - l_]
+    gamma = np.zeros(m + big_l)
+    for l_ in range(na if big_l else 0):
+        gamma[m + l_] = -row[l_:] @ state0[: na - l_]
+    return M[offset:], E, gamma
+
+
+@pytest.mark.numerics
+@pytest.mark.parametrize("initial", ["measured", "zero"])
+@pytest.mark.parametrize("orders", [(2, 3), (8, 8), (5, 1), (1, 4), (3, 12)])
+@pytest.mark.parametrize("route", ["compiled", "numpy"])
+def test_arx_fit_shifted_solves_the_least_squares_problem(simd, route, initial, orders):
+    # the fit by lag sums against the exact least-squares solution (SVD) of the reference
+    # route's regressors (nb + 1 lfilter recursions).  Three parts, as for arx_fit:
+    # * the regressors of the two routes differ by the recursions' rounding (ar_route_bound
+    #   for v, h and each column), mapped by the least-squares perturbation theorem;
+    # * the normal equations formed by lag sums and solved once: normal_equations_error
+    #   (route_bounds.py), kappa(F)^2 times the rounding of the sums;
+    # * the reference solve's own rounding, lstsq_error.
+    # The two routes' regressors F = M E are the same matrix in exact arithmetic (checked
+    # below to the recursions' rounding), which is what the lag sums rely on.
+    if route == "compiled" and not kernels.compiled_available():
+        pytest.skip("flexid._kernels was not built")
+    cost, a = fitted_numerator_problem(*orders, initial)
+    check_lag_sum_fit(cost, a, initial, route)
+
+
+@pytest.mark.numerics
+@pytest.mark.parametrize("route", ["compiled", "numpy"])
+def test_arx_fit_shifted_on_lightly_damped_denominators(simd, route):
+    # the benchmark's problem (benchmarks/bench_costs.py): poles at radius 0.99, kappa(F) ~ 5e3
+    # after column scaling, so the normal equations' kappa^2 reaches 2.5e7; the stated bound
+    # still holds (about 1 % of |b| here, the error itself about 1e-9 of it)
+    if route == "compiled" and not kernels.compiled_available():
+        pytest.skip("flexid._kernels was not built")
+    rng = np.random.default_rng(0)
+    poles = 0.99 * np.exp(1j * np.array([0.05, 0.3, 0.9, 2.0]))
+    den = np.poly(np.r_[poles, poles.conj()]).real
+    u = rng.uniform(-0.3, 0.3, 1500)
+    y = signal.lfilter(np.r_[0.0, rng.normal(size=8) * 0.1], den, u)
+    y += 1e-3 * rng.standard_normal(1500)
+    cost = ARXCost(ARXStructure(8, 8, 1), (u, y), predictor="simulation")
+    a = cost.theta_ls[:8] + 1e-5 * rng.normal(size=(3, 8))
+    assert is_stable_reference(a).all()
+    check_lag_sum_fit(cost, a, "measured", route)
+
+
+def check_lag_sum_fit(cost, a, initial, route):
+    """The fit by lag sums of ``a`` against the exact solution, within the stated bound, and
+    against the route of nb + 1 recursions (kernels.arx_fit) within the sum of both bounds."""
+    na, nb = cost.structure.na, cost.n_params - cost.structure.na
+    offset = 0 if initial == "measured" else cost.structure.start
+    state0 = cost._state if initial == "measured" else np.zeros(na)
+    reg = cost._phi_u_rows
+    assert kernels.shifted_columns(reg)
+    if route == "compiled":
+        b, ok, _ = kernels.arx_fit_shifted(a, reg, state0, cost._target, offset)
+    else:
+        b, ok = kernels.arx_fit_shifted_reference(a, reg, state0, cost._target, offset)
+    assert ok.all() and b.shape == (a.shape[0], nb)
+    old = None
+    if kernels.compiled_available():
+        old = kernels.arx_fit(a, reg, state0, cost._target, offset)[0]
+    for i, (exact, bound, old_bound) in enumerate(lag_sum_bounds(cost, a, initial)):
+        assert np.linalg.norm(b[i] - exact) <= bound
+        if old is not None:
+            assert np.linalg.norm(b[i] - old[i]) <= bound + old_bound
+
+
+def lag_sum_bounds(cost, a, initial):
+    """Per row of ``a``: the exact least-squares ``b`` (SVD of the reference regressors), the
+    stated bound of the fit by lag sums, and that of the route of nb + 1 recursions."""
+    na, nb = cost.structure.na, cost.n_params - cost.structure.na
+    offset = 0 if initial == "measured" else cost.structure.start
+    state0 = cost._state if initial == "measured" else np.zeros(na)
+    reg = cost._phi_u_rows
+    forced = np.vstack([np.zeros((1, reg.shape[0])), reg.T])
+    out = []
+    for row in a:
+        rows = np.repeat(row[None], nb + 1, 0)
+        states = np.zeros((nb + 1, na))
+        states[0] = state0
+        y = kernels.ar_recursion_reference(rows, forced, states)
+        dy = ar_route_bound(rows, forced, states, y)[:, offset:]
+        F, r = y[1:, offset:].T, cost._target - y[0, offset:]
+        M, E, gamma = lag_sum_basis(cost, row, offset, state0)
+        # the same regressors and free response by the basis: within the rounding of the
+        # recursions of the columns, of v and h (amplified by |E|), and of the combination
+        pair = np.repeat(row[None], 2, 0)
+        inputs = np.vstack([reg[:, 0], np.eye(1, reg.shape[0])[0]])  # x and an impulse
+        vh = kernels.ar_recursion_reference(pair, inputs, np.zeros(na))
+        dM = ar_route_bound(pair, inputs, np.zeros(na), vh)
+        scale_v, scale_h = dM[0].max(), dM[1].max()
+        slack = (np.abs(E[:nb]).sum(0) * scale_v + np.abs(E[nb:]).sum(0) * scale_h
+                 + route_tolerance_terms(M, E))  # fmt: skip
+        assert np.all(np.abs(M @ E - F) <= dy[1:].max(axis=1)[None, :] + slack[None, :])
+        sv = np.linalg.svd(F, compute_uv=False)
+        kappa = sv[0] / sv[-1]
+        exact = np.linalg.lstsq(F, r, rcond=None)[0]
+        resid = float(np.linalg.norm(r - F @ exact))
+        e = max(np.linalg.norm(dy[1:]) / sv[0], np.linalg.norm(dy[0]) / np.linalg.norm(r))
+        assert kappa * e < 0.5
+        perturbation = kappa * e / (1 - kappa * e) * (
+            2 * np.linalg.norm(exact) + (kappa + 1) * resid / sv[0])  # fmt: skip
+        ext = np.zeros(reg.shape[0] + 16)
+        ext[0] = 1.0
+        h_ext = signal.lfilter([1.0], np.r_[1.0, row], ext)  # h past the window: end terms
+        normal = normal_equations_error(M, E, gamma, cost._target, exact, a=row,
+                                        v=vh[0], h=h_ext) if offset == 0 else \
+            normal_equations_error(M, E, gamma, cost._target, exact)  # fmt: skip
+        own = lstsq_error(F, exact, resid)
+        # arx_fit: the recursions' perturbation and its refined solve (first test above)
+        out.append((exact, perturbation + normal + own, perturbation + 2 * own))
+    return out
+
+
+def route_tolerance_terms(M, E):
+    """Rounding of the combination ``M E`` itself: ``n`` terms per entry, at most."""
+    return M.shape[1] * EPS * (np.abs(M) @ np.abs(E)).max(axis=0)
+
+
+@compiled
+def test_fitted_costs_are_the_plain_costs_of_the_fitted_rows():
+    # ARXCost.fitted runs the plain recursion at the fitted b inside the fit's kernel
+    # (AR_BLOCK_IMPL itself, the same sums in the same order): exactly self(theta), also
+    # for unstable and non-finite rows, which take the plain route
+    cost, a = fitted_numerator_problem(8, 8, "measured")
+    theta, costs = cost.fitted(a)  # every row stable: one call of the kernel
+    np.testing.assert_array_equal(theta, cost.fit_numerator(a))
+    np.testing.assert_array_equal(costs, cost(theta))
+    a = np.vstack([a, np.full(8, 0.9), a[:1] * np.nan, a])
+    theta, costs = cost.fitted(a)
+    np.testing.assert_array_equal(theta, cost.fit_numerator(a))
+    np.testing.assert_array_equal(costs, cost(theta))
+
+
+@compiled
+def test_arx_fit_shifted_does_not_depend_on_the_thread_count(simd):
+    from flexid import _kernels
+
+    cost, a = fitted_numerator_problem(4, 3, "measured")
+    a = np.vstack([a] * 5)
+    outs = []
+    for n_threads in (1, 2, 3, 16):
+        b, ok, sse = np.empty((a.shape[0], 3)), np.empty(a.shape[0], np.uint8), np.empty(a.shape[0])
+        _kernels.arx_fit_shifted(a, cost._phi_u_rows, cost._state, cost._target, 0, 4,
+                                 kernels.FIT_SHIFTED_TOL, b, ok, sse, n_threads)  # fmt: skip
+        outs.append((b, sse))
+    for b, sse in outs[1:]:
+        np.testing.assert_array_equal(b, outs[0][0])
+        np.testing.assert_array_equal(sse, outs[0][1])
+
+
+@compiled
+def test_rows_the_fit_by_lag_sums_flags_take_the_refined_route(monkeypatch):
+    cost, a = fitted_numerator_problem(3, 2, "measured")
+    real = kernels.arx_fit_shifted
+
+    def flaky(*args, **kwargs):
+        b, ok, sse = real(*args, **kwargs)
+        ok[::2] = False
+        return b, ok, sse
+
+    monkeypatch.setattr(kernels, "arx_fit_shifted", flaky)
+    want = cost._simulation_numerators_refined(a, 0, cost._state)
+    got = cost.fit_numerator(a)[:, 3:]
+    np.testing.assert_array_equal(got[::2], want[::2])
+    np.testing.assert_array_equal(got[1::2], real(a, cost._phi_u_rows, cost._state,
+                                                   cost._target, 0)[0][1::2])  # fmt: skip
+    theta, costs = cost.fitted(a)
+    np.testing.assert_array_equal(costs, cost(theta))
+
+
+@compiled
+def test_arx_fit_shifted_rejects_bad_arguments():
+    from flexid import _kernels
+
+    a = np.array([[-0.5], [0.2]])
+    reg = np.ones((50, 2))
+    b, ok = np.empty((2, 2)), np.empty(2, np.uint8)
+    with pytest.raises(ValueError, match="arx_fit_shifted"):
+        _kernels.arx_fit_shifted(a, reg, np.zeros(1), np.ones(50), 0, 3, 1e-2, b, ok, None)
+    with pytest.raises(ValueError, match="arx_fit_shifted"):
+        _kernels.arx_fit_shifted(a, reg, np.zeros(1), np.ones(49), 0, 1, 1e-2, b, ok, None)
+    with pytest.raises(ValueError, match="arx_fit_shifted"):
+        _kernels.arx_fit_shifted(a, reg, np.zeros(1), np.ones(49), 1, 1, 1e-2, b, ok,
+                                 np.empty(2))  # fmt: skip
+    # zero regressors: a singular Gram matrix, flagged
+    _, ok2, _ = kernels.arx_fit_shifted(a, np.zeros((50, 2)), np.zeros(1), np.ones(50), 0)
+    assert not ok2.any()

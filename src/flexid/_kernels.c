@@ -399,6 +399,7 @@ static int run_units_serial(const void *ctx, unit_fn fn, Py_ssize_t n_units)
 
 #if defined(FLEXID_THREADS)
 #include <pthread.h>
+#include <time.h>
 typedef struct {
     const void *ctx;    /* read only while a claimed unit runs: the caller is waiting then */
     unit_fn fn;
@@ -448,14 +449,53 @@ static pool_shared *pool_job = NULL; /* the posted job (under pool_lock) */
 static unsigned long pool_gen = 0;   /* jobs posted so far (under pool_lock) */
 static int pool_helpers = 0;         /* helper threads started (under pool_lock) */
 static int pool_busy = 0;            /* a caller owns the helpers (atomic) */
+static int pool_sleepers = 0;        /* helpers blocked on pool_wake (under pool_lock) */
+
+/* Waking a sleeping thread costs the caller a system call and the helper tens of
+ * microseconds, as much as the whole job of one call of an optimiser's generation; the
+ * calls of a run come back after the optimiser's own work (about 0.2 ms a generation in
+ * Python), so a helper first spins this long on the word it waits for, and the caller on
+ * the units a helper still runs. */
+#define POOL_SPIN_HELPER 1e-3 /* seconds: between the calls of a run */
+#define POOL_SPIN_CALLER 2e-5 /* seconds: for the last units a helper runs */
+static double pool_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+static inline void pool_pause(void)
+{
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+}
+/* Spins until *word differs from value (1) or the time is up (0). */
+static int pool_spin_ul(const unsigned long *word, unsigned long value, double seconds)
+{
+    const double end = pool_now() + seconds;
+    for (;;) {
+        for (int i = 0; i < 64; ++i) {
+            if (__atomic_load_n(word, __ATOMIC_ACQUIRE) != value) return 1;
+            pool_pause();
+        }
+        if (pool_now() > end) return 0;
+    }
+}
 
 static void *pool_helper(void *arg)
 {
     (void)arg;
     unsigned long seen = 0;
-    pthread_mutex_lock(&pool_lock);
     for (;;) {
-        while (!(pool_job && pool_gen != seen)) pthread_cond_wait(&pool_wake, &pool_lock);
+        pool_spin_ul(&pool_gen, seen, POOL_SPIN_HELPER);
+        pthread_mutex_lock(&pool_lock);
+        while (!(pool_job && pool_gen != seen)) {
+            if (!pool_job) seen = pool_gen; /* a job posted meanwhile is over */
+            ++pool_sleepers;
+            pthread_cond_wait(&pool_wake, &pool_lock);
+            --pool_sleepers;
+        }
         pool_shared *sh = pool_job;
         seen = pool_gen;
         __atomic_add_fetch(&sh->refs, 1, __ATOMIC_ACQ_REL);
@@ -464,7 +504,6 @@ static void *pool_helper(void *arg)
         if (__atomic_add_fetch(&sh->joined, 1, __ATOMIC_ACQ_REL) <= sh->max_helpers)
             pool_claim(sh);
         pool_release(sh);
-        pthread_mutex_lock(&pool_lock);
     }
     return NULL;
 }
@@ -477,6 +516,7 @@ static void pool_after_fork(void)
     pool_job = NULL;
     pool_helpers = 0;
     pool_busy = 0;
+    pool_sleepers = 0;
 }
 #endif
 
@@ -512,10 +552,15 @@ static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_thre
             pthread_attr_destroy(&attr);
         }
         pool_job = sh;
-        ++pool_gen;
-        pthread_cond_broadcast(&pool_wake);
+        __atomic_store_n(&pool_gen, pool_gen + 1, __ATOMIC_RELEASE);
+        if (pool_sleepers) pthread_cond_broadcast(&pool_wake);
         pthread_mutex_unlock(&pool_lock);
         pool_claim(sh);
+        if (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units) {
+            const double end = pool_now() + POOL_SPIN_CALLER;
+            while (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units && pool_now() < end)
+                for (int i = 0; i < 64; ++i) pool_pause();
+        }
         if (__atomic_load_n(&sh->done, __ATOMIC_ACQUIRE) < n_units) {
             pthread_mutex_lock(&sh->lock);
             sh->waiting = 1;
@@ -1443,6 +1488,484 @@ done:
         if (have[i]) PyBuffer_Release(&bufs[i]);
     return result;
 }
+
+/* ------------------------------------------------------------------ numerator fit by shifts */
+/* The least-squares problem of arx_fit when the regressor columns are one signal and its
+ * delays, reg[t, j] = x(t - j) (one input; x(-1), ..., x(-(nb - 1)) are reg[0, 1 ..]), solved
+ * from two recursions instead of nb + 1.  With v the response of 1/A to x and h its impulse
+ * response, both from rest at t = 0 and zero before it, and S the delay by one sample:
+ *
+ *     g_j = S^j v + sum_{i = 1..j} x(-i) S^(j - i) h,     g_0(free) = sum_{l < na} c_l S^l h,
+ *
+ * the response to column j from rest (1/A is time-invariant: delaying v by j samples drops
+ * the inputs x(-j), ..., x(-1), whose responses are delayed impulse responses) and the free
+ * response from state0 (which is the response to the inputs c_l = -sum_{i > l} a_i y(l - i)
+ * at t = l < na).  So every regressor is a fixed combination F = M E of the basis M = [S^j v
+ * (j < nb), S^l h (l < L)], L = max(na, nb - 1) (0, and h not run, when the initial state and
+ * x(-i) are all zero), whose Gram matrix and products with the target are sliding sums of
+ * products: sum_{t >= offset} p(t - j) q(t - k) is the lag-(k - j) sum of p and q over the
+ * window plus at most j terms at each end, so the (m + L)^2 products cost 3 (m + L) - 1 lag
+ * sums per sample (m - 1 fewer over the whole window, see vp_solve_impl) instead of
+ * (nb + 1)(na + nb) multiply-adds.  The normal equations of the
+ * column-scaled regressors are then solved once by Cholesky (no refinement: the accuracy is
+ * that of the normal equations, kappa(F)^2 times the rounding of the sums; a row is flagged
+ * (ok = 0) where the bound kappa(Gs) T eps that bounds it exceeds tol, or the factorisation
+ * breaks down), and when sse is given the plain recursion of ar_run runs at the solution
+ * (AR_BLOCK_IMPL itself, so the sums of squares are those of arx_run for the same b). */
+#define VP_PAD 32                          /* zeros stored before each signal */
+#define VP_TAIL 16                         /* samples of h run past T (>= nb - 1) */
+#define VP_MAXB (FIT_MAXNB + AR_MAXNA)      /* basis size m + L */
+
+typedef struct vp_ctx vp_ctx;
+typedef void (*vp_rec_fn)(const vp_ctx *, Py_ssize_t, v4d *, v4d *);
+typedef void (*vp_solve_fn)(const vp_ctx *, Py_ssize_t, const v4d *, const v4d *, v4d *);
+struct vp_ctx {
+    const double *a;
+    Py_ssize_t a_stride, P, na, nb, L;
+    const double *reg; /* (T, nb) */
+    Py_ssize_t T;
+    const double *state0, *target; /* (na,), (T - offset,) */
+    Py_ssize_t offset;
+    double *b_out;
+    unsigned char *ok;
+    double *sse; /* (P,) or NULL */
+    double tol;
+    vp_rec_fn rec;
+    vp_solve_fn solve;
+};
+
+/* v and h of candidates q .. q + 3 (lanes past P repeat candidate q), by the transposed form
+ * of ar_quad_impl (each y(t) summed f(t) - a_na y(t - na) - ... - a_1 y(t - 1)); the two
+ * recursions are independent chains, so each hides the other's latency. */
+static inline __attribute__((always_inline)) void
+vp_rec_impl(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h, const int na)
+{
+    const Py_ssize_t T = c->T, nb = c->nb, w = (c->P - q < 4) ? c->P - q : 4;
+    const double *reg = c->reg;
+    v4d A[AR_MAXNA], S[AR_MAXNA], R[AR_MAXNA];
+    const v4d zero = {0, 0, 0, 0};
+    for (int i = 0; i < na; ++i) A[i] = zero;
+    for (Py_ssize_t l = 0; l < 4; ++l)
+        for (int i = 0; i < na; ++i) A[i][l] = c->a[(q + (l < w ? l : 0)) * c->a_stride + i];
+    for (int k = 0; k < na; ++k) {
+        S[k] = zero + (k < T ? reg[k * nb] : 0.0);
+        R[k] = zero + (k == 0 ? 1.0 : 0.0);
+    }
+    if (c->L) {
+        for (Py_ssize_t t = 0; t < T; ++t) {
+            const v4d ys = S[0], yr = R[0];
+            v[t] = ys;
+            h[t] = yr;
+            for (int k = 0; k < na - 1; ++k) {
+                S[k] = S[k + 1] - A[k] * ys;
+                R[k] = R[k + 1] - A[k] * yr;
+            }
+            const double f = t + na < T ? reg[(t + na) * nb] : 0.0;
+            S[na - 1] = f - A[na - 1] * ys;
+            R[na - 1] = zero - A[na - 1] * yr;
+        }
+        for (Py_ssize_t t = T; t < T + VP_TAIL; ++t) { /* h past the window: end terms */
+            const v4d yr = R[0];
+            h[t] = yr;
+            for (int k = 0; k < na - 1; ++k) R[k] = R[k + 1] - A[k] * yr;
+            R[na - 1] = zero - A[na - 1] * yr;
+        }
+        return;
+    }
+    for (Py_ssize_t t = 0; t < T; ++t) { /* no delays of h in the basis: v alone */
+        const v4d ys = S[0];
+        v[t] = ys;
+        for (int k = 0; k < na - 1; ++k) S[k] = S[k + 1] - A[k] * ys;
+        const double f = t + na < T ? reg[(t + na) * nb] : 0.0;
+        S[na - 1] = f - A[na - 1] * ys;
+    }
+}
+
+/* acc[d] = sum_{s0 <= s < s1} lead(s) other(s - d), d < ND, in 4 lanes (lead a vector
+ * signal, or a scalar one shared by the lanes); even and odd s in separate sums, so that
+ * 2 ND independent chains hide the latency of each multiply-add */
+#define VP_CORR(ND, LEAD)                                                                     \
+    do {                                                                                      \
+        v4d s_[ND], r_[ND];                                                                   \
+        for (int d_ = 0; d_ < (ND); ++d_) s_[d_] = r_[d_] = zero;                             \
+        Py_ssize_t t_ = s0;                                                                   \
+        for (; t_ + 2 <= s1; t_ += 2) {                                                       \
+            const v4d l_ = LEAD;                                                              \
+            const v4d *o_ = other + t_;                                                       \
+            ++t_;                                                                             \
+            const v4d m_ = LEAD;                                                              \
+            --t_;                                                                             \
+            for (int d_ = 0; d_ < (ND); ++d_) {                                               \
+                s_[d_] += l_ * o_[-d_];                                                       \
+                r_[d_] += m_ * o_[1 - d_];                                                    \
+            }                                                                                 \
+        }                                                                                     \
+        if (t_ < s1) {                                                                        \
+            const v4d l_ = LEAD;                                                              \
+            const v4d *o_ = other + t_;                                                       \
+            for (int d_ = 0; d_ < (ND); ++d_) s_[d_] += l_ * o_[-d_];                         \
+        }                                                                                     \
+        for (int d_ = 0; d_ < (ND); ++d_) acc[d_] = s_[d_] + r_[d_];                          \
+    } while (0)
+
+static inline __attribute__((always_inline)) void
+vp_lags(const v4d *lead, const double *slead, Py_ssize_t lead_off, const v4d *other,
+        Py_ssize_t s0, Py_ssize_t s1, Py_ssize_t n, v4d *out)
+{
+    const v4d zero = {0, 0, 0, 0};
+    /* at most 8 sums at a time: with the lead and an operand they fit 16 registers */
+    for (Py_ssize_t g = 0; g < n; g += 8, other -= 8) {
+        v4d *acc = out + g;
+        const Py_ssize_t k = n - g < 8 ? n - g : 8;
+#define VP_CASE(ND)                                                                           \
+    case ND:                                                                                  \
+        if (lead)                                                                             \
+            VP_CORR(ND, lead[t_]);                                                            \
+        else                                                                                  \
+            VP_CORR(ND, zero + slead[t_ - lead_off]);                                         \
+        break;
+        switch (k) {
+            VP_CASE(1)
+            VP_CASE(2)
+            VP_CASE(3)
+            VP_CASE(4)
+            VP_CASE(5)
+            VP_CASE(6)
+            VP_CASE(7)
+            VP_CASE(8)
+        }
+#undef VP_CASE
+    }
+}
+
+/* The lag sums, the normal equations in the basis M, their Cholesky solve and the flag.
+ * work holds G_M (VP_MAXB^2) and G_M E (VP_MAXB x FIT_MAXNB) */
+static inline __attribute__((always_inline)) void
+vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *work)
+{
+    const Py_ssize_t T = c->T, o = c->offset, m = c->nb, L = c->L, na = c->na, n = m + L;
+    const Py_ssize_t w = (c->P - q < 4) ? c->P - q : 4;
+    const double *pre = c->reg; /* pre[i] = x(-i), 1 <= i < m */
+    const v4d zero = {0, 0, 0, 0};
+    v4d Rvv[FIT_MAXNB], Rhv[FIT_MAXNB], Rtv[FIT_MAXNB], Rvh[AR_MAXNA + FIT_MAXNB],
+        Rhh[AR_MAXNA + FIT_MAXNB], Rth[AR_MAXNA + FIT_MAXNB];
+    vp_lags(v, NULL, 0, v, o, T, m, Rvv);
+    vp_lags(NULL, c->target, o, v, o, T, m, Rtv);
+    /* Over the whole window (o = 0), A h = delta gives the sums of h with delays of v past
+     * it without lag sums: with c(k) = sum_s h(s) v(s + k) (c(k) = Rvh[k] for k >= 0, Rhv[-k]
+     * for k < 0) and X(k) = sum_{T <= s < T - k} h(s) v(s + k) (the terms past the window),
+     *     c(k) = -X(k) - sum_{i = 1..na} a_i (c(k + i) + X(k + i)),   k = -1, -2, ...,
+     * the recursion of 1/A itself, run from Rvh[0 .. na - 1] (L >= na).  (The sums of h with
+     * itself follow from Yule-Walker equations too, but those lose accuracy as the poles near
+     * the unit circle: their matrix's inverse grows like sum h^2.) */
+    const int cont = L && o == 0;
+    if (L) {
+        if (!cont) vp_lags(h, NULL, 0, v - 1, o, T, m - 1, Rhv + 1); /* lags 1 .. m - 1 */
+        vp_lags(v, NULL, 0, h, o, T, L, Rvh);
+        vp_lags(h, NULL, 0, h, o, T, L, Rhh);
+        vp_lags(NULL, c->target, o, h, o, T, L, Rth);
+    }
+    if (cont) {
+        v4d Av[AR_MAXNA];
+        for (Py_ssize_t i = 0; i < na; ++i)
+            for (Py_ssize_t e = 0; e < 4; ++e)
+                Av[i][e] = c->a[(q + (e < w ? e : 0)) * c->a_stride + i];
+        /* index k + m - 1 holds lag k, k = -(m - 1) .. na - 1 */
+        v4d C[AR_MAXNA + FIT_MAXNB], X[AR_MAXNA + FIT_MAXNB];
+        const Py_ssize_t z = m - 1;
+        for (Py_ssize_t k = -z; k < na; ++k) {
+            v4d sx = zero;
+            for (Py_ssize_t s = T; s < T - k; ++s) sx += h[s] * v[s + k];
+            X[k + z] = sx;
+            if (k >= 0) C[k + z] = Rvh[k];
+        }
+        for (Py_ssize_t k = -1; k >= -z; --k) {
+            v4d acc = zero - X[k + z];
+            for (Py_ssize_t i = 1; i <= na; ++i)
+                acc -= Av[i - 1] * (C[k + i + z] + X[k + i + z]);
+            C[k + z] = acc;
+            Rhv[-k] = acc;
+        }
+    }
+    v4d(*GM)[VP_MAXB] = (v4d(*)[VP_MAXB])work;
+    v4d(*GE)[FIT_MAXNB] = (v4d(*)[FIT_MAXNB])(work + VP_MAXB * VP_MAXB);
+    /* G_M: basis b < m is S^b v, b >= m is S^(b - m) h.  The entry of (p, j) and (q, j + d)
+     * is the lag-d sum over the window [o - j, T - j) in the time of p: the sum over [o, T)
+     * plus the terms before o and minus those from T - j on, which grow by one at each end
+     * from j to j + 1 along a diagonal. */
+    for (int pq = 0; pq < 4; ++pq) {
+        const int p = pq & 1, r = pq >> 1; /* (v,v) (h,v) (v,h) (h,h) */
+        const Py_ssize_t np = p ? L : m, nq = r ? L : m;
+        const v4d *ps = p ? h : v, *qs = r ? h : v;
+        for (Py_ssize_t d = (p && !r) ? 1 : 0; d < nq; ++d) {
+            const v4d base = p == r ? (p ? Rhh[d] : Rvv[d]) : p ? Rhv[d] : Rvh[d];
+            v4d corr = zero;
+            for (Py_ssize_t j = 0; j < np && j + d < nq; ++j) {
+                if (j) corr += ps[o - j] * qs[o - j - d] - ps[T - j] * qs[T - j - d];
+                const Py_ssize_t b1 = p * m + j, b2 = r * m + j + d;
+                GM[b1][b2] = GM[b2][b1] = base + corr;
+            }
+        }
+    }
+    /* F = M E: E = identity on the v part, E[m + l][j] = x(-(j - l)) for l < j */
+    for (Py_ssize_t b = 0; b < n; ++b)
+        for (Py_ssize_t k = 0; k < m; ++k) {
+            v4d s = GM[b][k];
+            for (Py_ssize_t l = 0; l < k && L; ++l) s += GM[b][m + l] * pre[k - l];
+            GE[b][k] = s;
+        }
+    /* free response coefficients c_l (per lane) and u = M^T target - G_M c */
+    v4d cl[AR_MAXNA], u[VP_MAXB];
+    for (Py_ssize_t l = 0; l < na && L; ++l) {
+        v4d s = zero;
+        for (Py_ssize_t i = l + 1; i <= na; ++i) {
+            v4d ai = zero;
+            for (Py_ssize_t e = 0; e < 4; ++e)
+                ai[e] = c->a[(q + (e < w ? e : 0)) * c->a_stride + i - 1];
+            s -= ai * c->state0[i - l - 1];
+        }
+        cl[l] = s;
+    }
+    for (Py_ssize_t b = 0; b < n; ++b) {
+        v4d s = b < m ? Rtv[b] : Rth[b - m];
+        for (Py_ssize_t l = 0; l < na && L; ++l) s -= GM[b][m + l] * cl[l];
+        u[b] = s;
+    }
+    v4d G[FIT_MAXNB][FIT_MAXNB], rhs[FIT_MAXNB], sc[FIT_MAXNB], cf[FIT_MAXNB];
+    for (Py_ssize_t j = 0; j < m; ++j) {
+        v4d r = u[j];
+        for (Py_ssize_t l = 0; l < j && L; ++l) r += u[m + l] * pre[j - l];
+        rhs[j] = r;
+        for (Py_ssize_t k = j; k < m; ++k) {
+            v4d s = GE[j][k];
+            for (Py_ssize_t l = 0; l < j && L; ++l) s += GE[m + l][k] * pre[j - l];
+            G[j][k] = s;
+        }
+    }
+    for (Py_ssize_t i = 0; i < m; ++i)
+        for (int l = 0; l < 4; ++l) {
+            const double d = G[i][i][l] > 0 ? sqrt(G[i][i][l]) : 0.0;
+            sc[i][l] = d > 0 ? d : 1.0;
+        }
+    for (Py_ssize_t i = 0; i < m; ++i) {
+        rhs[i] /= sc[i];
+        for (Py_ssize_t j = i; j < m; ++j) G[i][j] /= sc[i] * sc[j];
+    }
+    /* Cholesky in every lane at once (a lane whose pivot is not positive is marked and goes
+     * on with 1); kappa(Gs) <= ||Gs||_F ||L^-1||_F^2 */
+    v4d Lc[FIT_MAXNB][FIT_MAXNB], gf = zero, inv2 = zero;
+    int bad[4] = {0, 0, 0, 0};
+    for (Py_ssize_t i = 0; i < m; ++i)
+        for (Py_ssize_t j = 0; j <= i; ++j) {
+            Lc[i][j] = G[j][i];
+            gf += (i == j ? 1.0 : 2.0) * Lc[i][j] * Lc[i][j];
+        }
+    for (Py_ssize_t j = 0; j < m; ++j) {
+        v4d d = Lc[j][j];
+        for (Py_ssize_t k = 0; k < j; ++k) d -= Lc[j][k] * Lc[j][k];
+        for (int l = 0; l < 4; ++l) {
+            if (!(d[l] > 0) || !isfinite(d[l])) {
+                bad[l] = 1;
+                d[l] = 1.0;
+            } else {
+                d[l] = sqrt(d[l]);
+            }
+        }
+        Lc[j][j] = d;
+        for (Py_ssize_t i = j + 1; i < m; ++i) {
+            v4d t = Lc[i][j];
+            for (Py_ssize_t k = 0; k < j; ++k) t -= Lc[i][k] * Lc[j][k];
+            Lc[i][j] = t / d;
+        }
+    }
+    for (Py_ssize_t i = 0; i < m; ++i) {
+        v4d t = rhs[i];
+        for (Py_ssize_t k = 0; k < i; ++k) t -= Lc[i][k] * cf[k];
+        cf[i] = t / Lc[i][i];
+    }
+    for (Py_ssize_t i = m - 1; i >= 0; --i) {
+        v4d t = cf[i];
+        for (Py_ssize_t k = i + 1; k < m; ++k) t -= Lc[k][i] * cf[k];
+        cf[i] = t / Lc[i][i];
+    }
+    for (Py_ssize_t col = 0; col < m; ++col) { /* ||L^-1||_F^2, column by column */
+        v4d zc[FIT_MAXNB];
+        for (Py_ssize_t i = col; i < m; ++i) {
+            v4d t = zero + (i == col ? 1.0 : 0.0);
+            for (Py_ssize_t k = col; k < i; ++k) t -= Lc[i][k] * zc[k];
+            zc[i] = t / Lc[i][i];
+            inv2 += zc[i] * zc[i];
+        }
+    }
+    for (int l = 0; l < w; ++l) {
+        int good = !bad[l] && sqrt(gf[l]) * inv2[l] * (double)T * 2.220446049250313e-16 <= c->tol;
+        for (Py_ssize_t i = 0; i < m; ++i) {
+            const double b = good ? cf[i][l] / sc[i][l] : 0.0;
+            c->b_out[(q + l) * m + i] = b;
+            good = good && isfinite(b);
+        }
+        c->ok[q + l] = (unsigned char)good;
+    }
+}
+
+#if defined(AR_X86)
+#define VP_REC(n)                                                                             \
+    static void vp_rec_g##n(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h)                    \
+    {                                                                                         \
+        vp_rec_impl(c, q, v, h, n);                                                           \
+    }                                                                                         \
+    AR_TGT_V3 static void vp_rec_v3_##n(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h)        \
+    {                                                                                         \
+        vp_rec_impl(c, q, v, h, n);                                                           \
+    }                                                                                         \
+    AR_TGT_V4 static void vp_rec_v4_##n(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h)        \
+    {                                                                                         \
+        vp_rec_impl(c, q, v, h, n);                                                           \
+    }
+static void vp_solve_g(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *w)
+{
+    vp_solve_impl(c, q, v, h, w);
+}
+AR_TGT_V3 static void vp_solve_v3(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h,
+                                  v4d *w)
+{
+    vp_solve_impl(c, q, v, h, w);
+}
+AR_TGT_V4 static void vp_solve_v4(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h,
+                                  v4d *w)
+{
+    vp_solve_impl(c, q, v, h, w);
+}
+#else
+#define VP_REC(n)                                                                             \
+    static void vp_rec_g##n(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h)                    \
+    {                                                                                         \
+        vp_rec_impl(c, q, v, h, n);                                                           \
+    }
+static void vp_solve_g(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *w)
+{
+    vp_solve_impl(c, q, v, h, w);
+}
+#endif
+VP_REC(1)
+VP_REC(2)
+VP_REC(3)
+VP_REC(4)
+VP_REC(5)
+VP_REC(6)
+VP_REC(7)
+VP_REC(8)
+VP_REC(9)
+VP_REC(10)
+VP_REC(11)
+VP_REC(12)
+VP_REC(13)
+VP_REC(14)
+VP_REC(15)
+VP_REC(16)
+static const vp_rec_fn vp_recs_generic[AR_MAXNA + 1] = AR_TABLE(vp_rec_g);
+#if defined(AR_X86)
+static const vp_rec_fn vp_recs_v3[AR_MAXNA + 1] = AR_TABLE(vp_rec_v3_);
+static const vp_rec_fn vp_recs_v4[AR_MAXNA + 1] = AR_TABLE(vp_rec_v4_);
+#endif
+
+/* Block u: the two recursions into the scratch (2 (VP_PAD + T + VP_TAIL) vectors, zeros first, then
+ * the work of vp_solve_impl), the solve, and the plain recursion at the solution. */
+static int vp_unit(const void *ctx, Py_ssize_t u, void **scratch)
+{
+    const vp_ctx *c = (const vp_ctx *)ctx;
+    const Py_ssize_t span = VP_PAD + c->T + VP_TAIL;
+    if (!*scratch) {
+        const size_t nv = (size_t)(2 * span + VP_MAXB * (VP_MAXB + FIT_MAXNB));
+        *scratch = calloc(nv, sizeof(v4d)); /* the leading zeros stay zero */
+        if (!*scratch) return -1;
+    }
+    v4d *base = (v4d *)*scratch, *v = base + VP_PAD, *h = base + span + VP_PAD;
+    const Py_ssize_t q = 4 * u;
+    c->rec(c, q, v, h);
+    c->solve(c, q, v, h, base + 2 * span);
+    if (c->sse) {
+        ar_job J = {0};
+        J.a = c->a;
+        J.a_stride = c->a_stride;
+        J.b = c->b_out;
+        J.b_stride = c->nb;
+        J.reg = c->reg;
+        J.state = c->state0;
+        J.target = c->target;
+        J.sse = c->sse;
+        J.P = c->P;
+        J.na = c->na;
+        J.nb = c->nb;
+        J.K = c->T;
+        ar_quads[c->na](&J, q);
+    }
+    return 0;
+}
+
+static PyObject *py_arx_fit_shifted(PyObject *self, PyObject *args)
+{
+    PyObject *objs[7];
+    Py_buffer bufs[7];
+    int have[7] = {0}, n_threads = 1;
+    Py_ssize_t offset, L;
+    double tol;
+    if (!PyArg_ParseTuple(args, "OOOOnndOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
+                          &offset, &L, &tol, &objs[4], &objs[5], &objs[6], &n_threads))
+        return NULL;
+    static const char *names[7] = {"a", "reg", "state0", "target", "b_out", "ok_out", "sse_out"};
+    PyObject *result = NULL;
+    Py_ssize_t a_stride = get_rows(objs[0], &bufs[0], "arx_fit_shifted", "a");
+    if (a_stride < 0) return NULL;
+    have[0] = 1;
+    for (int i = 1; i < 7; ++i) {
+        if (i == 6 && objs[i] == Py_None) continue;
+        if (get_buffer(objs[i], &bufs[i], i >= 4, names[i]) < 0) goto done;
+        have[i] = 1;
+        if (check_format(&bufs[i], i == 5 ? "B" : "d", names[i]) < 0) goto done;
+    }
+    const Py_ssize_t P = bufs[0].shape[0], na = bufs[0].shape[1];
+    if (bufs[1].ndim != 2 || bufs[2].ndim != 1 || bufs[3].ndim != 1 || bufs[4].ndim != 2 ||
+        bufs[5].ndim != 1 || (have[6] && bufs[6].ndim != 1)) {
+        PyErr_SetString(PyExc_ValueError, "arx_fit_shifted: wrong number of dimensions");
+        goto done;
+    }
+    const Py_ssize_t T = bufs[1].shape[0], nb = bufs[1].shape[1], K = bufs[3].shape[0];
+    const Py_ssize_t Lmin = na > nb - 1 ? na : nb - 1;
+    if (na < 1 || na > AR_MAXNA || nb < 1 || nb > FIT_MAXNB || bufs[2].shape[0] != na ||
+        offset < 0 || K != T - offset || K < 1 || bufs[4].shape[0] != P ||
+        bufs[4].shape[1] != nb || bufs[5].shape[0] != P || (L != 0 && L != Lmin) ||
+        (have[6] && (bufs[6].shape[0] != P || offset != 0))) {
+        PyErr_SetString(PyExc_ValueError,
+                        "arx_fit_shifted: a (P, na) with 1 <= na <= 16, reg (T, nb) with 1 <= "
+                        "nb <= 16, state0 (na,), target (T - offset,), L 0 or max(na, nb - 1), "
+                        "b_out (P, nb), ok_out (P,), sse_out (P,) with offset 0, or None");
+        goto done;
+    }
+    vp_ctx ctx = {(const double *)bufs[0].buf, a_stride, P, na, nb, L,
+                  (const double *)bufs[1].buf, T, (const double *)bufs[2].buf,
+                  (const double *)bufs[3].buf, offset, (double *)bufs[4].buf,
+                  (unsigned char *)bufs[5].buf, have[6] ? (double *)bufs[6].buf : NULL, tol,
+                  vp_recs_generic[na], vp_solve_g};
+#if defined(AR_X86)
+    if (ar_simd == 2) ctx.rec = vp_recs_v4[na], ctx.solve = vp_solve_v4;
+    if (ar_simd == 1) ctx.rec = vp_recs_v3[na], ctx.solve = vp_solve_v3;
+#endif
+    int rc;
+    Py_BEGIN_ALLOW_THREADS
+    rc = run_units(&ctx, vp_unit, (P + 3) / 4, n_threads);
+    Py_END_ALLOW_THREADS
+    if (rc < 0) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    for (int i = 0; i < 7; ++i)
+        if (have[i]) PyBuffer_Release(&bufs[i]);
+    return result;
+}
 #endif
 
 static PyObject *py_simd(PyObject *self, PyObject *args)
@@ -1483,6 +2006,10 @@ static PyMethodDef methods[] = {
     {"arx_fit", py_arx_fit, METH_VARARGS,
      "arx_fit(a, reg, state0, target, offset, b_out, ok_out[, threads]): least-squares "
      "numerators of the simulation cost for denominators a (see the module)."},
+    {"arx_fit_shifted", py_arx_fit_shifted, METH_VARARGS,
+     "arx_fit_shifted(a, reg, state0, target, offset, L, tol, b_out, ok_out, sse_out"
+     "[, threads]): arx_fit for regressor columns that are delays of one signal, from two "
+     "recursions and lag sums (see the module)."},
 #endif
 #if defined(__GNUC__)
     {"free_fit", py_free_fit, METH_VARARGS,

@@ -680,14 +680,20 @@ class EstimationProblem:
 def _coefficients_of(z: Any, param: Parametrisation, cost: ARXCost, numerator: str) -> np.ndarray:
     """The one map from search vectors to ARX coefficients (what the optimisers' costs see)."""
     fit = numerator == "fit"
+    if fit:
+        return cost.fit_numerator(_denominators_of(z, param))
     if param.name != "coefficients":
         # outside the box the maps lose their guarantee (|k| > 1, r > r_max): read a point
         # there as its projection on the box, which is stable
-        n = param.na if fit else param.n_search
-        z = np.clip(z, param.lower[:n], param.upper[:n])
-    if fit:
-        return cost.fit_numerator(param.denominator(z))
+        z = np.clip(z, param.lower[: param.n_search], param.upper[: param.n_search])
     return param.to_coefficients(z)
+
+
+def _denominators_of(z: Any, param: Parametrisation) -> np.ndarray:
+    """The denominators of search vectors of the denominator only (``numerator="fit"``)."""
+    if param.name != "coefficients":
+        z = np.clip(z, param.lower[: param.na], param.upper[: param.na])  # as above
+    return param.denominator(z)
 
 
 def choose_reference(
@@ -814,6 +820,13 @@ def build_problem(
 
     if search.parametrisation == "coefficients" and not fit:
         evaluate = objective  # the search vector is theta
+    elif fit:
+
+        def evaluate(Z: np.ndarray) -> np.ndarray:
+            # the fit and the cost at it in one pass (ARXCost.fitted): the costs of
+            # objective(_coefficients_of(...)) without simulating each candidate twice
+            return objective.fitted(_denominators_of(Z, param))[1]
+
     else:
 
         def evaluate(Z: np.ndarray) -> np.ndarray:

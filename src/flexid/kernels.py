@@ -39,12 +39,15 @@ __all__ = [
     "ar_recursion",
     "ar_recursion_reference",
     "arx_fit",
+    "arx_fit_shifted",
+    "arx_fit_shifted_reference",
     "arx_recursion",
     "compiled_available",
     "initial_state_fit",
     "initial_state_fit_reference",
     "schur_cohn_compiled",
     "set_threads",
+    "shifted_columns",
     "threads",
 ]
 
@@ -72,6 +75,11 @@ BACKEND: str = "c" if (_c is not None and _CHOICE != "numpy") else "numpy"
 _THREAD_MIN_WORK = 1 << 20
 #: Largest ``nb`` whose input part the compiled kernel computes itself (``AR_MAXNB``).
 _ARX_MAXNB = 64
+#: Largest ``kappa(Gs) T eps`` :func:`arx_fit_shifted` accepts (``Gs`` the column-scaled
+#: Gram matrix of the regressors, ``T`` samples): to first order the relative error of its
+#: ``b`` (the normal equations, solved once), so rows above it are flagged for the refined
+#: route.  At 1e-2 every row of the benchmark (kappa(F) ~ 5e3: about 1e-5) passes.
+FIT_SHIFTED_TOL = 1e-2
 
 
 def _cores() -> int:
@@ -527,3 +535,191 @@ def initial_state_fit(
     return initial_state_fit_reference(
         a, num, reg, target, basis, energies, want_errors=want_errors
     )
+
+
+def shifted_columns(reg: np.ndarray) -> bool:
+    """Whether every column of ``reg`` is the previous one delayed by a sample.
+
+    ``reg[t, j] = x(t - j)`` for one signal ``x`` (one input's regressors): what
+    :func:`arx_fit_shifted` needs.
+
+    Parameters
+    ----------
+    reg : ndarray, shape (T, nb)
+
+    Returns
+    -------
+    bool
+    """
+    reg = np.asarray(reg)
+    return reg.ndim == 2 and reg.shape[1] >= 1 and bool(np.array_equal(reg[1:, 1:], reg[:-1, :-1]))
+
+
+def _boundary_size(reg: np.ndarray, state0: np.ndarray, na: int) -> int:
+    """``L``: delays of the impulse response the regressors need (0 with no initial values)."""
+    nb = reg.shape[1]
+    if not (np.any(reg[0, 1:]) or np.any(state0)):
+        return 0
+    return max(na, nb - 1)
+
+
+def arx_fit_shifted_reference(
+    a: np.ndarray, reg: np.ndarray, state0: np.ndarray, target: np.ndarray, offset: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Reference path of :func:`arx_fit_shifted`: ``lfilter`` and NumPy sums of products.
+
+    The same basis, combinations and flag as the compiled kernel; its Gram matrix is formed
+    from the delayed signals directly (``einsum`` over the window) rather than by lag sums.
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, na)
+        Stable denominators.
+    reg : ndarray, shape (T, nb)
+        The input regressors, delays of one signal.
+    state0 : ndarray, shape (na,)
+        ``[y(-1), ..., y(-na)]`` of the free response.
+    target : ndarray, shape (T - offset,)
+    offset : int
+
+    Returns
+    -------
+    b : ndarray, shape (P, nb)
+        Zero in the rows flagged.
+    ok : ndarray of bool, shape (P,)
+        As :func:`arx_fit_shifted`.
+    """
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    reg = np.asarray(reg, dtype=float)
+    state0 = np.asarray(state0, dtype=float)
+    target = np.asarray(target, dtype=float)
+    p, na = a.shape
+    t_len, m = reg.shape
+    big_l = _boundary_size(reg, state0, na)
+    n = m + big_l
+    pad = n + 1
+    x = reg[:, 0]
+    pre = reg[0]  # pre[i] = x(-i), 1 <= i < m
+    impulse = np.zeros(t_len)
+    impulse[0] = 1.0
+    sig = np.zeros((2, p, pad + t_len))  # v and h, zeros before t = 0
+    for i in range(p):
+        den = np.r_[1.0, a[i]]
+        sig[0, i, pad:] = signal.lfilter([1.0], den, x)
+        sig[1, i, pad:] = signal.lfilter([1.0], den, impulse)
+
+    def seg(k: int, lo: int, hi: int) -> np.ndarray:  # signal k over times [lo, hi)
+        return sig[k, :, pad + lo : pad + hi]
+
+    # basis b: S^b v (b < m), S^(b - m) h (b >= m); G_M over the window [offset, T)
+    kinds = [(0, j) for j in range(m)] + [(1, j) for j in range(big_l)]
+    gm = np.empty((p, n, n))
+    for b1 in range(n):
+        for b2 in range(b1, n):
+            (k1, j1), (k2, j2) = kinds[b1], kinds[b2]
+            gm[:, b1, b2] = gm[:, b2, b1] = np.einsum(
+                "pt,pt->p", seg(k1, offset - j1, t_len - j1), seg(k2, offset - j2, t_len - j2)
+            )
+    mt = np.stack([seg(k, offset - j, t_len - j) @ target for k, j in kinds], axis=1)
+    e = np.zeros((n, m))
+    e[:m, :m] = np.eye(m)
+    for j in range(m):
+        for l_ in range(min(j, big_l)):
+            e[m + l_, j] = pre[j - l_]
+    gam = np.zeros((p, n))
+    if big_l:
+        for l_ in range(na):
+            gam[:, m + l_] = -np.einsum("pi,i->p", a[:, l_:], state0[: na - l_])
+    gram = np.einsum("bj,pbc,ck->pjk", e, gm, e)
+    rhs = np.einsum("bj,pb->pj", e, mt - np.einsum("pbc,pc->pb", gm, gam))
+    scale = np.sqrt(np.maximum(np.einsum("pjj->pj", gram), 0.0))
+    scale[scale == 0] = 1.0
+    gs = gram / scale[:, :, None] / scale[:, None, :]
+    b = np.zeros((p, m))
+    ok = np.zeros(p, dtype=bool)
+    for i in range(p):
+        try:
+            chol = np.linalg.cholesky(gs[i])
+        except np.linalg.LinAlgError:
+            continue
+        inv = np.linalg.inv(chol)
+        kappa = np.linalg.norm(gs[i]) * float((inv * inv).sum())
+        c = np.linalg.solve(chol.T, np.linalg.solve(chol, rhs[i] / scale[i]))
+        b[i] = c / scale[i]
+        ok[i] = kappa * t_len * np.finfo(float).eps <= FIT_SHIFTED_TOL and np.isfinite(b[i]).all()
+    b[~ok] = 0.0
+    return b, ok
+
+
+def arx_fit_shifted(
+    a: np.ndarray,
+    reg: np.ndarray,
+    state0: np.ndarray,
+    target: np.ndarray,
+    offset: int,
+    *,
+    want_sse: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`arx_fit` for regressor columns that are delays of one signal, by lag sums.
+
+    With ``reg[t, j] = x(t - j)`` (:func:`shifted_columns`), ``v`` the response of ``1/A``
+    to ``x`` and ``h`` its impulse response (from rest at ``t = 0``), every regressor is a
+    fixed combination of the delays ``S^j v`` and ``S^l h``: delaying ``v`` by ``j`` drops
+    the pre-sample inputs ``x(-j) .. x(-1)``, whose responses are delayed impulse responses,
+    and the free response from ``state0`` is the response to ``na`` inputs at the first
+    samples.  Their Gram matrix and products with ``target`` are lag sums of ``v``, ``h``
+    and ``target`` (``3 (nb + L) - 1`` multiply-adds per sample, ``L = max(na, nb - 1)``, or
+    ``2 nb`` and no ``h`` when ``state0`` and the pre-sample inputs are zero; with
+    ``offset = 0`` the ``nb - 1`` sums of ``h`` with delays of ``v`` past it follow from
+    ``A h = delta`` instead) plus a few terms at the ends of the window, instead of
+    ``nb + 1`` recursions and a Gram matrix.  The normal equations of the
+    column-scaled regressors are solved once (Cholesky): ``b`` is within about
+    ``kappa(Gs) T eps`` relative of the exact least-squares solution (``tests/route_bounds.py``,
+    ``vp_normal_bound``), and rows where that exceeds :data:`FIT_SHIFTED_TOL` come back with
+    ``ok`` False.
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, na)
+        Stable denominators.
+    reg : ndarray, shape (T, nb)
+        The input regressors, delays of one signal.
+    state0 : ndarray, shape (na,)
+        ``[y(-1), ..., y(-na)]`` of the free response.
+    target : ndarray, shape (T - offset,)
+    offset : int
+    want_sse : bool
+        Also return the sum of squared errors of the simulation from ``state0`` at the fitted
+        ``b`` (compiled kernels and ``offset`` 0 only): the recursion of :func:`arx_recursion`
+        itself, so exactly the sums it returns for the same rows.
+
+    Returns
+    -------
+    b : ndarray, shape (P, nb)
+    ok : ndarray of bool, shape (P,)
+        False where the bound above is too large, the factorisation broke down or ``b`` is
+        not finite (solve those rows with :func:`arx_fit`).
+    sse : ndarray, shape (P,), or None
+        With ``want_sse``.
+    """
+    reg = np.ascontiguousarray(reg, dtype=float)
+    state0 = np.ascontiguousarray(state0, dtype=float)
+    target = np.ascontiguousarray(target, dtype=float)
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    na, nb = a.shape[1], reg.shape[1]
+    if BACKEND != "c" or not (1 <= na <= 16 and 1 <= nb <= 16):
+        if want_sse:
+            raise FlexidError("arx_fit_shifted: the sums of squares need the compiled kernels")
+        b, ok = arx_fit_shifted_reference(a, reg, state0, target, offset)
+        return b, ok, None
+    a = _rows(a)
+    p = a.shape[0]
+    big_l = _boundary_size(reg, state0, na)
+    b = np.empty((p, nb))
+    ok = np.empty(p, dtype=np.uint8)
+    sse = np.empty(p) if want_sse else None
+    work = p * reg.shape[0] * (2 * na + 3 * (nb + big_l) + (na + nb + 1 if want_sse else 0))
+    # (an upper bound of the multiply-adds: what the thread count needs)
+    _c.arx_fit_shifted(a, reg, state0, target, int(offset), big_l, FIT_SHIFTED_TOL, b, ok, sse,
+                       _threads_for(work))  # fmt: skip
+    return b, ok.view(bool), sse

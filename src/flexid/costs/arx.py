@@ -242,6 +242,11 @@ class ARXCost:
             # state before the first simulated sample: [y(start-1), ..., y(start-na)]
             s = structure.start
             self._state = y[s - na : s][::-1].copy() if na else np.zeros(0)
+            # one input's regressors are delays of one signal: the fit by lag sums applies
+            self._shifted = (
+                na >= 1 and self._phi_u_rows.shape[1] >= 1
+                and kernels.shifted_columns(self._phi_u_rows)
+            )  # fmt: skip
         self.cost_ls = float(self(self.theta_ls[None, :])[0])
 
     # ----------------------------------------------------------------------- metrics
@@ -373,12 +378,88 @@ class ARXCost:
             self._gain = gain * (1.0 / scale[na:])[:, None] * scale[:na][None, :]
         return self._gain
 
-    def _simulation_numerators(self, a: np.ndarray) -> np.ndarray:
-        """Least-squares ``b`` (P, n_b) of the simulation cost for stable denominators ``a``."""
+    def fitted(self, a: Any) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`fit_numerator` and the costs of its rows, in one pass where possible.
+
+        With the simulation predictor, the measured initial state and the compiled kernels,
+        the kernel that fits ``b`` also runs the simulation at it (the plain cost's own
+        recursion), so the costs are exactly ``self(theta)`` without a second call.
+
+        Parameters
+        ----------
+        a : array_like, shape (P, na)
+            Denominator coefficients ``a_1 .. a_na``.
+
+        Returns
+        -------
+        theta : ndarray, shape (P, n_params)
+            As :meth:`fit_numerator`.
+        cost : ndarray, shape (P,)
+            ``self(theta)``.
+        """
+        a = np.atleast_2d(np.asarray(a, dtype=float))
         na = self.structure.na
         nb = self.n_params - na
+        if not (
+            self.predictor == "simulation" and self.initial == "measured"
+            and kernels.BACKEND == "c" and self._shifted and a.ndim == 2
+            and a.shape[1] == na and 1 <= na <= 16 and 1 <= nb <= 16
+        ):  # fmt: skip
+            theta = self.fit_numerator(a)
+            return theta, self(theta)
+        theta = np.empty((a.shape[0], self.n_params))
+        theta[:, :na] = a
+        if np.isfinite(a.sum()):
+            stable = is_stable(a)
+            if stable.all():  # the common case: one call, no indexing
+                b, ok, sse = kernels.arx_fit_shifted(a, self._phi_u_rows, self._state,
+                                                     self._target, 0, want_sse=True)  # fmt: skip
+                if ok.all():
+                    theta[:, na:] = b
+                    return theta, self._from_sse(sse)
+        theta[:, na:] = self.theta_ls[na:]
+        cost = np.empty(a.shape[0])
+        done = np.zeros(a.shape[0], dtype=bool)
+        finite = np.isfinite(a).all(axis=1)
+        rows = np.flatnonzero(finite)
+        rows = rows[is_stable(a[rows])] if rows.size else rows
+        if rows.size:
+            b, ok, sse = kernels.arx_fit_shifted(a[rows], self._phi_u_rows, self._state,
+                                                 self._target, 0, want_sse=True)  # fmt: skip
+            theta[rows, na:] = b
+            if not ok.all():
+                theta[rows[~ok], na:] = self._simulation_numerators_refined(
+                    a[rows[~ok]], 0, self._state
+                )
+            cost[rows[ok]] = self._from_sse(sse[ok])
+            done[rows[ok]] = True
+        if not done.all():
+            cost[~done] = self(theta[~done])
+        return theta, cost
+
+    def _simulation_numerators(self, a: np.ndarray) -> np.ndarray:
+        """Least-squares ``b`` (P, n_b) of the simulation cost for stable denominators ``a``.
+
+        By lag sums (:func:`kernels.arx_fit_shifted`) when the regressors are delays of one
+        input; rows it flags, and other structures, by the ``nb + 1`` recursions.
+        """
+        na = self.structure.na
         offset = 0 if self.initial == "measured" else self.structure.start
         state0 = self._state if self.initial == "measured" else np.zeros(na)
+        if self._shifted:
+            out, ok, _ = kernels.arx_fit_shifted(a, self._phi_u_rows, state0, self._target,
+                                                 offset)  # fmt: skip
+            if not ok.all():
+                out[~ok] = self._simulation_numerators_refined(a[~ok], offset, state0)
+            return out
+        return self._simulation_numerators_refined(a, offset, state0)
+
+    def _simulation_numerators_refined(
+        self, a: np.ndarray, offset: int, state0: np.ndarray
+    ) -> np.ndarray:
+        """Least-squares ``b`` by ``nb + 1`` recursions, the normal equations and a refinement."""
+        na = self.structure.na
+        nb = self.n_params - na
         if kernels.BACKEND == "c" and 1 <= na <= 16 and 1 <= nb <= 16:
             # the nb + 1 recursions, the normal equations and their refinement in one pass
             # of the compiled kernel (kernels.arx_fit); rows it cannot solve come back below
