@@ -85,7 +85,9 @@ def _with_unit(name: str, unit: str) -> str:
 
 
 def _style(i: int) -> dict[str, Any]:
-    return {"color": _PALETTE[i % len(_PALETTE)], "ls": _STYLES[(i // 2) % len(_STYLES)]}
+    # past the palette's 8 colours, each colour comes back with another line style
+    k = len(_PALETTE)
+    return {"color": _PALETTE[i % k], "ls": _STYLES[(i // k + (i % k) // 2) % len(_STYLES)]}
 
 
 _LOG_FORMATTER: type | None = None
@@ -843,18 +845,20 @@ def _aic(c) -> float:
 
 
 # ================================================================================ suite
-def _suite_panel(ax, ecdf: Mapping[str, Mapping[str, Any]], budget: float, title: str) -> None:
-    """One runtime-distribution panel: a step curve per optimiser, its area in the legend."""
-    ranked = sorted(ecdf.items(), key=lambda kv: -kv[1]["area"])
-    for i, (label, curve) in enumerate(ranked):
+def _suite_panel(
+    ax, ecdf: Mapping[str, Mapping[str, Any]], styles: Mapping[str, dict], budget: float,
+    title: str,
+) -> None:
+    """One runtime-distribution panel: a step curve per optimiser, in its own style."""
+    for label, style in styles.items():
+        curve = ecdf[label]
         x = np.concatenate([[1.0], np.maximum(curve["x"], 1.0), [budget]])
         last = curve["fraction"][-1] if curve["fraction"].size else 0.0
         f = np.concatenate([[0.0], curve["fraction"], [last]])
-        ax.step(x, f, where="post", lw=1.6, label=f"{label} ({curve['area']:.2f})", **_style(i))
+        ax.step(x, f, where="post", lw=1.5, **style)
     ax.set_xscale("log")
     ax.set_xlim(1.0, budget)
     ax.set_ylim(-0.02, 1.02)
-    ax.set_xlabel("function evaluations / dimension")
     ax.set_title(title, fontsize=10)
     _readable_log_ticks(ax)
     ax.grid(True, which="both", alpha=0.3)
@@ -892,22 +896,38 @@ def suite_figure(
         values = list(dict.fromkeys(
             p.groups[by] for p in result.suite.problems if p.name in result.results
         ))  # fmt: skip
+    overall = result.ecdf()
+    # one style per optimiser in every panel, best aggregate area first
+    ranked = sorted(overall, key=lambda label: -overall[label]["area"])
+    styles = {label: _style(i) for i, label in enumerate(ranked)}
     n = 1 + len(values)
-    fig, axes = plt.subplots(1, n, figsize=(4.6 * n + 1.8, 4.2), squeeze=False, sharey=True,
-                             layout="constrained")  # fmt: skip
-    _suite_panel(axes[0, 0], result.ecdf(), budget,
-                 f"all {len(result.results)} problems")  # fmt: skip
-    for ax, value in zip(axes[0, 1:], values):
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.3 * cols + 2.6, 3.6 * rows), squeeze=False,
+                             sharex=True, sharey=True, layout="constrained")  # fmt: skip
+    panels = list(axes.flat)
+    _suite_panel(panels[0], overall, styles, budget, f"all {len(result.results)} problems")
+    for ax, value in zip(panels[1:], values):
         count = sum(p.groups[by] == value for p in result.suite.problems
                     if p.name in result.results)  # fmt: skip
-        _suite_panel(ax, result.ecdf({by: value}), budget, f"{by} {value} ({count} problems)")
-    axes[0, 0].set_ylabel("fraction of (problem, target, run) triples")
-    for ax in axes[0]:
-        ax.legend(loc="upper left", fontsize=7, title="optimiser (area)", title_fontsize=7)
+        _suite_panel(ax, result.ecdf({by: value}), styles, budget,
+                     f"{by} {value} ({count} problem{'s' if count != 1 else ''})")  # fmt: skip
+    for ax in panels[n:]:
+        ax.set_visible(False)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("fraction of triples reached")
+    for ax in panels[:n]:
+        ax.set_xlabel("function evaluations / dimension")
+        ax.tick_params(labelbottom=True)
+    handles = [plt.Line2D([], [], lw=1.5, **styles[label]) for label in ranked]
+    names = [f"{label}  {overall[label]['area']:.2f}" for label in ranked]
+    fig.legend(handles, names, loc="outside right upper", fontsize=8, frameon=False,
+               title="optimiser, area\n(all problems)", title_fontsize=8)  # fmt: skip
     fig.suptitle(
-        f"{result.suite.label} {result.version}: {result.suite.runs} runs of "
-        f"{result.suite.budget_per_dim} FE per dimension; targets reference x (1 + d), "
-        "d = 100 ... 1e-4"
+        f"{result.suite.label} {result.version}: (problem, target, run) triples reached; "
+        f"{result.suite.runs} runs of {result.suite.budget_per_dim} FE per dimension, "
+        "targets reference x (1 + d), d = 100 ... 1e-4",
+        fontsize=10,
     )
     if path is not None:
         return _save(fig, Path(path))
