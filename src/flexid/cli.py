@@ -692,10 +692,8 @@ def _suite_of(args: argparse.Namespace) -> Any:
     suite = get_suite(args.setting, records=args.records)
     changes = {k: v for k, v in (("runs", args.runs), ("budget_per_dim", args.budget_per_dim))
                if v is not None}  # fmt: skip
-    if changes:
-        version = suite.version
+    if changes:  # runs and budget are the experiment's: the version stays the problems'
         suite = replace(suite, **changes)
-        suite.__dict__["version"] = version  # runs and budget: the experiment's, not the suite's
     return suite.subset(args.problems)
 
 
