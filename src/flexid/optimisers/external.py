@@ -34,6 +34,7 @@ is imported only when a run starts, so listing optimisers stays fast.
 
 from __future__ import annotations
 
+import builtins
 import contextlib
 import difflib
 import importlib.util
@@ -190,7 +191,36 @@ def _global_state_kept() -> Iterator[None]:
 def _import_nevergrad() -> Any:
     with _global_state_kept():
         import nevergrad
+    _mend_metamodel()
     return nevergrad
+
+
+def _one_element_float(x: Any) -> float:
+    """``float(x)`` that also takes a one-element array of any shape, as NumPy < 2.4 did."""
+    if isinstance(x, np.ndarray) and x.size == 1:
+        return builtins.float(x.reshape(-1)[0])
+    return builtins.float(x)
+
+
+def _mend_metamodel() -> None:
+    """Let nevergrad's meta-model (used by ``NGOpt``) run under NumPy >= 2.4.
+
+    nevergrad 1.0.12 scores a point of its meta-model with ``float(model.predict(x))``,
+    where ``predict`` returns a one-element array (1,); NumPy 2.4 refuses ``float`` of an
+    array with a dimension, so every meta-model step of ``NGOpt`` raises ``TypeError``.
+    The metamodel module's name ``float`` is bound to :func:`_one_element_float`, which
+    gives what ``float`` gave before; nothing outside that module changes, and nothing is
+    done where ``float`` of such an array still works or the module has its own ``float``.
+    """
+    try:
+        builtins.float(np.ones(1))
+        return
+    except TypeError:
+        pass
+    from nevergrad.optimization import metamodel
+
+    if "float" not in vars(metamodel):
+        metamodel.float = _one_element_float
 
 
 def _ng_batch(opt: Any, space: SearchSpace, size: int) -> Iterator[np.ndarray]:
