@@ -268,10 +268,9 @@ def test_compare_worker_processes_use_one_thread(monkeypatch):
             return None
 
     monkeypatch.setattr(_compare, "_exit_with_parent", lambda: None)
-    monkeypatch.setattr(_compare, "_context_from_payload", lambda payload: None)
     old = kernels.set_threads(4)
     try:
-        _compare._worker_main(Conn(), {})
+        _compare._worker_main(Conn())
         assert kernels.threads() == 1
         assert sent == [("ready", None)]
     finally:

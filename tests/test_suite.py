@@ -130,6 +130,46 @@ def test_a_rerun_resumes_from_the_store(ran):
             assert [r["nfev"] for r in records] == [result.spec.budget] * suite.runs
 
 
+def test_one_pool_serves_every_problem_and_computes_the_references(ran, tmp_path, monkeypatch):
+    """With workers, the suite's tasks share one pool (as many processes as workers, started
+    once for every problem) and the references are tasks of it: the main process's route to
+    a reference is made to fail, and the numbers are those of one process."""
+    from flexid import _compare
+
+    started = []
+    real_init = _compare._Worker.__init__
+
+    def counted(self, mp):
+        started.append(1)
+        real_init(self, mp)
+
+    def refuse(ctx):
+        raise AssertionError("a reference was computed in the main process")
+
+    monkeypatch.setattr(_compare._Worker, "__init__", counted)
+    monkeypatch.setattr(_compare, "_least_squares_record", refuse)
+    suite, _, serial = ran
+    pooled = run_suite(suite, ["random-search", "de"], store=tmp_path / "pool.sqlite", workers=2)
+    assert len(started) == 2
+    assert pooled.version == serial.version  # the same references
+    assert pooled.table() == serial.table()
+
+
+def test_a_dask_cluster_gives_the_numbers_of_one_process(ran, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    suite, _, serial = ran
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        remote = run_suite(suite, ["random-search", "de"], store=tmp_path / "dask.sqlite",
+                           scheduler=client)  # fmt: skip
+    assert remote.version == serial.version
+    assert remote.table() == serial.table()
+
+
 def test_results_say_which_version_and_references_they_ran(ran):
     suite, store, result = ran
     assert result.version.startswith(suite.version + "+")

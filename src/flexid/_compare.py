@@ -19,6 +19,7 @@ Python function that never returns.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -29,7 +30,7 @@ import time
 import traceback
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from multiprocessing import get_context, parent_process
 from multiprocessing.connection import wait
 from pathlib import Path
@@ -171,21 +172,36 @@ class _Context:
         est, val = prepare_data(record, output=d.output, split=d.split, detrend=d.detrend)
         return cls(spec, est, val)
 
+    def respecified(self, **changes: Any) -> _Context:
+        """This context under a specification that differs only in what the records and the
+        problem do not depend on: ``name``, ``optimisers``, ``runs``, ``budget``."""
+        unknown = set(changes) - {"name", "optimisers", "runs", "budget"}
+        if unknown:
+            raise ValueError(f"respecified: {sorted(unknown)} change the context")
+        new = copy.copy(self)
+        new.spec = replace(self.spec, **changes)
+        return new
+
     def payload(self) -> dict[str, Any]:
         """Picklable arguments to rebuild the context in a worker process."""
         return {"spec": self.spec.to_dict(), "est": self.est, "val": self.val}
 
 
+#: Contexts a dask worker keeps (the tasks of a suite's comparisons interleave on a worker).
+_CONTEXTS_KEPT = 16
 _WORKER_CONTEXT: dict[str, _Context] = {}
 
 
 def _context_from_payload(payload: Mapping[str, Any]) -> _Context:
+    """The context of a payload, built once per process and comparison (least recently used
+    first out beyond :data:`_CONTEXTS_KEPT`)."""
     spec = ComparisonSpec.from_dict(payload["spec"])
-    cached = _WORKER_CONTEXT.get(spec.key)
+    cached = _WORKER_CONTEXT.pop(spec.key, None)
     if cached is None:
         cached = _Context(spec, payload["est"], payload["val"])
-        _WORKER_CONTEXT.clear()
-        _WORKER_CONTEXT[spec.key] = cached
+        while len(_WORKER_CONTEXT) >= _CONTEXTS_KEPT:
+            del _WORKER_CONTEXT[next(iter(_WORKER_CONTEXT))]
+    _WORKER_CONTEXT[spec.key] = cached  # last: the most recently used
     return cached
 
 
@@ -367,10 +383,17 @@ def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, An
     return record
 
 
-def _run_task(payload: Mapping[str, Any], task: tuple) -> dict[str, Any]:
-    ctx = _context_from_payload(payload)
+def _do(ctx: _Context, task: tuple | None) -> dict[str, Any]:
+    """One task of a comparison: its reference record (``task`` None) or one optimiser run
+    (``(optimiser spec as a dict, run, seed)``)."""
+    if task is None:
+        return _least_squares_record(ctx)
     opt_dict, run, seed = task
     return _run(ctx, OptimiserSpec(**opt_dict), run, seed)
+
+
+def _run_task(payload: Mapping[str, Any], task: tuple | None) -> dict[str, Any]:
+    return _do(_context_from_payload(payload), task)
 
 
 # ================================================================================ workers
@@ -381,33 +404,39 @@ _POLL = 1.0
 _GRACE = 2.0
 
 
-def _worker_main(conn: Any, payload: Mapping[str, Any]) -> None:
-    """Body of a worker process: build the context, then do the runs the parent sends.
+def _worker_main(conn: Any) -> None:
+    """Body of a worker process: do the tasks the parent sends, of any comparison.
 
-    Messages to the parent: ``("ready", None)`` once the context is built, ``("done",
-    record)`` per run, ``("error", traceback)`` if the context cannot be built.  ``None``
-    from the parent, or its end, stops the worker.
+    Messages from the parent: ``(payload, key, task)``, the payload given the first time the
+    worker gets a task of comparison ``key`` (None after that: the worker keeps the context
+    it built), ``task`` as for :func:`_do`; ``None``, or the parent's end, stops the worker.
+    Messages to the parent: ``("ready", None)`` once started, ``("done", record)`` per task,
+    ``("error", traceback)`` if a context cannot be built.
     """
     # Ctrl-C reaches every process of the terminal's group: the parent alone answers it (it
     # ends the workers), so that a run is not cut short into a failed record
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _exit_with_parent()
     kernels.set_threads(1)  # the worker processes share the cores already
-    try:
-        ctx = _context_from_payload(payload)
-    except BaseException:
-        conn.send(("error", traceback.format_exc()))
-        return
+    contexts: dict[str, _Context] = {}
     conn.send(("ready", None))
     while True:
         try:
-            task = conn.recv()
+            message = conn.recv()
         except EOFError:  # the parent has ended
             return
-        if task is None:
+        if message is None:
             return
-        opt_dict, run, seed = task
-        conn.send(("done", _run(ctx, OptimiserSpec(**opt_dict), run, seed)))
+        payload, key, task = message
+        if payload is not None:
+            try:
+                contexts[key] = _Context(
+                    ComparisonSpec.from_dict(payload["spec"]), payload["est"], payload["val"]
+                )
+            except BaseException:
+                conn.send(("error", traceback.format_exc()))
+                return
+        conn.send(("done", _do(contexts[key], task)))
 
 
 def _exit_with_parent() -> None:
@@ -430,46 +459,56 @@ def _exit_with_parent() -> None:
 class _Worker:
     """A worker process, the parent's end of its pipe and the run it is doing."""
 
-    def __init__(self, mp: Any, payload: Mapping[str, Any]) -> None:
+    def __init__(self, mp: Any) -> None:
         self.conn, child = mp.Pipe()
-        self.process = mp.Process(target=_worker_main, args=(child, payload), name="flexid-worker")
+        self.process = mp.Process(target=_worker_main, args=(child,), name="flexid-worker")
         try:
             self.process.start()
         finally:
             child.close()  # the child's copy is the only one left: its death is the pipe's EOF
         self.ready = False
-        self.task: tuple | None = None
+        self.keys: set[str] = set()  # the comparisons whose context the worker holds
+        self.item: tuple[int, tuple | None] | None = None  # (job index, task) being done
         self.started = 0.0
 
-    def assign(self, task: tuple) -> bool:
-        """Send ``task`` to this (idle, ready) worker; False if the worker is gone."""
+    @property
+    def busy(self) -> bool:
+        return self.item is not None
+
+    def assign(self, job: int, key: str, payload: Callable[[], Mapping], task: tuple | None
+               ) -> bool:  # fmt: skip
+        """Send a task of comparison ``key`` to this (idle, ready) worker, with the
+        comparison's payload if it has not had it; False if the worker is gone."""
         try:
-            self.conn.send(task)
+            self.conn.send((None if key in self.keys else payload(), key, task))
         except OSError:
             return False
-        self.task = task
+        self.keys.add(key)
+        self.item = (job, task)
         self.started = time.monotonic()
         return True
 
-    def check(self, run_timeout: float | None) -> tuple[dict | None, bool]:
+    def check(self, run_timeout: float | None) -> tuple[tuple[int, dict] | None, bool]:
         """Read the worker's messages; end it if its run is over time.
 
         Parameters
         ----------
         run_timeout : float or None
-            The per-run time limit in seconds.
+            The per-run time limit in seconds (a reference task has none).
 
         Returns
         -------
-        record : dict or None
-            A finished run: done, or failed because the process died or ran out of time.
+        done : (int, dict) or None
+            The job index and record of a finished task: done, or a run failed because the
+            process died or ran out of time.
         alive : bool
             False once the process has ended (it is then to be replaced).
 
         Raises
         ------
         RuntimeError
-            If the worker could not build the comparison's context, or ended before it did.
+            If the worker could not build a comparison's context, ended before it started,
+            or died while it computed a reference (which no failed record stands for).
         """
         ended = False
         try:
@@ -478,8 +517,8 @@ class _Worker:
                 if kind == "ready":
                     self.ready = True
                 elif kind == "done":
-                    self.task = None
-                    return value, True
+                    (job, _), self.item = self.item, None
+                    return (job, value), True
                 else:
                     raise RuntimeError(f"a flexid worker process could not start:\n{value}")
         except (EOFError, OSError):  # the process has ended, or is ending
@@ -492,30 +531,30 @@ class _Worker:
                 raise RuntimeError(
                     f"a flexid worker process ended before it started (exit code {code})"
                 )
-            if self.task is None:
+            if self.item is None:
                 return None, False
             reason = f"worker process died (exit code {code})"
             if code is not None and code < 0:
                 reason = f"worker process died (exit code {code}, {_signal_name(-code)})"
             return self._fail(reason), False
-        if (
-            self.task is not None
-            and run_timeout is not None
-            and time.monotonic() - self.started >= run_timeout
-        ):
+        deadline = self.deadline(run_timeout)
+        if deadline is not None and time.monotonic() >= deadline:
             self.kill()
             return self._fail(f"time limit of {run_timeout:g} s exceeded"), False
         return None, True
 
     def deadline(self, run_timeout: float | None) -> float | None:
-        """When this worker's run exceeds the time limit (monotonic clock), if it is running."""
-        if self.task is None or run_timeout is None:
+        """When this worker's run exceeds the time limit (monotonic clock), if it is running
+        an optimiser run (a reference has no limit)."""
+        if self.item is None or self.item[1] is None or run_timeout is None:
             return None
         return self.started + run_timeout
 
-    def _fail(self, reason: str) -> dict[str, Any]:
-        task, self.task = self.task, None
-        return _failed_record(task, reason, time.monotonic() - self.started)
+    def _fail(self, reason: str) -> tuple[int, dict[str, Any]]:
+        (job, task), self.item = self.item, None
+        if task is None:
+            raise RuntimeError(f"a flexid worker process computing a reference: {reason}")
+        return job, _failed_record(task, reason, time.monotonic() - self.started)
 
     def kill(self) -> None:
         """End the process at once (a run that never returns cannot be asked to)."""
@@ -525,7 +564,7 @@ class _Worker:
 
     def stop(self) -> None:
         """End the process: an idle one is told to exit, a busy one is killed."""
-        if self.task is None and self.process.is_alive():
+        if self.item is None and self.process.is_alive():
             try:
                 self.conn.send(None)
             except OSError:
@@ -544,46 +583,57 @@ def _signal_name(signum: int) -> str:
 
 
 def _execute_processes(
-    ctx: _Context, tasks: Sequence[tuple], workers: int, run_timeout: float | None
-) -> Iterator[dict]:
-    """Yield finished run records from ``workers`` worker processes as they complete.
+    jobs: Sequence[_Job], items: Sequence[tuple[int, tuple | None]], workers: int,
+    run_timeout: float | None,
+) -> Iterator[tuple[int, dict]]:
+    """Yield ``(job index, record)`` from ``workers`` worker processes as tasks complete.
 
-    A worker that dies or exceeds ``run_timeout`` in a run yields that run as failed and is
-    replaced.  However the generator ends (done, an exception, closed early, an interrupt),
-    every worker process has ended when it does.
+    One pool serves every comparison: a worker is sent a comparison's payload with its first
+    task of that comparison.  A worker that dies or exceeds ``run_timeout`` in a run yields
+    that run as failed and is replaced.  However the generator ends (done, an exception,
+    closed early, an interrupt), every worker process has ended when it does.
     """
     mp = get_context("spawn")  # a fresh interpreter: no threads or locks copied by fork
-    payload = ctx.payload()
-    queue = deque(tasks)
+    payloads: dict[int, Mapping] = {}
+
+    def payload_of(job: int) -> Callable[[], Mapping]:
+        def payload() -> Mapping:
+            if job not in payloads:
+                payloads[job] = jobs[job].ctx.payload()
+            return payloads[job]
+
+        return payload
+
+    queue = deque(items)
     pool: list[_Worker] = []
 
     def needed() -> int:
-        """Workers there is work for: the runs going on and the runs waiting."""
-        return min(workers, len(queue) + sum(w.task is not None for w in pool))
+        """Workers there is work for: the tasks going on and the tasks waiting."""
+        return min(workers, len(queue) + sum(w.busy for w in pool))
 
     try:
         while len(pool) < needed():
-            pool.append(_Worker(mp, payload))
-        while queue or any(w.task is not None for w in pool):
+            pool.append(_Worker(mp))
+        while queue or any(w.busy for w in pool):
             for w in pool:
-                if w.ready and w.task is None and queue:
-                    task = queue.popleft()
-                    if not w.assign(task):
-                        queue.appendleft(task)  # the worker is gone: check() replaces it
+                if w.ready and not w.busy and queue:
+                    job, task = queue.popleft()
+                    if not w.assign(job, jobs[job].key, payload_of(job), task):
+                        queue.appendleft((job, task))  # the worker is gone: check() replaces it
             deadlines = [d for w in pool if (d := w.deadline(run_timeout)) is not None]
             timeout = _POLL
             if deadlines:
                 timeout = min(timeout, max(0.0, min(deadlines) - time.monotonic()))
             wait([w.conn for w in pool] + [w.process.sentinel for w in pool], timeout)
             for w in list(pool):
-                record, alive = w.check(run_timeout)
+                done, alive = w.check(run_timeout)
                 if not alive:
                     pool.remove(w)
                     w.stop()
                     if len(pool) < needed():
-                        pool.append(_Worker(mp, payload))
-                if record is not None:
-                    yield record
+                        pool.append(_Worker(mp))
+                if done is not None:
+                    yield done
     finally:
         for w in pool:
             w.stop()
@@ -635,6 +685,47 @@ def check_spec(spec: ComparisonSpec) -> None:
     _checked_context(spec)
 
 
+@dataclass
+class _Job:
+    """A comparison being run: its context, store key, the records it has, what it needs."""
+
+    ctx: _Context
+    key: str
+    records: list[dict[str, Any]]
+    #: ``(optimiser spec as a dict, run, seed)`` of every run still to do
+    tasks: list[tuple]
+    #: whether its reference record (least squares, and the gradient reference) is to compute
+    reference: bool
+
+    @property
+    def spec(self) -> ComparisonSpec:
+        return self.ctx.spec
+
+
+def _open_job(ctx: _Context, db: ResultStore | None, retry_failed: bool) -> _Job:
+    """The records a store holds for a comparison, and the tasks it still needs."""
+    spec = ctx.spec
+    key = spec.key
+    records: list[dict[str, Any]] = []
+    done: set[tuple[str, int]] = set()
+    if db is not None:
+        stored = db.runs(key)  # damaged rows are left out (and named): they run again
+        _check_labels(spec, stored)
+        done = {
+            (r["label"], r["run"])
+            for r in stored
+            if not (retry_failed and r["status"] == "failed")
+        }
+        records = [r for r in stored if (r["label"], r["run"]) in done]
+    tasks = [
+        ({"name": o.name, "params": dict(o.params), "label": o.label}, r, run_seed(spec.seed, r))
+        for r in range(spec.runs)
+        for o in spec.optimisers
+        if (o.display, r) not in done
+    ]
+    return _Job(ctx, key, records, tasks, (LEAST_SQUARES, 0) not in done)
+
+
 @checked_keywords
 def compare(
     spec: ComparisonSpec,
@@ -658,6 +749,7 @@ def compare(
         which run again.  Without a store the results live in memory only.
     workers : int
         Processes to run in parallel (1 = in this process).  The numbers do not depend on it.
+        The reference (least squares and the gradient reference) is a task of the pool too.
     scheduler : str or distributed.Client, optional
         Address of a dask.distributed scheduler (requires the ``dask`` extra), or a client.
     progress : bool or callable
@@ -689,9 +781,37 @@ def compare(
     on.  ``KeyboardInterrupt`` ends the comparison, worker processes included; the runs
     finished before it are in the store.
     """
+    t0 = time.perf_counter()
+    ctx = _checked_context(spec)  # the whole specification, before the store is opened
+    (result,) = _compare_contexts(
+        [ctx], store=store, workers=workers, scheduler=scheduler, progress=progress,
+        retry_failed=retry_failed, run_timeout=run_timeout, t0=t0,
+    )  # fmt: skip
+    return result
+
+
+def _compare_contexts(
+    contexts: Sequence[_Context],
+    *,
+    store: str | Path | ResultStore | None,
+    workers: int = 1,
+    scheduler: str | Any | None = None,
+    progress: bool | Callable[[dict], Any] = False,
+    retry_failed: bool = False,
+    run_timeout: float | None = None,
+    t0: float | None = None,
+) -> list[ComparisonResult]:
+    """:func:`compare` of several checked comparisons, their tasks in one pool or graph.
+
+    The references of every comparison come first (the longest tasks, so the workers start
+    them early), then the runs, comparison by comparison; each finished task is written at
+    once under its comparison's key.  Arguments as for :func:`compare`; ``run_timeout``
+    None takes each comparison's own (the first one's, for the pool).
+    """
+    t0 = time.perf_counter() if t0 is None else t0
     workers = positive_int(workers, "workers", error=ConfigError)
     if run_timeout is None:
-        run_timeout = spec.run_timeout
+        run_timeout = next((c.spec.run_timeout for c in contexts if c.spec.run_timeout), None)
     else:
         run_timeout = _check_run_timeout(run_timeout, "run_timeout")
     if run_timeout is not None and scheduler is not None:
@@ -699,85 +819,69 @@ def compare(
             "run_timeout is not available with a dask scheduler (a dask task cannot be "
             "stopped); use workers instead"
         )
-    t0 = time.perf_counter()
-    ctx = _checked_context(spec)  # the whole specification, before the store is opened
-    spec = ctx.spec  # with the digest of a data file's record, which the key includes
     owns_store = store is not None and not isinstance(store, ResultStore)
     db = ResultStore(store) if owns_store else store
-    key = spec.key
     try:
-        records: list[dict[str, Any]] = []
-        done: set[tuple[str, int]] = set()
-        if db is not None:
-            stored = db.runs(key)  # damaged rows are left out (and named): they run again
-            _check_labels(spec, stored)
-            db.add_comparison(key, spec.name, spec.to_dict())
-            done = {
-                (r["label"], r["run"])
-                for r in stored
-                if not (retry_failed and r["status"] == "failed")
-            }
-            records = [r for r in stored if (r["label"], r["run"]) in done]
-        if (LEAST_SQUARES, 0) not in done:
-            ls = _least_squares_record(ctx)
-            records.append(ls)
-            if db is not None:
-                db.write_run(key, ls)
-        tasks = [
-            (
-                {"name": o.name, "params": dict(o.params), "label": o.label},
-                r,
-                run_seed(spec.seed, r),
-            )
-            for r in range(spec.runs)
-            for o in spec.optimisers
-            if (o.display, r) not in done
+        jobs = [_open_job(ctx, db, retry_failed) for ctx in contexts]
+        if db is not None:  # every label checked before the first comparison is recorded
+            for job in jobs:
+                db.add_comparison(job.key, job.spec.name, job.spec.to_dict())
+        for job in jobs:
+            if retry_failed:
+                job.records = [r for r in job.records if r["status"] != "failed"]
+        items: list[tuple[int, tuple | None]] = [
+            (i, None) for i, job in enumerate(jobs) if job.reference
         ]
-        records = [r for r in records if not (r["status"] == "failed" and retry_failed)]
-        bar = _progress(progress, len(tasks), spec.name)
-        runs = _execute(ctx, tasks, workers, scheduler, run_timeout)
+        items += [(i, task) for i, job in enumerate(jobs) for task in job.tasks]
+        name = jobs[0].spec.name if len(jobs) == 1 else f"{len(jobs)} comparisons"
+        bar = _progress(progress, sum(len(job.tasks) for job in jobs), name)
+        done = _execute(jobs, items, workers, scheduler, run_timeout)
         try:
-            for record in runs:
+            for i, record in done:
                 if db is not None:
-                    db.write_run(key, record)
-                records.append(record)
-                bar(record)
+                    db.write_run(jobs[i].key, record)
+                jobs[i].records.append(record)
+                if record["label"] != LEAST_SQUARES:
+                    bar(record)
         finally:
-            runs.close()  # ends the worker processes now, also when the loop body raised
+            done.close()  # ends the worker processes now, also when the loop body raised
             bar(None)
-        return ComparisonResult.from_records(
-            spec,
-            key,
-            records,
-            store_path=str(db.path) if db is not None else None,
-            elapsed=time.perf_counter() - t0,
-        )
+        elapsed = time.perf_counter() - t0
+        path = str(db.path) if db is not None else None
+        return [
+            ComparisonResult.from_records(
+                job.spec, job.key, job.records, store_path=path, elapsed=elapsed
+            )
+            for job in jobs
+        ]
     finally:
         if owns_store and db is not None:
             db.close()
 
 
 def _execute(
-    ctx: _Context,
-    tasks: Sequence[tuple],
+    jobs: Sequence[_Job],
+    items: Sequence[tuple[int, tuple | None]],
     workers: int,
     scheduler: Any,
     run_timeout: float | None,
-) -> Iterator[dict]:
-    """Yield finished run records as they complete (serial, processes or dask)."""
-    if not tasks:
+) -> Iterator[tuple[int, dict]]:
+    """Yield ``(job index, record)`` as tasks complete (serial, processes or dask)."""
+    if not items:
         return
     if scheduler is not None:
-        yield from _execute_dask(ctx, tasks, scheduler)
+        yield from _execute_dask(jobs, items, scheduler)
         return
     if workers == 1 and run_timeout is None:
-        for opt_dict, run, seed in tasks:
-            yield _run(ctx, OptimiserSpec(**opt_dict), run, seed)
+        for i, task in items:
+            yield i, _do(jobs[i].ctx, task)
         return
-    yield from _execute_processes(ctx, tasks, workers, run_timeout)
+    yield from _execute_processes(jobs, items, workers, run_timeout)
 
 
-def _execute_dask(ctx: _Context, tasks: Sequence[tuple], scheduler: Any) -> Iterable[dict]:
+def _execute_dask(
+    jobs: Sequence[_Job], items: Sequence[tuple[int, tuple | None]], scheduler: Any
+) -> Iterator[tuple[int, dict]]:
     try:
         from distributed import Client
         from distributed import as_completed as dask_completed
@@ -793,14 +897,19 @@ def _execute_dask(ctx: _Context, tasks: Sequence[tuple], scheduler: Any) -> Iter
         except OSError as exc:
             raise ConfigError(f"cannot reach the dask scheduler at {scheduler!r}: {exc}") from None
     try:
-        # one future with a key of its own: a dict given to scatter is scattered value by
-        # value under its own keys ("spec", "est", "val"), and a content-hashed key
-        # (hash=True) is shared too; another comparison on this scheduler releasing a shared
-        # key cancels these runs ("lost dependencies")
-        (payload,) = client.scatter([ctx.payload()], broadcast=True, hash=False)
-        futures = [client.submit(_run_task, payload, task, pure=False) for task in tasks]
+        # one future per comparison with a key of its own: a dict given to scatter is
+        # scattered value by value under its own keys ("spec", "est", "val"), and a
+        # content-hashed key (hash=True) is shared too; another comparison on this scheduler
+        # releasing a shared key cancels these runs ("lost dependencies")
+        used = sorted({i for i, _ in items})
+        scattered = client.scatter([jobs[i].ctx.payload() for i in used], broadcast=True,
+                                   hash=False)  # fmt: skip
+        payloads = dict(zip(used, scattered))
+        futures = {
+            client.submit(_run_task, payloads[i], task, pure=False): i for i, task in items
+        }
         for future in dask_completed(futures):
-            yield future.result()
+            yield futures[future], future.result()
     finally:
         if own:
             client.close()

@@ -719,11 +719,9 @@ def _cmd_suite(args: argparse.Namespace) -> int:
         names = _names(args.optimisers)
         if not names:
             raise ConfigError("flexid suite run needs --optimisers NAME[,NAME...]")
-        show = not (args.no_progress or args.json)
         result = run_suite(
             suite, names, store=store, workers=args.workers, scheduler=args.scheduler,
-            progress=(lambda name, i, n: print(f"[{i + 1}/{n}] {name}", flush=True))
-            if show else None,
+            progress=not (args.no_progress or args.json),
         )  # fmt: skip
     else:
         result = load_suite(store, suite)

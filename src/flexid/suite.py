@@ -21,9 +21,9 @@ a whole, as COCO and IOHprofiler judge one on BBOB:
   so runs of two versions never mix.  :attr:`SuiteResult.version` adds the references'
   digest: results say which version, and which references, they ran.
 
-Running (:func:`run_suite`) is a comparison per problem into one store, so it is resumable,
-runs in worker processes or on a dask cluster exactly as :func:`flexid.compare` does, and
-every finished run is written at once.  :func:`load_suite` reads a store back as a
+Running (:func:`run_suite`) is a comparison per problem into one store, so it is resumable
+and every finished run is written at once; the references and runs of every problem share
+one pool of worker processes, or one dask task graph.  :func:`load_suite` reads a store back as a
 :class:`SuiteResult`: the runtime distribution (the ECDF of (problem, target, run) triples
 against FE / dimension) aggregated over the suite or per group, a table per problem, the
 ranking, and an IOHprofiler export with one function per problem.
@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from ._compare import _Context, compare
+from ._compare import _checked_context, _compare_contexts
 from ._comparison_result import ComparisonResult
 from ._validate import checked_keywords, positive_int
 from .config import (
@@ -358,11 +358,6 @@ def get_suite(setting: str = "small", *, records: str | os.PathLike | None = Non
 
 
 # ================================================================================ running
-def _dimension(spec: ComparisonSpec) -> int:
-    """The dimension of the search vector of a problem (its record built once)."""
-    return int(_Context.from_spec(spec).estimation.problem.dim)
-
-
 @checked_keywords
 def run_suite(
     suite: Suite,
@@ -371,15 +366,17 @@ def run_suite(
     store: str | os.PathLike | ResultStore,
     workers: int = 1,
     scheduler: str | Any | None = None,
-    progress: Callable[[str, int, int], Any] | None = None,
+    progress: bool | Callable[[dict], Any] = False,
 ) -> SuiteResult:
     """Run (or resume) optimisers on every problem of a suite, into one store.
 
     Each problem is a :func:`flexid.compare` of the optimisers with the suite's runs and a
     budget of ``budget_per_dim`` times its dimension: the same data, initial populations and
     budgets for every optimiser, every finished run written at once, runs already in the
-    store skipped.  Every problem is checked (its record built, its optimisers known) before
-    the first run.
+    store skipped.  The tasks of every problem (its reference, then its runs) share one pool
+    of ``workers`` processes or one dask task graph, so the workers stay busy across
+    problems.  Every problem is checked (its record built, its optimisers known) before the
+    store is opened.
 
     Parameters
     ----------
@@ -390,11 +387,12 @@ def run_suite(
     store : path-like or ResultStore
         The SQLite store of the results.
     workers : int
-        Processes per problem (the numbers do not depend on it).
+        Worker processes for the whole suite (the numbers do not depend on it).
     scheduler : str or distributed.Client, optional
         A dask scheduler (address or client) to run on instead.
-    progress : callable, optional
-        Called as ``progress(problem_name, index, count)`` before each problem.
+    progress : bool or callable
+        Show a progress bar over the suite's runs (``True``), or call ``progress(record)``
+        after each finished run.
 
     Returns
     -------
@@ -413,17 +411,14 @@ def run_suite(
     if not specs:
         raise ConfigError("run_suite: give at least one optimiser")
     workers = positive_int(workers, "workers", error=ConfigError)
-    plans = []
+    contexts = []
     for problem in suite.problems:
-        base = replace(problem.spec, optimisers=tuple(specs), runs=suite.runs)
-        dim = _dimension(base)
-        spec = replace(base, name=suite.comparison_name(problem),
-                       budget=suite.budget_per_dim * dim)  # fmt: skip
-        plans.append((problem, spec))
-    for i, (problem, spec) in enumerate(plans):
-        if progress is not None:
-            progress(problem.name, i, len(plans))
-        compare(spec, store=store, workers=workers, scheduler=scheduler)
+        ctx = _checked_context(replace(problem.spec, optimisers=tuple(specs), runs=suite.runs))
+        dim = int(ctx.estimation.problem.dim)
+        contexts.append(ctx.respecified(name=suite.comparison_name(problem),
+                                        budget=suite.budget_per_dim * dim))  # fmt: skip
+    _compare_contexts(contexts, store=store, workers=workers, scheduler=scheduler,
+                      progress=progress)  # fmt: skip
     return load_suite(store, suite)
 
 
