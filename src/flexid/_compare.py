@@ -800,13 +800,15 @@ def _compare_contexts(
     retry_failed: bool = False,
     run_timeout: float | None = None,
     t0: float | None = None,
+    title: str | None = None,
 ) -> list[ComparisonResult]:
     """:func:`compare` of several checked comparisons, their tasks in one pool or graph.
 
     The references of every comparison come first (the longest tasks, so the workers start
     them early), then the runs, comparison by comparison; each finished task is written at
     once under its comparison's key.  Arguments as for :func:`compare`; ``run_timeout``
-    None takes each comparison's own (the first one's, for the pool).
+    None takes the first that a comparison sets (one pool has one limit); ``title`` heads
+    the progress bar (default: the comparison's name, or how many there are).
     """
     t0 = time.perf_counter() if t0 is None else t0
     workers = positive_int(workers, "workers", error=ConfigError)
@@ -833,8 +835,16 @@ def _compare_contexts(
             (i, None) for i, job in enumerate(jobs) if job.reference
         ]
         items += [(i, task) for i, job in enumerate(jobs) for task in job.tasks]
-        name = jobs[0].spec.name if len(jobs) == 1 else f"{len(jobs)} comparisons"
-        bar = _progress(progress, sum(len(job.tasks) for job in jobs), name)
+        if title is None:
+            title = jobs[0].spec.name if len(jobs) == 1 else f"{len(jobs)} comparisons"
+        bar = _progress(progress, sum(len(job.tasks) for job in jobs), title)
+        # among several comparisons a run is shown with its comparison's name, less the
+        # folders all the names share
+        parts = [job.spec.name.split("/") for job in jobs]
+        k = 0
+        while all(len(q) > k + 1 and q[k] == parts[0][k] for q in parts):
+            k += 1
+        where = ["/".join(q[k:]) + ": " if len(jobs) > 1 else "" for q in parts]
         done = _execute(jobs, items, workers, scheduler, run_timeout)
         try:
             for i, record in done:
@@ -842,10 +852,10 @@ def _compare_contexts(
                     db.write_run(jobs[i].key, record)
                 jobs[i].records.append(record)
                 if record["label"] != LEAST_SQUARES:
-                    bar(record)
+                    bar(record, where[i])
         finally:
             done.close()  # ends the worker processes now, also when the loop body raised
-            bar(None)
+            bar(None, "")
         elapsed = time.perf_counter() - t0
         path = str(db.path) if db is not None else None
         return [
@@ -915,23 +925,25 @@ def _execute_dask(
             client.close()
 
 
-def _progress(progress: bool | Callable, total: int, name: str) -> Callable[[dict | None], None]:
-    """A callback ``bar(record)`` per finished run; ``bar(None)`` closes it."""
+def _progress(
+    progress: bool | Callable, total: int, name: str
+) -> Callable[[dict | None, str], None]:
+    """A callback ``bar(record, where)`` per finished run (``where`` names its comparison
+    among several, or is empty); ``bar(None, "")`` closes it."""
     if callable(progress) and not isinstance(progress, bool):
-        return lambda record: None if record is None else progress(record)
+        return lambda record, where: None if record is None else progress(record)
     if not progress or total == 0:
-        return lambda record: None
+        return lambda record, where: None
     from .progress import ProgressBar
 
     bar = ProgressBar(total, f"{name}")
 
-    def update(record: dict | None) -> None:
+    def update(record: dict | None, where: str) -> None:
         if record is None:
             bar.close()
         else:
-            bar.update(
-                1, f"{record['label']} run {record['run']}: {_f(record.get('cost', math.nan))}"
-            )
+            cost = _f(record.get("cost", math.nan))
+            bar.update(1, f"{where}{record['label']} run {record['run']}: {cost}")
 
     return update
 

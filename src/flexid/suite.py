@@ -418,7 +418,7 @@ def run_suite(
         contexts.append(ctx.respecified(name=suite.comparison_name(problem),
                                         budget=suite.budget_per_dim * dim))  # fmt: skip
     _compare_contexts(contexts, store=store, workers=workers, scheduler=scheduler,
-                      progress=progress)  # fmt: skip
+                      progress=progress, title=suite.label)  # fmt: skip
     return load_suite(store, suite)
 
 
