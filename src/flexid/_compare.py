@@ -393,7 +393,14 @@ def _do(ctx: _Context, task: tuple | None) -> dict[str, Any]:
 
 
 def _run_task(payload: Mapping[str, Any], task: tuple | None) -> dict[str, Any]:
-    return _do(_context_from_payload(payload), task)
+    """A task on a dask worker.  Its compiled kernels run on one thread, as dask's worker
+    processes run NumPy's BLAS (``OMP_NUM_THREADS=1``): a machine's cores are its worker
+    processes', not one task's."""
+    before = kernels.set_threads(1)
+    try:
+        return _do(_context_from_payload(payload), task)
+    finally:
+        kernels.set_threads(before)  # a worker inside the caller's process (processes=False)
 
 
 # ================================================================================ workers
