@@ -262,3 +262,21 @@ def test_one_element_float_gives_what_float_gave():
     assert _one_element_float(3) == 3.0 and _one_element_float("1.5") == 1.5
     with pytest.raises(TypeError):
         _one_element_float(np.ones(2))
+
+
+def test_the_surrogates_overflow_warnings_are_quiet():
+    """NGOpt's meta-model minimises an unbounded surrogate at each step, and scipy's Powell
+    and scikit-learn's polynomial features warn of overflows by the hundred; those alone are
+    silenced around nevergrad's ask and tell."""
+    import warnings
+
+    from flexid.optimisers.external import _surrogate_warnings_quiet
+
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with _surrogate_warnings_quiet():
+            for module in ("scipy.optimize._optimize", "sklearn.preprocessing._polynomial",
+                           "flexid.costs.arx"):  # fmt: skip
+                warnings.warn_explicit(module, RuntimeWarning, "f.py", 1, module=module)
+            warnings.warn_explicit("scipy", UserWarning, "f.py", 1, module="scipy.optimize")
+    assert [str(w.message) for w in seen] == ["flexid.costs.arx", "scipy"]

@@ -38,6 +38,7 @@ import builtins
 import contextlib
 import difflib
 import importlib.util
+import warnings
 from collections.abc import Callable, Iterator
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any, ClassVar
@@ -223,12 +224,26 @@ def _mend_metamodel() -> None:
         metamodel.float = _one_element_float
 
 
+@contextlib.contextmanager
+def _surrogate_warnings_quiet() -> Iterator[None]:
+    """Silence the overflow warnings of the surrogate nevergrad's meta-model fits and
+    minimises at every step (scipy's Powell and scikit-learn's polynomial features; hundreds
+    per NGOpt run): they concern the surrogate, never the problem or the run."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings(
+            "ignore", category=RuntimeWarning, module=r"(scipy\.optimize|sklearn)\b"
+        )
+        yield
+
+
 def _ng_batch(opt: Any, space: SearchSpace, size: int) -> Iterator[np.ndarray]:
-    candidates = [opt.ask() for _ in range(size)]
+    with _surrogate_warnings_quiet():
+        candidates = [opt.ask() for _ in range(size)]
     X = space.clip(np.array([c.value for c in candidates], dtype=float))
     F = yield X
-    for candidate, f in zip(candidates, np.minimum(F, _NG_MAX_LOSS)):
-        opt.tell(candidate, float(f))
+    with _surrogate_warnings_quiet():
+        for candidate, f in zip(candidates, np.minimum(F, _NG_MAX_LOSS)):
+            opt.tell(candidate, float(f))
 
 
 def _nevergrad_class(name: str) -> type[Optimiser]:
