@@ -819,15 +819,7 @@ def _compare_contexts(
     """
     t0 = time.perf_counter() if t0 is None else t0
     workers = positive_int(workers, "workers", error=ConfigError)
-    if run_timeout is None:
-        run_timeout = next((c.spec.run_timeout for c in contexts if c.spec.run_timeout), None)
-    else:
-        run_timeout = _check_run_timeout(run_timeout, "run_timeout")
-    if run_timeout is not None and scheduler is not None:
-        raise ConfigError(
-            "run_timeout is not available with a dask scheduler (a dask task cannot be "
-            "stopped); use workers instead"
-        )
+    run_timeout = _pool_timeout(contexts, run_timeout, scheduler)
     owns_store = store is not None and not isinstance(store, ResultStore)
     db = ResultStore(store) if owns_store else store
     try:
@@ -835,24 +827,11 @@ def _compare_contexts(
         if db is not None:  # every label checked before the first comparison is recorded
             for job in jobs:
                 db.add_comparison(job.key, job.spec.name, job.spec.to_dict())
-        for job in jobs:
-            if retry_failed:
-                job.records = [r for r in job.records if r["status"] != "failed"]
-        items: list[tuple[int, tuple | None]] = [
-            (i, None) for i, job in enumerate(jobs) if job.reference
-        ]
-        items += [(i, task) for i, job in enumerate(jobs) for task in job.tasks]
         if title is None:
             title = jobs[0].spec.name if len(jobs) == 1 else f"{len(jobs)} comparisons"
         bar = _progress(progress, sum(len(job.tasks) for job in jobs), title)
-        # among several comparisons a run is shown with its comparison's name, less the
-        # folders all the names share
-        parts = [job.spec.name.split("/") for job in jobs]
-        k = 0
-        while all(len(q) > k + 1 and q[k] == parts[0][k] for q in parts):
-            k += 1
-        where = ["/".join(q[k:]) + ": " if len(jobs) > 1 else "" for q in parts]
-        done = _execute(jobs, items, workers, scheduler, run_timeout)
+        where = _short_names(jobs)
+        done = _execute(jobs, _work_items(jobs), workers, scheduler, run_timeout)
         try:
             for i, record in done:
                 if db is not None:
@@ -874,6 +853,42 @@ def _compare_contexts(
     finally:
         if owns_store and db is not None:
             db.close()
+
+
+def _pool_timeout(
+    contexts: Sequence[_Context], run_timeout: float | None, scheduler: Any
+) -> float | None:
+    """The run time limit of a pool: the one given, else the first a comparison sets."""
+    if run_timeout is None:
+        run_timeout = next((c.spec.run_timeout for c in contexts if c.spec.run_timeout), None)
+    else:
+        run_timeout = _check_run_timeout(run_timeout, "run_timeout")
+    if run_timeout is not None and scheduler is not None:
+        raise ConfigError(
+            "run_timeout is not available with a dask scheduler (a dask task cannot be "
+            "stopped); use workers instead"
+        )
+    return run_timeout
+
+
+def _work_items(jobs: Sequence[_Job]) -> list[tuple[int, tuple | None]]:
+    """``(job index, task)`` of every task: the references first, then the runs."""
+    items: list[tuple[int, tuple | None]] = [
+        (i, None) for i, job in enumerate(jobs) if job.reference
+    ]
+    return items + [(i, task) for i, job in enumerate(jobs) for task in job.tasks]
+
+
+def _short_names(jobs: Sequence[_Job]) -> list[str]:
+    """How a progress line names each job's comparison among several: its name less the
+    folders all the names share (nothing when there is one)."""
+    if len(jobs) == 1:
+        return [""]
+    parts = [job.spec.name.split("/") for job in jobs]
+    k = 0
+    while all(len(q) > k + 1 and q[k] == parts[0][k] for q in parts):
+        k += 1
+    return ["/".join(q[k:]) + ": " for q in parts]
 
 
 def _execute(
