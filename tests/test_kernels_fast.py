@@ -101,6 +101,38 @@ def test_arx_run_equals_the_reference(simd, na, nb, p):
 
 @pytest.mark.numerics
 @compiled
+@pytest.mark.parametrize("na", [2, 16, 18, 24])
+@pytest.mark.parametrize("first", [0, 1, 17, 150, 299, 300])
+def test_arx_run_counts_the_squares_from_first(simd, na, first):
+    # from rest, the samples before first run but are not counted: the outputs are those
+    # of first = 0 exactly (the same recursion), the sum that of the errors from first on
+    # (orders above 16 too: BJ's C F runs on the block path)
+    from flexid import _kernels
+
+    rng = np.random.default_rng(10 * na + first)
+    p, nb, k = 9, 37, 300
+    a, b, reg, state, target = problem(rng, p, na, nb, k, True)
+    forced = b @ reg.T
+    ref = kernels.ar_recursion_reference(a, forced, state)
+    y0, y, sse = np.empty((p, k)), np.empty((p, k)), np.empty(p)
+    _kernels.arx_run(a, b, reg, state, None, y0, None, 2)
+    _kernels.arx_run(a, b, reg, state, target[first:], y, sse, 2, first)
+    np.testing.assert_array_equal(y, y0)
+    dy = ar_route_bound(a, forced, state, ref, np.abs(b) @ np.abs(reg).T, nb)
+    assert_close_to_terms(y, ref, dy, 1.0)
+    e = target[first:] - ref[:, first:]
+    assert_close_to_terms(sse, (e * e).sum(axis=1), sse_route_bound(e, dy[:, first:]), 1.0)
+    _, sse2 = kernels.arx_recursion(a, b, reg, state, target[first:], want_output=False,
+                                    first=first)  # fmt: skip
+    np.testing.assert_array_equal(sse2, sse)
+    with pytest.raises(ValueError, match="K - first"):
+        _kernels.arx_run(a, b, reg, state, target, None, sse, 1, max(first, 1))
+    with pytest.raises(ValueError, match="first must be"):
+        _kernels.arx_run(a, b, reg, state, None, None, None, 1, k + 1)
+
+
+@pytest.mark.numerics
+@compiled
 @pytest.mark.parametrize("k", [1, 3, 7, 128, 129, 136])
 def test_arx_run_short_records_and_chunk_edges(simd, k):
     # records shorter than the order (the state alone feeds the first outputs), and lengths

@@ -299,3 +299,49 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
     assert (np.linalg.norm(e_new - e_old, axis=1) <= d).all()
     assert (np.abs(sse - resid**2) <= dsse).all()
     np.testing.assert_array_equal(cost.sse(X), sse)  # the SSE-only pass: the same sums
+
+
+@pytest.mark.parametrize("rule", ["zero", "measured"])
+@pytest.mark.parametrize("name", ["oe16", "bj16", "armax", "bj2"])
+def test_sse_by_the_arx_kernel_equals_the_reference(name, rule):
+    """Under ``"zero"`` and ``"measured"`` the SSE-only pass runs the predictor as one ARX
+    recursion on the shared regressors (compiled, input part and sum of squares in the
+    kernel); the reference forms the forced terms by GEMMs and runs ``lfilter``.  Both are
+    the same filter: the routes differ by the recursion's rounding and that of the
+    ``nb``-term input part, filtered by ``1/den`` (``route_bounds.ar_route_bound``), and the
+    sum of squares by ``sse_route_bound`` over the samples counted (from ``start``)."""
+    from flexid import kernels
+    from route_bounds import ar_route_bound, sse_route_bound
+
+    if name.endswith("16"):
+        s = structure("oe", nb=16, nf=16, nk=1) if name == "oe16" else structure(
+            "bj", nb=16, nc=2, nd=2, nf=16, nk=1
+        )
+        rng = np.random.default_rng(5)
+        u = rng.uniform(-0.3, 0.3, (1500, 1))
+        y = signal.lfilter(np.r_[0.0, 0.05 * rng.standard_normal(16)], _lightly_damped(0.99),
+                           u[:, 0])  # fmt: skip
+        y += signal.lfilter([1.0, 0.5], [1.0, -0.9], 0.01 * rng.standard_normal(1500))
+        X = _candidates(s, 12, 6, r_max=0.999)
+        X[:, s.b_columns] *= 0.1
+    else:
+        s = STRUCTS[name]
+        u, y = _record(s.n_inputs)
+        X = _candidates(s, 12, 6)
+    cost = PolynomialCost(s, (u, y), metric="sse", initial=rule)
+    sse = cost.sse(X)
+    den, num_y, nums = cost._predictor(cost._parts(X))
+    n = den.shape[1] - 1
+    forced = cost._forced(num_y, nums)
+    state = cost._state[:n] if rule == "measured" else np.zeros(n)
+    ref = kernels.ar_recursion_reference(den[:, 1:], forced, state)
+    first = cost.start - cost._t0
+    e = cost._target - ref[:, first:]
+    num = np.concatenate([num_y[:, 1:], *nums], axis=1)
+    terms = np.abs(num) @ np.abs(cost._reg).T
+    dy = ar_route_bound(den[:, 1:], forced, state, ref, terms, num.shape[1])
+    bound = sse_route_bound(e, dy[:, first:])
+    assert (np.abs(sse - (e * e).sum(axis=1)) <= bound).all()
+    # the errors themselves (GEMM and ar_recursion) sum to the same within the bound
+    e2 = cost.prediction_errors(X)
+    assert (np.abs(sse - (e2 * e2).sum(axis=1)) <= 2 * bound).all()

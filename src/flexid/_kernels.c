@@ -15,10 +15,13 @@
  *       [y(-1), ..., y(-na)] (or (na,) shared by all candidates), target (K,) or None,
  *       y_out (P, K) or None, sse_out (P,) or None (sum over t of (target - y)^2).
  *
- *   arx_run(a, b, reg, state, target, y_out, sse_out[, threads])
+ *   arx_run(a, b, reg, state, target, y_out, sse_out[, threads[, first]])
  *       The same with the input part computed in the kernel, f(t) = sum_j b_j reg[t, j]:
  *       b (P, nb), reg (K, nb) the input regressors of every step (shared by all
- *       candidates), so that no (P, K) array of forced terms is formed.
+ *       candidates), so that no (P, K) array of forced terms is formed.  With first > 0
+ *       (default 0) the recursion still runs from t = 0 but sse_out sums t >= first only,
+ *       target then being (K - first,) and compared with y(first ..): a recursion started
+ *       at rest before the samples that count.
  *
  *   twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads])
  *       The twin rotor's RK4 (flexid.envs.twin_rotor_physics: the equations of its batched
@@ -101,15 +104,15 @@ typedef struct {
     const double *reg;    /* (K, nb) */
     const double *state;  /* [y(-1), ..., y(-na)] per candidate (stride state_stride) */
     Py_ssize_t state_stride;
-    const double *target; /* (K,) or NULL */
+    const double *target; /* (K - first,) or NULL */
     double *y;            /* (P, K) or NULL */
-    double *sse;          /* (P,) or NULL */
-    Py_ssize_t P, na, nb, K, a_stride, b_stride;
+    double *sse;          /* (P,) or NULL: sum over t >= first of (target(t - first) - y(t))^2 */
+    Py_ssize_t P, na, nb, K, a_stride, b_stride, first;
 } ar_job;
 
 /* One candidate at a time, the direct form y(t) = f(t) - a_na y(t - na) - ... - a_1 y(t - 1)
  * summed in that order, the history in hist (na + K doubles).  The portable path, and the one
- * for orders above AR_MAXNA. */
+ * for orders above AR_MAXREC. */
 static void ar_one(const ar_job *J, Py_ssize_t p, double *hist)
 {
     const Py_ssize_t na = J->na, nb = J->nb, K = J->K;
@@ -127,8 +130,8 @@ static void ar_one(const ar_job *J, Py_ssize_t p, double *hist)
         }
         for (Py_ssize_t k = na; k >= 1; --k) acc -= ap[k - 1] * hist[na + t - k];
         hist[na + t] = acc;
-        if (J->target) {
-            const double e = J->target[t] - acc;
+        if (J->target && t >= J->first) {
+            const double e = J->target[t - J->first] - acc;
             s += e * e;
         }
     }
@@ -138,7 +141,8 @@ static void ar_one(const ar_job *J, Py_ssize_t p, double *hist)
 
 #if defined(__GNUC__)
 typedef double v4d __attribute__((vector_size(32), aligned(8)));
-#define AR_MAXNA 16  /* orders whose state is held in registers */
+#define AR_MAXNA 16  /* orders whose state is held in registers (the numerator fits) */
+#define AR_MAXREC 24 /* orders of ar_run/arx_run's block path (above 16: BJ's C F) */
 #define AR_MAXNB 64  /* input terms computed in the kernel (more: the caller's GEMM) */
 #define AR_CHUNK 128 /* forced terms computed per pass (4 KB: they stay in L1) */
 
@@ -155,8 +159,9 @@ typedef double v4d __attribute__((vector_size(32), aligned(8)));
  * latency of a chain of na of them.  The forced terms are computed AR_CHUNK steps at a time
  * into a small buffer (a separate pass, so that the coefficients of both passes have the
  * registers to themselves).  na is a constant in every caller; a_in_mem keeps the a_k in
- * memory (read as operands of the multiply-adds) where 16 vector registers cannot hold them
- * beside the state. */
+ * memory (read as operands of the multiply-adds) where the vector registers cannot hold them
+ * beside the state (16 registers, or orders above 16), and rounds unrolls the steps by na
+ * (where 32 registers hold the state unspilled). */
 /* In AR_BLOCK_IMPL: f(c0), ..., f(c1 - 1) into fbuf[0 .. c1 - c0); each f(t) = b_1 r_1 + ... +
  * b_nb r_nb in that order, 8 steps at a time so that each b_j is loaded once for 8 products */
 #define AR_FILL(c0, c1)                                                                       \
@@ -192,13 +197,14 @@ typedef double v4d __attribute__((vector_size(32), aligned(8)));
 
 #define AR_BLOCK_IMPL(NAME, VEC, NL)                                                          \
 static inline __attribute__((always_inline)) void                                              \
-NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem)                          \
+NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem, const int rounds)        \
 {                                                                                              \
     const Py_ssize_t K = J->K, nb = J->nb, w = (J->P - q < NL) ? J->P - q : NL;                \
     const double *forced = J->forced ? J->forced + q * K : NULL, *reg = J->reg;                \
     const double *target = J->target;                                                          \
+    const Py_ssize_t first = J->first;                                                         \
     double *y = J->y ? J->y + q * K : NULL;                                                    \
-    VEC A[AR_MAXNA], S[AR_MAXNA], Y[AR_MAXNA], Bv[AR_MAXNB];                                   \
+    VEC A[AR_MAXREC], S[AR_MAXREC], Y[AR_MAXREC], Bv[AR_MAXNB];                                \
     VEC fbuf[AR_CHUNK];                                                                        \
     VEC zero = {0};                                                                            \
     for (int i = 0; i < na; ++i) A[i] = Y[i] = zero;                                           \
@@ -234,17 +240,17 @@ NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem)           
          * rather than moved: in step r of a round, the S[k] above is S[(k + r) % na], so      \
          * each update accumulates in place and the slot of y(t) takes the new last entry      \
          * (the same operations; with 16 registers the unrolled rounds spill) */               \
-        for (; !a_in_mem && c + na <= c1; c += na) {                                           \
-            _Pragma("GCC unroll 16") for (int r = 0; r < na; ++r) {                            \
+        for (; rounds && c + na <= c1; c += na) {                                              \
+            _Pragma("GCC unroll 24") for (int r = 0; r < na; ++r) {                            \
                 const Py_ssize_t t = c + r - na;                                               \
                 const VEC yt = S[r];                                                           \
-                if (target) {                                                                  \
-                    const VEC e = target[t] - yt;                                              \
+                if (target && t >= first) {                                                    \
+                    const VEC e = target[t - first] - yt;                                      \
                     s += e * e;                                                                \
                 }                                                                              \
                 if (y)                                                                         \
                     for (Py_ssize_t l = 0; l < w; ++l) y[l * K + t] = yt[l];                   \
-                _Pragma("GCC unroll 16") for (int k = 0; k < na - 1; ++k)                      \
+                _Pragma("GCC unroll 24") for (int k = 0; k < na - 1; ++k)                      \
                     S[(k + 1 + r) % na] -= Am[k] * yt;                                         \
                 S[r] = fbuf[c + r - c0] - Am[na - 1] * yt;                                     \
             }                                                                                  \
@@ -252,8 +258,8 @@ NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem)           
         for (; c < c1; ++c) {                                                                  \
             const Py_ssize_t t = c - na;                                                       \
             const VEC yt = S[0];                                                               \
-            if (target) {                                                                      \
-                const VEC e = target[t] - yt;                                                  \
+            if (target && t >= first) {                                                        \
+                const VEC e = target[t - first] - yt;                                          \
                 s += e * e;                                                                    \
             }                                                                                  \
             if (y)                                                                             \
@@ -281,19 +287,19 @@ AR_BLOCK_IMPL(ar_pair_impl, v2d, 2)
 #define AR_QUAD(n)                                                                            \
     static void ar_quad_g##n(const ar_job *J, Py_ssize_t q)                                   \
     {                                                                                         \
-        ar_pair_impl(J, q, n, 1);                                                             \
-        if (q + 2 < J->P) ar_pair_impl(J, q + 2, n, 1);                                       \
+        ar_pair_impl(J, q, n, 1, 0);                                                          \
+        if (q + 2 < J->P) ar_pair_impl(J, q + 2, n, 1, 0);                                    \
     }                                                                                         \
     AR_QUAD_X86(n)
 #if defined(AR_X86)
 #define AR_QUAD_X86(n)                                                                        \
     AR_TGT_V3 static void ar_quad_v3_##n(const ar_job *J, Py_ssize_t q)                       \
     {                                                                                         \
-        ar_quad_impl(J, q, n, 1);                                                             \
+        ar_quad_impl(J, q, n, 1, 0);                                                          \
     }                                                                                         \
     AR_TGT_V4 static void ar_quad_v4_##n(const ar_job *J, Py_ssize_t q)                       \
     {                                                                                         \
-        ar_quad_impl(J, q, n, 0);                                                             \
+        ar_quad_impl(J, q, n, n > AR_MAXNA, 1);                                               \
     }
 #else
 #define AR_QUAD_X86(n)
@@ -314,16 +320,29 @@ AR_QUAD(13)
 AR_QUAD(14)
 AR_QUAD(15)
 AR_QUAD(16)
+AR_QUAD(17)
+AR_QUAD(18)
+AR_QUAD(19)
+AR_QUAD(20)
+AR_QUAD(21)
+AR_QUAD(22)
+AR_QUAD(23)
+AR_QUAD(24)
 typedef void (*ar_quad_fn)(const ar_job *, Py_ssize_t);
 #define AR_TABLE(p)                                                                           \
     {                                                                                         \
         NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
             p##13, p##14, p##15, p##16                                                        \
     }
-static const ar_quad_fn ar_quads_generic[AR_MAXNA + 1] = AR_TABLE(ar_quad_g);
+#define AR_TABLE24(p)                                                                         \
+    {                                                                                         \
+        NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
+            p##13, p##14, p##15, p##16, p##17, p##18, p##19, p##20, p##21, p##22, p##23, p##24 \
+    }
+static const ar_quad_fn ar_quads_generic[AR_MAXREC + 1] = AR_TABLE24(ar_quad_g);
 #if defined(AR_X86)
-static const ar_quad_fn ar_quads_v3[AR_MAXNA + 1] = AR_TABLE(ar_quad_v3_);
-static const ar_quad_fn ar_quads_v4[AR_MAXNA + 1] = AR_TABLE(ar_quad_v4_);
+static const ar_quad_fn ar_quads_v3[AR_MAXREC + 1] = AR_TABLE24(ar_quad_v3_);
+static const ar_quad_fn ar_quads_v4[AR_MAXREC + 1] = AR_TABLE24(ar_quad_v4_);
 #endif
 static const char *const ar_simd_names[3] = {"generic", "avx2", "avx512"};
 static int ar_simd_best = 0; /* the best the CPU runs */
@@ -355,6 +374,7 @@ static void ar_simd_select(int level)
 #define AR_UNIT 4 /* candidates per unit of work */
 #else
 #define AR_MAXNA 0
+#define AR_MAXREC 0
 #define AR_MAXNB 0
 #define AR_UNIT 1
 static const char *const ar_simd_names[1] = {"scalar"};
@@ -368,7 +388,7 @@ static void ar_simd_select(int level) { (void)level; }
 static void ar_units(const ar_job *J, Py_ssize_t lo, Py_ssize_t hi, double *hist)
 {
 #if defined(__GNUC__)
-    if (J->na >= 1 && J->na <= AR_MAXNA) {
+    if (J->na >= 1 && J->na <= AR_MAXREC) {
         for (Py_ssize_t u = lo; u < hi; ++u) ar_quads[J->na](J, u * AR_UNIT);
         return;
     }
@@ -586,7 +606,7 @@ static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_thre
 static int ar_unit(const void *ctx, Py_ssize_t u, void **scratch)
 {
     const ar_job *J = (const ar_job *)ctx;
-    if (!(J->na >= 1 && J->na <= AR_MAXNA) && !*scratch) {
+    if (!(J->na >= 1 && J->na <= AR_MAXREC) && !*scratch) {
         *scratch = malloc((size_t)(J->na + J->K + 1) * sizeof(double));
         if (!*scratch) return -1;
     }
@@ -686,7 +706,8 @@ done:
 }
 
 /* Parses the common tail (state, target, y_out, sse_out) of ar_run and arx_run into J, given
- * P, na and K; bufs[0..3] and have[0..3] are theirs.  -1 with an exception set on error. */
+ * P, na, K and first; bufs[0..3] and have[0..3] are theirs.  -1 with an exception set on
+ * error. */
 static int ar_parse_tail(const char *fn, PyObject *objs[4], Py_buffer bufs[4], int have[4],
                          ar_job *J)
 {
@@ -712,8 +733,8 @@ static int ar_parse_tail(const char *fn, PyObject *objs[4], Py_buffer bufs[4], i
         PyErr_Format(PyExc_ValueError, "%s: state must be (na,) or (P, na)", fn);
         return -1;
     }
-    if (have[1] && (bufs[1].ndim != 1 || bufs[1].shape[0] != K)) {
-        PyErr_Format(PyExc_ValueError, "%s: target must be (K,)", fn);
+    if (have[1] && (bufs[1].ndim != 1 || bufs[1].shape[0] != K - J->first)) {
+        PyErr_Format(PyExc_ValueError, "%s: target must be (K - first,)", fn);
         return -1;
     }
     if (have[2] && (bufs[2].ndim != 2 || bufs[2].shape[0] != P || bufs[2].shape[1] != K)) {
@@ -789,9 +810,9 @@ static PyObject *py_arx_run(PyObject *self, PyObject *args)
     PyObject *objs[7];
     Py_buffer bufs[7];
     int have[7] = {0}, n_threads = 1;
-    Py_ssize_t strides[2] = {0, 0};
-    if (!PyArg_ParseTuple(args, "OOOOOOO|i", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4],
-                          &objs[5], &objs[6], &n_threads))
+    Py_ssize_t strides[2] = {0, 0}, first = 0;
+    if (!PyArg_ParseTuple(args, "OOOOOOO|in", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4],
+                          &objs[5], &objs[6], &n_threads, &first))
         return NULL;
     PyObject *result = NULL;
     static const char *names[3] = {"a", "b", "reg"};
@@ -832,6 +853,11 @@ static PyObject *py_arx_run(PyObject *self, PyObject *args)
     J.a_stride = strides[0];
     J.b_stride = strides[1];
     J.reg = (const double *)bufs[2].buf;
+    if (first < 0 || first > J.K) {
+        PyErr_SetString(PyExc_ValueError, "arx_run: first must be in [0, K]");
+        goto done;
+    }
+    J.first = first;
     if (ar_parse_tail("arx_run", objs + 3, bufs + 3, have + 3, &J) < 0) goto done;
     result = ar_execute(&J, n_threads);
 done:
@@ -1997,8 +2023,9 @@ static PyMethodDef methods[] = {
      "ar_run(a, forced, state, target, y_out, sse_out[, threads]): batched AR recursion "
      "(see module)."},
     {"arx_run", py_arx_run, METH_VARARGS,
-     "arx_run(a, b, reg, state, target, y_out, sse_out[, threads]): batched ARX recursion, "
-     "the input part computed from the regressor rows reg (see module)."},
+     "arx_run(a, b, reg, state, target, y_out, sse_out[, threads[, first]]): batched ARX "
+     "recursion, the input part computed from the regressor rows reg, sse over t >= first "
+     "(see module)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
      "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads]): twin rotor RK4; "
      "params (22,) shared or (B, 22) per rotor."},
@@ -2277,14 +2304,9 @@ FREE_QUAD(1) FREE_QUAD(2) FREE_QUAD(3) FREE_QUAD(4) FREE_QUAD(5) FREE_QUAD(6)
 FREE_QUAD(7) FREE_QUAD(8) FREE_QUAD(9) FREE_QUAD(10) FREE_QUAD(11) FREE_QUAD(12)
 FREE_QUAD(13) FREE_QUAD(14) FREE_QUAD(15) FREE_QUAD(16) FREE_QUAD(17) FREE_QUAD(18)
 FREE_QUAD(19) FREE_QUAD(20) FREE_QUAD(21) FREE_QUAD(22) FREE_QUAD(23) FREE_QUAD(24)
-#define FREE_TABLE(p)                                                                         \
-    {                                                                                         \
-        NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
-            p##13, p##14, p##15, p##16, p##17, p##18, p##19, p##20, p##21, p##22, p##23, p##24 \
-    }
-static const free_quad_fn free_quads_generic[FREE_MAXN + 1] = FREE_TABLE(free_quad_g);
+static const free_quad_fn free_quads_generic[FREE_MAXN + 1] = AR_TABLE24(free_quad_g);
 #if defined(AR_X86)
-static const free_quad_fn free_quads_v3[FREE_MAXN + 1] = FREE_TABLE(free_quad_v3_);
+static const free_quad_fn free_quads_v3[FREE_MAXN + 1] = AR_TABLE24(free_quad_v3_);
 #endif
 
 typedef struct {

@@ -275,6 +275,7 @@ def arx_recursion(
     target: np.ndarray | None = None,
     *,
     want_output: bool = True,
+    first: int = 0,
 ) -> tuple[np.ndarray | None, np.ndarray | None]:
     """:func:`ar_recursion` with the input part ``f(t) = sum_j b_j reg[t, j]`` of each row.
 
@@ -290,8 +291,14 @@ def arx_recursion(
     b : ndarray, shape (P, nb)
     reg : ndarray, shape (K, nb)
         The input regressors of every step, shared by all candidates.
-    state, target, want_output
+    state, want_output
         As for :func:`ar_recursion`.
+    target : ndarray, shape (K - first,), optional
+        When given, the sum over ``t >= first`` of ``(target(t - first) - y(t))^2`` is
+        returned too.
+    first : int
+        The first sample the sums of squares count: a recursion from rest at ``t = 0`` whose
+        first ``first`` samples are a transient that does not count (``0 <= first <= K``).
 
     Returns
     -------
@@ -300,8 +307,15 @@ def arx_recursion(
     """
     reg = np.ascontiguousarray(reg, dtype=float)
     if BACKEND != "c" or b.shape[1] > _ARX_MAXNB:
-        return ar_recursion(a, np.asarray(b, float) @ reg.T, state, target,
-                            want_output=want_output)  # fmt: skip
+        forced = np.asarray(b, float) @ reg.T
+        if not first:
+            return ar_recursion(a, forced, state, target, want_output=want_output)
+        y, _ = ar_recursion(a, forced, state)
+        sse = None
+        if target is not None:
+            e = np.asarray(target, dtype=float) - y[:, first:]
+            sse = np.einsum("ij,ij->i", e, e)
+        return (y if want_output else None), sse
     # the kernel takes rows of contiguous values at any (positive) stride: column blocks of a
     # population array need no copy
     a = _rows(a)
@@ -312,7 +326,7 @@ def arx_recursion(
     sse = np.empty(p) if target is not None else None
     tgt = None if target is None else np.ascontiguousarray(target, dtype=float)
     work = p * k * (a.shape[1] + b.shape[1] + 1)
-    _c.arx_run(a, b, reg, state, tgt, y, sse, _threads_for(work))
+    _c.arx_run(a, b, reg, state, tgt, y, sse, _threads_for(work), int(first))
     return y, sse
 
 

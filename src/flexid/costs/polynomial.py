@@ -36,10 +36,11 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
+from .. import kernels
 from .._validate import real
 from ..config import CostSpec
 from ..errors import ConfigError, DataError, UnknownNameError
-from ..kernels import ar_recursion, initial_state_fit
+from ..kernels import ar_recursion, arx_recursion, initial_state_fit
 from ..models.polynomial import PolynomialStructure, _check_initial
 from ..stability import is_stable, pole_radius_batched
 from .arx import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
@@ -455,10 +456,20 @@ class PolynomialCost:
         ndarray, shape (P,)
             Over ``t >= start``, in output units squared.
         """
-        if self.initial == "estimate" and self._deg_den:
-            den, num_y, nums = self._predictor(self._parts(X))
+        den, num_y, nums = self._predictor(self._parts(X))
+        n = den.shape[1] - 1
+        if self.initial == "estimate" and n:
             return self._estimated(den, num_y, nums, want_errors=False)[0]
-        return np.einsum("pk,pk->p", *(2 * (self.prediction_errors(X),)))
+        num = np.concatenate([num_y[:, 1:], *nums], axis=1)  # num_y[:, 0] is exactly zero
+        if kernels.BACKEND == "c" and num.shape[1] <= kernels._ARX_MAXNB:
+            # the predictor is an ARX recursion on the shared regressors: the compiled
+            # kernel forms its input part and sums the squares itself (no (P, K) arrays);
+            # from rest the samples before start are run but not counted
+            state = self._state[:n] if self.initial == "measured" else np.zeros(n)
+            return arx_recursion(den[:, 1:], num, self._reg, state, self._target,
+                                 want_output=False, first=self.start - self._t0)[1]  # fmt: skip
+        e = self._errors_from(den, num_y, nums)
+        return np.einsum("pk,pk->p", e, e)
 
     def prediction_errors(self, X: np.ndarray) -> np.ndarray:
         """Prediction errors ``y - yhat`` of admissible candidates.
@@ -474,9 +485,19 @@ class PolynomialCost:
             Over ``t >= start``, in output units, under the cost's initial-condition rule.
         """
         den, num_y, nums = self._predictor(self._parts(X))
-        n = den.shape[1] - 1
-        if self.initial == "estimate" and n:
+        if self.initial == "estimate" and den.shape[1] > 1:
             return self._estimated(den, num_y, nums, want_errors=True)[1]
+        return self._errors_from(den, num_y, nums)
+
+    def _errors_from(
+        self, den: np.ndarray, num_y: np.ndarray, nums: list[np.ndarray]
+    ) -> np.ndarray:
+        """Errors (P, K) of the predictor filters under ``"zero"`` or ``"measured"``.
+
+        The forced terms by one GEMM per numerator, then :func:`flexid.kernels.ar_recursion`
+        (also the rule ``"estimate"`` when ``den`` is 1, which has no initial state).
+        """
+        n = den.shape[1] - 1
         forced = self._forced(num_y, nums)
         if self.initial == "measured":
             yhat, _ = ar_recursion(den[:, 1:], forced, self._state[:n])
