@@ -694,3 +694,44 @@ def test_arx_fit_shifted_rejects_bad_arguments():
     # zero regressors: a singular Gram matrix, flagged
     _, ok2, _ = kernels.arx_fit_shifted(a, np.zeros((50, 2)), np.zeros(1), np.ones(50), 0)
     assert not ok2.any()
+
+
+@compiled
+@pytest.mark.parametrize("n", [2, 16, 18])
+def test_initial_state_fit_computes_the_step_down_itself(simd, n):
+    # without basis and energies the kernel runs the step-down of orthogonal_numerators and
+    # _energies itself, compiled without contracted multiply-adds: the same basis, bit for
+    # bit, on x86-64 (elsewhere within the rounding the fit tolerates); whole blocks of 4 per
+    # thread, so the thread count changes nothing
+    import platform
+
+    from flexid.costs.polynomial import _energies, orthogonal_numerators
+
+    rng = np.random.default_rng(n)
+    p, nb, k = 11, 5, 400
+    a = stable_denominators(rng, p, n, (0.2, 0.95))
+    b, reg, target = rng.normal(size=(p, nb)), rng.normal(size=(k, nb)), rng.normal(size=k)
+    den = np.hstack([np.ones((p, 1)), a])
+    T = orthogonal_numerators(den, n)
+    E = _energies(den, T)
+    given = kernels.initial_state_fit(a, b, reg, target, T, E)
+    old = kernels.set_threads(1)
+    try:
+        own = kernels.initial_state_fit(a, b, reg, target)
+        kernels.set_threads(3)
+        own3 = kernels.initial_state_fit(a, b, reg, target)
+    finally:
+        kernels.set_threads(old)
+    for x, y in zip(own, own3):
+        np.testing.assert_array_equal(x, y)
+    if platform.machine() in ("x86_64", "AMD64"):
+        for x, y in zip(own, given):
+            np.testing.assert_array_equal(x, y)
+    else:
+        np.testing.assert_allclose(own[0], given[0], rtol=1e-9)
+    # a denominator whose step-down breaks down (not stable): NaN, the caller's fallback
+    bad = a.copy()
+    bad[3] = 0.0
+    bad[3, -1] = 1.0
+    sse = kernels.initial_state_fit(bad, b, reg, target, want_errors=False)[0]
+    assert np.isnan(sse[3]) and np.isfinite(np.delete(sse, 3)).all()

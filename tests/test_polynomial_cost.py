@@ -298,7 +298,22 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
     d, dsse = initial_state_fit_bound(gram_dev, fitted, resid, rest, cost.K)
     assert (np.linalg.norm(e_new - e_old, axis=1) <= d).all()
     assert (np.abs(sse - resid**2) <= dsse).all()
-    np.testing.assert_array_equal(cost.sse(X), sse)  # the SSE-only pass: the same sums
+    # the SSE-only pass: |e|^2 - c.r where the fit leaves enough (route_bounds.
+    # free_cancel_bound), else the same sums as the pass with the errors
+    from route_bounds import free_cancel_bound
+
+    sse_only = cost.sse(X)
+    num = np.concatenate([num_y[:, 1:], *nums], axis=1)
+    coef = kernels.initial_state_fit(den[:, 1:], num, cost._reg, cost._target)[2]
+    forcing = np.zeros_like(e_rest)
+    forcing[:, :n] = np.einsum("pmi,pm->pi", T, coef)
+    y_fit = kernels.ar_recursion_reference(den[:, 1:], forcing, np.zeros(n))
+    fitted_dev = np.linalg.norm(ar_route_bound(den[:, 1:], forcing, np.zeros(n), y_fit), axis=1)
+    ee = (e_rest * e_rest).sum(axis=1)
+    bound = free_cancel_bound(ee, sse, gram_dev, n, cost.K, rest, fitted_dev)
+    assert (np.abs(sse_only - sse) <= bound).all()
+    left = sse / ee < kernels.FREE_CANCEL / 2  # the kernel runs the fitted response there
+    np.testing.assert_array_equal(sse_only[left], sse[left])
 
 
 @pytest.mark.parametrize("rule", ["zero", "measured"])

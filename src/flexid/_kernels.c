@@ -2040,7 +2040,8 @@ static PyMethodDef methods[] = {
 #endif
 #if defined(__GNUC__)
     {"free_fit", py_free_fit, METH_VARARGS,
-     "free_fit(a, num, reg, target, basis, energies, window, errors_out, sse_out, coef_out"
+     "free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out, "
+     "coef_out"
      "[, threads]): errors of 1/den filters with the initial state fitted (see the end of "
      "the module)."},
 #endif
@@ -2067,13 +2068,17 @@ PyMODINIT_FUNC PyInit__kernels(void)
 }
 
 /* ------------------------------------------------------------------ estimated initial state */
-/* free_fit(a, num, reg, target, basis, energies, window, errors_out, sse_out, coef_out[,
- * threads]): the error of 1/den filters with the initial state fitted by least squares
+/* free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out,
+ * coef_out[, threads]): the error of 1/den filters with the initial state fitted by least squares
  * (flexid.kernels.initial_state_fit, whose docstring gives the method).  a (P, n) the
  * a_1..a_n of each den, num (P, nb) rows some stride apart, reg (K, nb), target (K,),
- * basis (P, n, n) the numerators P_m, energies (P, n) the energies of P_m/den over t >= 0,
- * window the samples L of the basis windows, errors_out (P, K) or None, sse_out (P,),
- * coef_out (P, n).  sse_out is NaN where a Cholesky factorisation breaks down.
+ * basis (P, n, n) the numerators P_m, energies (P, n) the energies of P_m/den over t >= 0
+ * (both None: computed here by the step-down of each den, free_stepdown), window the
+ * samples L of the basis windows, errors_out (P, K) or None, sse_out (P,), coef_out (P, n).
+ * sse_out is NaN where a Cholesky factorisation or the step-down breaks down.  Without
+ * errors_out, a block whose fits all leave at least cancel |e|^2 takes the sums of squares
+ * as |e|^2 - c.r (the normal equations' identity, flexid.kernels.FREE_CANCEL) instead of
+ * running the fitted free response.
  *
  * Per block of 4 candidates (one per lane), four recursions of 1/den in the transposed
  * direct form with the state in registers: the error from rest e (input part computed here
@@ -2097,56 +2102,119 @@ typedef struct {
     const double *a, *num, *reg, *target, *basis, *energies;
     Py_ssize_t P, n, nb, K, L, num_stride;
     double *errors, *sse, *coef;
+    double cancel; /* see the head of this section */
 } free_job;
 
 /* Cholesky of the symmetric positive definite G (n x n, lower triangle read and written) on
- * every lane; good[l] = 0 where a pivot is not positive and finite (that lane's factor is
- * then the identity, so the other lanes go on) */
+ * the 4 lanes at once, the reciprocals of the pivots into R (the solves multiply by them);
+ * good[l] = 0 where a pivot is not positive and finite (that lane's pivots are then taken
+ * as 1, so the other lanes go on, and its results are discarded).  Right-looking: each
+ * column updates the trailing matrix, whose updates are independent (no chain of
+ * dependent multiply-adds), and every entry still subtracts its products in the order of
+ * k, as the dot-product form does. */
 static inline __attribute__((always_inline)) void
-free_cholesky(v4d *G, const int n, int good[4])
+free_cholesky(v4d *G, v4d *R, const int n, int good[4])
 {
-    for (int l = 0; l < 4; ++l) {
-        int ok = good[l];
-        for (int j = 0; j < n && ok; ++j) {
-            double d = G[j * n + j][l];
-            for (int k = 0; k < j; ++k) d -= G[j * n + k][l] * G[j * n + k][l];
-            if (!(d > 0) || !isfinite(d)) {
-                ok = 0;
-                break;
+    const v4d one = {1, 1, 1, 1};
+    for (int j = 0; j < n; ++j) {
+        v4d d = G[j * n + j];
+        for (int l = 0; l < 4; ++l)
+            if (!(d[l] > 0) || !isfinite(d[l])) {
+                good[l] = 0;
+                d[l] = 1.0;
             }
-            d = sqrt(d);
-            G[j * n + j][l] = d;
-            for (int i = j + 1; i < n; ++i) {
-                double v = G[i * n + j][l];
-                for (int k = 0; k < j; ++k) v -= G[i * n + k][l] * G[j * n + k][l];
-                G[i * n + j][l] = v / d;
-            }
+        for (int l = 0; l < 4; ++l) d[l] = sqrt(d[l]);
+        const v4d r = one / d;
+        G[j * n + j] = d;
+        R[j] = r;
+        for (int i = j + 1; i < n; ++i) G[i * n + j] *= r;
+        for (int i = j + 1; i < n; ++i) {
+            const v4d gij = G[i * n + j];
+            for (int k = j + 1; k <= i; ++k) G[i * n + k] -= gij * G[k * n + j];
         }
-        if (!ok)
-            for (int i = 0; i < n; ++i)
-                for (int j = 0; j <= i; ++j) G[i * n + j][l] = i == j;
-        good[l] = ok;
     }
 }
 
-/* v <- L^-1 v (lower) or L^-T v (upper: the transpose), L from free_cholesky */
+/* The m right-hand sides X (rows of n) <- L^-T L^-1 X, L and R from free_cholesky: the
+ * operations of free_lower_solve and free_upper_solve on each row, the rows interleaved
+ * (independent chains) */
 static inline __attribute__((always_inline)) void
-free_lower_solve(const v4d *Lm, v4d *v, const int n)
+free_solve_rows(const v4d *Lm, const v4d *R, v4d *X, const int n, const int m)
+{
+    for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < i; ++k) {
+            const v4d lik = Lm[i * n + k];
+            for (int j = 0; j < m; ++j) X[j * n + i] -= lik * X[j * n + k];
+        }
+        for (int j = 0; j < m; ++j) X[j * n + i] *= R[i];
+    }
+    for (int i = n - 1; i >= 0; --i) {
+        for (int k = i + 1; k < n; ++k) {
+            const v4d lki = Lm[k * n + i];
+            for (int j = 0; j < m; ++j) X[j * n + i] -= lki * X[j * n + k];
+        }
+        for (int j = 0; j < m; ++j) X[j * n + i] *= R[i];
+    }
+}
+
+/* v <- L^-1 v (lower) or L^-T v (upper: the transpose), L and R from free_cholesky */
+static inline __attribute__((always_inline)) void
+free_lower_solve(const v4d *Lm, const v4d *R, v4d *v, const int n)
 {
     for (int i = 0; i < n; ++i) {
         v4d s = v[i];
         for (int k = 0; k < i; ++k) s -= Lm[i * n + k] * v[k];
-        v[i] = s / Lm[i * n + i];
+        v[i] = s * R[i];
     }
 }
 static inline __attribute__((always_inline)) void
-free_upper_solve(const v4d *Lm, v4d *v, const int n)
+free_upper_solve(const v4d *Lm, const v4d *R, v4d *v, const int n)
 {
     for (int i = n - 1; i >= 0; --i) {
         v4d s = v[i];
         for (int k = i + 1; k < n; ++k) s -= Lm[k * n + i] * v[k];
-        v[i] = s / Lm[i * n + i];
+        v[i] = s * R[i];
     }
+}
+
+/* Lane l of T (n x n, the numerators P_m by rows) and sc (1 / sqrt of their energies) from
+ * the step-down of den = 1 + a_1 q^-1 + ... + a_n q^-n, as
+ * flexid.costs.polynomial.orthogonal_numerators and _energies compute them: row m - 1 the
+ * reversed A_(m-1) = (A_m - k_m A_m reversed) / (1 - k_m^2), k_m the last coefficient of
+ * A_m, and E_m = 1 / prod_(j > m) (1 - k_j^2).  0 where the step-down breaks down (some
+ * |k_m| >= 1 in rounding, or energies not finite and positive): then T = I and sc = 1.
+ * Not inlined into the clones: compiled for the baseline, without contracted multiply-adds,
+ * it rounds every operation as NumPy does, so on x86-64 the basis is the reference's. */
+static __attribute__((noinline)) int free_stepdown(const double *a, const int n, v4d *T, v4d *sc, const int l)
+{
+    double cur[FREE_MAXN + 1], nxt[FREE_MAXN + 1], k[FREE_MAXN + 1];
+    int ok = 1;
+    cur[0] = 1.0;
+    for (int i = 0; i < n; ++i) cur[i + 1] = a[i];
+    for (int i = 0; i < n * n; ++i) T[i][l] = 0.0;
+    for (int m = n; m >= 1; --m) {
+        const double km = cur[m], d = 1.0 - km * km;
+        k[m] = km;
+        if (!(fabs(km) < 1.0)) ok = 0;
+        for (int i = 0; i < m; ++i) nxt[i] = (cur[i] - km * cur[m - i]) / d;
+        for (int i = 0; i < m; ++i) cur[i] = nxt[i];
+        for (int i = 0; i < m; ++i) T[(m - 1) * n + i][l] = cur[m - 1 - i];
+    }
+    double prod = 1.0;
+    for (int m = n - 1; m >= 0; --m) {
+        prod = m == n - 1 ? 1.0 - k[n] * k[n] : prod * (1.0 - k[m + 1] * k[m + 1]);
+        const double e = 1.0 / prod;
+        if (!(e > 0) || !isfinite(e)) ok = 0;
+        sc[m][l] = 1.0 / sqrt(e);
+    }
+    for (int i = 0; i < n * n && ok; ++i)
+        if (!isfinite(T[i][l])) ok = 0;
+    if (!ok)
+        for (int i = 0; i < n; ++i) {
+            sc[i][l] = 1.0;
+            for (int j = 0; j < n; ++j) T[i * n + j][l] = i == j;
+        }
+    return ok;
 }
 
 static inline __attribute__((always_inline)) void
@@ -2162,7 +2230,8 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         for (int l = 0; l < 4; ++l) A[i][l] = J->a[(q + (l < w ? l : 0)) * n + i];
     for (Py_ssize_t j = 0; j < nb; ++j)
         for (int l = 0; l < 4; ++l) Bv[j][l] = J->num[(q + (l < w ? l : 0)) * J->num_stride + j];
-    /* 1. the error from rest */
+    /* 1. the error from rest, and its sum of squares */
+    v4d ee = zero;
     for (int i = 0; i < n; ++i) Z[i] = zero;
     for (Py_ssize_t t0 = 0; t0 < K; t0 += 8) {
         /* the input part 8 samples at a time: 8 independent sums, not one chain of nb */
@@ -2176,7 +2245,9 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         for (int i = 0; i < c; ++i) {
             v4d yt;
             FREE_STEP(Z, A, f[i], yt, n);
-            ebuf[t0 + i] = target[t0 + i] - yt;
+            const v4d e = target[t0 + i] - yt;
+            ebuf[t0 + i] = e;
+            ee += e * e;
         }
     }
     /* 2. the impulse response over K + L samples */
@@ -2199,13 +2270,19 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         if (t < n) wv[t] = yt;
     }
     /* 4. the basis windows S0 = g(0 .. L-1), SK = g(K .. K+L-1), normalised to unit energy */
-    v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN];
-    for (int m = 0; m < n; ++m)
-        for (int l = 0; l < 4; ++l) {
-            const Py_ssize_t p = q + (l < w ? l : 0);
+    v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN], R[FREE_MAXN];
+    int good[4] = {1, 1, 1, 1};
+    for (int l = 0; l < 4; ++l) {
+        const Py_ssize_t p = q + (l < w ? l : 0);
+        if (!J->basis) {
+            good[l] = free_stepdown(J->a + p * n, n, T, sc, l);
+            continue;
+        }
+        for (int m = 0; m < n; ++m) {
             sc[m][l] = 1.0 / sqrt(J->energies[p * n + m]);
             for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
         }
+    }
     /* per sample, the n sums side by side (independent chains) */
     for (Py_ssize_t tau = 0; tau < L; ++tau) {
         v4d s0[FREE_MAXN], sk[FREE_MAXN];
@@ -2239,12 +2316,8 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         for (int j = 0; j <= i; ++j) M0[i * n + j] = s[j];
         for (int j = 0; j < n; ++j) QT[j * n + i] = r[j]; /* column j of S0 SK^T, as row j */
     }
-    int good[4] = {1, 1, 1, 1};
-    free_cholesky(M0, n, good);
-    for (int j = 0; j < n; ++j) {
-        free_lower_solve(M0, QT + j * n, n);
-        free_upper_solve(M0, QT + j * n, n); /* row j of QT now column j of Q^T */
-    }
+    free_cholesky(M0, R, n, good);
+    free_solve_rows(M0, R, QT, n, n); /* row j of QT now column j of Q^T */
     for (int i = 0; i < n; ++i) {
         v4d s[FREE_MAXN];
         for (int j = 0; j <= i; ++j) s[j] = zero;
@@ -2255,15 +2328,24 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         for (int j = 0; j <= i; ++j) G[i * n + j] = (i == j ? zero + 1.0 : zero) - s[j];
     }
     /* 6. the right-hand side and the normalised solve */
-    v4d c[FREE_MAXN], Nc[FREE_MAXN];
+    v4d c[FREE_MAXN], Nc[FREE_MAXN], rn[FREE_MAXN];
     for (int m = 0; m < n; ++m) {
         v4d s = zero;
         for (int i = 0; i <= m; ++i) s += T[m * n + i] * wv[i];
-        c[m] = s * sc[m];
+        c[m] = rn[m] = s * sc[m];
     }
-    free_cholesky(G, n, good);
-    free_lower_solve(G, c, n);
-    free_upper_solve(G, c, n);
+    free_cholesky(G, R, n, good);
+    free_lower_solve(G, R, c, n);
+    free_upper_solve(G, R, c, n);
+    /* the sum of squares the fit leaves, |e|^2 - c.r at the solution of the normal equations
+     * (normalised); where it is at least cancel |e|^2 its cancellation is harmless and the
+     * fitted response need not be run (see initial_state_fit) */
+    v4d fit = zero;
+    for (int m = 0; m < n; ++m) fit += c[m] * rn[m];
+    const v4d left = ee - fit;
+    int run = J->errors != NULL;
+    for (Py_ssize_t l = 0; l < w; ++l)
+        if (good[l] && !(left[l] >= J->cancel * ee[l])) run = 1;
     for (int m = 0; m < n; ++m) c[m] *= sc[m];
     for (int i = 0; i < n; ++i) {
         v4d s = zero;
@@ -2272,9 +2354,10 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
     }
     /* 7. the fitted free response removed from e */
     for (int i = 0; i < n; ++i) Z[i] = zero;
-    v4d sse = zero;
+    v4d sse = left;
     double *err = J->errors ? J->errors + q * K : NULL;
-    for (Py_ssize_t t = 0; t < K; ++t) {
+    if (run) sse = zero;
+    for (Py_ssize_t t = 0; t < K && run; ++t) {
         v4d yt;
         FREE_STEP(Z, A, t < n ? Nc[t] : zero, yt, n);
         const v4d e = ebuf[t] - yt;
@@ -2289,13 +2372,14 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
 }
 
 typedef void (*free_quad_fn)(const free_job *, Py_ssize_t, v4d *);
-/* a block is 4 candidates, one 256-bit vector: an AVX-512 build would run the same
- * instructions as the AVX2 one, so AVX-512 machines use the AVX2 build (a third of the
- * compile time of this section saved) */
+/* a block is 4 candidates, one 256-bit vector; the AVX-512 build runs 256-bit vectors too,
+ * but has 32 of them: the state and the a_k of the recursions, and the small algebra's
+ * accumulators, stay in registers */
 #if defined(AR_X86)
 #define FREE_QUAD(n)                                                                          \
     static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
-    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
+    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
+    AR_TGT_V4 static void free_quad_v4_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
 #else
 #define FREE_QUAD(n)                                                                          \
     static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
@@ -2307,6 +2391,7 @@ FREE_QUAD(19) FREE_QUAD(20) FREE_QUAD(21) FREE_QUAD(22) FREE_QUAD(23) FREE_QUAD(
 static const free_quad_fn free_quads_generic[FREE_MAXN + 1] = AR_TABLE24(free_quad_g);
 #if defined(AR_X86)
 static const free_quad_fn free_quads_v3[FREE_MAXN + 1] = AR_TABLE24(free_quad_v3_);
+static const free_quad_fn free_quads_v4[FREE_MAXN + 1] = AR_TABLE24(free_quad_v4_);
 #endif
 
 typedef struct {
@@ -2333,16 +2418,17 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
     Py_buffer bufs[9];
     int have[9] = {0}, n_threads = 1;
     Py_ssize_t window, num_stride = 0;
+    double cancel;
     static const char *names[9] = {"a",         "num",        "reg",     "target", "basis",
                                    "energies",  "errors_out", "sse_out", "coef_out"};
-    if (!PyArg_ParseTuple(args, "OOOOOOnOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
-                          &objs[4], &objs[5], &window, &objs[6], &objs[7], &objs[8],
+    if (!PyArg_ParseTuple(args, "OOOOOOndOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
+                          &objs[4], &objs[5], &window, &cancel, &objs[6], &objs[7], &objs[8],
                           &n_threads))
         return NULL;
     PyObject *result = NULL;
     for (int i = 0; i < 9; ++i) {
         if (objs[i] == Py_None) {
-            if (i == 6) continue;
+            if (i == 4 || i == 5 || i == 6) continue; /* basis and energies: both or neither */
             PyErr_Format(PyExc_TypeError, "free_fit: %s is required", names[i]);
             goto done;
         }
@@ -2361,27 +2447,33 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
     const Py_ssize_t K = bufs[3].ndim == 1 ? bufs[3].shape[0] : 0;
     if (bufs[0].ndim != 2 || n < 1 || n > FREE_MAXN || bufs[1].ndim != 2 ||
         bufs[1].shape[0] != P || nb > 64 || bufs[2].ndim != 2 || bufs[2].shape[0] != K ||
-        bufs[2].shape[1] != nb || K < 1 || bufs[4].ndim != 3 || bufs[4].shape[0] != P ||
-        bufs[4].shape[1] != n || bufs[4].shape[2] != n || bufs[5].ndim != 2 ||
-        bufs[5].shape[0] != P || bufs[5].shape[1] != n || window < n ||
+        bufs[2].shape[1] != nb || K < 1 || have[4] != have[5] ||
+        (have[4] && (bufs[4].ndim != 3 || bufs[4].shape[0] != P || bufs[4].shape[1] != n ||
+                     bufs[4].shape[2] != n || bufs[5].ndim != 2 || bufs[5].shape[0] != P ||
+                     bufs[5].shape[1] != n)) ||
+        window < n ||
         (have[6] && (bufs[6].ndim != 2 || bufs[6].shape[0] != P || bufs[6].shape[1] != K)) ||
         bufs[7].ndim != 1 || bufs[7].shape[0] != P || bufs[8].ndim != 2 ||
         bufs[8].shape[0] != P || bufs[8].shape[1] != n) {
         PyErr_SetString(PyExc_ValueError,
                         "free_fit: a (P, n) with 1 <= n <= 24, num (P, nb) with nb <= 64, reg "
-                        "(K, nb), target (K,), basis (P, n, n), energies (P, n), window >= n, "
+                        "(K, nb), target (K,), basis (P, n, n) and energies (P, n) or both None, "
+                        "window >= n, "
                         "errors_out (P, K) or None, sse_out (P,), coef_out (P, n)");
         goto done;
     }
     free_ctx ctx;
     ctx.J = (free_job){(const double *)bufs[0].buf, (const double *)bufs[1].buf,
                        (const double *)bufs[2].buf, (const double *)bufs[3].buf,
-                       (const double *)bufs[4].buf, (const double *)bufs[5].buf,
+                       have[4] ? (const double *)bufs[4].buf : NULL,
+                       have[5] ? (const double *)bufs[5].buf : NULL,
                        P, n, nb, K, window, num_stride,
                        have[6] ? (double *)bufs[6].buf : NULL, (double *)bufs[7].buf,
-                       (double *)bufs[8].buf};
+                       (double *)bufs[8].buf, cancel};
 #if defined(AR_X86)
-    ctx.fn = ar_simd >= 1 ? free_quads_v3[n] : free_quads_generic[n];
+    ctx.fn = ar_simd == 2   ? free_quads_v4[n]
+             : ar_simd == 1 ? free_quads_v3[n]
+                            : free_quads_generic[n];
 #else
     ctx.fn = free_quads_generic[n];
 #endif

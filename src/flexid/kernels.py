@@ -381,6 +381,14 @@ FREE_WINDOW = 3
 #: Largest order the compiled kernel of :func:`initial_state_fit` takes (the reference path
 #: runs above it).
 FREE_MAXN = 24
+#: Sums of squares only: where the fit of the initial state leaves at least this fraction of
+#: the error from rest's ``|e|^2``, the compiled kernel takes the sum of squares as ``|e|^2 -
+#: c.r`` (the normal equations' identity) instead of running the fitted free response.  The
+#: identity assumes the Gram matrix of the rounded basis, so it is off by the basis's
+#: non-orthogonality times ``|e|^2 - sse``: at one half at most that non-orthogonality
+#: relative to the sum of squares (``tests/route_bounds.py``, ``free_cancel_bound``), where
+#: the explicit sum is second order in it.  Below it the errors are run and summed.
+FREE_CANCEL = 0.5
 
 
 def _basis_window(T: np.ndarray, h: np.ndarray, t0: int, width: int) -> np.ndarray:
@@ -395,13 +403,26 @@ def _basis_window(T: np.ndarray, h: np.ndarray, t0: int, width: int) -> np.ndarr
     return T @ hp[:, idx]
 
 
+def _basis_and_energies(
+    a: np.ndarray, basis: np.ndarray | None, energies: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``basis`` and ``energies`` as given, or from the step-down of ``1 + a`` when None."""
+    if basis is not None and energies is not None:
+        return basis, energies
+    from .costs.polynomial import _energies, orthogonal_numerators
+
+    den = np.hstack([np.ones((a.shape[0], 1)), a])
+    basis = orthogonal_numerators(den, a.shape[1])
+    return basis, _energies(den, basis)
+
+
 def initial_state_fit_reference(
     a: np.ndarray,
     num: np.ndarray,
     reg: np.ndarray,
     target: np.ndarray,
-    basis: np.ndarray,
-    energies: np.ndarray,
+    basis: np.ndarray | None = None,
+    energies: np.ndarray | None = None,
     *,
     want_errors: bool = True,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
@@ -413,8 +434,8 @@ def initial_state_fit_reference(
     num : ndarray, shape (P, nb)
     reg : ndarray, shape (K, nb)
     target : ndarray, shape (K,)
-    basis : ndarray, shape (P, n, n)
-    energies : ndarray, shape (P, n)
+    basis : ndarray, shape (P, n, n), optional
+    energies : ndarray, shape (P, n), optional
     want_errors : bool
         As for :func:`initial_state_fit`.
 
@@ -428,6 +449,7 @@ def initial_state_fit_reference(
     a = np.ascontiguousarray(a, dtype=float)
     p, n = a.shape
     k = target.shape[0]
+    basis, energies = _basis_and_energies(a, basis, energies)
     e = target - ar_recursion_reference(a, num @ reg.T, np.zeros(n))
     width = FREE_WINDOW * n
     impulse = np.zeros((p, k + width))
@@ -479,8 +501,8 @@ def initial_state_fit(
     num: np.ndarray,
     reg: np.ndarray,
     target: np.ndarray,
-    basis: np.ndarray,
-    energies: np.ndarray,
+    basis: np.ndarray | None = None,
+    energies: np.ndarray | None = None,
     *,
     want_errors: bool = True,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
@@ -501,10 +523,17 @@ def initial_state_fit(
       recursion of ``1/den`` over ``e`` (one recursion backwards in time);
     * a Cholesky solve of the normalised system (condition near 1: the basis is nearly
       orthonormal over the record), and the fitted free response removed from ``e`` by one
-      more recursion, so that the sum of squares is that of the errors themselves.
+      more recursion, so that the sum of squares is that of the errors themselves.  With
+      ``want_errors`` False the compiled kernel skips that recursion where the fit leaves at
+      least :data:`FREE_CANCEL` of ``|e|^2``: the sum of squares is then ``|e|^2 - c.r``
+      (``c`` the coefficients, ``r`` the right-hand side), whose cancellation is small.
 
-    Four recursions in all, whatever ``n``, where fitting ``n`` free responses computed one
-    by one takes ``n + 1`` and a Gram matrix of ``n^2 K`` products.
+    Four recursions in all (three for most sums of squares), whatever ``n``, where fitting
+    ``n`` free responses computed one by one takes ``n + 1`` and a Gram matrix of ``n^2 K``
+    products.  Without ``basis`` and ``energies`` the compiled kernel computes them from the
+    step-down of each ``den`` itself (the same operations as
+    :func:`~flexid.costs.polynomial.orthogonal_numerators`, rounded alike on x86-64), and a
+    row whose step-down breaks down gets a NaN sum of squares.
 
     Parameters
     ----------
@@ -515,9 +544,9 @@ def initial_state_fit(
         The input regressors of every sample (shared by all candidates).
     target : ndarray, shape (K,)
         In output units.
-    basis : ndarray, shape (P, n, n)
-    energies : ndarray, shape (P, n)
-        Finite and positive.
+    basis : ndarray, shape (P, n, n), optional
+    energies : ndarray, shape (P, n), optional
+        Finite and positive; both None (the default): computed from ``a``.
     want_errors : bool
         Return the errors too (the ``(P, K)`` array), not only their sums of squares.
 
@@ -540,11 +569,13 @@ def initial_state_fit(
         errors = np.empty((p, k)) if want_errors else None
         coef = np.empty((p, n))
         work = p * k * (4 * n + num.shape[1])
+        given = basis is not None and energies is not None
         _c.free_fit(a, _rows(num), np.ascontiguousarray(reg, dtype=float),
                     np.ascontiguousarray(target, dtype=float),
-                    np.ascontiguousarray(basis, dtype=float),
-                    np.ascontiguousarray(energies, dtype=float), FREE_WINDOW * n,
-                    errors, sse, coef, _threads_for(work))  # fmt: skip
+                    np.ascontiguousarray(basis, dtype=float) if given else None,
+                    np.ascontiguousarray(energies, dtype=float) if given else None,
+                    FREE_WINDOW * n, FREE_CANCEL, errors, sse, coef,
+                    _threads_for(work))  # fmt: skip
         return sse, errors, coef
     return initial_state_fit_reference(
         a, num, reg, target, basis, energies, want_errors=want_errors

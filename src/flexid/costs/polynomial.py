@@ -19,6 +19,14 @@ How a population is evaluated
     least-squares combination of the ``n`` free responses of ``1/den``, which are the shifts
     ``h(t - start + k)``, ``k = 1..n``, of its impulse response ``h`` (one more recursion).
 
+    The sums of squares alone (:meth:`PolynomialCost.sse`, what a cost evaluation needs)
+    take compiled routes without ``(P, K)`` arrays: under ``"zero"`` and ``"measured"`` the
+    predictor is an ARX recursion on the shared regressors (the lags of ``y`` and ``u_j``),
+    run by :func:`flexid.kernels.arx_recursion` with the input part and the squares summed
+    in the kernel (from ``t = start`` only under ``"zero"``); under ``"estimate"`` one pass
+    of :func:`flexid.kernels.initial_state_fit`.  Without the compiled kernels, or with more
+    than 64 regressors, the route above.
+
 Variable projection (:meth:`PolynomialCost.fit_numerator`)
     For fixed ``A, C, D, F`` every predictor is linear in ``B``:
     ``e = z - sum_ji b_ji g_j(t - nk_j - i)`` with ``z = (D A / C) y`` and
@@ -512,17 +520,14 @@ class PolynomialCost:
 
         One pass of :func:`flexid.kernels.initial_state_fit` per population: the error from
         rest, the right-hand side of the free responses' least squares by one anti-causal
-        recursion, their Gram matrix from the step-down energies less the tail after the
-        record, and the error with the fitted free response removed.  Rows whose step-down
-        breaks down in rounding, or whose small solve fails, take the route of
-        :meth:`_estimated_by_recursions`.
+        recursion, their Gram matrix from the step-down energies (the step-down in the
+        compiled kernel) less the tail after the record, and the error with the fitted free
+        response removed.  Rows whose step-down breaks down in rounding, or whose small solve
+        fails, take the route of :meth:`_estimated_by_recursions`.
         """
-        n = den.shape[1] - 1
-        basis = orthogonal_numerators(den, n)
-        energies = _energies(den, basis)
         num = np.concatenate([num_y[:, 1:], *nums], axis=1)  # num_y[:, 0] is exactly zero
         sse, e, _ = initial_state_fit(
-            den[:, 1:], num, self._reg, self._target, basis, energies, want_errors=want_errors
+            den[:, 1:], num, self._reg, self._target, want_errors=want_errors
         )
         bad = ~np.isfinite(sse)
         if bad.any():
