@@ -237,14 +237,22 @@ def _lightly_damped(radius: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize(
-    "case", ["order 16 at radius 0.99", "order 16 at radius 0.999", "order 2 well damped"]
+    "case",
+    [
+        "order 16 at radius 0.99",
+        "order 16 at radius 0.999",
+        "order 2 well damped",
+        "order 16 well damped",
+    ],
 )
 def test_estimated_state_by_one_pass_equals_n_recursions(case):
     """The one-pass fit (step-down energies, tail Gram matrix, anti-causal right-hand side)
     equals the fit of the ``n`` free responses computed one by one, within
     ``route_bounds.initial_state_fit_bound``: both solve the same normal equations, which
     differ by the non-orthogonality of the rounded basis (measured here) and the routes'
-    rounding of the error from rest."""
+    rounding of the error from rest.  Where the basis has decayed below ``FREE_TAIL`` by the
+    end of the record (the well damped cases) the kernel takes the Gram matrix as ``I``,
+    leaving out a tail ``Q Q^T`` that is added to the measured deviation."""
     from route_bounds import ar_route_bound, initial_state_fit_bound
 
     rng = np.random.default_rng(3)
@@ -253,6 +261,14 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
         u, y = _record(1)
         f = np.array([-0.6, 0.25])  # poles at radius 0.5
         X = np.tile(np.r_[0.5, 0.3, f], (4, 1)) + 0.01 * rng.standard_normal((4, 4))
+    elif case == "order 16 well damped":
+        s = PolynomialStructure.oe(16, 16, 1)
+        u = rng.uniform(-0.3, 0.3, (1500, 1))
+        y = signal.lfilter(np.r_[0.0, 0.05 * rng.standard_normal(16)], _lightly_damped(0.99),
+                           u[:, 0])  # fmt: skip
+        y += signal.lfilter([1.0, 0.5], [1.0, -0.9], 0.01 * rng.standard_normal(1500))
+        X = _candidates(s, 9, 4, r_max=0.95)
+        X[:, :16] *= 0.05
     else:
         s = PolynomialStructure.oe(16, 16, 1)
         a = _lightly_damped(float(case.split()[-1]))
@@ -285,7 +301,13 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
     qt = np.linalg.solve(s0 @ s0.transpose(0, 2, 1), s0 @ sk.transpose(0, 2, 1))
     g_new = np.eye(n) - qt.transpose(0, 2, 1) @ qt
     assert np.linalg.cond(g_new).max() < 1.02  # the premise of the bound
+    tail = qt.transpose(0, 2, 1) @ qt
     gram_dev = np.linalg.norm(g_old - g_new, ord=2, axis=(1, 2))
+    gram_dev += np.linalg.norm(tail, ord=2, axis=(1, 2))  # where the kernel takes I
+    skipped = (sk * sk).sum(axis=(1, 2)) < 1e-17  # the kernel's FREE_TAIL
+    lam = np.linalg.eigvalsh(s0 @ s0.transpose(0, 2, 1))[:, 0]
+    assert (lam[skipped] >= 0.45).all()  # the premise of FREE_TAIL's bound
+    assert (np.linalg.norm(tail, ord=2, axis=(1, 2))[skipped] <= 2.3e-17).all()
     forced = cost._forced(num_y, nums)
     y_rest = kernels.ar_recursion_reference(den[:, 1:], forced, np.zeros(n))
     e_rest = cost._target - y_rest

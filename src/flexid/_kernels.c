@@ -2087,6 +2087,12 @@ PyMODINIT_FUNC PyInit__kernels(void)
  * algebra of the normalised basis on 4 lanes at once. */
 #if defined(__GNUC__)
 #define FREE_MAXN 24
+/* |S_K|_F^2 (the basis normalised to unit energy, over the window after the record) below
+ * which the kernel takes the record's Gram matrix as I, leaving out the tail Q Q^T:
+ * |Q Q^T| <= |S_K|_F^2 / lambda_min(S_0 S_0^T), and lambda_min >= 0.45 where the basis has
+ * decayed that far (measured, and checked by the tests: the window of FREE_WINDOW n samples
+ * then holds nearly all of the unit energy), so |Q Q^T| < 2.3e-17, a tenth of eps */
+#define FREE_TAIL 1e-17
 
 /* y(t) = f(t) + z_0, z_k <- z_(k+1) - a_(k+1) y(t), z_(n-1) <- -a_n y(t): one step of the
  * recursion with the state Z in registers */
@@ -2283,25 +2289,38 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
             for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
         }
     }
-    /* per sample, the n sums side by side (independent chains) */
+    /* per sample, the n sums side by side (independent chains); SK first, with its squares */
+    v4d tail = zero;
     for (Py_ssize_t tau = 0; tau < L; ++tau) {
-        v4d s0[FREE_MAXN], sk[FREE_MAXN];
-        for (int m = 0; m < n; ++m) s0[m] = sk[m] = zero;
+        v4d sk[FREE_MAXN];
+        for (int m = 0; m < n; ++m) sk[m] = zero;
         for (int i = 0; i < n; ++i) {
-            const v4d h0 = tau - i >= 0 ? hbuf[tau - i] : zero, hk = hbuf[K + tau - i];
-            for (int m = i; m < n; ++m) {
-                s0[m] += T[m * n + i] * h0;
-                sk[m] += T[m * n + i] * hk;
-            }
+            const v4d hk = hbuf[K + tau - i];
+            for (int m = i; m < n; ++m) sk[m] += T[m * n + i] * hk;
         }
         for (int m = 0; m < n; ++m) {
-            S0[m * L + tau] = s0[m] * sc[m];
             SK[m * L + tau] = sk[m] * sc[m];
+            tail += SK[m * L + tau] * SK[m * L + tau];
         }
     }
-    /* 5. Q^T = (S0 S0^T)^-1 S0 SK^T, the Gram matrix over the record I - Q Q^T */
+    /* 5. Q^T = (S0 S0^T)^-1 S0 SK^T, the Gram matrix over the record I - Q Q^T; where the
+     * basis has decayed below FREE_TAIL by the end of the record in every lane, I */
     v4d M0[FREE_MAXN * FREE_MAXN], QT[FREE_MAXN * FREE_MAXN], G[FREE_MAXN * FREE_MAXN];
-    for (int i = 0; i < n; ++i) {
+    int full = 0;
+    for (Py_ssize_t l = 0; l < w; ++l)
+        if (good[l] && !(tail[l] < FREE_TAIL)) full = 1;
+    for (int i = 0; i < n && !full; ++i)
+        for (int j = 0; j <= i; ++j) G[i * n + j] = i == j ? zero + 1.0 : zero;
+    for (Py_ssize_t tau = 0; tau < L && full; ++tau) {
+        v4d s0[FREE_MAXN];
+        for (int m = 0; m < n; ++m) s0[m] = zero;
+        for (int i = 0; i < n && i <= tau; ++i) {
+            const v4d h0 = hbuf[tau - i];
+            for (int m = i; m < n; ++m) s0[m] += T[m * n + i] * h0;
+        }
+        for (int m = 0; m < n; ++m) S0[m * L + tau] = s0[m] * sc[m];
+    }
+    for (int i = 0; i < n && full; ++i) {
         /* row i of S0 S0^T and of SK S0^T, the sums side by side */
         v4d s[FREE_MAXN], r[FREE_MAXN];
         for (int j = 0; j < n; ++j) s[j] = r[j] = zero;
@@ -2316,9 +2335,11 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         for (int j = 0; j <= i; ++j) M0[i * n + j] = s[j];
         for (int j = 0; j < n; ++j) QT[j * n + i] = r[j]; /* column j of S0 SK^T, as row j */
     }
-    free_cholesky(M0, R, n, good);
-    free_solve_rows(M0, R, QT, n, n); /* row j of QT now column j of Q^T */
-    for (int i = 0; i < n; ++i) {
+    if (full) {
+        free_cholesky(M0, R, n, good);
+        free_solve_rows(M0, R, QT, n, n); /* row j of QT now column j of Q^T */
+    }
+    for (int i = 0; i < n && full; ++i) {
         v4d s[FREE_MAXN];
         for (int j = 0; j <= i; ++j) s[j] = zero;
         for (int k = 0; k < n; ++k) {
