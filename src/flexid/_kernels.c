@@ -2141,6 +2141,39 @@ free_cholesky(v4d *G, v4d *R, const int n, int good[4])
     }
 }
 
+/* out[j * os] = sum_k x[k] Y[j * len + k], k = 0 .. len - 1 in order, for j < nj: 8 (then
+ * 4, then 1) rows of Y at a time, so that their sums are independent chains in registers */
+static inline __attribute__((always_inline)) void
+free_dots(const v4d *x, const v4d *Y, const Py_ssize_t len, const int nj, v4d *out,
+          const Py_ssize_t os)
+{
+    const v4d zero = {0, 0, 0, 0};
+    int j = 0;
+    for (; j + 8 <= nj; j += 8) {
+        v4d s[8];
+        _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) s[jj] = zero;
+        for (Py_ssize_t k = 0; k < len; ++k) {
+            const v4d v = x[k];
+            _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) s[jj] += v * Y[(j + jj) * len + k];
+        }
+        _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) out[(j + jj) * os] = s[jj];
+    }
+    for (; j + 4 <= nj; j += 4) {
+        v4d s[4];
+        _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) s[jj] = zero;
+        for (Py_ssize_t k = 0; k < len; ++k) {
+            const v4d v = x[k];
+            _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) s[jj] += v * Y[(j + jj) * len + k];
+        }
+        _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) out[(j + jj) * os] = s[jj];
+    }
+    for (; j < nj; ++j) {
+        v4d s = zero;
+        for (Py_ssize_t k = 0; k < len; ++k) s += x[k] * Y[j * len + k];
+        out[j * os] = s;
+    }
+}
+
 /* The m right-hand sides X (rows of n) <- L^-T L^-1 X, L and R from free_cholesky: the
  * operations of free_lower_solve and free_upper_solve on each row, the rows interleaved
  * (independent chains) */
@@ -2289,17 +2322,16 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
             for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
         }
     }
-    /* per sample, the n sums side by side (independent chains); SK first, with its squares */
+    /* per sample, g_m = sum_(i <= m) T[m, i] h(. - i) for every m (independent chains, the
+     * h values in registers); SK first, with its squares */
     v4d tail = zero;
     for (Py_ssize_t tau = 0; tau < L; ++tau) {
-        v4d sk[FREE_MAXN];
-        for (int m = 0; m < n; ++m) sk[m] = zero;
-        for (int i = 0; i < n; ++i) {
-            const v4d hk = hbuf[K + tau - i];
-            for (int m = i; m < n; ++m) sk[m] += T[m * n + i] * hk;
-        }
+        v4d hv[FREE_MAXN];
+        for (int i = 0; i < n; ++i) hv[i] = hbuf[K + tau - i];
         for (int m = 0; m < n; ++m) {
-            SK[m * L + tau] = sk[m] * sc[m];
+            v4d acc = zero;
+            for (int i = 0; i <= m; ++i) acc += T[m * n + i] * hv[i];
+            SK[m * L + tau] = acc * sc[m];
             tail += SK[m * L + tau] * SK[m * L + tau];
         }
     }
@@ -2312,28 +2344,18 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
     for (int i = 0; i < n && !full; ++i)
         for (int j = 0; j <= i; ++j) G[i * n + j] = i == j ? zero + 1.0 : zero;
     for (Py_ssize_t tau = 0; tau < L && full; ++tau) {
-        v4d s0[FREE_MAXN];
-        for (int m = 0; m < n; ++m) s0[m] = zero;
-        for (int i = 0; i < n && i <= tau; ++i) {
-            const v4d h0 = hbuf[tau - i];
-            for (int m = i; m < n; ++m) s0[m] += T[m * n + i] * h0;
+        v4d hv[FREE_MAXN];
+        for (int i = 0; i < n; ++i) hv[i] = tau - i >= 0 ? hbuf[tau - i] : zero;
+        for (int m = 0; m < n; ++m) {
+            v4d acc = zero;
+            for (int i = 0; i <= m; ++i) acc += T[m * n + i] * hv[i];
+            S0[m * L + tau] = acc * sc[m];
         }
-        for (int m = 0; m < n; ++m) S0[m * L + tau] = s0[m] * sc[m];
     }
     for (int i = 0; i < n && full; ++i) {
-        /* row i of S0 S0^T and of SK S0^T, the sums side by side */
-        v4d s[FREE_MAXN], r[FREE_MAXN];
-        for (int j = 0; j < n; ++j) s[j] = r[j] = zero;
-        for (Py_ssize_t tau = 0; tau < L; ++tau) {
-            const v4d v = S0[i * L + tau];
-            for (int j = 0; j <= i; ++j) s[j] += v * S0[j * L + tau];
-        }
-        for (Py_ssize_t tau = 0; tau < L; ++tau) {
-            const v4d v = S0[i * L + tau];
-            for (int j = 0; j < n; ++j) r[j] += v * SK[j * L + tau];
-        }
-        for (int j = 0; j <= i; ++j) M0[i * n + j] = s[j];
-        for (int j = 0; j < n; ++j) QT[j * n + i] = r[j]; /* column j of S0 SK^T, as row j */
+        /* row i of S0 S0^T and of SK S0^T (column j of S0 SK^T, as row j of QT) */
+        free_dots(S0 + i * L, S0, L, i + 1, M0 + i * n, 1);
+        free_dots(S0 + i * L, SK, L, n, QT + i, n);
     }
     if (full) {
         free_cholesky(M0, R, n, good);
@@ -2341,11 +2363,7 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
     }
     for (int i = 0; i < n && full; ++i) {
         v4d s[FREE_MAXN];
-        for (int j = 0; j <= i; ++j) s[j] = zero;
-        for (int k = 0; k < n; ++k) {
-            const v4d v = QT[i * n + k];
-            for (int j = 0; j <= i; ++j) s[j] += v * QT[j * n + k];
-        }
+        free_dots(QT + i * n, QT, n, i + 1, s, 1);
         for (int j = 0; j <= i; ++j) G[i * n + j] = (i == j ? zero + 1.0 : zero) - s[j];
     }
     /* 6. the right-hand side and the normalised solve */
