@@ -325,7 +325,7 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
     from route_bounds import free_cancel_bound
 
     sse_only = cost.sse(X)
-    num = np.concatenate([num_y[:, 1:], *nums], axis=1)
+    num = cost._numerator(num_y, nums)
     coef = kernels.initial_state_fit(den[:, 1:], num, cost._reg, cost._target)[2]
     forcing = np.zeros_like(e_rest)
     forcing[:, :n] = np.einsum("pmi,pm->pi", T, coef)
@@ -374,7 +374,7 @@ def test_sse_by_the_arx_kernel_equals_the_reference(name, rule):
     ref = kernels.ar_recursion_reference(den[:, 1:], forced, state)
     first = cost.start - cost._t0
     e = cost._target - ref[:, first:]
-    num = np.concatenate([num_y[:, 1:], *nums], axis=1)
+    num = cost._numerator(num_y, nums)
     terms = np.abs(num) @ np.abs(cost._reg).T
     dy = ar_route_bound(den[:, 1:], forced, state, ref, terms, num.shape[1])
     bound = sse_route_bound(e, dy[:, first:])

@@ -2438,16 +2438,36 @@ typedef struct {
     free_quad_fn fn;
 } free_ctx;
 
-/* Block u of a fit; the scratch holds e, h and the two basis windows of one block. */
+/* Scratch of up to this many bytes is kept by each thread between calls (the helper threads
+ * persist): a fresh buffer of some 150 KB (K = 1,500) is mapped and faulted in anew at
+ * every call, as long as the fit of a whole small population.  Larger ones are per call. */
+#define FREE_KEEP (4u << 20)
+static __thread v4d *free_kept = NULL;
+static __thread size_t free_kept_count = 0;
+
+/* Block u of a fit; the scratch holds e, h and the two basis windows of one block (the
+ * thread's kept buffer when it is small enough, else one for this call). */
 static int free_unit(const void *ctx, Py_ssize_t u, void **scratch)
 {
     const free_ctx *c = (const free_ctx *)ctx;
-    if (!*scratch) {
-        const size_t count = (size_t)(2 * c->J.K + c->J.L + 2 * c->J.n * c->J.L);
-        *scratch = aligned_alloc(32, count * sizeof(v4d));
-        if (!*scratch) return -1;
+    const size_t count = (size_t)(2 * c->J.K + c->J.L + 2 * c->J.n * c->J.L);
+    v4d *buf;
+    if (count * sizeof(v4d) <= FREE_KEEP) {
+        if (free_kept_count < count) {
+            free(free_kept);
+            free_kept = (v4d *)aligned_alloc(32, count * sizeof(v4d));
+            free_kept_count = free_kept ? count : 0;
+            if (!free_kept) return -1;
+        }
+        buf = free_kept;
+    } else {
+        if (!*scratch) {
+            *scratch = aligned_alloc(32, count * sizeof(v4d));
+            if (!*scratch) return -1;
+        }
+        buf = (v4d *)*scratch;
     }
-    c->fn(&c->J, 4 * u, (v4d *)*scratch);
+    c->fn(&c->J, 4 * u, buf);
     return 0;
 }
 

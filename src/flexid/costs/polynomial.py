@@ -333,10 +333,12 @@ class PolynomialCost:
         self._ylags = _lags(y, self._deg_y + 1, t0, self.N)
         self._ulags = [_lags(u[:, j], d + 1, t0, self.N) for j, d in enumerate(self._deg_u)]
         self._state = y[s.start - self._deg_den : s.start][::-1].copy()
-        # the regressors of the predictor's numerators, one row per sample (initial state
-        # estimated: the compiled pass forms the input part itself); num_y's leading
-        # coefficient is exactly zero, so its row is left out
-        self._reg = np.ascontiguousarray(np.concatenate([self._ylags[1:], *self._ulags]).T)
+        # the regressors of the predictor's numerators, one row per sample (the compiled
+        # passes form the input part themselves); num_y's leading coefficient and the first
+        # nk_j of num_j are exactly zero, so their rows are left out (see _numerator)
+        self._reg = np.ascontiguousarray(
+            np.concatenate([self._ylags[1:], *(x[nk:] for x, nk in zip(self._ulags, s.nk))]).T
+        )
         self.theta_ls = self._least_squares_start()
         finite = bool(np.isfinite(self.theta_ls).all())
         self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
@@ -425,6 +427,16 @@ class PolynomialCost:
             nums.append(num)
         return den, num_y, nums
 
+    def _numerator(self, num_y: np.ndarray, nums: list[np.ndarray]) -> np.ndarray:
+        """The coefficients (P, nb_total) that multiply the columns of ``_reg``.
+
+        ``num_y[:, 0]`` and the first ``nk_j`` coefficients of ``num_j`` are exactly zero
+        (products of monic polynomials with ``B_j`` delayed by ``nk_j``), so they are left
+        out with their regressors: a zero product added changes no sum.
+        """
+        nk = self.structure.nk
+        return np.concatenate([num_y[:, 1:], *(x[:, k:] for x, k in zip(nums, nk))], axis=1)
+
     def _forced(self, num_y: np.ndarray, nums: list[np.ndarray]) -> np.ndarray:
         forced = num_y @ self._ylags[: num_y.shape[1]]
         for num, lags in zip(nums, self._ulags):
@@ -468,7 +480,7 @@ class PolynomialCost:
         n = den.shape[1] - 1
         if self.initial == "estimate" and n:
             return self._estimated(den, num_y, nums, want_errors=False)[0]
-        num = np.concatenate([num_y[:, 1:], *nums], axis=1)  # num_y[:, 0] is exactly zero
+        num = self._numerator(num_y, nums)
         if kernels.BACKEND == "c" and num.shape[1] <= kernels._ARX_MAXNB:
             # the predictor is an ARX recursion on the shared regressors: the compiled
             # kernel forms its input part and sums the squares itself (no (P, K) arrays);
@@ -525,7 +537,7 @@ class PolynomialCost:
         response removed.  Rows whose step-down breaks down in rounding, or whose small solve
         fails, take the route of :meth:`_estimated_by_recursions`.
         """
-        num = np.concatenate([num_y[:, 1:], *nums], axis=1)  # num_y[:, 0] is exactly zero
+        num = self._numerator(num_y, nums)
         sse, e, _ = initial_state_fit(
             den[:, 1:], num, self._reg, self._target, want_errors=want_errors
         )
