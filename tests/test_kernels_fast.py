@@ -124,7 +124,10 @@ def test_arx_run_counts_the_squares_from_first(simd, na, first):
     assert_close_to_terms(sse, (e * e).sum(axis=1), sse_route_bound(e, dy[:, first:]), 1.0)
     _, sse2 = kernels.arx_recursion(a, b, reg, state, target[first:], want_output=False,
                                     first=first)  # fmt: skip
-    np.testing.assert_array_equal(sse2, sse)
+    if kernels.BACKEND == "c":  # the wrapper runs the same kernel
+        np.testing.assert_array_equal(sse2, sse)
+    else:  # the reference path: a GEMM and lfilter, within the same bound
+        assert_close_to_terms(sse2, (e * e).sum(axis=1), sse_route_bound(e, dy[:, first:]), 1.0)
     with pytest.raises(ValueError, match="K - first"):
         _kernels.arx_run(a, b, reg, state, target, None, sse, 1, max(first, 1))
     with pytest.raises(ValueError, match="first must be"):
