@@ -2272,22 +2272,29 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
     /* 1. the error from rest, and its sum of squares */
     v4d ee = zero;
     for (int i = 0; i < n; ++i) Z[i] = zero;
-    for (Py_ssize_t t0 = 0; t0 < K; t0 += 8) {
-        /* the input part 8 samples at a time: 8 independent sums, not one chain of nb */
-        const int c = K - t0 < 8 ? (int)(K - t0) : 8;
+    /* the input part first, into ebuf, 8 samples at a time: 8 independent sums in registers
+     * (a pass of its own, so that the recursion has the registers to itself) */
+    Py_ssize_t t0 = 0;
+    for (; t0 + 8 <= K; t0 += 8) {
         v4d f[8];
-        for (int i = 0; i < 8; ++i) f[i] = zero;
+        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] = zero;
         for (Py_ssize_t j = 0; j < nb; ++j) {
             const v4d bj = Bv[j];
-            for (int i = 0; i < c; ++i) f[i] += bj * reg[(t0 + i) * nb + j];
+            _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] += bj * reg[(t0 + i) * nb + j];
         }
-        for (int i = 0; i < c; ++i) {
-            v4d yt;
-            FREE_STEP(Z, A, f[i], yt, n);
-            const v4d e = target[t0 + i] - yt;
-            ebuf[t0 + i] = e;
-            ee += e * e;
-        }
+        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) ebuf[t0 + i] = f[i];
+    }
+    for (; t0 < K; ++t0) {
+        v4d f = zero;
+        for (Py_ssize_t j = 0; j < nb; ++j) f += Bv[j] * reg[t0 * nb + j];
+        ebuf[t0] = f;
+    }
+    for (Py_ssize_t t = 0; t < K; ++t) {
+        v4d yt;
+        FREE_STEP(Z, A, ebuf[t], yt, n);
+        const v4d e = target[t] - yt;
+        ebuf[t] = e;
+        ee += e * e;
     }
     /* 2. the impulse response over K + L samples */
     for (int i = 0; i < n; ++i) Z[i] = zero;
