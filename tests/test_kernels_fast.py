@@ -710,6 +710,8 @@ def test_initial_state_fit_computes_the_step_down_itself(simd, n):
 
     from flexid.costs.polynomial import _energies, orthogonal_numerators
 
+    if kernels.BACKEND != "c":
+        pytest.skip("the reference path takes the basis as given")
     rng = np.random.default_rng(n)
     p, nb, k = 11, 5, 400
     a = stable_denominators(rng, p, n, (0.2, 0.95))

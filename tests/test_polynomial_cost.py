@@ -326,7 +326,7 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
 
     sse_only = cost.sse(X)
     num = cost._numerator(num_y, nums)
-    coef = kernels.initial_state_fit(den[:, 1:], num, cost._reg, cost._target)[2]
+    coef = kernels.initial_state_fit(den[:, 1:], num, cost._reg, cost._target, T, E)[2]
     forcing = np.zeros_like(e_rest)
     forcing[:, :n] = np.einsum("pmi,pm->pi", T, coef)
     y_fit = kernels.ar_recursion_reference(den[:, 1:], forcing, np.zeros(n))

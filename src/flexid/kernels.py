@@ -43,6 +43,7 @@ __all__ = [
     "arx_fit_shifted_reference",
     "arx_recursion",
     "compiled_available",
+    "free_fit_compiled",
     "initial_state_fit",
     "initial_state_fit_reference",
     "schur_cohn_compiled",
@@ -403,17 +404,25 @@ def _basis_window(T: np.ndarray, h: np.ndarray, t0: int, width: int) -> np.ndarr
     return T @ hp[:, idx]
 
 
-def _basis_and_energies(
-    a: np.ndarray, basis: np.ndarray | None, energies: np.ndarray | None
-) -> tuple[np.ndarray, np.ndarray]:
-    """``basis`` and ``energies`` as given, or from the step-down of ``1 + a`` when None."""
-    if basis is not None and energies is not None:
-        return basis, energies
-    from .costs.polynomial import _energies, orthogonal_numerators
+def free_fit_compiled(n: int, nb: int) -> bool:
+    """Whether :func:`initial_state_fit` runs the compiled kernel for these sizes.
 
-    den = np.hstack([np.ones((a.shape[0], 1)), a])
-    basis = orthogonal_numerators(den, a.shape[1])
-    return basis, _energies(den, basis)
+    The compiled kernel computes the basis and energies itself when not given; the
+    reference path needs them.
+
+    Parameters
+    ----------
+    n : int
+        Order of the denominators.
+    nb : int
+        Terms of the input part.
+
+    Returns
+    -------
+    bool
+    """
+    return (BACKEND == "c" and hasattr(_c, "free_fit") and 1 <= n <= FREE_MAXN
+            and nb <= _ARX_MAXNB)  # fmt: skip
 
 
 def initial_state_fit_reference(
@@ -421,8 +430,8 @@ def initial_state_fit_reference(
     num: np.ndarray,
     reg: np.ndarray,
     target: np.ndarray,
-    basis: np.ndarray | None = None,
-    energies: np.ndarray | None = None,
+    basis: np.ndarray,
+    energies: np.ndarray,
     *,
     want_errors: bool = True,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
@@ -434,8 +443,8 @@ def initial_state_fit_reference(
     num : ndarray, shape (P, nb)
     reg : ndarray, shape (K, nb)
     target : ndarray, shape (K,)
-    basis : ndarray, shape (P, n, n), optional
-    energies : ndarray, shape (P, n), optional
+    basis : ndarray, shape (P, n, n)
+    energies : ndarray, shape (P, n)
     want_errors : bool
         As for :func:`initial_state_fit`.
 
@@ -449,7 +458,6 @@ def initial_state_fit_reference(
     a = np.ascontiguousarray(a, dtype=float)
     p, n = a.shape
     k = target.shape[0]
-    basis, energies = _basis_and_energies(a, basis, energies)
     e = target - ar_recursion_reference(a, num @ reg.T, np.zeros(n))
     width = FREE_WINDOW * n
     impulse = np.zeros((p, k + width))
@@ -546,7 +554,8 @@ def initial_state_fit(
         In output units.
     basis : ndarray, shape (P, n, n), optional
     energies : ndarray, shape (P, n), optional
-        Finite and positive; both None (the default): computed from ``a``.
+        Finite and positive.  Both None (the default): computed by the compiled kernel from
+        ``a``, which needs :func:`free_fit_compiled` true (the reference path needs them).
     want_errors : bool
         Return the errors too (the ``(P, K)`` array), not only their sums of squares.
 
@@ -562,8 +571,7 @@ def initial_state_fit(
     """
     a = np.ascontiguousarray(a, dtype=float)
     n = a.shape[1]
-    if BACKEND == "c" and hasattr(_c, "free_fit") and 1 <= n <= FREE_MAXN and \
-            num.shape[1] <= _ARX_MAXNB:  # fmt: skip
+    if free_fit_compiled(n, num.shape[1]):
         p, k = a.shape[0], target.shape[0]
         sse = np.empty(p)
         errors = np.empty((p, k)) if want_errors else None
@@ -577,6 +585,11 @@ def initial_state_fit(
                     FREE_WINDOW * n, FREE_CANCEL, errors, sse, coef,
                     _threads_for(work))  # fmt: skip
         return sse, errors, coef
+    if basis is None or energies is None:
+        raise FlexidError(
+            "initial_state_fit: the reference path needs basis and energies "
+            "(flexid.costs.polynomial.orthogonal_numerators and its energies)"
+        )
     return initial_state_fit_reference(
         a, num, reg, target, basis, energies, want_errors=want_errors
     )

@@ -538,8 +538,13 @@ class PolynomialCost:
         fails, take the route of :meth:`_estimated_by_recursions`.
         """
         num = self._numerator(num_y, nums)
+        n = den.shape[1] - 1
+        basis = energies = None  # the compiled kernel runs the step-down itself
+        if not kernels.free_fit_compiled(n, num.shape[1]):
+            basis = orthogonal_numerators(den, n)
+            energies = _energies(den, basis)
         sse, e, _ = initial_state_fit(
-            den[:, 1:], num, self._reg, self._target, want_errors=want_errors
+            den[:, 1:], num, self._reg, self._target, basis, energies, want_errors=want_errors
         )
         bad = ~np.isfinite(sse)
         if bad.any():
