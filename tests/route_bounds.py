@@ -267,3 +267,31 @@ def normal_equations_error(M: np.ndarray, E: np.ndarray, gamma: np.ndarray, targ
     assert eta * dG_norm < 0.5, "the normal equations are too ill-conditioned for a bound"
     dc = eta * (np.linalg.norm(dr) + dG_norm * np.linalg.norm(c * s)) / (1 - eta * dG_norm)
     return float(dc / s.min())
+
+
+def free_cancel_bound(
+    ee: np.ndarray, sse: np.ndarray, gram_dev: np.ndarray, n: int, k: int, rest: np.ndarray,
+    fitted_dev: np.ndarray,
+) -> np.ndarray:
+    """Bound on the SSE-only shortcut of :func:`flexid.kernels.initial_state_fit`.
+
+    Where the fit leaves at least ``FREE_CANCEL |e|^2`` the kernel returns ``|e|^2 - c.r``
+    instead of summing the errors left by the fitted free response; both routes share ``e``
+    and the coefficients ``c``.  In the basis normalised to unit energy (Gram matrix within
+    1.02 of the identity, as in :func:`initial_state_fit_bound`), ``|e - F c|^2 = |e|^2 -
+    2 c.r + c^T G c``, and the kernel's ``G`` is the true Gram matrix of the rounded basis up
+    to ``gram_dev``, so the identity is off by ``gram_dev |c|^2 <= 1.02 gram_dev (|e|^2 -
+    sse)``; ``c.r`` rounds within ``n`` terms of at most ``1.02 |c|^2``; the two sums of
+    squares within ``(K + 2) eps`` each; ``ee`` is from another route than the kernel's
+    (``rest``: the 2-norm of their difference), and the explicit route's fitted response
+    rounds within ``fitted_dev`` (2-norm), moving its SSE by ``2 |resid| d + d^2``.
+    """
+    fit = np.maximum(ee - sse, 0.0)
+    resid = np.sqrt(sse)
+    norm_e = np.sqrt(ee)
+    return (
+        route_tolerance(k + 2) * (ee + sse)
+        + (1.05 * route_tolerance(n) + 1.02 * gram_dev) * fit
+        + 2 * norm_e * rest + rest * rest
+        + 2 * resid * fitted_dev + fitted_dev * fitted_dev
+    )

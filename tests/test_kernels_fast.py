@@ -101,6 +101,41 @@ def test_arx_run_equals_the_reference(simd, na, nb, p):
 
 @pytest.mark.numerics
 @compiled
+@pytest.mark.parametrize("na", [2, 16, 18, 24])
+@pytest.mark.parametrize("first", [0, 1, 17, 150, 299, 300])
+def test_arx_run_counts_the_squares_from_first(simd, na, first):
+    # from rest, the samples before first run but are not counted: the outputs are those
+    # of first = 0 exactly (the same recursion), the sum that of the errors from first on
+    # (orders above 16 too: BJ's C F runs on the block path)
+    from flexid import _kernels
+
+    rng = np.random.default_rng(10 * na + first)
+    p, nb, k = 9, 37, 300
+    a, b, reg, state, target = problem(rng, p, na, nb, k, True)
+    forced = b @ reg.T
+    ref = kernels.ar_recursion_reference(a, forced, state)
+    y0, y, sse = np.empty((p, k)), np.empty((p, k)), np.empty(p)
+    _kernels.arx_run(a, b, reg, state, None, y0, None, 2)
+    _kernels.arx_run(a, b, reg, state, target[first:], y, sse, 2, first)
+    np.testing.assert_array_equal(y, y0)
+    dy = ar_route_bound(a, forced, state, ref, np.abs(b) @ np.abs(reg).T, nb)
+    assert_close_to_terms(y, ref, dy, 1.0)
+    e = target[first:] - ref[:, first:]
+    assert_close_to_terms(sse, (e * e).sum(axis=1), sse_route_bound(e, dy[:, first:]), 1.0)
+    _, sse2 = kernels.arx_recursion(a, b, reg, state, target[first:], want_output=False,
+                                    first=first)  # fmt: skip
+    if kernels.BACKEND == "c":  # the wrapper runs the same kernel
+        np.testing.assert_array_equal(sse2, sse)
+    else:  # the reference path: a GEMM and lfilter, within the same bound
+        assert_close_to_terms(sse2, (e * e).sum(axis=1), sse_route_bound(e, dy[:, first:]), 1.0)
+    with pytest.raises(ValueError, match="K - first"):
+        _kernels.arx_run(a, b, reg, state, target, None, sse, 1, max(first, 1))
+    with pytest.raises(ValueError, match="first must be"):
+        _kernels.arx_run(a, b, reg, state, None, None, None, 1, k + 1)
+
+
+@pytest.mark.numerics
+@compiled
 @pytest.mark.parametrize("k", [1, 3, 7, 128, 129, 136])
 def test_arx_run_short_records_and_chunk_edges(simd, k):
     # records shorter than the order (the state alone feeds the first outputs), and lengths
@@ -661,3 +696,46 @@ def test_arx_fit_shifted_rejects_bad_arguments():
     # zero regressors: a singular Gram matrix, flagged
     _, ok2, _ = kernels.arx_fit_shifted(a, np.zeros((50, 2)), np.zeros(1), np.ones(50), 0)
     assert not ok2.any()
+
+
+@compiled
+@pytest.mark.parametrize("n", [2, 16, 18])
+def test_initial_state_fit_computes_the_step_down_itself(simd, n):
+    # without basis and energies the kernel runs the step-down of orthogonal_numerators and
+    # _energies itself, compiled without contracted multiply-adds: the same basis, bit for
+    # bit, on x86-64 (elsewhere within the rounding the fit tolerates); whole blocks of 4 per
+    # thread, so the thread count changes nothing
+    import platform
+
+    from flexid.costs.polynomial import _energies, orthogonal_numerators
+
+    if kernels.BACKEND != "c":
+        pytest.skip("the reference path takes the basis as given")
+    rng = np.random.default_rng(n)
+    p, nb, k = 11, 5, 400
+    a = stable_denominators(rng, p, n, (0.2, 0.95))
+    b, reg, target = rng.normal(size=(p, nb)), rng.normal(size=(k, nb)), rng.normal(size=k)
+    den = np.hstack([np.ones((p, 1)), a])
+    T = orthogonal_numerators(den, n)
+    E = _energies(den, T)
+    given = kernels.initial_state_fit(a, b, reg, target, T, E)
+    old = kernels.set_threads(1)
+    try:
+        own = kernels.initial_state_fit(a, b, reg, target)
+        kernels.set_threads(3)
+        own3 = kernels.initial_state_fit(a, b, reg, target)
+    finally:
+        kernels.set_threads(old)
+    for x, y in zip(own, own3):
+        np.testing.assert_array_equal(x, y)
+    if platform.machine() in ("x86_64", "AMD64"):
+        for x, y in zip(own, given):
+            np.testing.assert_array_equal(x, y)
+    else:
+        np.testing.assert_allclose(own[0], given[0], rtol=1e-9)
+    # a denominator whose step-down breaks down (not stable): NaN, the caller's fallback
+    bad = a.copy()
+    bad[3] = 0.0
+    bad[3, -1] = 1.0
+    sse = kernels.initial_state_fit(bad, b, reg, target, want_errors=False)[0]
+    assert np.isnan(sse[3]) and np.isfinite(np.delete(sse, 3)).all()

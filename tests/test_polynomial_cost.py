@@ -237,14 +237,22 @@ def _lightly_damped(radius: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize(
-    "case", ["order 16 at radius 0.99", "order 16 at radius 0.999", "order 2 well damped"]
+    "case",
+    [
+        "order 16 at radius 0.99",
+        "order 16 at radius 0.999",
+        "order 2 well damped",
+        "order 16 well damped",
+    ],
 )
 def test_estimated_state_by_one_pass_equals_n_recursions(case):
     """The one-pass fit (step-down energies, tail Gram matrix, anti-causal right-hand side)
     equals the fit of the ``n`` free responses computed one by one, within
     ``route_bounds.initial_state_fit_bound``: both solve the same normal equations, which
     differ by the non-orthogonality of the rounded basis (measured here) and the routes'
-    rounding of the error from rest."""
+    rounding of the error from rest.  Where the basis has decayed below ``FREE_TAIL`` by the
+    end of the record (the well damped cases) the kernel takes the Gram matrix as ``I``,
+    leaving out a tail ``Q Q^T`` that is added to the measured deviation."""
     from route_bounds import ar_route_bound, initial_state_fit_bound
 
     rng = np.random.default_rng(3)
@@ -253,6 +261,14 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
         u, y = _record(1)
         f = np.array([-0.6, 0.25])  # poles at radius 0.5
         X = np.tile(np.r_[0.5, 0.3, f], (4, 1)) + 0.01 * rng.standard_normal((4, 4))
+    elif case == "order 16 well damped":
+        s = PolynomialStructure.oe(16, 16, 1)
+        u = rng.uniform(-0.3, 0.3, (1500, 1))
+        y = signal.lfilter(np.r_[0.0, 0.05 * rng.standard_normal(16)], _lightly_damped(0.99),
+                           u[:, 0])  # fmt: skip
+        y += signal.lfilter([1.0, 0.5], [1.0, -0.9], 0.01 * rng.standard_normal(1500))
+        X = _candidates(s, 9, 4, r_max=0.95)
+        X[:, :16] *= 0.05
     else:
         s = PolynomialStructure.oe(16, 16, 1)
         a = _lightly_damped(float(case.split()[-1]))
@@ -285,7 +301,13 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
     qt = np.linalg.solve(s0 @ s0.transpose(0, 2, 1), s0 @ sk.transpose(0, 2, 1))
     g_new = np.eye(n) - qt.transpose(0, 2, 1) @ qt
     assert np.linalg.cond(g_new).max() < 1.02  # the premise of the bound
+    tail = qt.transpose(0, 2, 1) @ qt
     gram_dev = np.linalg.norm(g_old - g_new, ord=2, axis=(1, 2))
+    gram_dev += np.linalg.norm(tail, ord=2, axis=(1, 2))  # where the kernel takes I
+    skipped = (sk * sk).sum(axis=(1, 2)) < 1e-17  # the kernel's FREE_TAIL
+    lam = np.linalg.eigvalsh(s0 @ s0.transpose(0, 2, 1))[:, 0]
+    assert (lam[skipped] >= 0.45).all()  # the premise of FREE_TAIL's bound
+    assert (np.linalg.norm(tail, ord=2, axis=(1, 2))[skipped] <= 2.3e-17).all()
     forced = cost._forced(num_y, nums)
     y_rest = kernels.ar_recursion_reference(den[:, 1:], forced, np.zeros(n))
     e_rest = cost._target - y_rest
@@ -298,4 +320,65 @@ def test_estimated_state_by_one_pass_equals_n_recursions(case):
     d, dsse = initial_state_fit_bound(gram_dev, fitted, resid, rest, cost.K)
     assert (np.linalg.norm(e_new - e_old, axis=1) <= d).all()
     assert (np.abs(sse - resid**2) <= dsse).all()
-    np.testing.assert_array_equal(cost.sse(X), sse)  # the SSE-only pass: the same sums
+    # the SSE-only pass: |e|^2 - c.r where the fit leaves enough (route_bounds.
+    # free_cancel_bound), else the same sums as the pass with the errors
+    from route_bounds import free_cancel_bound
+
+    sse_only = cost.sse(X)
+    num = cost._numerator(num_y, nums)
+    coef = kernels.initial_state_fit(den[:, 1:], num, cost._reg, cost._target, T, E)[2]
+    forcing = np.zeros_like(e_rest)
+    forcing[:, :n] = np.einsum("pmi,pm->pi", T, coef)
+    y_fit = kernels.ar_recursion_reference(den[:, 1:], forcing, np.zeros(n))
+    fitted_dev = np.linalg.norm(ar_route_bound(den[:, 1:], forcing, np.zeros(n), y_fit), axis=1)
+    ee = (e_rest * e_rest).sum(axis=1)
+    bound = free_cancel_bound(ee, sse, gram_dev, n, cost.K, rest, fitted_dev)
+    assert (np.abs(sse_only - sse) <= bound).all()
+    left = sse / ee < kernels.FREE_CANCEL / 2  # the kernel runs the fitted response there
+    np.testing.assert_array_equal(sse_only[left], sse[left])
+
+
+@pytest.mark.parametrize("rule", ["zero", "measured"])
+@pytest.mark.parametrize("name", ["oe16", "bj16", "armax", "bj2"])
+def test_sse_by_the_arx_kernel_equals_the_reference(name, rule):
+    """Under ``"zero"`` and ``"measured"`` the SSE-only pass runs the predictor as one ARX
+    recursion on the shared regressors (compiled, input part and sum of squares in the
+    kernel); the reference forms the forced terms by GEMMs and runs ``lfilter``.  Both are
+    the same filter: the routes differ by the recursion's rounding and that of the
+    ``nb``-term input part, filtered by ``1/den`` (``route_bounds.ar_route_bound``), and the
+    sum of squares by ``sse_route_bound`` over the samples counted (from ``start``)."""
+    from flexid import kernels
+    from route_bounds import ar_route_bound, sse_route_bound
+
+    if name.endswith("16"):
+        s = structure("oe", nb=16, nf=16, nk=1) if name == "oe16" else structure(
+            "bj", nb=16, nc=2, nd=2, nf=16, nk=1
+        )
+        rng = np.random.default_rng(5)
+        u = rng.uniform(-0.3, 0.3, (1500, 1))
+        y = signal.lfilter(np.r_[0.0, 0.05 * rng.standard_normal(16)], _lightly_damped(0.99),
+                           u[:, 0])  # fmt: skip
+        y += signal.lfilter([1.0, 0.5], [1.0, -0.9], 0.01 * rng.standard_normal(1500))
+        X = _candidates(s, 12, 6, r_max=0.999)
+        X[:, s.b_columns] *= 0.1
+    else:
+        s = STRUCTS[name]
+        u, y = _record(s.n_inputs)
+        X = _candidates(s, 12, 6)
+    cost = PolynomialCost(s, (u, y), metric="sse", initial=rule)
+    sse = cost.sse(X)
+    den, num_y, nums = cost._predictor(cost._parts(X))
+    n = den.shape[1] - 1
+    forced = cost._forced(num_y, nums)
+    state = cost._state[:n] if rule == "measured" else np.zeros(n)
+    ref = kernels.ar_recursion_reference(den[:, 1:], forced, state)
+    first = cost.start - cost._t0
+    e = cost._target - ref[:, first:]
+    num = cost._numerator(num_y, nums)
+    terms = np.abs(num) @ np.abs(cost._reg).T
+    dy = ar_route_bound(den[:, 1:], forced, state, ref, terms, num.shape[1])
+    bound = sse_route_bound(e, dy[:, first:])
+    assert (np.abs(sse - (e * e).sum(axis=1)) <= bound).all()
+    # the errors themselves (GEMM and ar_recursion) sum to the same within the bound
+    e2 = cost.prediction_errors(X)
+    assert (np.abs(sse - (e2 * e2).sum(axis=1)) <= 2 * bound).all()

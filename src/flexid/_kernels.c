@@ -15,10 +15,13 @@
  *       [y(-1), ..., y(-na)] (or (na,) shared by all candidates), target (K,) or None,
  *       y_out (P, K) or None, sse_out (P,) or None (sum over t of (target - y)^2).
  *
- *   arx_run(a, b, reg, state, target, y_out, sse_out[, threads])
+ *   arx_run(a, b, reg, state, target, y_out, sse_out[, threads[, first]])
  *       The same with the input part computed in the kernel, f(t) = sum_j b_j reg[t, j]:
  *       b (P, nb), reg (K, nb) the input regressors of every step (shared by all
- *       candidates), so that no (P, K) array of forced terms is formed.
+ *       candidates), so that no (P, K) array of forced terms is formed.  With first > 0
+ *       (default 0) the recursion still runs from t = 0 but sse_out sums t >= first only,
+ *       target then being (K - first,) and compared with y(first ..): a recursion started
+ *       at rest before the samples that count.
  *
  *   twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads])
  *       The twin rotor's RK4 (flexid.envs.twin_rotor_physics: the equations of its batched
@@ -101,15 +104,15 @@ typedef struct {
     const double *reg;    /* (K, nb) */
     const double *state;  /* [y(-1), ..., y(-na)] per candidate (stride state_stride) */
     Py_ssize_t state_stride;
-    const double *target; /* (K,) or NULL */
+    const double *target; /* (K - first,) or NULL */
     double *y;            /* (P, K) or NULL */
-    double *sse;          /* (P,) or NULL */
-    Py_ssize_t P, na, nb, K, a_stride, b_stride;
+    double *sse;          /* (P,) or NULL: sum over t >= first of (target(t - first) - y(t))^2 */
+    Py_ssize_t P, na, nb, K, a_stride, b_stride, first;
 } ar_job;
 
 /* One candidate at a time, the direct form y(t) = f(t) - a_na y(t - na) - ... - a_1 y(t - 1)
  * summed in that order, the history in hist (na + K doubles).  The portable path, and the one
- * for orders above AR_MAXNA. */
+ * for orders above AR_MAXREC. */
 static void ar_one(const ar_job *J, Py_ssize_t p, double *hist)
 {
     const Py_ssize_t na = J->na, nb = J->nb, K = J->K;
@@ -127,8 +130,8 @@ static void ar_one(const ar_job *J, Py_ssize_t p, double *hist)
         }
         for (Py_ssize_t k = na; k >= 1; --k) acc -= ap[k - 1] * hist[na + t - k];
         hist[na + t] = acc;
-        if (J->target) {
-            const double e = J->target[t] - acc;
+        if (J->target && t >= J->first) {
+            const double e = J->target[t - J->first] - acc;
             s += e * e;
         }
     }
@@ -138,7 +141,8 @@ static void ar_one(const ar_job *J, Py_ssize_t p, double *hist)
 
 #if defined(__GNUC__)
 typedef double v4d __attribute__((vector_size(32), aligned(8)));
-#define AR_MAXNA 16  /* orders whose state is held in registers */
+#define AR_MAXNA 16  /* orders whose state is held in registers (the numerator fits) */
+#define AR_MAXREC 24 /* orders of ar_run/arx_run's block path (above 16: BJ's C F) */
 #define AR_MAXNB 64  /* input terms computed in the kernel (more: the caller's GEMM) */
 #define AR_CHUNK 128 /* forced terms computed per pass (4 KB: they stay in L1) */
 
@@ -155,8 +159,9 @@ typedef double v4d __attribute__((vector_size(32), aligned(8)));
  * latency of a chain of na of them.  The forced terms are computed AR_CHUNK steps at a time
  * into a small buffer (a separate pass, so that the coefficients of both passes have the
  * registers to themselves).  na is a constant in every caller; a_in_mem keeps the a_k in
- * memory (read as operands of the multiply-adds) where 16 vector registers cannot hold them
- * beside the state. */
+ * memory (read as operands of the multiply-adds) where the vector registers cannot hold them
+ * beside the state (16 registers, or orders above 16), and rounds unrolls the steps by na
+ * (where 32 registers hold the state unspilled). */
 /* In AR_BLOCK_IMPL: f(c0), ..., f(c1 - 1) into fbuf[0 .. c1 - c0); each f(t) = b_1 r_1 + ... +
  * b_nb r_nb in that order, 8 steps at a time so that each b_j is loaded once for 8 products */
 #define AR_FILL(c0, c1)                                                                       \
@@ -192,13 +197,14 @@ typedef double v4d __attribute__((vector_size(32), aligned(8)));
 
 #define AR_BLOCK_IMPL(NAME, VEC, NL)                                                          \
 static inline __attribute__((always_inline)) void                                              \
-NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem)                          \
+NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem, const int rounds)        \
 {                                                                                              \
     const Py_ssize_t K = J->K, nb = J->nb, w = (J->P - q < NL) ? J->P - q : NL;                \
     const double *forced = J->forced ? J->forced + q * K : NULL, *reg = J->reg;                \
     const double *target = J->target;                                                          \
+    const Py_ssize_t first = J->first;                                                         \
     double *y = J->y ? J->y + q * K : NULL;                                                    \
-    VEC A[AR_MAXNA], S[AR_MAXNA], Y[AR_MAXNA], Bv[AR_MAXNB];                                   \
+    VEC A[AR_MAXREC], S[AR_MAXREC], Y[AR_MAXREC], Bv[AR_MAXNB];                                \
     VEC fbuf[AR_CHUNK];                                                                        \
     VEC zero = {0};                                                                            \
     for (int i = 0; i < na; ++i) A[i] = Y[i] = zero;                                           \
@@ -234,17 +240,17 @@ NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem)           
          * rather than moved: in step r of a round, the S[k] above is S[(k + r) % na], so      \
          * each update accumulates in place and the slot of y(t) takes the new last entry      \
          * (the same operations; with 16 registers the unrolled rounds spill) */               \
-        for (; !a_in_mem && c + na <= c1; c += na) {                                           \
-            _Pragma("GCC unroll 16") for (int r = 0; r < na; ++r) {                            \
+        for (; rounds && c + na <= c1; c += na) {                                              \
+            _Pragma("GCC unroll 24") for (int r = 0; r < na; ++r) {                            \
                 const Py_ssize_t t = c + r - na;                                               \
                 const VEC yt = S[r];                                                           \
-                if (target) {                                                                  \
-                    const VEC e = target[t] - yt;                                              \
+                if (target && t >= first) {                                                    \
+                    const VEC e = target[t - first] - yt;                                      \
                     s += e * e;                                                                \
                 }                                                                              \
                 if (y)                                                                         \
                     for (Py_ssize_t l = 0; l < w; ++l) y[l * K + t] = yt[l];                   \
-                _Pragma("GCC unroll 16") for (int k = 0; k < na - 1; ++k)                      \
+                _Pragma("GCC unroll 24") for (int k = 0; k < na - 1; ++k)                      \
                     S[(k + 1 + r) % na] -= Am[k] * yt;                                         \
                 S[r] = fbuf[c + r - c0] - Am[na - 1] * yt;                                     \
             }                                                                                  \
@@ -252,8 +258,8 @@ NAME(const ar_job *J, Py_ssize_t q, const int na, const int a_in_mem)           
         for (; c < c1; ++c) {                                                                  \
             const Py_ssize_t t = c - na;                                                       \
             const VEC yt = S[0];                                                               \
-            if (target) {                                                                      \
-                const VEC e = target[t] - yt;                                                  \
+            if (target && t >= first) {                                                        \
+                const VEC e = target[t - first] - yt;                                          \
                 s += e * e;                                                                    \
             }                                                                                  \
             if (y)                                                                             \
@@ -281,19 +287,19 @@ AR_BLOCK_IMPL(ar_pair_impl, v2d, 2)
 #define AR_QUAD(n)                                                                            \
     static void ar_quad_g##n(const ar_job *J, Py_ssize_t q)                                   \
     {                                                                                         \
-        ar_pair_impl(J, q, n, 1);                                                             \
-        if (q + 2 < J->P) ar_pair_impl(J, q + 2, n, 1);                                       \
+        ar_pair_impl(J, q, n, 1, 0);                                                          \
+        if (q + 2 < J->P) ar_pair_impl(J, q + 2, n, 1, 0);                                    \
     }                                                                                         \
     AR_QUAD_X86(n)
 #if defined(AR_X86)
 #define AR_QUAD_X86(n)                                                                        \
     AR_TGT_V3 static void ar_quad_v3_##n(const ar_job *J, Py_ssize_t q)                       \
     {                                                                                         \
-        ar_quad_impl(J, q, n, 1);                                                             \
+        ar_quad_impl(J, q, n, 1, 0);                                                          \
     }                                                                                         \
     AR_TGT_V4 static void ar_quad_v4_##n(const ar_job *J, Py_ssize_t q)                       \
     {                                                                                         \
-        ar_quad_impl(J, q, n, 0);                                                             \
+        ar_quad_impl(J, q, n, n > AR_MAXNA, 1);                                               \
     }
 #else
 #define AR_QUAD_X86(n)
@@ -314,16 +320,29 @@ AR_QUAD(13)
 AR_QUAD(14)
 AR_QUAD(15)
 AR_QUAD(16)
+AR_QUAD(17)
+AR_QUAD(18)
+AR_QUAD(19)
+AR_QUAD(20)
+AR_QUAD(21)
+AR_QUAD(22)
+AR_QUAD(23)
+AR_QUAD(24)
 typedef void (*ar_quad_fn)(const ar_job *, Py_ssize_t);
 #define AR_TABLE(p)                                                                           \
     {                                                                                         \
         NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
             p##13, p##14, p##15, p##16                                                        \
     }
-static const ar_quad_fn ar_quads_generic[AR_MAXNA + 1] = AR_TABLE(ar_quad_g);
+#define AR_TABLE24(p)                                                                         \
+    {                                                                                         \
+        NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
+            p##13, p##14, p##15, p##16, p##17, p##18, p##19, p##20, p##21, p##22, p##23, p##24 \
+    }
+static const ar_quad_fn ar_quads_generic[AR_MAXREC + 1] = AR_TABLE24(ar_quad_g);
 #if defined(AR_X86)
-static const ar_quad_fn ar_quads_v3[AR_MAXNA + 1] = AR_TABLE(ar_quad_v3_);
-static const ar_quad_fn ar_quads_v4[AR_MAXNA + 1] = AR_TABLE(ar_quad_v4_);
+static const ar_quad_fn ar_quads_v3[AR_MAXREC + 1] = AR_TABLE24(ar_quad_v3_);
+static const ar_quad_fn ar_quads_v4[AR_MAXREC + 1] = AR_TABLE24(ar_quad_v4_);
 #endif
 static const char *const ar_simd_names[3] = {"generic", "avx2", "avx512"};
 static int ar_simd_best = 0; /* the best the CPU runs */
@@ -355,6 +374,7 @@ static void ar_simd_select(int level)
 #define AR_UNIT 4 /* candidates per unit of work */
 #else
 #define AR_MAXNA 0
+#define AR_MAXREC 0
 #define AR_MAXNB 0
 #define AR_UNIT 1
 static const char *const ar_simd_names[1] = {"scalar"};
@@ -368,7 +388,7 @@ static void ar_simd_select(int level) { (void)level; }
 static void ar_units(const ar_job *J, Py_ssize_t lo, Py_ssize_t hi, double *hist)
 {
 #if defined(__GNUC__)
-    if (J->na >= 1 && J->na <= AR_MAXNA) {
+    if (J->na >= 1 && J->na <= AR_MAXREC) {
         for (Py_ssize_t u = lo; u < hi; ++u) ar_quads[J->na](J, u * AR_UNIT);
         return;
     }
@@ -586,7 +606,7 @@ static int run_units(const void *ctx, unit_fn fn, Py_ssize_t n_units, int n_thre
 static int ar_unit(const void *ctx, Py_ssize_t u, void **scratch)
 {
     const ar_job *J = (const ar_job *)ctx;
-    if (!(J->na >= 1 && J->na <= AR_MAXNA) && !*scratch) {
+    if (!(J->na >= 1 && J->na <= AR_MAXREC) && !*scratch) {
         *scratch = malloc((size_t)(J->na + J->K + 1) * sizeof(double));
         if (!*scratch) return -1;
     }
@@ -686,7 +706,8 @@ done:
 }
 
 /* Parses the common tail (state, target, y_out, sse_out) of ar_run and arx_run into J, given
- * P, na and K; bufs[0..3] and have[0..3] are theirs.  -1 with an exception set on error. */
+ * P, na, K and first; bufs[0..3] and have[0..3] are theirs.  -1 with an exception set on
+ * error. */
 static int ar_parse_tail(const char *fn, PyObject *objs[4], Py_buffer bufs[4], int have[4],
                          ar_job *J)
 {
@@ -712,8 +733,8 @@ static int ar_parse_tail(const char *fn, PyObject *objs[4], Py_buffer bufs[4], i
         PyErr_Format(PyExc_ValueError, "%s: state must be (na,) or (P, na)", fn);
         return -1;
     }
-    if (have[1] && (bufs[1].ndim != 1 || bufs[1].shape[0] != K)) {
-        PyErr_Format(PyExc_ValueError, "%s: target must be (K,)", fn);
+    if (have[1] && (bufs[1].ndim != 1 || bufs[1].shape[0] != K - J->first)) {
+        PyErr_Format(PyExc_ValueError, "%s: target must be (K - first,)", fn);
         return -1;
     }
     if (have[2] && (bufs[2].ndim != 2 || bufs[2].shape[0] != P || bufs[2].shape[1] != K)) {
@@ -789,9 +810,9 @@ static PyObject *py_arx_run(PyObject *self, PyObject *args)
     PyObject *objs[7];
     Py_buffer bufs[7];
     int have[7] = {0}, n_threads = 1;
-    Py_ssize_t strides[2] = {0, 0};
-    if (!PyArg_ParseTuple(args, "OOOOOOO|i", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4],
-                          &objs[5], &objs[6], &n_threads))
+    Py_ssize_t strides[2] = {0, 0}, first = 0;
+    if (!PyArg_ParseTuple(args, "OOOOOOO|in", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4],
+                          &objs[5], &objs[6], &n_threads, &first))
         return NULL;
     PyObject *result = NULL;
     static const char *names[3] = {"a", "b", "reg"};
@@ -832,6 +853,11 @@ static PyObject *py_arx_run(PyObject *self, PyObject *args)
     J.a_stride = strides[0];
     J.b_stride = strides[1];
     J.reg = (const double *)bufs[2].buf;
+    if (first < 0 || first > J.K) {
+        PyErr_SetString(PyExc_ValueError, "arx_run: first must be in [0, K]");
+        goto done;
+    }
+    J.first = first;
     if (ar_parse_tail("arx_run", objs + 3, bufs + 3, have + 3, &J) < 0) goto done;
     result = ar_execute(&J, n_threads);
 done:
@@ -1997,8 +2023,9 @@ static PyMethodDef methods[] = {
      "ar_run(a, forced, state, target, y_out, sse_out[, threads]): batched AR recursion "
      "(see module)."},
     {"arx_run", py_arx_run, METH_VARARGS,
-     "arx_run(a, b, reg, state, target, y_out, sse_out[, threads]): batched ARX recursion, "
-     "the input part computed from the regressor rows reg (see module)."},
+     "arx_run(a, b, reg, state, target, y_out, sse_out[, threads[, first]]): batched ARX "
+     "recursion, the input part computed from the regressor rows reg, sse over t >= first "
+     "(see module)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
      "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads]): twin rotor RK4; "
      "params (22,) shared or (B, 22) per rotor."},
@@ -2013,7 +2040,8 @@ static PyMethodDef methods[] = {
 #endif
 #if defined(__GNUC__)
     {"free_fit", py_free_fit, METH_VARARGS,
-     "free_fit(a, num, reg, target, basis, energies, window, errors_out, sse_out, coef_out"
+     "free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out, "
+     "coef_out"
      "[, threads]): errors of 1/den filters with the initial state fitted (see the end of "
      "the module)."},
 #endif
@@ -2040,13 +2068,17 @@ PyMODINIT_FUNC PyInit__kernels(void)
 }
 
 /* ------------------------------------------------------------------ estimated initial state */
-/* free_fit(a, num, reg, target, basis, energies, window, errors_out, sse_out, coef_out[,
- * threads]): the error of 1/den filters with the initial state fitted by least squares
+/* free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out,
+ * coef_out[, threads]): the error of 1/den filters with the initial state fitted by least squares
  * (flexid.kernels.initial_state_fit, whose docstring gives the method).  a (P, n) the
  * a_1..a_n of each den, num (P, nb) rows some stride apart, reg (K, nb), target (K,),
- * basis (P, n, n) the numerators P_m, energies (P, n) the energies of P_m/den over t >= 0,
- * window the samples L of the basis windows, errors_out (P, K) or None, sse_out (P,),
- * coef_out (P, n).  sse_out is NaN where a Cholesky factorisation breaks down.
+ * basis (P, n, n) the numerators P_m, energies (P, n) the energies of P_m/den over t >= 0
+ * (both None: computed here by the step-down of each den, free_stepdown), window the
+ * samples L of the basis windows, errors_out (P, K) or None, sse_out (P,), coef_out (P, n).
+ * sse_out is NaN where a Cholesky factorisation or the step-down breaks down.  Without
+ * errors_out, a block whose fits all leave at least cancel |e|^2 takes the sums of squares
+ * as |e|^2 - c.r (the normal equations' identity, flexid.kernels.FREE_CANCEL) instead of
+ * running the fitted free response.
  *
  * Per block of 4 candidates (one per lane), four recursions of 1/den in the transposed
  * direct form with the state in registers: the error from rest e (input part computed here
@@ -2055,6 +2087,12 @@ PyMODINIT_FUNC PyInit__kernels(void)
  * algebra of the normalised basis on 4 lanes at once. */
 #if defined(__GNUC__)
 #define FREE_MAXN 24
+/* |S_K|_F^2 (the basis normalised to unit energy, over the window after the record) below
+ * which the kernel takes the record's Gram matrix as I, leaving out the tail Q Q^T:
+ * |Q Q^T| <= |S_K|_F^2 / lambda_min(S_0 S_0^T), and lambda_min >= 0.45 where the basis has
+ * decayed that far (measured, and checked by the tests: the window of FREE_WINDOW n samples
+ * then holds nearly all of the unit energy), so |Q Q^T| < 2.3e-17, a tenth of eps */
+#define FREE_TAIL 1e-17
 
 /* y(t) = f(t) + z_0, z_k <- z_(k+1) - a_(k+1) y(t), z_(n-1) <- -a_n y(t): one step of the
  * recursion with the state Z in registers */
@@ -2070,56 +2108,152 @@ typedef struct {
     const double *a, *num, *reg, *target, *basis, *energies;
     Py_ssize_t P, n, nb, K, L, num_stride;
     double *errors, *sse, *coef;
+    double cancel; /* see the head of this section */
 } free_job;
 
 /* Cholesky of the symmetric positive definite G (n x n, lower triangle read and written) on
- * every lane; good[l] = 0 where a pivot is not positive and finite (that lane's factor is
- * then the identity, so the other lanes go on) */
+ * the 4 lanes at once, the reciprocals of the pivots into R (the solves multiply by them);
+ * good[l] = 0 where a pivot is not positive and finite (that lane's pivots are then taken
+ * as 1, so the other lanes go on, and its results are discarded).  Right-looking: each
+ * column updates the trailing matrix, whose updates are independent (no chain of
+ * dependent multiply-adds), and every entry still subtracts its products in the order of
+ * k, as the dot-product form does. */
 static inline __attribute__((always_inline)) void
-free_cholesky(v4d *G, const int n, int good[4])
+free_cholesky(v4d *G, v4d *R, const int n, int good[4])
 {
-    for (int l = 0; l < 4; ++l) {
-        int ok = good[l];
-        for (int j = 0; j < n && ok; ++j) {
-            double d = G[j * n + j][l];
-            for (int k = 0; k < j; ++k) d -= G[j * n + k][l] * G[j * n + k][l];
-            if (!(d > 0) || !isfinite(d)) {
-                ok = 0;
-                break;
+    const v4d one = {1, 1, 1, 1};
+    for (int j = 0; j < n; ++j) {
+        v4d d = G[j * n + j];
+        for (int l = 0; l < 4; ++l)
+            if (!(d[l] > 0) || !isfinite(d[l])) {
+                good[l] = 0;
+                d[l] = 1.0;
             }
-            d = sqrt(d);
-            G[j * n + j][l] = d;
-            for (int i = j + 1; i < n; ++i) {
-                double v = G[i * n + j][l];
-                for (int k = 0; k < j; ++k) v -= G[i * n + k][l] * G[j * n + k][l];
-                G[i * n + j][l] = v / d;
-            }
+        for (int l = 0; l < 4; ++l) d[l] = sqrt(d[l]);
+        const v4d r = one / d;
+        G[j * n + j] = d;
+        R[j] = r;
+        for (int i = j + 1; i < n; ++i) G[i * n + j] *= r;
+        for (int i = j + 1; i < n; ++i) {
+            const v4d gij = G[i * n + j];
+            for (int k = j + 1; k <= i; ++k) G[i * n + k] -= gij * G[k * n + j];
         }
-        if (!ok)
-            for (int i = 0; i < n; ++i)
-                for (int j = 0; j <= i; ++j) G[i * n + j][l] = i == j;
-        good[l] = ok;
     }
 }
 
-/* v <- L^-1 v (lower) or L^-T v (upper: the transpose), L from free_cholesky */
+/* out[j * os] = sum_k x[k] Y[j * len + k], k = 0 .. len - 1 in order, for j < nj: 8 (then
+ * 4, then 1) rows of Y at a time, so that their sums are independent chains in registers */
 static inline __attribute__((always_inline)) void
-free_lower_solve(const v4d *Lm, v4d *v, const int n)
+free_dots(const v4d *x, const v4d *Y, const Py_ssize_t len, const int nj, v4d *out,
+          const Py_ssize_t os)
+{
+    const v4d zero = {0, 0, 0, 0};
+    int j = 0;
+    for (; j + 8 <= nj; j += 8) {
+        v4d s[8];
+        _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) s[jj] = zero;
+        for (Py_ssize_t k = 0; k < len; ++k) {
+            const v4d v = x[k];
+            _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) s[jj] += v * Y[(j + jj) * len + k];
+        }
+        _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) out[(j + jj) * os] = s[jj];
+    }
+    for (; j + 4 <= nj; j += 4) {
+        v4d s[4];
+        _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) s[jj] = zero;
+        for (Py_ssize_t k = 0; k < len; ++k) {
+            const v4d v = x[k];
+            _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) s[jj] += v * Y[(j + jj) * len + k];
+        }
+        _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) out[(j + jj) * os] = s[jj];
+    }
+    for (; j < nj; ++j) {
+        v4d s = zero;
+        for (Py_ssize_t k = 0; k < len; ++k) s += x[k] * Y[j * len + k];
+        out[j * os] = s;
+    }
+}
+
+/* The m right-hand sides X (rows of n) <- L^-T L^-1 X, L and R from free_cholesky: the
+ * operations of free_lower_solve and free_upper_solve on each row, the rows interleaved
+ * (independent chains) */
+static inline __attribute__((always_inline)) void
+free_solve_rows(const v4d *Lm, const v4d *R, v4d *X, const int n, const int m)
+{
+    for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < i; ++k) {
+            const v4d lik = Lm[i * n + k];
+            for (int j = 0; j < m; ++j) X[j * n + i] -= lik * X[j * n + k];
+        }
+        for (int j = 0; j < m; ++j) X[j * n + i] *= R[i];
+    }
+    for (int i = n - 1; i >= 0; --i) {
+        for (int k = i + 1; k < n; ++k) {
+            const v4d lki = Lm[k * n + i];
+            for (int j = 0; j < m; ++j) X[j * n + i] -= lki * X[j * n + k];
+        }
+        for (int j = 0; j < m; ++j) X[j * n + i] *= R[i];
+    }
+}
+
+/* v <- L^-1 v (lower) or L^-T v (upper: the transpose), L and R from free_cholesky */
+static inline __attribute__((always_inline)) void
+free_lower_solve(const v4d *Lm, const v4d *R, v4d *v, const int n)
 {
     for (int i = 0; i < n; ++i) {
         v4d s = v[i];
         for (int k = 0; k < i; ++k) s -= Lm[i * n + k] * v[k];
-        v[i] = s / Lm[i * n + i];
+        v[i] = s * R[i];
     }
 }
 static inline __attribute__((always_inline)) void
-free_upper_solve(const v4d *Lm, v4d *v, const int n)
+free_upper_solve(const v4d *Lm, const v4d *R, v4d *v, const int n)
 {
     for (int i = n - 1; i >= 0; --i) {
         v4d s = v[i];
         for (int k = i + 1; k < n; ++k) s -= Lm[k * n + i] * v[k];
-        v[i] = s / Lm[i * n + i];
+        v[i] = s * R[i];
     }
+}
+
+/* Lane l of T (n x n, the numerators P_m by rows) and sc (1 / sqrt of their energies) from
+ * the step-down of den = 1 + a_1 q^-1 + ... + a_n q^-n, as
+ * flexid.costs.polynomial.orthogonal_numerators and _energies compute them: row m - 1 the
+ * reversed A_(m-1) = (A_m - k_m A_m reversed) / (1 - k_m^2), k_m the last coefficient of
+ * A_m, and E_m = 1 / prod_(j > m) (1 - k_j^2).  0 where the step-down breaks down (some
+ * |k_m| >= 1 in rounding, or energies not finite and positive): then T = I and sc = 1.
+ * Not inlined into the clones: compiled for the baseline, without contracted multiply-adds,
+ * it rounds every operation as NumPy does, so on x86-64 the basis is the reference's. */
+static __attribute__((noinline)) int free_stepdown(const double *a, const int n, v4d *T, v4d *sc, const int l)
+{
+    double cur[FREE_MAXN + 1], nxt[FREE_MAXN + 1], k[FREE_MAXN + 1];
+    int ok = 1;
+    cur[0] = 1.0;
+    for (int i = 0; i < n; ++i) cur[i + 1] = a[i];
+    for (int i = 0; i < n * n; ++i) T[i][l] = 0.0;
+    for (int m = n; m >= 1; --m) {
+        const double km = cur[m], d = 1.0 - km * km;
+        k[m] = km;
+        if (!(fabs(km) < 1.0)) ok = 0;
+        for (int i = 0; i < m; ++i) nxt[i] = (cur[i] - km * cur[m - i]) / d;
+        for (int i = 0; i < m; ++i) cur[i] = nxt[i];
+        for (int i = 0; i < m; ++i) T[(m - 1) * n + i][l] = cur[m - 1 - i];
+    }
+    double prod = 1.0;
+    for (int m = n - 1; m >= 0; --m) {
+        prod = m == n - 1 ? 1.0 - k[n] * k[n] : prod * (1.0 - k[m + 1] * k[m + 1]);
+        const double e = 1.0 / prod;
+        if (!(e > 0) || !isfinite(e)) ok = 0;
+        sc[m][l] = 1.0 / sqrt(e);
+    }
+    for (int i = 0; i < n * n && ok; ++i)
+        if (!isfinite(T[i][l])) ok = 0;
+    if (!ok)
+        for (int i = 0; i < n; ++i) {
+            sc[i][l] = 1.0;
+            for (int j = 0; j < n; ++j) T[i * n + j][l] = i == j;
+        }
+    return ok;
 }
 
 static inline __attribute__((always_inline)) void
@@ -2135,22 +2269,32 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         for (int l = 0; l < 4; ++l) A[i][l] = J->a[(q + (l < w ? l : 0)) * n + i];
     for (Py_ssize_t j = 0; j < nb; ++j)
         for (int l = 0; l < 4; ++l) Bv[j][l] = J->num[(q + (l < w ? l : 0)) * J->num_stride + j];
-    /* 1. the error from rest */
+    /* 1. the error from rest, and its sum of squares */
+    v4d ee = zero;
     for (int i = 0; i < n; ++i) Z[i] = zero;
-    for (Py_ssize_t t0 = 0; t0 < K; t0 += 8) {
-        /* the input part 8 samples at a time: 8 independent sums, not one chain of nb */
-        const int c = K - t0 < 8 ? (int)(K - t0) : 8;
+    /* the input part first, into ebuf, 8 samples at a time: 8 independent sums in registers
+     * (a pass of its own, so that the recursion has the registers to itself) */
+    Py_ssize_t t0 = 0;
+    for (; t0 + 8 <= K; t0 += 8) {
         v4d f[8];
-        for (int i = 0; i < 8; ++i) f[i] = zero;
+        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] = zero;
         for (Py_ssize_t j = 0; j < nb; ++j) {
             const v4d bj = Bv[j];
-            for (int i = 0; i < c; ++i) f[i] += bj * reg[(t0 + i) * nb + j];
+            _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] += bj * reg[(t0 + i) * nb + j];
         }
-        for (int i = 0; i < c; ++i) {
-            v4d yt;
-            FREE_STEP(Z, A, f[i], yt, n);
-            ebuf[t0 + i] = target[t0 + i] - yt;
-        }
+        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) ebuf[t0 + i] = f[i];
+    }
+    for (; t0 < K; ++t0) {
+        v4d f = zero;
+        for (Py_ssize_t j = 0; j < nb; ++j) f += Bv[j] * reg[t0 * nb + j];
+        ebuf[t0] = f;
+    }
+    for (Py_ssize_t t = 0; t < K; ++t) {
+        v4d yt;
+        FREE_STEP(Z, A, ebuf[t], yt, n);
+        const v4d e = target[t] - yt;
+        ebuf[t] = e;
+        ee += e * e;
     }
     /* 2. the impulse response over K + L samples */
     for (int i = 0; i < n; ++i) Z[i] = zero;
@@ -2172,71 +2316,82 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         if (t < n) wv[t] = yt;
     }
     /* 4. the basis windows S0 = g(0 .. L-1), SK = g(K .. K+L-1), normalised to unit energy */
-    v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN];
-    for (int m = 0; m < n; ++m)
-        for (int l = 0; l < 4; ++l) {
-            const Py_ssize_t p = q + (l < w ? l : 0);
+    v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN], R[FREE_MAXN];
+    int good[4] = {1, 1, 1, 1};
+    for (int l = 0; l < 4; ++l) {
+        const Py_ssize_t p = q + (l < w ? l : 0);
+        if (!J->basis) {
+            good[l] = free_stepdown(J->a + p * n, n, T, sc, l);
+            continue;
+        }
+        for (int m = 0; m < n; ++m) {
             sc[m][l] = 1.0 / sqrt(J->energies[p * n + m]);
             for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
         }
-    /* per sample, the n sums side by side (independent chains) */
+    }
+    /* per sample, g_m = sum_(i <= m) T[m, i] h(. - i) for every m (independent chains, the
+     * h values in registers); SK first, with its squares */
+    v4d tail = zero;
     for (Py_ssize_t tau = 0; tau < L; ++tau) {
-        v4d s0[FREE_MAXN], sk[FREE_MAXN];
-        for (int m = 0; m < n; ++m) s0[m] = sk[m] = zero;
-        for (int i = 0; i < n; ++i) {
-            const v4d h0 = tau - i >= 0 ? hbuf[tau - i] : zero, hk = hbuf[K + tau - i];
-            for (int m = i; m < n; ++m) {
-                s0[m] += T[m * n + i] * h0;
-                sk[m] += T[m * n + i] * hk;
-            }
-        }
+        v4d hv[FREE_MAXN];
+        for (int i = 0; i < n; ++i) hv[i] = hbuf[K + tau - i];
         for (int m = 0; m < n; ++m) {
-            S0[m * L + tau] = s0[m] * sc[m];
-            SK[m * L + tau] = sk[m] * sc[m];
+            v4d acc = zero;
+            for (int i = 0; i <= m; ++i) acc += T[m * n + i] * hv[i];
+            SK[m * L + tau] = acc * sc[m];
+            tail += SK[m * L + tau] * SK[m * L + tau];
         }
     }
-    /* 5. Q^T = (S0 S0^T)^-1 S0 SK^T, the Gram matrix over the record I - Q Q^T */
+    /* 5. Q^T = (S0 S0^T)^-1 S0 SK^T, the Gram matrix over the record I - Q Q^T; where the
+     * basis has decayed below FREE_TAIL by the end of the record in every lane, I */
     v4d M0[FREE_MAXN * FREE_MAXN], QT[FREE_MAXN * FREE_MAXN], G[FREE_MAXN * FREE_MAXN];
-    for (int i = 0; i < n; ++i) {
-        /* row i of S0 S0^T and of SK S0^T, the sums side by side */
-        v4d s[FREE_MAXN], r[FREE_MAXN];
-        for (int j = 0; j < n; ++j) s[j] = r[j] = zero;
-        for (Py_ssize_t tau = 0; tau < L; ++tau) {
-            const v4d v = S0[i * L + tau];
-            for (int j = 0; j <= i; ++j) s[j] += v * S0[j * L + tau];
+    int full = 0;
+    for (Py_ssize_t l = 0; l < w; ++l)
+        if (good[l] && !(tail[l] < FREE_TAIL)) full = 1;
+    for (int i = 0; i < n && !full; ++i)
+        for (int j = 0; j <= i; ++j) G[i * n + j] = i == j ? zero + 1.0 : zero;
+    for (Py_ssize_t tau = 0; tau < L && full; ++tau) {
+        v4d hv[FREE_MAXN];
+        for (int i = 0; i < n; ++i) hv[i] = tau - i >= 0 ? hbuf[tau - i] : zero;
+        for (int m = 0; m < n; ++m) {
+            v4d acc = zero;
+            for (int i = 0; i <= m; ++i) acc += T[m * n + i] * hv[i];
+            S0[m * L + tau] = acc * sc[m];
         }
-        for (Py_ssize_t tau = 0; tau < L; ++tau) {
-            const v4d v = S0[i * L + tau];
-            for (int j = 0; j < n; ++j) r[j] += v * SK[j * L + tau];
-        }
-        for (int j = 0; j <= i; ++j) M0[i * n + j] = s[j];
-        for (int j = 0; j < n; ++j) QT[j * n + i] = r[j]; /* column j of S0 SK^T, as row j */
     }
-    int good[4] = {1, 1, 1, 1};
-    free_cholesky(M0, n, good);
-    for (int j = 0; j < n; ++j) {
-        free_lower_solve(M0, QT + j * n, n);
-        free_upper_solve(M0, QT + j * n, n); /* row j of QT now column j of Q^T */
+    for (int i = 0; i < n && full; ++i) {
+        /* row i of S0 S0^T and of SK S0^T (column j of S0 SK^T, as row j of QT) */
+        free_dots(S0 + i * L, S0, L, i + 1, M0 + i * n, 1);
+        free_dots(S0 + i * L, SK, L, n, QT + i, n);
     }
-    for (int i = 0; i < n; ++i) {
+    if (full) {
+        free_cholesky(M0, R, n, good);
+        free_solve_rows(M0, R, QT, n, n); /* row j of QT now column j of Q^T */
+    }
+    for (int i = 0; i < n && full; ++i) {
         v4d s[FREE_MAXN];
-        for (int j = 0; j <= i; ++j) s[j] = zero;
-        for (int k = 0; k < n; ++k) {
-            const v4d v = QT[i * n + k];
-            for (int j = 0; j <= i; ++j) s[j] += v * QT[j * n + k];
-        }
+        free_dots(QT + i * n, QT, n, i + 1, s, 1);
         for (int j = 0; j <= i; ++j) G[i * n + j] = (i == j ? zero + 1.0 : zero) - s[j];
     }
     /* 6. the right-hand side and the normalised solve */
-    v4d c[FREE_MAXN], Nc[FREE_MAXN];
+    v4d c[FREE_MAXN], Nc[FREE_MAXN], rn[FREE_MAXN];
     for (int m = 0; m < n; ++m) {
         v4d s = zero;
         for (int i = 0; i <= m; ++i) s += T[m * n + i] * wv[i];
-        c[m] = s * sc[m];
+        c[m] = rn[m] = s * sc[m];
     }
-    free_cholesky(G, n, good);
-    free_lower_solve(G, c, n);
-    free_upper_solve(G, c, n);
+    free_cholesky(G, R, n, good);
+    free_lower_solve(G, R, c, n);
+    free_upper_solve(G, R, c, n);
+    /* the sum of squares the fit leaves, |e|^2 - c.r at the solution of the normal equations
+     * (normalised); where it is at least cancel |e|^2 its cancellation is harmless and the
+     * fitted response need not be run (see initial_state_fit) */
+    v4d fit = zero;
+    for (int m = 0; m < n; ++m) fit += c[m] * rn[m];
+    const v4d left = ee - fit;
+    int run = J->errors != NULL;
+    for (Py_ssize_t l = 0; l < w; ++l)
+        if (good[l] && !(left[l] >= J->cancel * ee[l])) run = 1;
     for (int m = 0; m < n; ++m) c[m] *= sc[m];
     for (int i = 0; i < n; ++i) {
         v4d s = zero;
@@ -2245,9 +2400,10 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
     }
     /* 7. the fitted free response removed from e */
     for (int i = 0; i < n; ++i) Z[i] = zero;
-    v4d sse = zero;
+    v4d sse = left;
     double *err = J->errors ? J->errors + q * K : NULL;
-    for (Py_ssize_t t = 0; t < K; ++t) {
+    if (run) sse = zero;
+    for (Py_ssize_t t = 0; t < K && run; ++t) {
         v4d yt;
         FREE_STEP(Z, A, t < n ? Nc[t] : zero, yt, n);
         const v4d e = ebuf[t] - yt;
@@ -2262,13 +2418,14 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
 }
 
 typedef void (*free_quad_fn)(const free_job *, Py_ssize_t, v4d *);
-/* a block is 4 candidates, one 256-bit vector: an AVX-512 build would run the same
- * instructions as the AVX2 one, so AVX-512 machines use the AVX2 build (a third of the
- * compile time of this section saved) */
+/* a block is 4 candidates, one 256-bit vector; the AVX-512 build runs 256-bit vectors too,
+ * but has 32 of them: the state and the a_k of the recursions, and the small algebra's
+ * accumulators, stay in registers */
 #if defined(AR_X86)
 #define FREE_QUAD(n)                                                                          \
     static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
-    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
+    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
+    AR_TGT_V4 static void free_quad_v4_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
 #else
 #define FREE_QUAD(n)                                                                          \
     static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
@@ -2277,14 +2434,10 @@ FREE_QUAD(1) FREE_QUAD(2) FREE_QUAD(3) FREE_QUAD(4) FREE_QUAD(5) FREE_QUAD(6)
 FREE_QUAD(7) FREE_QUAD(8) FREE_QUAD(9) FREE_QUAD(10) FREE_QUAD(11) FREE_QUAD(12)
 FREE_QUAD(13) FREE_QUAD(14) FREE_QUAD(15) FREE_QUAD(16) FREE_QUAD(17) FREE_QUAD(18)
 FREE_QUAD(19) FREE_QUAD(20) FREE_QUAD(21) FREE_QUAD(22) FREE_QUAD(23) FREE_QUAD(24)
-#define FREE_TABLE(p)                                                                         \
-    {                                                                                         \
-        NULL, p##1, p##2, p##3, p##4, p##5, p##6, p##7, p##8, p##9, p##10, p##11, p##12,      \
-            p##13, p##14, p##15, p##16, p##17, p##18, p##19, p##20, p##21, p##22, p##23, p##24 \
-    }
-static const free_quad_fn free_quads_generic[FREE_MAXN + 1] = FREE_TABLE(free_quad_g);
+static const free_quad_fn free_quads_generic[FREE_MAXN + 1] = AR_TABLE24(free_quad_g);
 #if defined(AR_X86)
-static const free_quad_fn free_quads_v3[FREE_MAXN + 1] = FREE_TABLE(free_quad_v3_);
+static const free_quad_fn free_quads_v3[FREE_MAXN + 1] = AR_TABLE24(free_quad_v3_);
+static const free_quad_fn free_quads_v4[FREE_MAXN + 1] = AR_TABLE24(free_quad_v4_);
 #endif
 
 typedef struct {
@@ -2292,16 +2445,36 @@ typedef struct {
     free_quad_fn fn;
 } free_ctx;
 
-/* Block u of a fit; the scratch holds e, h and the two basis windows of one block. */
+/* Scratch of up to this many bytes is kept by each thread between calls (the helper threads
+ * persist): a fresh buffer of some 150 KB (K = 1,500) is mapped and faulted in anew at
+ * every call, as long as the fit of a whole small population.  Larger ones are per call. */
+#define FREE_KEEP (4u << 20)
+static __thread v4d *free_kept = NULL;
+static __thread size_t free_kept_count = 0;
+
+/* Block u of a fit; the scratch holds e, h and the two basis windows of one block (the
+ * thread's kept buffer when it is small enough, else one for this call). */
 static int free_unit(const void *ctx, Py_ssize_t u, void **scratch)
 {
     const free_ctx *c = (const free_ctx *)ctx;
-    if (!*scratch) {
-        const size_t count = (size_t)(2 * c->J.K + c->J.L + 2 * c->J.n * c->J.L);
-        *scratch = aligned_alloc(32, count * sizeof(v4d));
-        if (!*scratch) return -1;
+    const size_t count = (size_t)(2 * c->J.K + c->J.L + 2 * c->J.n * c->J.L);
+    v4d *buf;
+    if (count * sizeof(v4d) <= FREE_KEEP) {
+        if (free_kept_count < count) {
+            free(free_kept);
+            free_kept = (v4d *)aligned_alloc(32, count * sizeof(v4d));
+            free_kept_count = free_kept ? count : 0;
+            if (!free_kept) return -1;
+        }
+        buf = free_kept;
+    } else {
+        if (!*scratch) {
+            *scratch = aligned_alloc(32, count * sizeof(v4d));
+            if (!*scratch) return -1;
+        }
+        buf = (v4d *)*scratch;
     }
-    c->fn(&c->J, 4 * u, (v4d *)*scratch);
+    c->fn(&c->J, 4 * u, buf);
     return 0;
 }
 
@@ -2311,16 +2484,17 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
     Py_buffer bufs[9];
     int have[9] = {0}, n_threads = 1;
     Py_ssize_t window, num_stride = 0;
+    double cancel;
     static const char *names[9] = {"a",         "num",        "reg",     "target", "basis",
                                    "energies",  "errors_out", "sse_out", "coef_out"};
-    if (!PyArg_ParseTuple(args, "OOOOOOnOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
-                          &objs[4], &objs[5], &window, &objs[6], &objs[7], &objs[8],
+    if (!PyArg_ParseTuple(args, "OOOOOOndOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
+                          &objs[4], &objs[5], &window, &cancel, &objs[6], &objs[7], &objs[8],
                           &n_threads))
         return NULL;
     PyObject *result = NULL;
     for (int i = 0; i < 9; ++i) {
         if (objs[i] == Py_None) {
-            if (i == 6) continue;
+            if (i == 4 || i == 5 || i == 6) continue; /* basis and energies: both or neither */
             PyErr_Format(PyExc_TypeError, "free_fit: %s is required", names[i]);
             goto done;
         }
@@ -2339,27 +2513,33 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
     const Py_ssize_t K = bufs[3].ndim == 1 ? bufs[3].shape[0] : 0;
     if (bufs[0].ndim != 2 || n < 1 || n > FREE_MAXN || bufs[1].ndim != 2 ||
         bufs[1].shape[0] != P || nb > 64 || bufs[2].ndim != 2 || bufs[2].shape[0] != K ||
-        bufs[2].shape[1] != nb || K < 1 || bufs[4].ndim != 3 || bufs[4].shape[0] != P ||
-        bufs[4].shape[1] != n || bufs[4].shape[2] != n || bufs[5].ndim != 2 ||
-        bufs[5].shape[0] != P || bufs[5].shape[1] != n || window < n ||
+        bufs[2].shape[1] != nb || K < 1 || have[4] != have[5] ||
+        (have[4] && (bufs[4].ndim != 3 || bufs[4].shape[0] != P || bufs[4].shape[1] != n ||
+                     bufs[4].shape[2] != n || bufs[5].ndim != 2 || bufs[5].shape[0] != P ||
+                     bufs[5].shape[1] != n)) ||
+        window < n ||
         (have[6] && (bufs[6].ndim != 2 || bufs[6].shape[0] != P || bufs[6].shape[1] != K)) ||
         bufs[7].ndim != 1 || bufs[7].shape[0] != P || bufs[8].ndim != 2 ||
         bufs[8].shape[0] != P || bufs[8].shape[1] != n) {
         PyErr_SetString(PyExc_ValueError,
                         "free_fit: a (P, n) with 1 <= n <= 24, num (P, nb) with nb <= 64, reg "
-                        "(K, nb), target (K,), basis (P, n, n), energies (P, n), window >= n, "
+                        "(K, nb), target (K,), basis (P, n, n) and energies (P, n) or both None, "
+                        "window >= n, "
                         "errors_out (P, K) or None, sse_out (P,), coef_out (P, n)");
         goto done;
     }
     free_ctx ctx;
     ctx.J = (free_job){(const double *)bufs[0].buf, (const double *)bufs[1].buf,
                        (const double *)bufs[2].buf, (const double *)bufs[3].buf,
-                       (const double *)bufs[4].buf, (const double *)bufs[5].buf,
+                       have[4] ? (const double *)bufs[4].buf : NULL,
+                       have[5] ? (const double *)bufs[5].buf : NULL,
                        P, n, nb, K, window, num_stride,
                        have[6] ? (double *)bufs[6].buf : NULL, (double *)bufs[7].buf,
-                       (double *)bufs[8].buf};
+                       (double *)bufs[8].buf, cancel};
 #if defined(AR_X86)
-    ctx.fn = ar_simd >= 1 ? free_quads_v3[n] : free_quads_generic[n];
+    ctx.fn = ar_simd == 2   ? free_quads_v4[n]
+             : ar_simd == 1 ? free_quads_v3[n]
+                            : free_quads_generic[n];
 #else
     ctx.fn = free_quads_generic[n];
 #endif

@@ -43,6 +43,7 @@ __all__ = [
     "arx_fit_shifted_reference",
     "arx_recursion",
     "compiled_available",
+    "free_fit_compiled",
     "initial_state_fit",
     "initial_state_fit_reference",
     "schur_cohn_compiled",
@@ -275,6 +276,7 @@ def arx_recursion(
     target: np.ndarray | None = None,
     *,
     want_output: bool = True,
+    first: int = 0,
 ) -> tuple[np.ndarray | None, np.ndarray | None]:
     """:func:`ar_recursion` with the input part ``f(t) = sum_j b_j reg[t, j]`` of each row.
 
@@ -290,8 +292,14 @@ def arx_recursion(
     b : ndarray, shape (P, nb)
     reg : ndarray, shape (K, nb)
         The input regressors of every step, shared by all candidates.
-    state, target, want_output
+    state, want_output
         As for :func:`ar_recursion`.
+    target : ndarray, shape (K - first,), optional
+        When given, the sum over ``t >= first`` of ``(target(t - first) - y(t))^2`` is
+        returned too.
+    first : int
+        The first sample the sums of squares count: a recursion from rest at ``t = 0`` whose
+        first ``first`` samples are a transient that does not count (``0 <= first <= K``).
 
     Returns
     -------
@@ -300,8 +308,15 @@ def arx_recursion(
     """
     reg = np.ascontiguousarray(reg, dtype=float)
     if BACKEND != "c" or b.shape[1] > _ARX_MAXNB:
-        return ar_recursion(a, np.asarray(b, float) @ reg.T, state, target,
-                            want_output=want_output)  # fmt: skip
+        forced = np.asarray(b, float) @ reg.T
+        if not first:
+            return ar_recursion(a, forced, state, target, want_output=want_output)
+        y, _ = ar_recursion(a, forced, state)
+        sse = None
+        if target is not None:
+            e = np.asarray(target, dtype=float) - y[:, first:]
+            sse = np.einsum("ij,ij->i", e, e)
+        return (y if want_output else None), sse
     # the kernel takes rows of contiguous values at any (positive) stride: column blocks of a
     # population array need no copy
     a = _rows(a)
@@ -312,7 +327,7 @@ def arx_recursion(
     sse = np.empty(p) if target is not None else None
     tgt = None if target is None else np.ascontiguousarray(target, dtype=float)
     work = p * k * (a.shape[1] + b.shape[1] + 1)
-    _c.arx_run(a, b, reg, state, tgt, y, sse, _threads_for(work))
+    _c.arx_run(a, b, reg, state, tgt, y, sse, _threads_for(work), int(first))
     return y, sse
 
 
@@ -367,6 +382,14 @@ FREE_WINDOW = 3
 #: Largest order the compiled kernel of :func:`initial_state_fit` takes (the reference path
 #: runs above it).
 FREE_MAXN = 24
+#: Sums of squares only: where the fit of the initial state leaves at least this fraction of
+#: the error from rest's ``|e|^2``, the compiled kernel takes the sum of squares as ``|e|^2 -
+#: c.r`` (the normal equations' identity) instead of running the fitted free response.  The
+#: identity assumes the Gram matrix of the rounded basis, so it is off by the basis's
+#: non-orthogonality times ``|e|^2 - sse``: at one half at most that non-orthogonality
+#: relative to the sum of squares (``tests/route_bounds.py``, ``free_cancel_bound``), where
+#: the explicit sum is second order in it.  Below it the errors are run and summed.
+FREE_CANCEL = 0.5
 
 
 def _basis_window(T: np.ndarray, h: np.ndarray, t0: int, width: int) -> np.ndarray:
@@ -379,6 +402,27 @@ def _basis_window(T: np.ndarray, h: np.ndarray, t0: int, width: int) -> np.ndarr
     hp = np.concatenate([np.zeros((h.shape[0], n)), h[:, : t0 + width]], axis=1)
     idx = n + t0 + np.arange(width)[None, :] - np.arange(n)[:, None]  # [i, tau]: h(t0+tau-i)
     return T @ hp[:, idx]
+
+
+def free_fit_compiled(n: int, nb: int) -> bool:
+    """Whether :func:`initial_state_fit` runs the compiled kernel for these sizes.
+
+    The compiled kernel computes the basis and energies itself when not given; the
+    reference path needs them.
+
+    Parameters
+    ----------
+    n : int
+        Order of the denominators.
+    nb : int
+        Terms of the input part.
+
+    Returns
+    -------
+    bool
+    """
+    return (BACKEND == "c" and hasattr(_c, "free_fit") and 1 <= n <= FREE_MAXN
+            and nb <= _ARX_MAXNB)  # fmt: skip
 
 
 def initial_state_fit_reference(
@@ -465,8 +509,8 @@ def initial_state_fit(
     num: np.ndarray,
     reg: np.ndarray,
     target: np.ndarray,
-    basis: np.ndarray,
-    energies: np.ndarray,
+    basis: np.ndarray | None = None,
+    energies: np.ndarray | None = None,
     *,
     want_errors: bool = True,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
@@ -487,10 +531,17 @@ def initial_state_fit(
       recursion of ``1/den`` over ``e`` (one recursion backwards in time);
     * a Cholesky solve of the normalised system (condition near 1: the basis is nearly
       orthonormal over the record), and the fitted free response removed from ``e`` by one
-      more recursion, so that the sum of squares is that of the errors themselves.
+      more recursion, so that the sum of squares is that of the errors themselves.  With
+      ``want_errors`` False the compiled kernel skips that recursion where the fit leaves at
+      least :data:`FREE_CANCEL` of ``|e|^2``: the sum of squares is then ``|e|^2 - c.r``
+      (``c`` the coefficients, ``r`` the right-hand side), whose cancellation is small.
 
-    Four recursions in all, whatever ``n``, where fitting ``n`` free responses computed one
-    by one takes ``n + 1`` and a Gram matrix of ``n^2 K`` products.
+    Four recursions in all (three for most sums of squares), whatever ``n``, where fitting
+    ``n`` free responses computed one by one takes ``n + 1`` and a Gram matrix of ``n^2 K``
+    products.  Without ``basis`` and ``energies`` the compiled kernel computes them from the
+    step-down of each ``den`` itself (the same operations as
+    :func:`~flexid.costs.polynomial.orthogonal_numerators`, rounded alike on x86-64), and a
+    row whose step-down breaks down gets a NaN sum of squares.
 
     Parameters
     ----------
@@ -501,9 +552,10 @@ def initial_state_fit(
         The input regressors of every sample (shared by all candidates).
     target : ndarray, shape (K,)
         In output units.
-    basis : ndarray, shape (P, n, n)
-    energies : ndarray, shape (P, n)
-        Finite and positive.
+    basis : ndarray, shape (P, n, n), optional
+    energies : ndarray, shape (P, n), optional
+        Finite and positive.  Both None (the default): computed by the compiled kernel from
+        ``a``, which needs :func:`free_fit_compiled` true (the reference path needs them).
     want_errors : bool
         Return the errors too (the ``(P, K)`` array), not only their sums of squares.
 
@@ -519,19 +571,25 @@ def initial_state_fit(
     """
     a = np.ascontiguousarray(a, dtype=float)
     n = a.shape[1]
-    if BACKEND == "c" and hasattr(_c, "free_fit") and 1 <= n <= FREE_MAXN and \
-            num.shape[1] <= _ARX_MAXNB:  # fmt: skip
+    if free_fit_compiled(n, num.shape[1]):
         p, k = a.shape[0], target.shape[0]
         sse = np.empty(p)
         errors = np.empty((p, k)) if want_errors else None
         coef = np.empty((p, n))
         work = p * k * (4 * n + num.shape[1])
+        given = basis is not None and energies is not None
         _c.free_fit(a, _rows(num), np.ascontiguousarray(reg, dtype=float),
                     np.ascontiguousarray(target, dtype=float),
-                    np.ascontiguousarray(basis, dtype=float),
-                    np.ascontiguousarray(energies, dtype=float), FREE_WINDOW * n,
-                    errors, sse, coef, _threads_for(work))  # fmt: skip
+                    np.ascontiguousarray(basis, dtype=float) if given else None,
+                    np.ascontiguousarray(energies, dtype=float) if given else None,
+                    FREE_WINDOW * n, FREE_CANCEL, errors, sse, coef,
+                    _threads_for(work))  # fmt: skip
         return sse, errors, coef
+    if basis is None or energies is None:
+        raise FlexidError(
+            "initial_state_fit: the reference path needs basis and energies "
+            "(flexid.costs.polynomial.orthogonal_numerators and its energies)"
+        )
     return initial_state_fit_reference(
         a, num, reg, target, basis, energies, want_errors=want_errors
     )

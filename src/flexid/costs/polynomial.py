@@ -19,6 +19,14 @@ How a population is evaluated
     least-squares combination of the ``n`` free responses of ``1/den``, which are the shifts
     ``h(t - start + k)``, ``k = 1..n``, of its impulse response ``h`` (one more recursion).
 
+    The sums of squares alone (:meth:`PolynomialCost.sse`, what a cost evaluation needs)
+    take compiled routes without ``(P, K)`` arrays: under ``"zero"`` and ``"measured"`` the
+    predictor is an ARX recursion on the shared regressors (the lags of ``y`` and ``u_j``),
+    run by :func:`flexid.kernels.arx_recursion` with the input part and the squares summed
+    in the kernel (from ``t = start`` only under ``"zero"``); under ``"estimate"`` one pass
+    of :func:`flexid.kernels.initial_state_fit`.  Without the compiled kernels, or with more
+    than 64 regressors, the route above.
+
 Variable projection (:meth:`PolynomialCost.fit_numerator`)
     For fixed ``A, C, D, F`` every predictor is linear in ``B``:
     ``e = z - sum_ji b_ji g_j(t - nk_j - i)`` with ``z = (D A / C) y`` and
@@ -36,10 +44,11 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
+from .. import kernels
 from .._validate import real
 from ..config import CostSpec
 from ..errors import ConfigError, DataError, UnknownNameError
-from ..kernels import ar_recursion, initial_state_fit
+from ..kernels import ar_recursion, arx_recursion, initial_state_fit
 from ..models.polynomial import PolynomialStructure, _check_initial
 from ..stability import is_stable, pole_radius_batched
 from .arx import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
@@ -324,10 +333,12 @@ class PolynomialCost:
         self._ylags = _lags(y, self._deg_y + 1, t0, self.N)
         self._ulags = [_lags(u[:, j], d + 1, t0, self.N) for j, d in enumerate(self._deg_u)]
         self._state = y[s.start - self._deg_den : s.start][::-1].copy()
-        # the regressors of the predictor's numerators, one row per sample (initial state
-        # estimated: the compiled pass forms the input part itself); num_y's leading
-        # coefficient is exactly zero, so its row is left out
-        self._reg = np.ascontiguousarray(np.concatenate([self._ylags[1:], *self._ulags]).T)
+        # the regressors of the predictor's numerators, one row per sample (the compiled
+        # passes form the input part themselves); num_y's leading coefficient and the first
+        # nk_j of num_j are exactly zero, so their rows are left out (see _numerator)
+        self._reg = np.ascontiguousarray(
+            np.concatenate([self._ylags[1:], *(x[nk:] for x, nk in zip(self._ulags, s.nk))]).T
+        )
         self.theta_ls = self._least_squares_start()
         finite = bool(np.isfinite(self.theta_ls).all())
         self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
@@ -416,6 +427,16 @@ class PolynomialCost:
             nums.append(num)
         return den, num_y, nums
 
+    def _numerator(self, num_y: np.ndarray, nums: list[np.ndarray]) -> np.ndarray:
+        """The coefficients (P, nb_total) that multiply the columns of ``_reg``.
+
+        ``num_y[:, 0]`` and the first ``nk_j`` coefficients of ``num_j`` are exactly zero
+        (products of monic polynomials with ``B_j`` delayed by ``nk_j``), so they are left
+        out with their regressors: a zero product added changes no sum.
+        """
+        nk = self.structure.nk
+        return np.concatenate([num_y[:, 1:], *(x[:, k:] for x, k in zip(nums, nk))], axis=1)
+
     def _forced(self, num_y: np.ndarray, nums: list[np.ndarray]) -> np.ndarray:
         forced = num_y @ self._ylags[: num_y.shape[1]]
         for num, lags in zip(nums, self._ulags):
@@ -455,10 +476,20 @@ class PolynomialCost:
         ndarray, shape (P,)
             Over ``t >= start``, in output units squared.
         """
-        if self.initial == "estimate" and self._deg_den:
-            den, num_y, nums = self._predictor(self._parts(X))
+        den, num_y, nums = self._predictor(self._parts(X))
+        n = den.shape[1] - 1
+        if self.initial == "estimate" and n:
             return self._estimated(den, num_y, nums, want_errors=False)[0]
-        return np.einsum("pk,pk->p", *(2 * (self.prediction_errors(X),)))
+        num = self._numerator(num_y, nums)
+        if kernels.BACKEND == "c" and num.shape[1] <= kernels._ARX_MAXNB:
+            # the predictor is an ARX recursion on the shared regressors: the compiled
+            # kernel forms its input part and sums the squares itself (no (P, K) arrays);
+            # from rest the samples before start are run but not counted
+            state = self._state[:n] if self.initial == "measured" else np.zeros(n)
+            return arx_recursion(den[:, 1:], num, self._reg, state, self._target,
+                                 want_output=False, first=self.start - self._t0)[1]  # fmt: skip
+        e = self._errors_from(den, num_y, nums)
+        return np.einsum("pk,pk->p", e, e)
 
     def prediction_errors(self, X: np.ndarray) -> np.ndarray:
         """Prediction errors ``y - yhat`` of admissible candidates.
@@ -474,9 +505,19 @@ class PolynomialCost:
             Over ``t >= start``, in output units, under the cost's initial-condition rule.
         """
         den, num_y, nums = self._predictor(self._parts(X))
-        n = den.shape[1] - 1
-        if self.initial == "estimate" and n:
+        if self.initial == "estimate" and den.shape[1] > 1:
             return self._estimated(den, num_y, nums, want_errors=True)[1]
+        return self._errors_from(den, num_y, nums)
+
+    def _errors_from(
+        self, den: np.ndarray, num_y: np.ndarray, nums: list[np.ndarray]
+    ) -> np.ndarray:
+        """Errors (P, K) of the predictor filters under ``"zero"`` or ``"measured"``.
+
+        The forced terms by one GEMM per numerator, then :func:`flexid.kernels.ar_recursion`
+        (also the rule ``"estimate"`` when ``den`` is 1, which has no initial state).
+        """
+        n = den.shape[1] - 1
         forced = self._forced(num_y, nums)
         if self.initial == "measured":
             yhat, _ = ar_recursion(den[:, 1:], forced, self._state[:n])
@@ -491,15 +532,17 @@ class PolynomialCost:
 
         One pass of :func:`flexid.kernels.initial_state_fit` per population: the error from
         rest, the right-hand side of the free responses' least squares by one anti-causal
-        recursion, their Gram matrix from the step-down energies less the tail after the
-        record, and the error with the fitted free response removed.  Rows whose step-down
-        breaks down in rounding, or whose small solve fails, take the route of
-        :meth:`_estimated_by_recursions`.
+        recursion, their Gram matrix from the step-down energies (the step-down in the
+        compiled kernel) less the tail after the record, and the error with the fitted free
+        response removed.  Rows whose step-down breaks down in rounding, or whose small solve
+        fails, take the route of :meth:`_estimated_by_recursions`.
         """
+        num = self._numerator(num_y, nums)
         n = den.shape[1] - 1
-        basis = orthogonal_numerators(den, n)
-        energies = _energies(den, basis)
-        num = np.concatenate([num_y[:, 1:], *nums], axis=1)  # num_y[:, 0] is exactly zero
+        basis = energies = None  # the compiled kernel runs the step-down itself
+        if not kernels.free_fit_compiled(n, num.shape[1]):
+            basis = orthogonal_numerators(den, n)
+            energies = _energies(den, basis)
         sse, e, _ = initial_state_fit(
             den[:, 1:], num, self._reg, self._target, basis, energies, want_errors=want_errors
         )
