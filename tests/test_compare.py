@@ -148,6 +148,34 @@ def test_workers_give_identical_results():
         assert a == b
 
 
+def _blas_threads(queue) -> None:
+    queue.put({k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+                                              "MKL_NUM_THREADS")})  # fmt: skip
+
+
+def test_worker_processes_run_blas_on_one_thread(monkeypatch):
+    """A worker process is one core, as a dask worker is: its BLAS gets one thread (a BLAS
+    thread per core in every worker oversubscribed the cores), a count the user set is kept,
+    and the parent's own environment is as before."""
+    from multiprocessing import get_context
+
+    from flexid._compare import _worker_environment
+
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    mp = get_context("spawn")
+    queue = mp.Queue()
+    with _worker_environment():
+        child = mp.Process(target=_blas_threads, args=(queue,))
+        child.start()
+    seen = queue.get(timeout=60)
+    child.join(60)
+    assert seen == {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "3"}
+    assert "OMP_NUM_THREADS" not in os.environ and "OPENBLAS_NUM_THREADS" not in os.environ
+    assert os.environ["MKL_NUM_THREADS"] == "3"
+
+
 @pytest.mark.slow
 def test_dask_local_cluster_gives_identical_results():
     distributed = pytest.importorskip("distributed")
