@@ -465,11 +465,9 @@ def _exit_with_parent() -> None:
 
 
 #: The thread counts of NumPy's BLAS (OpenBLAS, MKL, OpenMP) in a worker process, as dask's
-#: worker processes set them: each worker is one of the machine's cores, and a BLAS that
-#: started a thread per core in every worker would run cores-times-workers threads, which
-#: made the gradient references of a suite run 5x slower in two workers than in one process
-#: (measured: the small suite's BJ reference 123 s against 21 s).  A value the user set is
-#: kept.
+#: worker processes set them: each worker is one of the machine's cores, and a BLAS thread
+#: per core in every worker would run cores-times-workers threads that wait on one another
+#: (the gradient references then run several times slower).  A value the user set is kept.
 _WORKER_BLAS_THREADS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                         "MKL_NUM_THREADS": "1"}  # fmt: skip
 
