@@ -224,7 +224,8 @@ def _continuation_error(a, v, h, m, tol_lag):
 
 def normal_equations_error(M: np.ndarray, E: np.ndarray, gamma: np.ndarray, target: np.ndarray,
                            c: np.ndarray, *, a: np.ndarray | None = None,
-                           v: np.ndarray | None = None, h: np.ndarray | None = None) -> float:
+                           v: np.ndarray | None = None, h: np.ndarray | None = None,
+                           n_v: int | None = None) -> float:
     """2-norm bound on ``b - b_exact`` of :func:`flexid.kernels.arx_fit_shifted`.
 
     The regressors are ``F = M E`` and the free response ``M gamma`` (``M`` (K, n) the delayed
@@ -234,7 +235,9 @@ def normal_equations_error(M: np.ndarray, E: np.ndarray, gamma: np.ndarray, targ
     times the same sum of magnitudes (``|E|^T |M|^T |M| |E|``, ...).  Over the whole window
     with delays of ``h`` (``a``, ``v`` and ``h`` given: ``v`` over ``[0, T)``, ``h`` 16
     samples further) the lag sums of ``h`` with delays of ``v`` past it come from ``A h =
-    delta`` instead, within :func:`_continuation_error`.  Cholesky adds a
+    delta`` instead, within :func:`_continuation_error`.  ``n_v`` is the number of delays
+    of ``v`` in ``M`` (default the columns of ``E``; with a fitted initial state ``E`` has
+    ``na`` more, the free response's coefficients).  Cholesky adds a
     backward error of ``gamma_(m+1) | |L| |L^T| |`` (Higham Thm 10.3), at most ``(m + 1) m^2
     eps`` in the 2-norm for the column-scaled matrix ``Gs`` (unit diagonal, ``|L_ij| <= 1``).
     With ``eta = ||Gs^-1||``, the perturbation of a linear system gives ``|dc| <= eta (|dr| +
@@ -249,16 +252,17 @@ def normal_equations_error(M: np.ndarray, E: np.ndarray, gamma: np.ndarray, targ
     absM, absE = np.abs(M), np.abs(E)
     tol = route_tolerance(K + 3 * n)
     dGM = tol * (absM.T @ absM)
-    big_l = n - m
+    mv = m if n_v is None else n_v
+    big_l = n - mv
     if a is not None and big_l:
         na = a.size
         lag = route_tolerance(K) * max(
             float(np.abs(v[d:]) @ np.abs(h[: K - d])) for d in range(na)
         )  # the lag sums of v with delays of h that the continuation starts from
-        cont = _continuation_error(a, v, h, m, lag)
+        cont = _continuation_error(a, v, h, mv, lag)
         for j in range(big_l):  # (h delayed j, v delayed k > j)
-            dGM[m + j, j + 1 : m] += cont
-            dGM[j + 1 : m, m + j] += cont
+            dGM[mv + j, j + 1 : mv] += cont
+            dGM[j + 1 : mv, mv + j] += cont
     dG = absE.T @ dGM @ absE / np.outer(s, s)
     dr = (tol * absE.T @ (absM.T @ np.abs(target)) + absE.T @ (dGM @ np.abs(gamma))) / s
     dG_norm = np.linalg.norm(dG) + (m + 1) * m * m * EPS

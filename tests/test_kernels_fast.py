@@ -553,6 +553,74 @@ def test_arx_fit_shifted_on_lightly_damped_denominators(simd, route):
     check_lag_sum_fit(cost, a, "measured", route)
 
 
+def free_state_bounds(cost, a):
+    """Per row of ``a``: the exact ``b`` (SVD) of the fit with a free initial state at the
+    window's start, and the stated bound of :func:`kernels.arx_fit_shifted` with
+    ``free_state``.
+
+    The reference regressors are the responses from rest at the window's start to each
+    column of ``reg`` and the ``na`` delayed impulse responses, which span every free
+    response (lfilter).  The bound has two parts, as :func:`lag_sum_bounds`: the route's
+    ``M`` (v, h by the kernel's recursion) against lfilter's, within ``ar_route_bound``,
+    mapped by the least-squares perturbation theorem (Higham Thm 20.1); and the normal
+    equations formed by lag sums and solved once (``normal_equations_error``).
+    """
+    na, nb = cost.structure.na, cost.n_params - cost.structure.na
+    reg = cost._phi_u_rows
+    t_len = reg.shape[0]
+    out = []
+    for row in a:
+        M, E0, _ = lag_sum_basis(cost, row, 0, np.ones(na))  # L = max(na, nb - 1)
+        big_l = M.shape[1] - nb
+        E = np.zeros((nb + big_l, nb + na))
+        E[:, :nb] = E0
+        E[nb : nb + na, :nb] = 0.0  # the pre-sample inputs' S^l h, l < na: in the free span
+        E[nb : nb + na, nb:] = np.eye(na)
+        F = M @ E
+        exact = np.linalg.lstsq(F, cost._target, rcond=None)[0]
+        resid = float(np.linalg.norm(cost._target - F @ exact))
+        pair = np.repeat(row[None], 2, 0)
+        inputs = np.vstack([reg[:, 0], np.eye(1, t_len)[0]])  # x and an impulse
+        vh = kernels.ar_recursion_reference(pair, inputs, np.zeros(na))
+        dM = ar_route_bound(pair, inputs, np.zeros(na), vh)
+        dF = np.abs(E[:nb]).sum(0) * dM[0].max() + np.abs(E[nb:]).sum(0) * dM[1].max()
+        sv = np.linalg.svd(F, compute_uv=False)
+        kappa = sv[0] / sv[-1]
+        e = np.linalg.norm(dF) * np.sqrt(t_len) / sv[0]
+        assert kappa * e < 0.5
+        perturbation = kappa * e / (1 - kappa * e) * (
+            2 * np.linalg.norm(exact) + (kappa + 1) * resid / sv[0])  # fmt: skip
+        ext = np.zeros(t_len + 16)
+        ext[0] = 1.0
+        h_ext = signal.lfilter([1.0], np.r_[1.0, row], ext)
+        normal = normal_equations_error(M, E, np.zeros(M.shape[1]), cost._target, exact,
+                                        a=row, v=vh[0], h=h_ext, n_v=nb)  # fmt: skip
+        out.append((exact[:nb], perturbation + normal + lstsq_error(F, exact, resid)))
+    return out
+
+
+@pytest.mark.numerics
+@pytest.mark.parametrize("orders", [(2, 3), (8, 8), (5, 1), (1, 4), (3, 12)])
+@pytest.mark.parametrize("route", ["compiled", "numpy"])
+def test_arx_fit_shifted_with_a_free_initial_state(simd, route, orders):
+    # free_state: b and the initial state at the window's start fitted together (MATLAB's
+    # estimated initial condition), against the exact least-squares solution of the
+    # reference regressors within the stated bound (free_state_bounds)
+    if route == "compiled" and not kernels.compiled_available():
+        pytest.skip("flexid._kernels was not built")
+    cost, a = fitted_numerator_problem(*orders, "measured")
+    args = (a, cost._phi_u_rows, np.zeros(orders[0]), cost._target, 0)
+    if route == "compiled":
+        b, ok, _ = kernels.arx_fit_shifted(*args, free_state=True)
+    else:
+        b, ok = kernels.arx_fit_shifted_reference(*args, free_state=True)
+    assert ok.all() and b.shape == (a.shape[0], orders[1])
+    for i, (exact, bound) in enumerate(free_state_bounds(cost, a)):
+        assert np.linalg.norm(b[i] - exact) <= bound
+    with pytest.raises(FlexidError, match="initial state"):
+        kernels.arx_fit_shifted(*args, free_state=True, want_sse=True)
+
+
 def check_lag_sum_fit(cost, a, initial, route):
     """The fit by lag sums of ``a`` against the exact solution, within the stated bound, and
     against the route of nb + 1 recursions (kernels.arx_fit) within the sum of both bounds."""
@@ -739,3 +807,58 @@ def test_initial_state_fit_computes_the_step_down_itself(simd, n):
     bad[3, -1] = 1.0
     sse = kernels.initial_state_fit(bad, b, reg, target, want_errors=False)[0]
     assert np.isnan(sse[3]) and np.isfinite(np.delete(sse, 3)).all()
+
+
+@pytest.mark.numerics
+@compiled
+def test_output_error_numerator_with_the_estimated_state_by_lag_sums(monkeypatch):
+    # OE under "estimate" (the default): B and the initial state at start fitted by lag sums
+    # in one pass (free_state), within the stated bound of the exact solution, as is the
+    # route of one recursion per coefficient of B and per free response
+    from flexid.costs.polynomial import PolynomialCost
+    from flexid.models.polynomial import PolynomialStructure
+
+    nf, nb = 8, 8
+    arx_cost, f = fitted_numerator_problem(nf, nb, "measured")
+    oe = PolynomialStructure.oe(nb, nf, 1)
+    cost = PolynomialCost(oe, (arx_cost.u, arx_cost.y), metric="sse", initial="estimate")
+    X = np.zeros((len(f), oe.n_params))
+    X[:, oe.slices()["f"][0]] = f
+    fitted, theta = cost.fitted_costs(X)
+    np.testing.assert_array_equal(fitted, cost(theta))  # the cost of the model returned
+    got = theta[:, oe.b_columns]
+    monkeypatch.setattr(kernels, "BACKEND", "numpy")
+    by_recursions = cost.fit_numerator(X)[:, oe.b_columns]
+    for i, (exact, bound) in enumerate(free_state_bounds(arx_cost, f)):
+        assert np.linalg.norm(got[i] - exact) <= bound
+        assert np.linalg.norm(by_recursions[i] - exact) <= bound
+
+
+@pytest.mark.numerics
+@compiled
+@pytest.mark.parametrize("initial", ["measured", "zero"])
+def test_output_error_numerator_is_arx_simulation_numerator(monkeypatch, initial):
+    # OE(nb, nf, 1) under "zero" or "measured" predicts B/F u, ARX(nf, nb, 1)'s simulation
+    # with A = F: its fitted B takes the same kernel on the same regressors, target, window
+    # and initial state, so the same bits; and that fit is within the stated bound of the
+    # exact least-squares solution (lag_sum_bounds); the route of one recursion per
+    # coefficient, which the other structures (and the NumPy kernels) take, is within that of
+    # its own kind
+    from flexid.costs.polynomial import PolynomialCost
+    from flexid.models.polynomial import PolynomialStructure
+
+    nf, nb = 8, 8
+    arx_cost, f = fitted_numerator_problem(nf, nb, initial)
+    oe = PolynomialStructure.oe(nb, nf, 1)
+    assert oe.start == arx_cost.structure.start
+    cost = PolynomialCost(oe, (arx_cost.u, arx_cost.y), metric="sse", initial=initial)
+    X = np.zeros((len(f), oe.n_params))
+    X[:, oe.slices()["f"][0]] = f
+    got = cost.fit_numerator(X)[:, oe.b_columns]
+    np.testing.assert_array_equal(got, arx_cost.fit_numerator(f)[:, nf:])
+    monkeypatch.setattr(kernels, "BACKEND", "numpy")
+    by_recursions = cost.fit_numerator(X)[:, oe.b_columns]
+    for i, (exact, bound, bound_recursions) in enumerate(lag_sum_bounds(arx_cost, f, initial)):
+        assert np.linalg.norm(got[i] - exact) <= bound
+        # recursions of the same rounding, then a refined least-squares solve: arx_fit's bound
+        assert np.linalg.norm(by_recursions[i] - exact) <= bound_recursions

@@ -1542,7 +1542,10 @@ done:
  * that of the normal equations, kappa(F)^2 times the rounding of the sums; a row is flagged
  * (ok = 0) where the bound kappa(Gs) T eps that bounds it exceeds tol, or the factorisation
  * breaks down), and when sse is given the plain recursion of ar_run runs at the solution
- * (AR_BLOCK_IMPL itself, so the sums of squares are those of arx_run for the same b). */
+ * (AR_BLOCK_IMPL itself, so the sums of squares are those of arx_run for the same b).
+ * With free_state the initial state is not given but fitted with b (MATLAB's estimated
+ * initial condition): the coefficients c_l of S^l h, l < na, are unknowns beside b, which
+ * makes the system m + na, and state0 is not used. */
 #define VP_PAD 32                          /* zeros stored before each signal */
 #define VP_TAIL 16                         /* samples of h run past T (>= nb - 1) */
 #define VP_MAXB (FIT_MAXNB + AR_MAXNA)      /* basis size m + L */
@@ -1561,6 +1564,7 @@ struct vp_ctx {
     unsigned char *ok;
     double *sse; /* (P,) or NULL */
     double tol;
+    Py_ssize_t nfree; /* 0, or na: the free response's coefficients are unknowns too */
     vp_rec_fn rec;
     vp_solve_fn solve;
 };
@@ -1738,16 +1742,20 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
             }
         }
     }
-    /* F = M E: E = identity on the v part, E[m + l][j] = x(-(j - l)) for l < j */
+    /* Unknowns: b, then (nfree > 0) the coefficients of S^l h, l < na, which span the free
+     * responses from any initial state; the pre-sample inputs' S^l h with l < na are then in
+     * that span, so E keeps only those with l >= nfree. */
+    const Py_ssize_t nfree = c->nfree, nn = m + nfree;
+    /* F = M E: E = identity on the v part, E[m + l][j] = x(-(j - l)) for nfree <= l < j */
     for (Py_ssize_t b = 0; b < n; ++b)
         for (Py_ssize_t k = 0; k < m; ++k) {
             v4d s = GM[b][k];
-            for (Py_ssize_t l = 0; l < k && L; ++l) s += GM[b][m + l] * pre[k - l];
+            for (Py_ssize_t l = nfree; l < k && L; ++l) s += GM[b][m + l] * pre[k - l];
             GE[b][k] = s;
         }
     /* free response coefficients c_l (per lane) and u = M^T target - G_M c */
     v4d cl[AR_MAXNA], u[VP_MAXB];
-    for (Py_ssize_t l = 0; l < na && L; ++l) {
+    for (Py_ssize_t l = 0; l < na && L && !nfree; ++l) {
         v4d s = zero;
         for (Py_ssize_t i = l + 1; i <= na; ++i) {
             v4d ai = zero;
@@ -1759,39 +1767,44 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
     }
     for (Py_ssize_t b = 0; b < n; ++b) {
         v4d s = b < m ? Rtv[b] : Rth[b - m];
-        for (Py_ssize_t l = 0; l < na && L; ++l) s -= GM[b][m + l] * cl[l];
+        for (Py_ssize_t l = 0; l < na && L && !nfree; ++l) s -= GM[b][m + l] * cl[l];
         u[b] = s;
     }
-    v4d G[FIT_MAXNB][FIT_MAXNB], rhs[FIT_MAXNB], sc[FIT_MAXNB], cf[FIT_MAXNB];
+    v4d G[VP_MAXB][VP_MAXB], rhs[VP_MAXB], sc[VP_MAXB], cf[VP_MAXB];
     for (Py_ssize_t j = 0; j < m; ++j) {
         v4d r = u[j];
-        for (Py_ssize_t l = 0; l < j && L; ++l) r += u[m + l] * pre[j - l];
+        for (Py_ssize_t l = nfree; l < j && L; ++l) r += u[m + l] * pre[j - l];
         rhs[j] = r;
         for (Py_ssize_t k = j; k < m; ++k) {
             v4d s = GE[j][k];
-            for (Py_ssize_t l = 0; l < j && L; ++l) s += GE[m + l][k] * pre[j - l];
+            for (Py_ssize_t l = nfree; l < j && L; ++l) s += GE[m + l][k] * pre[j - l];
             G[j][k] = s;
         }
     }
-    for (Py_ssize_t i = 0; i < m; ++i)
+    for (Py_ssize_t i = 0; i < nfree; ++i) { /* rows of the free coefficients: (E^T G_M)[m + i] */
+        rhs[m + i] = u[m + i];
+        for (Py_ssize_t k = 0; k < m; ++k) G[k][m + i] = GE[m + i][k];
+        for (Py_ssize_t k = i; k < nfree; ++k) G[m + i][m + k] = GM[m + i][m + k];
+    }
+    for (Py_ssize_t i = 0; i < nn; ++i)
         for (int l = 0; l < 4; ++l) {
             const double d = G[i][i][l] > 0 ? sqrt(G[i][i][l]) : 0.0;
             sc[i][l] = d > 0 ? d : 1.0;
         }
-    for (Py_ssize_t i = 0; i < m; ++i) {
+    for (Py_ssize_t i = 0; i < nn; ++i) {
         rhs[i] /= sc[i];
-        for (Py_ssize_t j = i; j < m; ++j) G[i][j] /= sc[i] * sc[j];
+        for (Py_ssize_t j = i; j < nn; ++j) G[i][j] /= sc[i] * sc[j];
     }
     /* Cholesky in every lane at once (a lane whose pivot is not positive is marked and goes
      * on with 1); kappa(Gs) <= ||Gs||_F ||L^-1||_F^2 */
-    v4d Lc[FIT_MAXNB][FIT_MAXNB], gf = zero, inv2 = zero;
+    v4d Lc[VP_MAXB][VP_MAXB], gf = zero, inv2 = zero;
     int bad[4] = {0, 0, 0, 0};
-    for (Py_ssize_t i = 0; i < m; ++i)
+    for (Py_ssize_t i = 0; i < nn; ++i)
         for (Py_ssize_t j = 0; j <= i; ++j) {
             Lc[i][j] = G[j][i];
             gf += (i == j ? 1.0 : 2.0) * Lc[i][j] * Lc[i][j];
         }
-    for (Py_ssize_t j = 0; j < m; ++j) {
+    for (Py_ssize_t j = 0; j < nn; ++j) {
         v4d d = Lc[j][j];
         for (Py_ssize_t k = 0; k < j; ++k) d -= Lc[j][k] * Lc[j][k];
         for (int l = 0; l < 4; ++l) {
@@ -1803,25 +1816,25 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
             }
         }
         Lc[j][j] = d;
-        for (Py_ssize_t i = j + 1; i < m; ++i) {
+        for (Py_ssize_t i = j + 1; i < nn; ++i) {
             v4d t = Lc[i][j];
             for (Py_ssize_t k = 0; k < j; ++k) t -= Lc[i][k] * Lc[j][k];
             Lc[i][j] = t / d;
         }
     }
-    for (Py_ssize_t i = 0; i < m; ++i) {
+    for (Py_ssize_t i = 0; i < nn; ++i) {
         v4d t = rhs[i];
         for (Py_ssize_t k = 0; k < i; ++k) t -= Lc[i][k] * cf[k];
         cf[i] = t / Lc[i][i];
     }
-    for (Py_ssize_t i = m - 1; i >= 0; --i) {
+    for (Py_ssize_t i = nn - 1; i >= 0; --i) {
         v4d t = cf[i];
-        for (Py_ssize_t k = i + 1; k < m; ++k) t -= Lc[k][i] * cf[k];
+        for (Py_ssize_t k = i + 1; k < nn; ++k) t -= Lc[k][i] * cf[k];
         cf[i] = t / Lc[i][i];
     }
-    for (Py_ssize_t col = 0; col < m; ++col) { /* ||L^-1||_F^2, column by column */
-        v4d zc[FIT_MAXNB];
-        for (Py_ssize_t i = col; i < m; ++i) {
+    for (Py_ssize_t col = 0; col < nn; ++col) { /* ||L^-1||_F^2, column by column */
+        v4d zc[VP_MAXB];
+        for (Py_ssize_t i = col; i < nn; ++i) {
             v4d t = zero + (i == col ? 1.0 : 0.0);
             for (Py_ssize_t k = col; k < i; ++k) t -= Lc[i][k] * zc[k];
             zc[i] = t / Lc[i][i];
@@ -1938,11 +1951,12 @@ static PyObject *py_arx_fit_shifted(PyObject *self, PyObject *args)
 {
     PyObject *objs[7];
     Py_buffer bufs[7];
-    int have[7] = {0}, n_threads = 1;
+    int have[7] = {0}, n_threads = 1, free_state = 0;
     Py_ssize_t offset, L;
     double tol;
-    if (!PyArg_ParseTuple(args, "OOOOnndOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
-                          &offset, &L, &tol, &objs[4], &objs[5], &objs[6], &n_threads))
+    if (!PyArg_ParseTuple(args, "OOOOnndOOO|ii", &objs[0], &objs[1], &objs[2], &objs[3],
+                          &offset, &L, &tol, &objs[4], &objs[5], &objs[6], &n_threads,
+                          &free_state))
         return NULL;
     static const char *names[7] = {"a", "reg", "state0", "target", "b_out", "ok_out", "sse_out"};
     PyObject *result = NULL;
@@ -1966,18 +1980,20 @@ static PyObject *py_arx_fit_shifted(PyObject *self, PyObject *args)
     if (na < 1 || na > AR_MAXNA || nb < 1 || nb > FIT_MAXNB || bufs[2].shape[0] != na ||
         offset < 0 || K != T - offset || K < 1 || bufs[4].shape[0] != P ||
         bufs[4].shape[1] != nb || bufs[5].shape[0] != P || (L != 0 && L != Lmin) ||
-        (have[6] && (bufs[6].shape[0] != P || offset != 0))) {
+        (have[6] && (bufs[6].shape[0] != P || offset != 0)) ||
+        (free_state && (L != Lmin || have[6]))) {
         PyErr_SetString(PyExc_ValueError,
                         "arx_fit_shifted: a (P, na) with 1 <= na <= 16, reg (T, nb) with 1 <= "
-                        "nb <= 16, state0 (na,), target (T - offset,), L 0 or max(na, nb - 1), "
-                        "b_out (P, nb), ok_out (P,), sse_out (P,) with offset 0, or None");
+                        "nb <= 16, state0 (na,), target (T - offset,), L 0 or max(na, nb - 1) "
+                        "(the latter with free_state), b_out (P, nb), ok_out (P,), sse_out "
+                        "(P,) with offset 0 and without free_state, or None");
         goto done;
     }
     vp_ctx ctx = {(const double *)bufs[0].buf, a_stride, P, na, nb, L,
                   (const double *)bufs[1].buf, T, (const double *)bufs[2].buf,
                   (const double *)bufs[3].buf, offset, (double *)bufs[4].buf,
                   (unsigned char *)bufs[5].buf, have[6] ? (double *)bufs[6].buf : NULL, tol,
-                  vp_recs_generic[na], vp_solve_g};
+                  free_state ? na : 0, vp_recs_generic[na], vp_solve_g};
 #if defined(AR_X86)
     if (ar_simd == 2) ctx.rec = vp_recs_v4[na], ctx.solve = vp_solve_v4;
     if (ar_simd == 1) ctx.rec = vp_recs_v3[na], ctx.solve = vp_solve_v3;
@@ -2040,7 +2056,7 @@ static PyMethodDef methods[] = {
      "numerators of the simulation cost for denominators a (see the module)."},
     {"arx_fit_shifted", py_arx_fit_shifted, METH_VARARGS,
      "arx_fit_shifted(a, reg, state0, target, offset, L, tol, b_out, ok_out, sse_out"
-     "[, threads]): arx_fit for regressor columns that are delays of one signal, from two "
+     "[, threads[, free_state]]): arx_fit for regressor columns that are delays of one signal, from two "
      "recursions and lag sums (see the module)."},
 #endif
 #if defined(__GNUC__)

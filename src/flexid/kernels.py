@@ -622,7 +622,12 @@ def _boundary_size(reg: np.ndarray, state0: np.ndarray, na: int) -> int:
 
 
 def arx_fit_shifted_reference(
-    a: np.ndarray, reg: np.ndarray, state0: np.ndarray, target: np.ndarray, offset: int
+    a: np.ndarray,
+    reg: np.ndarray,
+    state0: np.ndarray,
+    target: np.ndarray,
+    offset: int,
+    free_state: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Reference path of :func:`arx_fit_shifted`: ``lfilter`` and NumPy sums of products.
 
@@ -639,6 +644,8 @@ def arx_fit_shifted_reference(
         ``[y(-1), ..., y(-na)]`` of the free response.
     target : ndarray, shape (T - offset,)
     offset : int
+    free_state : bool
+        Fit the initial state with ``b`` (``state0`` unused), as :func:`arx_fit_shifted`.
 
     Returns
     -------
@@ -653,7 +660,8 @@ def arx_fit_shifted_reference(
     target = np.asarray(target, dtype=float)
     p, na = a.shape
     t_len, m = reg.shape
-    big_l = _boundary_size(reg, state0, na)
+    big_l = max(na, m - 1) if free_state else _boundary_size(reg, state0, na)
+    nfree = na if free_state else 0
     n = m + big_l
     pad = n + 1
     x = reg[:, 0]
@@ -679,13 +687,17 @@ def arx_fit_shifted_reference(
                 "pt,pt->p", seg(k1, offset - j1, t_len - j1), seg(k2, offset - j2, t_len - j2)
             )
     mt = np.stack([seg(k, offset - j, t_len - j) @ target for k, j in kinds], axis=1)
-    e = np.zeros((n, m))
+    # unknowns: b, then with free_state the coefficients of S^l h (l < na), which span every
+    # free response, so the pre-sample inputs' S^l h with l < na drop out of the b columns
+    e = np.zeros((n, m + nfree))
     e[:m, :m] = np.eye(m)
     for j in range(m):
-        for l_ in range(min(j, big_l)):
+        for l_ in range(nfree, min(j, big_l)):
             e[m + l_, j] = pre[j - l_]
+    for l_ in range(nfree):
+        e[m + l_, m + l_] = 1.0
     gam = np.zeros((p, n))
-    if big_l:
+    if big_l and not free_state:
         for l_ in range(na):
             gam[:, m + l_] = -np.einsum("pi,i->p", a[:, l_:], state0[: na - l_])
     gram = np.einsum("bj,pbc,ck->pjk", e, gm, e)
@@ -703,7 +715,7 @@ def arx_fit_shifted_reference(
         inv = np.linalg.inv(chol)
         kappa = np.linalg.norm(gs[i]) * float((inv * inv).sum())
         c = np.linalg.solve(chol.T, np.linalg.solve(chol, rhs[i] / scale[i]))
-        b[i] = c / scale[i]
+        b[i] = (c / scale[i])[:m]
         ok[i] = kappa * t_len * np.finfo(float).eps <= FIT_SHIFTED_TOL and np.isfinite(b[i]).all()
     b[~ok] = 0.0
     return b, ok
@@ -717,6 +729,7 @@ def arx_fit_shifted(
     offset: int,
     *,
     want_sse: bool = False,
+    free_state: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """:func:`arx_fit` for regressor columns that are delays of one signal, by lag sums.
 
@@ -750,6 +763,11 @@ def arx_fit_shifted(
         Also return the sum of squared errors of the simulation from ``state0`` at the fitted
         ``b`` (compiled kernels and ``offset`` 0 only): the recursion of :func:`arx_recursion`
         itself, so exactly the sums it returns for the same rows.
+    free_state : bool
+        Fit the initial state too (MATLAB's estimated initial condition; ``state0`` is not
+        used): the coefficients of ``S^l h``, ``l < na``, which span every free response,
+        are unknowns beside ``b``, and ``b`` is that of the joint least-squares problem.
+        Not with ``want_sse``.
 
     Returns
     -------
@@ -765,19 +783,21 @@ def arx_fit_shifted(
     target = np.ascontiguousarray(target, dtype=float)
     a = np.atleast_2d(np.asarray(a, dtype=float))
     na, nb = a.shape[1], reg.shape[1]
+    if want_sse and free_state:
+        raise FlexidError("arx_fit_shifted: no sums of squares with a fitted initial state")
     if BACKEND != "c" or not (1 <= na <= 16 and 1 <= nb <= 16):
         if want_sse:
             raise FlexidError("arx_fit_shifted: the sums of squares need the compiled kernels")
-        b, ok = arx_fit_shifted_reference(a, reg, state0, target, offset)
+        b, ok = arx_fit_shifted_reference(a, reg, state0, target, offset, free_state)
         return b, ok, None
     a = _rows(a)
     p = a.shape[0]
-    big_l = _boundary_size(reg, state0, na)
+    big_l = max(na, nb - 1) if free_state else _boundary_size(reg, state0, na)
     b = np.empty((p, nb))
     ok = np.empty(p, dtype=np.uint8)
     sse = np.empty(p) if want_sse else None
     work = p * reg.shape[0] * (2 * na + 3 * (nb + big_l) + (na + nb + 1 if want_sse else 0))
     # (an upper bound of the multiply-adds: what the thread count needs)
     _c.arx_fit_shifted(a, reg, state0, target, int(offset), big_l, FIT_SHIFTED_TOL, b, ok, sse,
-                       _threads_for(work))  # fmt: skip
+                       _threads_for(work), int(free_state))  # fmt: skip
     return b, ok.view(bool), sse

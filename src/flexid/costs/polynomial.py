@@ -72,6 +72,8 @@ def poly_mul_rows(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """
     if q.shape[1] > p.shape[1]:
         p, q = q, p
+    if q.shape[1] == 1:  # a constant factor (often the 1 of an absent A, C, D or F)
+        return p * q
     out = np.zeros((p.shape[0], p.shape[1] + q.shape[1] - 1))
     for i in range(q.shape[1]):  # over the shorter polynomial's coefficients, not candidates
         out[:, i : i + p.shape[1]] += q[:, i : i + 1] * p
@@ -222,7 +224,10 @@ def _energies(den: np.ndarray, basis: np.ndarray) -> np.ndarray:
 
 
 def _monic(x: np.ndarray) -> np.ndarray:
-    return np.hstack([np.ones((x.shape[0], 1)), x])
+    out = np.empty((x.shape[0], x.shape[1] + 1))
+    out[:, 0] = 1.0
+    out[:, 1:] = x
+    return out
 
 
 def _lags(x: np.ndarray, n_lags: int, t0: int, n: int) -> np.ndarray:
@@ -339,6 +344,14 @@ class PolynomialCost:
         self._reg = np.ascontiguousarray(
             np.concatenate([self._ylags[1:], *(x[nk:] for x, nk in zip(self._ulags, s.nk))]).T
         )
+        # one input whose predictor is B / (A F) u (the simulation, or output error): the
+        # numerator's regressors are delays of one signal, fitted by lag sums
+        # (kernels.arx_fit_shifted)
+        self._lag_sum_fit = (
+            s.n_inputs == 1
+            and not (one_step and self._deg_y) and 1 <= self._deg_den <= 16
+            and 1 <= s.nb[0] <= 16 and kernels.shifted_columns(self._reg)
+        )  # fmt: skip
         self.theta_ls = self._least_squares_start()
         finite = bool(np.isfinite(self.theta_ls).all())
         self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
@@ -380,8 +393,11 @@ class PolynomialCost:
         """
         cost = np.full(X.shape[0], np.inf)
         finite = np.isfinite(X).all(axis=1)
-        ok = finite.copy()
-        ok[finite] = self._admissible(X[finite])
+        if finite.all():  # the common case: no copy of the rows
+            ok = self._admissible(X)
+        else:
+            ok = finite.copy()
+            ok[finite] = self._admissible(X[finite])
         bad = finite & ~ok
         if bad.any():
             cost[bad] = self._penalised(X[bad])
@@ -459,6 +475,8 @@ class PolynomialCost:
         """
         X = population(X, self.n_params)
         out, ok = self._screen(X)
+        if ok.all():
+            return self._from_sse(self.sse(X))
         if ok.any():
             out[ok] = self._from_sse(self.sse(X[ok]))
         return out
@@ -630,6 +648,42 @@ class PolynomialCost:
 
     def _fitted_b(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Best ``B`` (P, sum nb) of admissible rows and the SSE it leaves (P,)."""
+        if self._lag_sum_fit and kernels.BACKEND == "c":
+            return self._fitted_b_lag_sums(X)
+        return self._fitted_b_recursions(X)
+
+    def _fitted_b_lag_sums(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_fitted_b` by :func:`flexid.kernels.arx_fit_shifted` (one input, no C, D).
+
+        The predictor is ``B / den u(t - nk)`` with ``den = A F``, ARX's simulation with
+        ``A = den``: the kernel's one pass of lag sums and normal equations.  Under
+        ``"estimate"`` the kernel fits the initial state at ``start`` with ``B``: the free
+        responses from it span those from ``t = 0`` and the part of every regressor that the
+        inputs before ``start`` drive, so its ``B`` is that of the rule's own problem.  Rows
+        it flags (the bound on the normal equations' error above its tolerance) take the
+        recursions.
+        """
+        den = self._predictor(self._parts(X))[0]
+        n = den.shape[1] - 1
+        if self.initial == "measured":
+            b, ok, sse = kernels.arx_fit_shifted(den[:, 1:], self._reg, self._state[:n],
+                                                 self._target, 0, want_sse=True)  # fmt: skip
+        else:  # from rest at t = 0, or the state at start fitted; errors counted from start
+            free = self.initial == "estimate"
+            b, ok, _ = kernels.arx_fit_shifted(den[:, 1:], self._reg, np.zeros(n), self._target,
+                                               0 if free else self.start,
+                                               free_state=free)  # fmt: skip
+            sse = np.empty(X.shape[0])
+            if ok.any():
+                theta = X[ok]
+                theta[:, self.structure.b_columns] = b[ok]
+                sse[ok] = self.sse(theta)
+        if not ok.all():
+            b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
+        return b, sse
+
+    def _fitted_b_recursions(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_fitted_b` by one recursion per coefficient of ``B``, any structure."""
         if self.initial == "measured":
             return self._fitted_b_measured(X)
         p = self._parts(X)
