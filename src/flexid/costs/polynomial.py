@@ -31,9 +31,15 @@ Variable projection (:meth:`PolynomialCost.fit_numerator`)
     For fixed ``A, C, D, F`` every predictor is linear in ``B``:
     ``e = z - sum_ji b_ji g_j(t - nk_j - i)`` with ``z = (D A / C) y`` and
     ``g_j = (D / (C F_j)) u_j`` (one-step), or ``z = y``, ``g_j = (1 / (A F_j)) u_j``
-    (simulation).  From rest each regressor is a shift of one filtered signal, so ``B``
-    costs ``1 + n_inputs`` recursions and a small least-squares solve per candidate (plus the
-    ``n`` free responses under ``"estimate"``, fitted jointly).
+    (simulation).  With one input and no ``C`` or ``D`` (OE, and the simulation predictor)
+    the regressors are delays of one signal filtered by ``1/(A F)``, ARX's simulation with
+    ``A F`` for ``A``: :func:`flexid.kernels.arx_fit_shifted` fits ``B`` by lag sums in one
+    pass under every rule (with ``"estimate"`` the ``n`` free responses from ``start`` are
+    unknowns beside ``B``; they also span the part of each regressor that the inputs before
+    ``start`` drive).  Otherwise, and for the rows that kernel flags, each regressor is
+    the response to one orthogonal numerator (one recursion per coefficient of ``B``, plus
+    the ``n`` free responses under ``"estimate"``) and a small least-squares solve per
+    candidate.
 """
 
 from __future__ import annotations
