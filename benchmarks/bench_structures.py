@@ -111,7 +111,8 @@ def main() -> None:
     times = interleaved_medians(timed, rounds=7, budget=0.05)
     rows = []
     for name in fns:
-        base = "ARX(16,16,1) simulation, measured" + (", b fitted" if name.endswith("fitted") else "")
+        fitted = ", b fitted" if name.endswith("fitted") else ""
+        base = "ARX(16,16,1) simulation, measured" + fitted
         cells = [
             f"{times[name, n] / P * 1e6:7.1f} us {times[name, n] / times[base, n]:5.2f}x"
             for n in counts
