@@ -818,6 +818,7 @@ def test_output_error_numerator_with_the_estimated_state_by_lag_sums(monkeypatch
     from flexid.costs.polynomial import PolynomialCost
     from flexid.models.polynomial import PolynomialStructure
 
+    monkeypatch.setattr(kernels, "BACKEND", "c")  # also under FLEXID_KERNELS=numpy
     nf, nb = 8, 8
     arx_cost, f = fitted_numerator_problem(nf, nb, "measured")
     oe = PolynomialStructure.oe(nb, nf, 1)
@@ -847,6 +848,7 @@ def test_output_error_numerator_is_arx_simulation_numerator(monkeypatch, initial
     from flexid.costs.polynomial import PolynomialCost
     from flexid.models.polynomial import PolynomialStructure
 
+    monkeypatch.setattr(kernels, "BACKEND", "c")  # also under FLEXID_KERNELS=numpy
     nf, nb = 8, 8
     arx_cost, f = fitted_numerator_problem(nf, nb, initial)
     oe = PolynomialStructure.oe(nb, nf, 1)
