@@ -553,50 +553,71 @@ def test_arx_fit_shifted_on_lightly_damped_denominators(simd, route):
     check_lag_sum_fit(cost, a, "measured", route)
 
 
-def free_state_bounds(cost, a):
-    """Per row of ``a``: the exact ``b`` (SVD) of the fit with a free initial state at the
-    window's start, and the stated bound of :func:`kernels.arx_fit_shifted` with
-    ``free_state``.
+def shifted_fit_bound(row, reg, target, offset, free, d=None):
+    """The exact ``b`` (SVD) of :func:`kernels.arx_fit_shifted`'s problem for one
+    denominator ``row``, and the stated bound on the kernel's ``b``.
 
-    The reference regressors are the responses from rest at the window's start to each
-    column of ``reg`` and the ``na`` delayed impulse responses, which span every free
-    response (lfilter).  The bound has two parts, as :func:`lag_sum_bounds`: the route's
-    ``M`` (v, h by the kernel's recursion) against lfilter's, within ``ar_route_bound``,
-    mapped by the least-squares perturbation theorem (Higham Thm 20.1); and the normal
-    equations formed by lag sums and solved once (``normal_equations_error``).
+    The reference regressors: ``v``, the response from rest at the window's start to the
+    signal (``reg[:, 0]``, or ``D`` applied to it with the samples before 0 from ``reg[0]``),
+    delayed, and the delayed impulse responses ``h`` that carry the pre-sample inputs and,
+    with ``free``, span every free response (lfilter).  The bound has two parts, as
+    :func:`lag_sum_bounds`: the route's ``v`` and ``h`` (the kernel's recursion) against
+    lfilter's, within ``ar_route_bound``, mapped by the least-squares perturbation theorem
+    (Higham Thm 20.1); and the normal equations formed by lag sums and solved once
+    (``normal_equations_error``).  Only the cases the kernel serves with ``d``: no
+    pre-sample input from rest, or ``free`` with ``nb - 1 <= na``.
     """
-    na, nb = cost.structure.na, cost.n_params - cost.structure.na
-    reg = cost._phi_u_rows
-    t_len = reg.shape[0]
-    out = []
-    for row in a:
-        M, E0, _ = lag_sum_basis(cost, row, 0, np.ones(na))  # L = max(na, nb - 1)
-        big_l = M.shape[1] - nb
-        E = np.zeros((nb + big_l, nb + na))
-        E[:, :nb] = E0
-        E[nb : nb + na, :nb] = 0.0  # the pre-sample inputs' S^l h, l < na: in the free span
-        E[nb : nb + na, nb:] = np.eye(na)
-        F = M @ E
-        exact = np.linalg.lstsq(F, cost._target, rcond=None)[0]
-        resid = float(np.linalg.norm(cost._target - F @ exact))
-        pair = np.repeat(row[None], 2, 0)
-        inputs = np.vstack([reg[:, 0], np.eye(1, t_len)[0]])  # x and an impulse
-        vh = kernels.ar_recursion_reference(pair, inputs, np.zeros(na))
-        dM = ar_route_bound(pair, inputs, np.zeros(na), vh)
-        dF = np.abs(E[:nb]).sum(0) * dM[0].max() + np.abs(E[nb:]).sum(0) * dM[1].max()
-        sv = np.linalg.svd(F, compute_uv=False)
-        kappa = sv[0] / sv[-1]
-        e = np.linalg.norm(dF) * np.sqrt(t_len) / sv[0]
-        assert kappa * e < 0.5
-        perturbation = kappa * e / (1 - kappa * e) * (
-            2 * np.linalg.norm(exact) + (kappa + 1) * resid / sv[0])  # fmt: skip
-        ext = np.zeros(t_len + 16)
-        ext[0] = 1.0
-        h_ext = signal.lfilter([1.0], np.r_[1.0, row], ext)
-        normal = normal_equations_error(M, E, np.zeros(M.shape[1]), cost._target, exact,
-                                        a=row, v=vh[0], h=h_ext, n_v=nb)  # fmt: skip
-        out.append((exact[:nb], perturbation + normal + lstsq_error(F, exact, resid)))
-    return out
+    na, (t_len, nb) = row.size, reg.shape
+    pre = reg[0]
+    assert free or not pre[1:].any()
+    big_l = max(na, nb - 1) if free else 0
+    nfree = na if free else 0
+    x = reg[:, 0]
+    if d is not None:
+        assert nb - 1 <= nfree or not pre[1:].any()
+        x = np.convolve(np.r_[pre[:0:-1], x], d)[nb - 1 : nb - 1 + t_len]
+    den = np.r_[1.0, row]
+    impulse = np.eye(1, t_len)[0]
+    v, h = signal.lfilter([1.0], den, x), signal.lfilter([1.0], den, impulse)
+
+    def delay(z, j):
+        return np.r_[np.zeros(j), z[: t_len - j]]
+
+    M = np.column_stack([delay(v, j) for j in range(nb)] + [delay(h, l_) for l_ in range(big_l)])
+    M = M[offset:]
+    E = np.zeros((nb + big_l, nb + nfree))
+    E[:nb, :nb] = np.eye(nb)
+    for j in range(nb):
+        for l_ in range(nfree, min(j, big_l)):  # pre-sample inputs outside the free span
+            E[nb + l_, j] = pre[j - l_]
+    E[nb : nb + nfree, nb:] = np.eye(nfree)
+    F = M @ E
+    exact = np.linalg.lstsq(F, target, rcond=None)[0]
+    resid = float(np.linalg.norm(target - F @ exact))
+    pair = np.repeat(row[None], 2, 0)
+    inputs = np.vstack([x, impulse])
+    vh = kernels.ar_recursion_reference(pair, inputs, np.zeros(na))
+    dM = ar_route_bound(pair, inputs, np.zeros(na), vh)
+    dF = np.abs(E[:nb]).sum(0) * dM[0].max() + np.abs(E[nb:]).sum(0) * dM[1].max()
+    sv = np.linalg.svd(F, compute_uv=False)
+    kappa = sv[0] / sv[-1]
+    e = np.linalg.norm(dF) * np.sqrt(t_len) / sv[0]
+    assert kappa * e < 0.5
+    perturbation = kappa * e / (1 - kappa * e) * (
+        2 * np.linalg.norm(exact) + (kappa + 1) * resid / sv[0])  # fmt: skip
+    zero = np.zeros(M.shape[1])
+    if offset == 0 and big_l:  # the lag sums of h with later v continued by A h = delta
+        h_ext = signal.lfilter([1.0], den, np.eye(1, t_len + 16)[0])
+        normal = normal_equations_error(M, E, zero, target, exact, a=row, v=vh[0], h=h_ext,
+                                        n_v=nb)  # fmt: skip
+    else:
+        normal = normal_equations_error(M, E, zero, target, exact, n_v=nb)
+    return exact[:nb], perturbation + normal + lstsq_error(F, exact, resid)
+
+
+def free_state_bounds(cost, a):
+    """:func:`shifted_fit_bound` of ARX cost's problem with a free initial state, per row."""
+    return [shifted_fit_bound(row, cost._phi_u_rows, cost._target, 0, True) for row in a]
 
 
 @pytest.mark.numerics
@@ -864,3 +885,62 @@ def test_output_error_numerator_is_arx_simulation_numerator(monkeypatch, initial
         assert np.linalg.norm(got[i] - exact) <= bound
         # recursions of the same rounding, then a refined least-squares solve: arx_fit's bound
         assert np.linalg.norm(by_recursions[i] - exact) <= bound_recursions
+
+
+@pytest.mark.numerics
+@compiled
+@pytest.mark.parametrize("initial", ["zero", "estimate"])
+@pytest.mark.parametrize("name", ["bj", "armax"])
+def test_noise_model_numerator_by_lag_sums(monkeypatch, name, initial):
+    # one-step predictors with C or D: the regressors are delays of (D / (C F)) u and the
+    # target (D A / C) y, per candidate; B fitted by the lag sums with D on the input and
+    # each candidate's target (from rest, or with the state at start fitted where the inputs
+    # before start enter only through it), within the stated bound of the exact
+    # least-squares solution (shifted_fit_bound), as is the route of one recursion per
+    # coefficient; the fitted costs are the plain costs of the rows returned
+    from flexid.costs.polynomial import PolynomialCost, _monic
+    from flexid.models.polynomial import PolynomialStructure
+
+    monkeypatch.setattr(kernels, "BACKEND", "c")  # also under FLEXID_KERNELS=numpy
+    s = {"bj": PolynomialStructure.bj(4, 1, 2, 4, 1),
+         "armax": PolynomialStructure.armax(3, 3, 2, 1)}[name]  # fmt: skip
+    rng = np.random.default_rng(11)
+    u = rng.uniform(-1, 1, 500)
+    true = np.zeros(s.n_params)
+    sl = s.slices()
+    for part, poles in (("f", [0.9, 0.8]), ("a", [0.85, 0.7]), ("c", [0.5]), ("d", [0.6])):
+        for key in ([sl["f"][0]] if part == "f" else [sl[part]]):
+            width = key.stop - key.start
+            if width:
+                r = np.r_[[p * np.exp(1j * 0.7) for p in poles]][: width // 2]
+                roots = np.r_[r, r.conj(), [0.3] * (width % 2)]
+                true[key] = np.poly(roots).real[1:]
+    true[s.b_columns] = rng.normal(size=s.nb[0])
+    m = s.model(true)
+    y = m.simulate(u) + 0.05 * signal.lfilter(m.c, np.convolve(m.d, m.a), rng.normal(size=500))
+    cost = PolynomialCost(s, (u, y), metric="sse", initial=initial)
+    assert cost._lag_sum_fit_filtered
+    X = np.repeat(true[None], 5, 0)
+    noisy = np.setdiff1d(np.arange(s.n_params), s.b_columns)
+    X[:, noisy] += 0.01 * rng.normal(size=(5, noisy.size))
+    assert cost._admissible(X).all()
+    fitted, theta = cost.fitted_costs(X)
+    np.testing.assert_array_equal(fitted, cost(theta))
+    got = theta[:, s.b_columns]
+    p = cost._parts(X)
+    den = cost._predictor(p)[0]
+    z = cost._filtered_target(p)
+    free = initial == "estimate"
+    offset = 0 if free else s.start
+    b, ok, _ = kernels.arx_fit_shifted(den[:, 1:], cost._u_reg, np.zeros(den.shape[1] - 1),
+                                       cost._target, offset, free_state=free, num=p["d"],
+                                       targets=z)  # fmt: skip
+    assert ok.all()  # every row by the lag sums, none by the recursions
+    np.testing.assert_array_equal(b, got)
+    monkeypatch.setattr(kernels, "BACKEND", "numpy")
+    by_recursions = cost.fit_numerator(X)[:, s.b_columns]
+    for i in range(len(X)):
+        exact, bound = shifted_fit_bound(den[i, 1:], cost._u_reg, z[i], offset, free,
+                                         d=_monic(X[i : i + 1, sl["d"]])[0])  # fmt: skip
+        assert np.linalg.norm(got[i] - exact) <= bound
+        assert np.linalg.norm(by_recursions[i] - exact) <= bound

@@ -1548,7 +1548,8 @@ done:
  * makes the system m + na, and state0 is not used. */
 #define VP_PAD 32                          /* zeros stored before each signal */
 #define VP_TAIL 16                         /* samples of h run past T (>= nb - 1) */
-#define VP_MAXB (FIT_MAXNB + AR_MAXNA)      /* basis size m + L */
+#define VP_MAXNA 24 /* orders of A (BJ's C F reaches 18 at BJ(16, 2, 2, 16, 1)) */
+#define VP_MAXB (FIT_MAXNB + VP_MAXNA) /* basis size m + L */
 
 typedef struct vp_ctx vp_ctx;
 typedef void (*vp_rec_fn)(const vp_ctx *, Py_ssize_t, v4d *, v4d *);
@@ -1565,6 +1566,10 @@ struct vp_ctx {
     double *sse; /* (P,) or NULL */
     double tol;
     Py_ssize_t nfree; /* 0, or na: the free response's coefficients are unknowns too */
+    /* per candidate (NULL: none): an FIR numerator d (P, nd + 1) on x, so that v is the
+     * response of d/A, and targets (P, T - offset) in place of target */
+    const double *d, *targets;
+    Py_ssize_t d_stride, nd, t_stride;
     vp_rec_fn rec;
     vp_solve_fn solve;
 };
@@ -1577,13 +1582,28 @@ vp_rec_impl(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h, const int na)
 {
     const Py_ssize_t T = c->T, nb = c->nb, w = (c->P - q < 4) ? c->P - q : 4;
     const double *reg = c->reg;
-    v4d A[AR_MAXNA], S[AR_MAXNA], R[AR_MAXNA];
+    v4d A[VP_MAXNA], S[VP_MAXNA], R[VP_MAXNA], D[FIT_MAXNB];
     const v4d zero = {0, 0, 0, 0};
+    const Py_ssize_t nd = c->d ? c->nd : 0;
     for (int i = 0; i < na; ++i) A[i] = zero;
     for (Py_ssize_t l = 0; l < 4; ++l)
         for (int i = 0; i < na; ++i) A[i][l] = c->a[(q + (l < w ? l : 0)) * c->a_stride + i];
+    for (Py_ssize_t k = 0; k <= nd && c->d; ++k)
+        for (Py_ssize_t l = 0; l < 4; ++l) D[k][l] = c->d[(q + (l < w ? l : 0)) * c->d_stride + k];
+    /* the input of sample t: x(t), or sum_k d_k x(t - k) with x(-i) = reg[0, i] (nd < nb) */
+#define VP_X(t) ((t) >= 0 ? reg[(t) * nb] : reg[-(t)])
+#define VP_IN(t, out)                                                                         \
+    do {                                                                                      \
+        if (c->d) {                                                                           \
+            v4d s_ = zero;                                                                    \
+            for (Py_ssize_t k_ = 0; k_ <= nd; ++k_) s_ += D[k_] * VP_X((t) - k_);             \
+            out = s_;                                                                         \
+        } else {                                                                              \
+            out = zero + VP_X(t);                                                             \
+        }                                                                                     \
+    } while (0)
     for (int k = 0; k < na; ++k) {
-        S[k] = zero + (k < T ? reg[k * nb] : 0.0);
+        if (k < T) VP_IN(k, S[k]); else S[k] = zero;
         R[k] = zero + (k == 0 ? 1.0 : 0.0);
     }
     if (c->L) {
@@ -1595,7 +1615,8 @@ vp_rec_impl(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h, const int na)
                 S[k] = S[k + 1] - A[k] * ys;
                 R[k] = R[k + 1] - A[k] * yr;
             }
-            const double f = t + na < T ? reg[(t + na) * nb] : 0.0;
+            v4d f = zero;
+            if (t + na < T) VP_IN(t + na, f);
             S[na - 1] = f - A[na - 1] * ys;
             R[na - 1] = zero - A[na - 1] * yr;
         }
@@ -1611,9 +1632,12 @@ vp_rec_impl(const vp_ctx *c, Py_ssize_t q, v4d *v, v4d *h, const int na)
         const v4d ys = S[0];
         v[t] = ys;
         for (int k = 0; k < na - 1; ++k) S[k] = S[k + 1] - A[k] * ys;
-        const double f = t + na < T ? reg[(t + na) * nb] : 0.0;
+        v4d f = zero;
+        if (t + na < T) VP_IN(t + na, f);
         S[na - 1] = f - A[na - 1] * ys;
     }
+#undef VP_IN
+#undef VP_X
 }
 
 /* acc[d] = sum_{s0 <= s < s1} lead(s) other(s - d), d < ND, in 4 lanes (lead a vector
@@ -1682,10 +1706,17 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
     const Py_ssize_t w = (c->P - q < 4) ? c->P - q : 4;
     const double *pre = c->reg; /* pre[i] = x(-i), 1 <= i < m */
     const v4d zero = {0, 0, 0, 0};
-    v4d Rvv[FIT_MAXNB], Rhv[FIT_MAXNB], Rtv[FIT_MAXNB], Rvh[AR_MAXNA + FIT_MAXNB],
-        Rhh[AR_MAXNA + FIT_MAXNB], Rth[AR_MAXNA + FIT_MAXNB];
+    v4d Rvv[FIT_MAXNB], Rhv[FIT_MAXNB], Rtv[FIT_MAXNB], Rvh[VP_MAXNA + FIT_MAXNB],
+        Rhh[VP_MAXNA + FIT_MAXNB], Rth[VP_MAXNA + FIT_MAXNB];
+    v4d *tv = NULL; /* per-candidate targets, lane by lane, at their times o .. T - 1 */
+    if (c->targets) {
+        tv = work + VP_MAXB * (VP_MAXB + FIT_MAXNB);
+        for (Py_ssize_t t = o; t < T; ++t)
+            for (Py_ssize_t l = 0; l < 4; ++l)
+                tv[t][l] = c->targets[(q + (l < w ? l : 0)) * c->t_stride + t - o];
+    }
     vp_lags(v, NULL, 0, v, o, T, m, Rvv);
-    vp_lags(NULL, c->target, o, v, o, T, m, Rtv);
+    vp_lags(tv, c->target, o, v, o, T, m, Rtv);
     /* Over the whole window (o = 0), A h = delta gives the sums of h with delays of v past
      * it without lag sums: with c(k) = sum_s h(s) v(s + k) (c(k) = Rvh[k] for k >= 0, Rhv[-k]
      * for k < 0) and X(k) = sum_{T <= s < T - k} h(s) v(s + k) (the terms past the window),
@@ -1698,15 +1729,15 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
         if (!cont) vp_lags(h, NULL, 0, v - 1, o, T, m - 1, Rhv + 1); /* lags 1 .. m - 1 */
         vp_lags(v, NULL, 0, h, o, T, L, Rvh);
         vp_lags(h, NULL, 0, h, o, T, L, Rhh);
-        vp_lags(NULL, c->target, o, h, o, T, L, Rth);
+        vp_lags(tv, c->target, o, h, o, T, L, Rth);
     }
     if (cont) {
-        v4d Av[AR_MAXNA];
+        v4d Av[VP_MAXNA];
         for (Py_ssize_t i = 0; i < na; ++i)
             for (Py_ssize_t e = 0; e < 4; ++e)
                 Av[i][e] = c->a[(q + (e < w ? e : 0)) * c->a_stride + i];
         /* index k + m - 1 holds lag k, k = -(m - 1) .. na - 1 */
-        v4d C[AR_MAXNA + FIT_MAXNB], X[AR_MAXNA + FIT_MAXNB];
+        v4d C[VP_MAXNA + FIT_MAXNB], X[VP_MAXNA + FIT_MAXNB];
         const Py_ssize_t z = m - 1;
         for (Py_ssize_t k = -z; k < na; ++k) {
             v4d sx = zero;
@@ -1754,7 +1785,7 @@ vp_solve_impl(const vp_ctx *c, Py_ssize_t q, const v4d *v, const v4d *h, v4d *wo
             GE[b][k] = s;
         }
     /* free response coefficients c_l (per lane) and u = M^T target - G_M c */
-    v4d cl[AR_MAXNA], u[VP_MAXB];
+    v4d cl[VP_MAXNA], u[VP_MAXB];
     for (Py_ssize_t l = 0; l < na && L && !nfree; ++l) {
         v4d s = zero;
         for (Py_ssize_t i = l + 1; i <= na; ++i) {
@@ -1907,10 +1938,18 @@ VP_REC(13)
 VP_REC(14)
 VP_REC(15)
 VP_REC(16)
-static const vp_rec_fn vp_recs_generic[AR_MAXNA + 1] = AR_TABLE(vp_rec_g);
+VP_REC(17)
+VP_REC(18)
+VP_REC(19)
+VP_REC(20)
+VP_REC(21)
+VP_REC(22)
+VP_REC(23)
+VP_REC(24)
+static const vp_rec_fn vp_recs_generic[VP_MAXNA + 1] = AR_TABLE24(vp_rec_g);
 #if defined(AR_X86)
-static const vp_rec_fn vp_recs_v3[AR_MAXNA + 1] = AR_TABLE(vp_rec_v3_);
-static const vp_rec_fn vp_recs_v4[AR_MAXNA + 1] = AR_TABLE(vp_rec_v4_);
+static const vp_rec_fn vp_recs_v3[VP_MAXNA + 1] = AR_TABLE24(vp_rec_v3_);
+static const vp_rec_fn vp_recs_v4[VP_MAXNA + 1] = AR_TABLE24(vp_rec_v4_);
 #endif
 
 /* Block u: the two recursions into the scratch (2 (VP_PAD + T + VP_TAIL) vectors, zeros first, then
@@ -1920,7 +1959,7 @@ static int vp_unit(const void *ctx, Py_ssize_t u, void **scratch)
     const vp_ctx *c = (const vp_ctx *)ctx;
     const Py_ssize_t span = VP_PAD + c->T + VP_TAIL;
     if (!*scratch) {
-        const size_t nv = (size_t)(2 * span + VP_MAXB * (VP_MAXB + FIT_MAXNB));
+        const size_t nv = (size_t)(2 * span + VP_MAXB * (VP_MAXB + FIT_MAXNB) + c->T);
         *scratch = calloc(nv, sizeof(v4d)); /* the leading zeros stay zero */
         if (!*scratch) return -1;
     }
@@ -1949,23 +1988,25 @@ static int vp_unit(const void *ctx, Py_ssize_t u, void **scratch)
 
 static PyObject *py_arx_fit_shifted(PyObject *self, PyObject *args)
 {
-    PyObject *objs[7];
-    Py_buffer bufs[7];
-    int have[7] = {0}, n_threads = 1, free_state = 0;
+    PyObject *objs[9] = {NULL};
+    Py_buffer bufs[9];
+    int have[9] = {0}, n_threads = 1, free_state = 0;
     Py_ssize_t offset, L;
     double tol;
-    if (!PyArg_ParseTuple(args, "OOOOnndOOO|ii", &objs[0], &objs[1], &objs[2], &objs[3],
+    objs[7] = objs[8] = Py_None;
+    if (!PyArg_ParseTuple(args, "OOOOnndOOO|iiOO", &objs[0], &objs[1], &objs[2], &objs[3],
                           &offset, &L, &tol, &objs[4], &objs[5], &objs[6], &n_threads,
-                          &free_state))
+                          &free_state, &objs[7], &objs[8]))
         return NULL;
-    static const char *names[7] = {"a", "reg", "state0", "target", "b_out", "ok_out", "sse_out"};
+    static const char *names[9] = {"a",     "reg",    "state0",  "target", "b_out",
+                                   "ok_out", "sse_out", "d", "targets"};
     PyObject *result = NULL;
     Py_ssize_t a_stride = get_rows(objs[0], &bufs[0], "arx_fit_shifted", "a");
     if (a_stride < 0) return NULL;
     have[0] = 1;
-    for (int i = 1; i < 7; ++i) {
-        if (i == 6 && objs[i] == Py_None) continue;
-        if (get_buffer(objs[i], &bufs[i], i >= 4, names[i]) < 0) goto done;
+    for (int i = 1; i < 9; ++i) {
+        if (i >= 6 && objs[i] == Py_None) continue;
+        if (get_buffer(objs[i], &bufs[i], i >= 4 && i <= 6, names[i]) < 0) goto done;
         have[i] = 1;
         if (check_format(&bufs[i], i == 5 ? "B" : "d", names[i]) < 0) goto done;
     }
@@ -1977,23 +2018,36 @@ static PyObject *py_arx_fit_shifted(PyObject *self, PyObject *args)
     }
     const Py_ssize_t T = bufs[1].shape[0], nb = bufs[1].shape[1], K = bufs[3].shape[0];
     const Py_ssize_t Lmin = na > nb - 1 ? na : nb - 1;
-    if (na < 1 || na > AR_MAXNA || nb < 1 || nb > FIT_MAXNB || bufs[2].shape[0] != na ||
+    if (na < 1 || na > VP_MAXNA || nb < 1 || nb > FIT_MAXNB || bufs[2].shape[0] != na ||
         offset < 0 || K != T - offset || K < 1 || bufs[4].shape[0] != P ||
         bufs[4].shape[1] != nb || bufs[5].shape[0] != P || (L != 0 && L != Lmin) ||
         (have[6] && (bufs[6].shape[0] != P || offset != 0)) ||
-        (free_state && (L != Lmin || have[6]))) {
+        (free_state && (L != Lmin || have[6])) ||
+        (have[7] && (bufs[7].ndim != 2 || bufs[7].shape[0] != P || bufs[7].shape[1] < 1 ||
+                     bufs[7].shape[1] > nb || have[6] || (L && !(free_state && nb - 1 <= na)) ||
+                     bufs[7].strides[1] != sizeof(double))) ||
+        (have[8] && (bufs[8].ndim != 2 || bufs[8].shape[0] != P || bufs[8].shape[1] != K ||
+                     have[6] || bufs[8].strides[1] != sizeof(double)))) {
         PyErr_SetString(PyExc_ValueError,
-                        "arx_fit_shifted: a (P, na) with 1 <= na <= 16, reg (T, nb) with 1 <= "
+                        "arx_fit_shifted: a (P, na) with 1 <= na <= 24, reg (T, nb) with 1 <= "
                         "nb <= 16, state0 (na,), target (T - offset,), L 0 or max(na, nb - 1) "
                         "(the latter with free_state), b_out (P, nb), ok_out (P,), sse_out "
-                        "(P,) with offset 0 and without free_state, or None");
+                        "(P,) with offset 0 and without free_state, or None; d (P, nd + 1) "
+                        "with nd < nb, with L 0 or free_state and nb - 1 <= na; targets (P, "
+                        "T - offset); neither with sse_out");
         goto done;
     }
     vp_ctx ctx = {(const double *)bufs[0].buf, a_stride, P, na, nb, L,
                   (const double *)bufs[1].buf, T, (const double *)bufs[2].buf,
                   (const double *)bufs[3].buf, offset, (double *)bufs[4].buf,
                   (unsigned char *)bufs[5].buf, have[6] ? (double *)bufs[6].buf : NULL, tol,
-                  free_state ? na : 0, vp_recs_generic[na], vp_solve_g};
+                  free_state ? na : 0,
+                  have[7] ? (const double *)bufs[7].buf : NULL,
+                  have[8] ? (const double *)bufs[8].buf : NULL,
+                  have[7] ? bufs[7].strides[0] / (Py_ssize_t)sizeof(double) : 0,
+                  have[7] ? bufs[7].shape[1] - 1 : 0,
+                  have[8] ? bufs[8].strides[0] / (Py_ssize_t)sizeof(double) : 0,
+                  vp_recs_generic[na], vp_solve_g};
 #if defined(AR_X86)
     if (ar_simd == 2) ctx.rec = vp_recs_v4[na], ctx.solve = vp_solve_v4;
     if (ar_simd == 1) ctx.rec = vp_recs_v3[na], ctx.solve = vp_solve_v3;
@@ -2009,7 +2063,7 @@ static PyObject *py_arx_fit_shifted(PyObject *self, PyObject *args)
     result = Py_None;
     Py_INCREF(result);
 done:
-    for (int i = 0; i < 7; ++i)
+    for (int i = 0; i < 9; ++i)
         if (have[i]) PyBuffer_Release(&bufs[i]);
     return result;
 }
@@ -2056,7 +2110,7 @@ static PyMethodDef methods[] = {
      "numerators of the simulation cost for denominators a (see the module)."},
     {"arx_fit_shifted", py_arx_fit_shifted, METH_VARARGS,
      "arx_fit_shifted(a, reg, state0, target, offset, L, tol, b_out, ok_out, sse_out"
-     "[, threads[, free_state]]): arx_fit for regressor columns that are delays of one signal, from two "
+     "[, threads[, free_state[, d, targets]]]): arx_fit for regressor columns that are delays of one signal, from two "
      "recursions and lag sums (see the module)."},
 #endif
 #if defined(__GNUC__)

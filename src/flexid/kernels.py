@@ -628,6 +628,8 @@ def arx_fit_shifted_reference(
     target: np.ndarray,
     offset: int,
     free_state: bool = False,
+    num: np.ndarray | None = None,
+    targets: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Reference path of :func:`arx_fit_shifted`: ``lfilter`` and NumPy sums of products.
 
@@ -646,6 +648,8 @@ def arx_fit_shifted_reference(
     offset : int
     free_state : bool
         Fit the initial state with ``b`` (``state0`` unused), as :func:`arx_fit_shifted`.
+    num, targets : ndarray, optional
+        Per-candidate input numerators and targets, as :func:`arx_fit_shifted`.
 
     Returns
     -------
@@ -669,9 +673,14 @@ def arx_fit_shifted_reference(
     impulse = np.zeros(t_len)
     impulse[0] = 1.0
     sig = np.zeros((2, p, pad + t_len))  # v and h, zeros before t = 0
+    x_ext = np.r_[pre[:0:-1], x]  # x(-(m - 1)) .. x(T - 1)
     for i in range(p):
         den = np.r_[1.0, a[i]]
-        sig[0, i, pad:] = signal.lfilter([1.0], den, x)
+        if num is None:
+            sig[0, i, pad:] = signal.lfilter([1.0], den, x)
+        else:  # the input sum_k d_k x(t - k), the samples before 0 from reg's first row
+            xd = np.convolve(x_ext, num[i])[m - 1 : m - 1 + t_len]
+            sig[0, i, pad:] = signal.lfilter([1.0], den, xd)
         sig[1, i, pad:] = signal.lfilter([1.0], den, impulse)
 
     def seg(k: int, lo: int, hi: int) -> np.ndarray:  # signal k over times [lo, hi)
@@ -686,7 +695,10 @@ def arx_fit_shifted_reference(
             gm[:, b1, b2] = gm[:, b2, b1] = np.einsum(
                 "pt,pt->p", seg(k1, offset - j1, t_len - j1), seg(k2, offset - j2, t_len - j2)
             )
-    mt = np.stack([seg(k, offset - j, t_len - j) @ target for k, j in kinds], axis=1)
+    tgt = np.broadcast_to(target, (p, t_len - offset)) if targets is None else targets
+    mt = np.stack(
+        [np.einsum("pt,pt->p", seg(k, offset - j, t_len - j), tgt) for k, j in kinds], axis=1
+    )
     # unknowns: b, then with free_state the coefficients of S^l h (l < na), which span every
     # free response, so the pre-sample inputs' S^l h with l < na drop out of the b columns
     e = np.zeros((n, m + nfree))
@@ -730,6 +742,8 @@ def arx_fit_shifted(
     *,
     want_sse: bool = False,
     free_state: bool = False,
+    num: np.ndarray | None = None,
+    targets: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """:func:`arx_fit` for regressor columns that are delays of one signal, by lag sums.
 
@@ -768,6 +782,14 @@ def arx_fit_shifted(
         used): the coefficients of ``S^l h``, ``l < na``, which span every free response,
         are unknowns beside ``b``, and ``b`` is that of the joint least-squares problem.
         Not with ``want_sse``.
+    num : ndarray, shape (P, nd + 1), optional
+        Per-candidate FIR numerators ``D`` on the signal (``nd < nb``): the regressors are
+        the delays of the response of ``D/A`` to ``x`` (a Box-Jenkins or ARMAX predictor's).
+        Only where no pre-sample input enters the basis: all of ``reg[0, 1:]`` and
+        ``state0`` zero, or ``free_state`` with ``nb - 1 <= na``.  Not with ``want_sse``.
+    targets : ndarray, shape (P, T - offset), optional
+        Per-candidate targets in place of ``target`` (which is then ignored).  Not with
+        ``want_sse``.
 
     Returns
     -------
@@ -783,12 +805,26 @@ def arx_fit_shifted(
     target = np.ascontiguousarray(target, dtype=float)
     a = np.atleast_2d(np.asarray(a, dtype=float))
     na, nb = a.shape[1], reg.shape[1]
-    if want_sse and free_state:
-        raise FlexidError("arx_fit_shifted: no sums of squares with a fitted initial state")
-    if BACKEND != "c" or not (1 <= na <= 16 and 1 <= nb <= 16):
+    if want_sse and (free_state or num is not None or targets is not None):
+        raise FlexidError(
+            "arx_fit_shifted: no sums of squares with a fitted initial state, per-candidate "
+            "numerators or targets"
+        )
+    if num is not None:
+        num = np.ascontiguousarray(np.atleast_2d(num), dtype=float)
+        if not (num.shape[1] <= nb and ((free_state and nb - 1 <= na)
+                                       or _boundary_size(reg, state0, na) == 0)):  # fmt: skip
+            raise FlexidError(
+                "arx_fit_shifted: per-candidate numerators need nd < nb and no pre-sample "
+                "input in the basis (zero initial values, or free_state with nb - 1 <= na)"
+            )
+    if targets is not None:
+        targets = np.ascontiguousarray(np.atleast_2d(targets), dtype=float)
+    if BACKEND != "c" or not (1 <= na <= 24 and 1 <= nb <= 16):
         if want_sse:
             raise FlexidError("arx_fit_shifted: the sums of squares need the compiled kernels")
-        b, ok = arx_fit_shifted_reference(a, reg, state0, target, offset, free_state)
+        b, ok = arx_fit_shifted_reference(a, reg, state0, target, offset, free_state, num,
+                                          targets)  # fmt: skip
         return b, ok, None
     a = _rows(a)
     p = a.shape[0]
@@ -799,5 +835,5 @@ def arx_fit_shifted(
     work = p * reg.shape[0] * (2 * na + 3 * (nb + big_l) + (na + nb + 1 if want_sse else 0))
     # (an upper bound of the multiply-adds: what the thread count needs)
     _c.arx_fit_shifted(a, reg, state0, target, int(offset), big_l, FIT_SHIFTED_TOL, b, ok, sse,
-                       _threads_for(work), int(free_state))  # fmt: skip
+                       _threads_for(work), int(free_state), num, targets)  # fmt: skip
     return b, ok.view(bool), sse

@@ -355,9 +355,21 @@ class PolynomialCost:
         # (kernels.arx_fit_shifted)
         self._lag_sum_fit = (
             s.n_inputs == 1
-            and not (one_step and self._deg_y) and 1 <= self._deg_den <= 16
+            and not (one_step and self._deg_y) and 1 <= self._deg_den <= 24
             and 1 <= s.nb[0] <= 16 and kernels.shifted_columns(self._reg)
         )  # fmt: skip
+        # one input, the one-step predictor of a structure with A, C or D: the regressors
+        # are delays of D u filtered by 1/(C F), the target (D A / C) y, both per candidate;
+        # by lag sums from rest, or with the state fitted where the inputs before start
+        # enter only through it (nb - 1 <= deg C F)
+        self._lag_sum_fit_filtered = (
+            s.n_inputs == 1 and one_step and bool(self._deg_y)
+            and 1 <= self._deg_den <= 24 and 1 <= s.nb[0] <= 16 and s.nd < s.nb[0]
+            and (initial == "zero" or (initial == "estimate" and s.nb[0] - 1 <= self._deg_den))
+        )  # fmt: skip
+        if self._lag_sum_fit_filtered:
+            nk = s.nk[0]
+            self._u_reg = np.ascontiguousarray(self._ulags[0][nk : nk + s.nb[0]].T)
         self.theta_ls = self._least_squares_start()
         finite = bool(np.isfinite(self.theta_ls).all())
         self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
@@ -654,9 +666,46 @@ class PolynomialCost:
 
     def _fitted_b(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Best ``B`` (P, sum nb) of admissible rows and the SSE it leaves (P,)."""
-        if self._lag_sum_fit and kernels.BACKEND == "c":
-            return self._fitted_b_lag_sums(X)
+        if kernels.BACKEND == "c":
+            if self._lag_sum_fit:
+                return self._fitted_b_lag_sums(X)
+            if self._lag_sum_fit_filtered:
+                return self._fitted_b_lag_sums_filtered(X)
         return self._fitted_b_recursions(X)
+
+    def _filtered_target(self, p: dict[str, Any]) -> np.ndarray:
+        """``z = (D A / C) y`` (P, K) of the one-step predictor, from rest at ``t = 0``."""
+        num_z = poly_mul_rows(p["d"], p["a"])
+        den_z = p["c"]
+        z_lags = _lags(self.y, num_z.shape[1], 0, self.N)
+        z, _ = ar_recursion(den_z[:, 1:], num_z @ z_lags, np.zeros(den_z.shape[1] - 1))
+        return z[:, self.start :]
+
+    def _fitted_b_lag_sums_filtered(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_fitted_b` by :func:`flexid.kernels.arx_fit_shifted` with ``C`` or ``D``.
+
+        The one-step error is ``z - sum_i b_i w(t - nk - i)`` with ``z = (D A / C) y`` and
+        ``w = (D / (C F)) u``: the kernel's lag sums with the numerator ``D`` on the input
+        and ``z`` as each candidate's target.  Under ``"estimate"`` the free responses of
+        ``1/(C F)`` from ``start`` also span the free responses of ``1/C`` in ``z``, so
+        ``z`` may start from rest at ``t = 0``.  Rows the kernel flags take the recursions.
+        """
+        p = self._parts(X)
+        den = self._predictor(p)[0]
+        n = den.shape[1] - 1
+        free = self.initial == "estimate"
+        b, ok, _ = kernels.arx_fit_shifted(
+            den[:, 1:], self._u_reg, np.zeros(n), self._target, 0 if free else self.start,
+            free_state=free, num=p["d"], targets=self._filtered_target(p),
+        )  # fmt: skip
+        sse = np.empty(X.shape[0])
+        if ok.any():
+            theta = X[ok]
+            theta[:, self.structure.b_columns] = b[ok]
+            sse[ok] = self.sse(theta)
+        if not ok.all():
+            b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
+        return b, sse
 
     def _fitted_b_lag_sums(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_fitted_b` by :func:`flexid.kernels.arx_fit_shifted` (one input, no C, D).
@@ -698,11 +747,7 @@ class PolynomialCost:
         one_step = self.predictor == "one-step"
         n0 = self.N  # regressors from rest over the whole record, then cut to t >= start
         if one_step:
-            num_z = poly_mul_rows(p["d"], p["a"])
-            den_z = p["c"]
-            z_lags = _lags(self.y, num_z.shape[1], 0, n0)
-            z, _ = ar_recursion(den_z[:, 1:], num_z @ z_lags, np.zeros(den_z.shape[1] - 1))
-            z = z[:, self.start :]
+            z = self._filtered_target(p)
             lead = p["d"]
         else:
             # simulation: z = y, the A of the structure joins every F_j
