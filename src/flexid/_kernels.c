@@ -1545,7 +1545,10 @@ done:
  * (AR_BLOCK_IMPL itself, so the sums of squares are those of arx_run for the same b).
  * With free_state the initial state is not given but fitted with b (MATLAB's estimated
  * initial condition): the coefficients c_l of S^l h, l < na, are unknowns beside b, which
- * makes the system m + na, and state0 is not used. */
+ * makes the system m + na, and state0 is not used.  With d (P, nd + 1) the signal of each
+ * candidate is D x (a Box-Jenkins or ARMAX predictor's regressors), and with targets each
+ * has its own target; the pre-sample inputs of D x are not formed, so d needs them out of
+ * the basis (L = 0, or free_state with nb - 1 <= na). */
 #define VP_PAD 32                          /* zeros stored before each signal */
 #define VP_TAIL 16                         /* samples of h run past T (>= nb - 1) */
 #define VP_MAXNA 24 /* orders of A (BJ's C F reaches 18 at BJ(16, 2, 2, 16, 1)) */

@@ -36,10 +36,14 @@ Variable projection (:meth:`PolynomialCost.fit_numerator`)
     ``A F`` for ``A``: :func:`flexid.kernels.arx_fit_shifted` fits ``B`` by lag sums in one
     pass under every rule (with ``"estimate"`` the ``n`` free responses from ``start`` are
     unknowns beside ``B``; they also span the part of each regressor that the inputs before
-    ``start`` drive).  Otherwise, and for the rows that kernel flags, each regressor is
-    the response to one orthogonal numerator (one recursion per coefficient of ``B``, plus
-    the ``n`` free responses under ``"estimate"``) and a small least-squares solve per
-    candidate.
+    ``start`` drive).  With one input and ``C`` or ``D`` (BJ, ARMAX: the one-step
+    predictor) the regressors are delays of ``D u`` filtered by ``1/(C F)`` and the target
+    is ``(D A / C) y``, both per candidate: the same kernel with ``D`` on its input and a
+    target per candidate, from rest, or with the state estimated where ``nb - 1 <= deg C F``
+    (the inputs before ``start`` then enter only through the state).  Otherwise, and for the
+    rows that kernel flags, each regressor is the response to one orthogonal numerator (one
+    recursion per coefficient of ``B``, plus the ``n`` free responses under ``"estimate"``)
+    and a small least-squares solve per candidate.
 """
 
 from __future__ import annotations
