@@ -702,11 +702,19 @@ class PolynomialCost:
             den[:, 1:], self._u_reg, np.zeros(n), self._target, 0 if free else self.start,
             free_state=free, num=p["d"], targets=self._filtered_target(p),
         )  # fmt: skip
-        sse = np.empty(X.shape[0])
-        if ok.any():
-            theta = X[ok]
-            theta[:, self.structure.b_columns] = b[ok]
-            sse[ok] = self.sse(theta)
+        return self._completed(X, b, ok)
+
+    def _completed(
+        self, X: np.ndarray, b: np.ndarray, ok: np.ndarray, sse: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """A lag-sum fit's ``B`` and SSE: the SSE of its rows at their ``B`` where not given,
+        the recursions for the rows the kernel flagged (``ok`` False)."""
+        if sse is None:
+            sse = np.empty(X.shape[0])
+            if ok.any():
+                theta = X[ok]
+                theta[:, self.structure.b_columns] = b[ok]
+                sse[ok] = self.sse(theta)
         if not ok.all():
             b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
         return b, sse
@@ -727,19 +735,13 @@ class PolynomialCost:
         if self.initial == "measured":
             b, ok, sse = kernels.arx_fit_shifted(den[:, 1:], self._reg, self._state[:n],
                                                  self._target, 0, want_sse=True)  # fmt: skip
-        else:  # from rest at t = 0, or the state at start fitted; errors counted from start
-            free = self.initial == "estimate"
-            b, ok, _ = kernels.arx_fit_shifted(den[:, 1:], self._reg, np.zeros(n), self._target,
-                                               0 if free else self.start,
-                                               free_state=free)  # fmt: skip
-            sse = np.empty(X.shape[0])
-            if ok.any():
-                theta = X[ok]
-                theta[:, self.structure.b_columns] = b[ok]
-                sse[ok] = self.sse(theta)
-        if not ok.all():
-            b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
-        return b, sse
+            return self._completed(X, b, ok, sse)
+        # from rest at t = 0, or the state at start fitted; errors counted from start
+        free = self.initial == "estimate"
+        b, ok, _ = kernels.arx_fit_shifted(den[:, 1:], self._reg, np.zeros(n), self._target,
+                                           0 if free else self.start,
+                                           free_state=free)  # fmt: skip
+        return self._completed(X, b, ok)
 
     def _fitted_b_recursions(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_fitted_b` by one recursion per coefficient of ``B``, any structure."""
