@@ -613,10 +613,11 @@ def shifted_columns(reg: np.ndarray) -> bool:
     return reg.ndim == 2 and reg.shape[1] >= 1 and bool(np.array_equal(reg[1:, 1:], reg[:-1, :-1]))
 
 
-def _boundary_size(reg: np.ndarray, state0: np.ndarray, na: int) -> int:
-    """``L``: delays of the impulse response the regressors need (0 with no initial values)."""
+def _boundary_size(reg: np.ndarray, state0: np.ndarray, na: int, free_state: bool = False) -> int:
+    """``L``: delays of the impulse response the regressors need (0 with no initial values
+    and no initial state to fit)."""
     nb = reg.shape[1]
-    if not (np.any(reg[0, 1:]) or np.any(state0)):
+    if not (free_state or np.any(reg[0, 1:]) or np.any(state0)):
         return 0
     return max(na, nb - 1)
 
@@ -664,7 +665,7 @@ def arx_fit_shifted_reference(
     target = np.asarray(target, dtype=float)
     p, na = a.shape
     t_len, m = reg.shape
-    big_l = max(na, m - 1) if free_state else _boundary_size(reg, state0, na)
+    big_l = _boundary_size(reg, state0, na, free_state)
     nfree = na if free_state else 0
     n = m + big_l
     pad = n + 1
@@ -828,7 +829,7 @@ def arx_fit_shifted(
         return b, ok, None
     a = _rows(a)
     p = a.shape[0]
-    big_l = max(na, nb - 1) if free_state else _boundary_size(reg, state0, na)
+    big_l = _boundary_size(reg, state0, na, free_state)
     b = np.empty((p, nb))
     ok = np.empty(p, dtype=np.uint8)
     sse = np.empty(p) if want_sse else None
