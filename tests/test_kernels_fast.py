@@ -313,12 +313,12 @@ def test_compare_worker_processes_use_one_thread(monkeypatch):
 
 
 # ------------------------------------------------------------------ the fitted numerator
-def fitted_numerator_problem(na, nb, initial):
-    """A simulation cost and stable denominators near the data's (poles at radius 0.9)."""
+def fitted_numerator_problem(na, nb, initial, radius=0.9):
+    """A simulation cost and stable denominators near the data's (poles at ``radius``)."""
     rng = np.random.default_rng(na * 10 + nb + (initial == "zero"))
     u = rng.uniform(-1, 1, 600)
-    poles = 0.9 * np.exp(1j * np.linspace(0.3, 2.5, na // 2))
-    den = np.poly(np.r_[poles, poles.conj(), [0.5] * (na % 2)]).real
+    poles = radius * np.exp(1j * np.linspace(0.3, 2.5, na // 2))
+    den = np.poly(np.r_[poles, poles.conj(), [0.5 * radius / 0.9] * (na % 2)]).real
     yv = signal.lfilter(np.r_[0.0, rng.normal(size=nb)], den, u) + 0.01 * rng.normal(size=600)
     cost = ARXCost(ARXStructure(na, nb, 1), (u, yv), predictor="simulation", initial=initial)
     a = den[1:] + 0.01 * rng.normal(size=(9, na))
@@ -621,15 +621,18 @@ def free_state_bounds(cost, a):
 
 
 @pytest.mark.numerics
+@pytest.mark.parametrize("radius", [0.9, 0.2])
 @pytest.mark.parametrize("orders", [(2, 3), (8, 8), (5, 1), (1, 4), (3, 12)])
 @pytest.mark.parametrize("route", ["compiled", "numpy"])
-def test_arx_fit_shifted_with_a_free_initial_state(simd, route, orders):
+def test_arx_fit_shifted_with_a_free_initial_state(simd, route, orders, radius):
     # free_state: b and the initial state at the window's start fitted together (MATLAB's
     # estimated initial condition), against the exact least-squares solution of the
-    # reference regressors within the stated bound (free_state_bounds)
+    # reference regressors within the stated bound (free_state_bounds); at radius 0.2 the
+    # impulse response decays through the subnormal range (below 2.3e-308 from about the
+    # 440th of the 600 samples), which the compiled fit flushes to zero
     if route == "compiled" and not kernels.compiled_available():
         pytest.skip("flexid._kernels was not built")
-    cost, a = fitted_numerator_problem(*orders, "measured")
+    cost, a = fitted_numerator_problem(*orders, "measured", radius)
     args = (a, cost._phi_u_rows, np.zeros(orders[0]), cost._target, 0)
     if route == "compiled":
         b, ok, _ = kernels.arx_fit_shifted(*args, free_state=True)
@@ -828,6 +831,35 @@ def test_initial_state_fit_computes_the_step_down_itself(simd, n):
     bad[3, -1] = 1.0
     sse = kernels.initial_state_fit(bad, b, reg, target, want_errors=False)[0]
     assert np.isnan(sse[3]) and np.isfinite(np.delete(sse, 3)).all()
+
+
+@compiled
+def test_fits_leave_the_floating_point_environment_as_found(monkeypatch):
+    # the fits that run impulse responses flush subnormal numbers to zero while they run,
+    # on whichever thread runs a block, and restore the caller's setting after it: subnormal
+    # arithmetic afterwards, in NumPy on this thread and in the plain recursion on the
+    # helpers, is exact (0.5^t down to 2^-1074: every product by 0.5 is exact)
+    monkeypatch.setattr(kernels, "BACKEND", "c")
+    rng = np.random.default_rng(5)
+    k, n = 1200, 4
+    a = stable_denominators(rng, 64, n, (0.1, 0.3))
+    reg = rng.normal(size=(k, n))
+    target = rng.normal(size=k)
+    old = kernels.set_threads(2)
+    try:
+        for _ in range(2):
+            kernels.initial_state_fit(a, rng.normal(size=(64, n)), reg, target)
+            shifted = np.column_stack([np.r_[np.zeros(j), target[: k - j]] for j in range(n)])
+            kernels.arx_fit_shifted(a, shifted, np.zeros(n), target, 0, free_state=True)
+        tiny = np.float64(2.0**-1022)
+        assert tiny / 4 == 2.0**-1024 and tiny / 4 > 0
+        impulse = np.zeros((1000, k))
+        impulse[:, 0] = 1.0
+        y = kernels.ar_recursion(np.full((1000, 1), -0.5), impulse, np.zeros(1))[0]
+        np.testing.assert_array_equal(y, np.broadcast_to(0.5 ** np.arange(k), y.shape))
+        assert y[0, 1073] == 2.0**-1073
+    finally:
+        kernels.set_threads(old)
 
 
 @pytest.mark.numerics

@@ -45,6 +45,21 @@
 #include <stdint.h>
 #include <string.h>
 
+/* The fits that run impulse responses (the lag sums of arx_fit_shifted, the estimated initial
+ * state of free_fit) run with subnormal results flushed to zero and subnormal operands read
+ * as zero (x86-64's FTZ and DAZ, restored after each block): the impulse response of a fast
+ * denominator decays through the subnormal range, where each operation costs about a hundred
+ * cycles (a fit from poles of radius 0.5 took 7 to 20 times as long as one from radius 0.9).
+ * Only values below 2.3e-308 in absolute value are changed. */
+#if defined(__x86_64__)
+#include <xmmintrin.h>
+#define FLUSH_SUBNORMALS_BEGIN const unsigned int flush_csr_ = _mm_getcsr(); _mm_setcsr(flush_csr_ | 0x8040u)
+#define FLUSH_SUBNORMALS_END _mm_setcsr(flush_csr_)
+#else
+#define FLUSH_SUBNORMALS_BEGIN (void)0
+#define FLUSH_SUBNORMALS_END (void)0
+#endif
+
 #if defined(_MSC_VER)
 #define restrict __restrict
 #endif
@@ -1968,8 +1983,12 @@ static int vp_unit(const void *ctx, Py_ssize_t u, void **scratch)
     }
     v4d *base = (v4d *)*scratch, *v = base + VP_PAD, *h = base + span + VP_PAD;
     const Py_ssize_t q = 4 * u;
-    c->rec(c, q, v, h);
-    c->solve(c, q, v, h, base + 2 * span);
+    {
+        FLUSH_SUBNORMALS_BEGIN;
+        c->rec(c, q, v, h);
+        c->solve(c, q, v, h, base + 2 * span);
+        FLUSH_SUBNORMALS_END;
+    }
     if (c->sse) {
         ar_job J = {0};
         J.a = c->a;
@@ -2188,6 +2207,43 @@ PyMODINIT_FUNC PyInit__kernels(void)
         (Z)[(n) - 1] = -(A)[(n) - 1] * (yt);                                                  \
     } while (0)
 
+/* G[m] = sum_(i <= m) T[m, i] h(t - i) for every m, H pointing at h(t) and h(t - i) taken as 0
+ * for i > t: the sum of each m in the order of i, the n sums side by side in registers
+ * (independent chains; n is a constant, so the loops unroll) */
+#define FREE_WINDOW_SAMPLE(G, H, t, n)                                                        \
+    do {                                                                                      \
+        _Pragma("GCC unroll 24") for (int m_ = 0; m_ < (n); ++m_) (G)[m_] = zero;             \
+        _Pragma("GCC unroll 24") for (int i_ = 0; i_ < (n); ++i_) {                           \
+            const v4d h_ = i_ <= (t) ? (H)[-i_] : zero;                                       \
+            _Pragma("GCC unroll 24") for (int m_ = i_; m_ < (n); ++m_)                        \
+                (G)[m_] += T[m_ * (n) + i_] * h_;                                             \
+        }                                                                                     \
+    } while (0)
+
+/* Steps s = S0 .. S1 - 1 of the recursion FREE_STEP(Z, A, F(s), yt, n), each followed by
+ * BODY(s, yt) (F and BODY function-like macros).  With rounds (32 registers), n steps at a
+ * time with the state's registers renamed rather than moved: in step r of a round the Z[k]
+ * of FREE_STEP is Z[(k + r) % n], so each update subtracts in place and the slot of Z[0]
+ * takes the new last entry (the same operations); after a whole round the names are back. */
+#define FREE_REC(Z, A, n, rounds, S0, S1, F, BODY)                                            \
+    do {                                                                                      \
+        Py_ssize_t s_ = (S0);                                                                 \
+        for (; (rounds) && s_ + (n) <= (S1); s_ += (n)) {                                     \
+            _Pragma("GCC unroll 24") for (int r_ = 0; r_ < (n); ++r_) {                       \
+                const v4d yr_ = F(s_ + r_) + (Z)[r_];                                         \
+                _Pragma("GCC unroll 24") for (int k_ = 0; k_ < (n) - 1; ++k_)                 \
+                    (Z)[(k_ + 1 + r_) % (n)] -= (A)[k_] * yr_;                                \
+                (Z)[r_] = zero - (A)[(n) - 1] * yr_; /* a multiply-add: not fused onward */  \
+                BODY(s_ + r_, yr_);                                                           \
+            }                                                                                 \
+        }                                                                                     \
+        for (; s_ < (S1); ++s_) {                                                             \
+            v4d yr_;                                                                          \
+            FREE_STEP(Z, A, F(s_), yr_, n);                                                   \
+            BODY(s_, yr_);                                                                    \
+        }                                                                                     \
+    } while (0)
+
 typedef struct {
     const double *a, *num, *reg, *target, *basis, *energies;
     Py_ssize_t P, n, nb, K, L, num_stride;
@@ -2300,48 +2356,58 @@ free_upper_solve(const v4d *Lm, const v4d *R, v4d *v, const int n)
     }
 }
 
-/* Lane l of T (n x n, the numerators P_m by rows) and sc (1 / sqrt of their energies) from
- * the step-down of den = 1 + a_1 q^-1 + ... + a_n q^-n, as
- * flexid.costs.polynomial.orthogonal_numerators and _energies compute them: row m - 1 the
- * reversed A_(m-1) = (A_m - k_m A_m reversed) / (1 - k_m^2), k_m the last coefficient of
- * A_m, and E_m = 1 / prod_(j > m) (1 - k_j^2).  0 where the step-down breaks down (some
- * |k_m| >= 1 in rounding, or energies not finite and positive): then T = I and sc = 1.
- * Not inlined into the clones: compiled for the baseline, without contracted multiply-adds,
- * it rounds every operation as NumPy does, so on x86-64 the basis is the reference's. */
-static __attribute__((noinline)) int free_stepdown(const double *a, const int n, v4d *T, v4d *sc, const int l)
+/* T (n x n, the numerators P_m by rows) and sc (1 / sqrt of their energies) of the 4 lanes
+ * from the step-down of each lane's den = 1 + a_1 q^-1 + ... + a_n q^-n (rows a, a + stride,
+ * ...; a_l of lane l), as flexid.costs.polynomial.orthogonal_numerators and _energies
+ * compute them: row m - 1 the reversed A_(m-1) = (A_m - k_m A_m reversed) / (1 - k_m^2), k_m
+ * the last coefficient of A_m, and E_m = 1 / prod_(j > m) (1 - k_j^2).  good[l] = 0 where a
+ * lane breaks down (some |k_m| >= 1 in rounding, or energies not finite and positive): its
+ * T = I and sc = 1.  Not inlined into the clones: compiled for the baseline, without
+ * contracted multiply-adds, it rounds every operation as NumPy does (each lane on its own,
+ * in the same order), so on x86-64 the basis is the reference's. */
+static __attribute__((noinline)) void free_stepdown(const double *const al[4], const int n, v4d *T,
+                                                    v4d *sc, int good[4])
 {
-    double cur[FREE_MAXN + 1], nxt[FREE_MAXN + 1], k[FREE_MAXN + 1];
-    int ok = 1;
-    cur[0] = 1.0;
-    for (int i = 0; i < n; ++i) cur[i + 1] = a[i];
-    for (int i = 0; i < n * n; ++i) T[i][l] = 0.0;
+    const v4d zero = {0, 0, 0, 0}, one = {1, 1, 1, 1};
+    v4d cur[FREE_MAXN + 1], nxt[FREE_MAXN + 1], k[FREE_MAXN + 1];
+    v4d bad = zero; /* nonzero in a lane that broke down */
+    cur[0] = one;
+    for (int i = 0; i < n; ++i)
+        for (int l = 0; l < 4; ++l) cur[i + 1][l] = al[l][i];
+    for (int i = 0; i < n * n; ++i) T[i] = zero;
     for (int m = n; m >= 1; --m) {
-        const double km = cur[m], d = 1.0 - km * km;
+        const v4d km = cur[m], d = one - km * km;
         k[m] = km;
-        if (!(fabs(km) < 1.0)) ok = 0;
+        for (int l = 0; l < 4; ++l)
+            if (!(fabs(km[l]) < 1.0)) bad[l] = 1;
         for (int i = 0; i < m; ++i) nxt[i] = (cur[i] - km * cur[m - i]) / d;
         for (int i = 0; i < m; ++i) cur[i] = nxt[i];
-        for (int i = 0; i < m; ++i) T[(m - 1) * n + i][l] = cur[m - 1 - i];
+        for (int i = 0; i < m; ++i) T[(m - 1) * n + i] = cur[m - 1 - i];
     }
-    double prod = 1.0;
+    v4d prod = one;
     for (int m = n - 1; m >= 0; --m) {
-        prod = m == n - 1 ? 1.0 - k[n] * k[n] : prod * (1.0 - k[m + 1] * k[m + 1]);
-        const double e = 1.0 / prod;
-        if (!(e > 0) || !isfinite(e)) ok = 0;
-        sc[m][l] = 1.0 / sqrt(e);
-    }
-    for (int i = 0; i < n * n && ok; ++i)
-        if (!isfinite(T[i][l])) ok = 0;
-    if (!ok)
-        for (int i = 0; i < n; ++i) {
-            sc[i][l] = 1.0;
-            for (int j = 0; j < n; ++j) T[i * n + j][l] = i == j;
+        prod = m == n - 1 ? one - k[n] * k[n] : prod * (one - k[m + 1] * k[m + 1]);
+        const v4d e = one / prod;
+        for (int l = 0; l < 4; ++l) {
+            if (!(e[l] > 0) || !isfinite(e[l])) bad[l] = 1;
+            sc[m][l] = 1.0 / sqrt(e[l]);
         }
-    return ok;
+    }
+    for (int i = 0; i < n * n; ++i)
+        for (int l = 0; l < 4; ++l)
+            if (!isfinite(T[i][l])) bad[l] = 1;
+    for (int l = 0; l < 4; ++l) {
+        good[l] = bad[l] == 0;
+        if (!good[l])
+            for (int i = 0; i < n; ++i) {
+                sc[i][l] = 1.0;
+                for (int j = 0; j < n; ++j) T[i * n + j][l] = i == j;
+            }
+    }
 }
 
 static inline __attribute__((always_inline)) void
-free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
+free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int wide)
 {
     const Py_ssize_t K = J->K, L = J->L, nb = J->nb, w = (J->P - q < 4) ? J->P - q : 4;
     const double *reg = J->reg, *target = J->target;
@@ -2373,58 +2439,97 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
         for (Py_ssize_t j = 0; j < nb; ++j) f += Bv[j] * reg[t0 * nb + j];
         ebuf[t0] = f;
     }
-    for (Py_ssize_t t = 0; t < K; ++t) {
-        v4d yt;
-        FREE_STEP(Z, A, ebuf[t], yt, n);
-        const v4d e = target[t] - yt;
-        ebuf[t] = e;
-        ee += e * e;
-    }
-    /* 2. the impulse response over K + L samples */
-    for (int i = 0; i < n; ++i) Z[i] = zero;
+    /* 2. the impulse response over K + L samples: with 32 registers (wide) and an order whose
+     * two states fit them, in the same loop as the error (two independent recursions side by
+     * side); else after it, in rounds where wide */
+    const int fuse = wide && n <= 14, rounds = wide;
+    v4d Zh[FREE_MAXN];
+    for (int i = 0; i < n; ++i) Zh[i] = zero;
     {
-        v4d yt, f = zero + 1.0;
-        FREE_STEP(Z, A, f, yt, n);
-        hbuf[0] = yt;
-        for (Py_ssize_t t = 1; t < K + L; ++t) {
-            FREE_STEP(Z, A, zero, yt, n);
-            hbuf[t] = yt;
-        }
+        v4d ht, f = zero + 1.0;
+        FREE_STEP(Zh, A, f, ht, n);
+        hbuf[0] = ht;
     }
-    /* 3. w(i) = sum_(t >= i) h(t - i) e(t), the anti-causal recursion, for i < n */
+#define FREE_F_ERR(t) ebuf[t]
+#define FREE_B_ERR(t, yt)                                                                     \
+    do {                                                                                      \
+        const v4d e_ = target[t] - (yt);                                                      \
+        ebuf[t] = e_;                                                                         \
+        ee += e_ * e_;                                                                        \
+    } while (0)
+#define FREE_F_ZERO(t) zero
+#define FREE_B_H(t, yt) (hbuf[(t)] = (yt))
+    if (fuse) {
+        for (Py_ssize_t t = 0; t < K; ++t) {
+            v4d yt, ht;
+            FREE_STEP(Z, A, ebuf[t], yt, n);
+            FREE_B_ERR(t, yt);
+            FREE_STEP(Zh, A, zero, ht, n);
+            hbuf[t + 1] = ht;
+        }
+        FREE_REC(Zh, A, n, 0, K + 1, K + L, FREE_F_ZERO, FREE_B_H);
+    } else {
+        FREE_REC(Z, A, n, rounds, 0, K, FREE_F_ERR, FREE_B_ERR);
+        FREE_REC(Zh, A, n, rounds, 1, K + L, FREE_F_ZERO, FREE_B_H);
+    }
+    /* 3. w(i) = sum_(t >= i) h(t - i) e(t), the anti-causal recursion, for i < n (step s at
+     * t = K - 1 - s) */
     v4d wv[FREE_MAXN];
     for (int i = 0; i < n; ++i) Z[i] = wv[i] = zero;
-    for (Py_ssize_t t = K - 1; t >= 0; --t) {
-        v4d yt;
-        FREE_STEP(Z, A, ebuf[t], yt, n);
-        if (t < n) wv[t] = yt;
-    }
+#define FREE_F_BACK(s) ebuf[K - 1 - (s)]
+#define FREE_B_BACK(s, yt)                                                                    \
+    do {                                                                                      \
+        if (K - 1 - (s) < n) wv[K - 1 - (s)] = (yt);                                          \
+    } while (0)
+    FREE_REC(Z, A, n, rounds, 0, K, FREE_F_BACK, FREE_B_BACK);
     /* 4. the basis windows S0 = g(0 .. L-1), SK = g(K .. K+L-1), normalised to unit energy */
     v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN], R[FREE_MAXN];
     int good[4] = {1, 1, 1, 1};
-    for (int l = 0; l < 4; ++l) {
+    if (!J->basis) {
+        const double *al[4];
+        for (int l = 0; l < 4; ++l) al[l] = J->a + (q + (l < w ? l : 0)) * n;
+        free_stepdown(al, n, T, sc, good);
+    }
+    for (int l = 0; l < 4 && J->basis; ++l) {
         const Py_ssize_t p = q + (l < w ? l : 0);
-        if (!J->basis) {
-            good[l] = free_stepdown(J->a + p * n, n, T, sc, l);
-            continue;
-        }
         for (int m = 0; m < n; ++m) {
             sc[m][l] = 1.0 / sqrt(J->energies[p * n + m]);
             for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
         }
     }
     /* per sample, g_m = sum_(i <= m) T[m, i] h(. - i) for every m (independent chains, the
-     * h values in registers); SK first, with its squares */
-    v4d tail = zero;
-    for (Py_ssize_t tau = 0; tau < L; ++tau) {
-        v4d hv[FREE_MAXN];
-        for (int i = 0; i < n; ++i) hv[i] = hbuf[K + tau - i];
-        for (int m = 0; m < n; ++m) {
-            v4d acc = zero;
-            for (int i = 0; i <= m; ++i) acc += T[m * n + i] * hv[i];
-            SK[m * L + tau] = acc * sc[m];
-            tail += SK[m * L + tau] * SK[m * L + tau];
+     * h values in registers); SK first, with its squares.  Where the impulse response has
+     * decayed far enough by K in every lane that the tail is below FREE_TAIL whatever its
+     * signs, SK is not formed (its products would be subnormal numbers, which cost a
+     * hundred cycles each): by Cauchy-Schwarz, tail <= L n max|h|^2 sum_m sc_m^2 sum_i
+     * T[m, i]^2 over the h(K - n + 1 .. K + L - 1) it reads (the factor 1.01 covers the
+     * rounding of this bound and of the tail's own sum). */
+    v4d tail = zero, hmax = zero, cb = zero;
+    for (Py_ssize_t t = K - n + 1; t < K + L; ++t)
+        for (int l = 0; l < 4; ++l) {
+            const double ah = fabs(hbuf[t][l]);
+            if (!(ah <= hmax[l])) hmax[l] = ah; /* a NaN stays: not decayed */
         }
+    for (int m = 0; m < n; ++m) {
+        v4d r = zero;
+        for (int i = 0; i <= m; ++i) r += T[m * n + i] * T[m * n + i];
+        cb += sc[m] * sc[m] * r;
+    }
+    int decayed = 1;
+    for (int l = 0; l < w; ++l)
+        if (!(hmax[l] < sqrt(FREE_TAIL / (1.01 * (double)L * n * cb[l])))) decayed = 0;
+    if (!decayed) {
+        v4d tails[4] = {zero, zero, zero, zero}; /* four partial sums: shorter chains */
+        for (Py_ssize_t tau = 0; tau < L; ++tau) {
+            v4d g[FREE_MAXN];
+            FREE_WINDOW_SAMPLE(g, hbuf + K + tau, tau + K, n);
+            _Pragma("GCC unroll 24") for (int m = 0; m < n; ++m) {
+                const v4d s = g[m] * sc[m];
+                SK[m * L + tau] = s;
+                tails[m & 3] += s * s;
+            }
+        }
+        tail = (tails[0] + tails[1]) + (tails[2] + tails[3]);
     }
     /* 5. Q^T = (S0 S0^T)^-1 S0 SK^T, the Gram matrix over the record I - Q Q^T; where the
      * basis has decayed below FREE_TAIL by the end of the record in every lane, I */
@@ -2435,13 +2540,9 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
     for (int i = 0; i < n && !full; ++i)
         for (int j = 0; j <= i; ++j) G[i * n + j] = i == j ? zero + 1.0 : zero;
     for (Py_ssize_t tau = 0; tau < L && full; ++tau) {
-        v4d hv[FREE_MAXN];
-        for (int i = 0; i < n; ++i) hv[i] = tau - i >= 0 ? hbuf[tau - i] : zero;
-        for (int m = 0; m < n; ++m) {
-            v4d acc = zero;
-            for (int i = 0; i <= m; ++i) acc += T[m * n + i] * hv[i];
-            S0[m * L + tau] = acc * sc[m];
-        }
+        v4d g[FREE_MAXN];
+        FREE_WINDOW_SAMPLE(g, hbuf + tau, tau, n);
+        for (int m = 0; m < n; ++m) S0[m * L + tau] = g[m] * sc[m];
     }
     for (int i = 0; i < n && full; ++i) {
         /* row i of S0 S0^T and of SK S0^T (column j of S0 SK^T, as row j of QT) */
@@ -2487,14 +2588,23 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n)
     v4d sse = left;
     double *err = J->errors ? J->errors + q * K : NULL;
     if (run) sse = zero;
-    for (Py_ssize_t t = 0; t < K && run; ++t) {
-        v4d yt;
-        FREE_STEP(Z, A, t < n ? Nc[t] : zero, yt, n);
-        const v4d e = ebuf[t] - yt;
-        sse += e * e;
-        if (err)
-            for (Py_ssize_t l = 0; l < w; ++l) err[l * K + t] = e[l];
-    }
+#define FREE_F_FIT(t) ((t) < n ? Nc[(t)] : zero)
+#define FREE_B_FIT(t, yt)                                                                     \
+    do {                                                                                      \
+        const v4d e_ = ebuf[t] - (yt);                                                        \
+        sse += e_ * e_;                                                                       \
+        if (err)                                                                              \
+            for (Py_ssize_t l_ = 0; l_ < w; ++l_) err[l_ * K + (t)] = e_[l_];                \
+    } while (0)
+    if (run) FREE_REC(Z, A, n, rounds, 0, K, FREE_F_FIT, FREE_B_FIT);
+#undef FREE_F_ERR
+#undef FREE_B_ERR
+#undef FREE_F_ZERO
+#undef FREE_B_H
+#undef FREE_F_BACK
+#undef FREE_B_BACK
+#undef FREE_F_FIT
+#undef FREE_B_FIT
     for (Py_ssize_t l = 0; l < w; ++l) {
         J->sse[q + l] = good[l] ? sse[l] : NAN;
         for (int m = 0; m < n; ++m) J->coef[(q + l) * n + m] = c[m][l];
@@ -2507,12 +2617,12 @@ typedef void (*free_quad_fn)(const free_job *, Py_ssize_t, v4d *);
  * accumulators, stay in registers */
 #if defined(AR_X86)
 #define FREE_QUAD(n)                                                                          \
-    AR_TGT_G static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
-    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); } \
-    AR_TGT_V4 static void free_quad_v4_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
+    AR_TGT_G static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 0); } \
+    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 0); } \
+    AR_TGT_V4 static void free_quad_v4_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 1); }
 #else
 #define FREE_QUAD(n)                                                                          \
-    static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n); }
+    static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 0); }
 #endif
 FREE_QUAD(1) FREE_QUAD(2) FREE_QUAD(3) FREE_QUAD(4) FREE_QUAD(5) FREE_QUAD(6)
 FREE_QUAD(7) FREE_QUAD(8) FREE_QUAD(9) FREE_QUAD(10) FREE_QUAD(11) FREE_QUAD(12)
@@ -2558,7 +2668,9 @@ static int free_unit(const void *ctx, Py_ssize_t u, void **scratch)
         }
         buf = (v4d *)*scratch;
     }
+    FLUSH_SUBNORMALS_BEGIN;
     c->fn(&c->J, 4 * u, buf);
+    FLUSH_SUBNORMALS_END;
     return 0;
 }
 
