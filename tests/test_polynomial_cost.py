@@ -180,11 +180,32 @@ def test_least_squares_start_reads_arx_least_squares_as_the_structure():
     np.testing.assert_allclose(cost.theta_ls, np.r_[arx.theta[2:], arx.theta[:2]])
 
 
-def test_row_products_equal_numpy_convolve():
+@pytest.mark.parametrize("widths", [(3, 5), (5, 3), (4, 4), (1, 6), (7, 1), (1, 1)])
+def test_row_products_equal_numpy_convolve(widths):
+    # each coefficient of a product is a sum of at most min(a, b) products, so the routes
+    # agree with np.convolve to a few eps of the sum of their magnitudes (rtol 1e-14 on
+    # standard normal factors of at most 7 terms); the compiled route forms the NumPy
+    # route's sums in its order, each product rounded: on x86-64 (no fused multiply-add in
+    # the baseline) bit for bit, also on rows of a wider array (a column block)
+    import platform
+
+    from flexid import kernels
+    from flexid.costs.polynomial import poly_mul_rows_reference
+
     rng = np.random.default_rng(9)
-    p, q = rng.standard_normal((4, 3)), rng.standard_normal((4, 5))
-    expected = np.stack([np.convolve(a, b) for a, b in zip(p, q)])
-    np.testing.assert_allclose(poly_mul_rows(p, q), expected, rtol=1e-14)
+    a, b = widths
+    wide = rng.standard_normal((6, a + b + 2))
+    p, q = wide[:, 1 : 1 + a], rng.standard_normal((6, b))
+    expected = np.stack([np.convolve(x, y) for x, y in zip(p, q)])
+    reference = poly_mul_rows_reference(p, q)
+    np.testing.assert_allclose(reference, expected, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(poly_mul_rows(p, q), expected, rtol=1e-14, atol=1e-14)
+    compiled = kernels.poly_mul_compiled(p, q)
+    if compiled is None:
+        assert kernels.BACKEND != "c" or not kernels.compiled_available()
+    elif platform.machine() in ("x86_64", "AMD64"):
+        np.testing.assert_array_equal(compiled, reference)
+    assert kernels.poly_mul_compiled(p[:, 0], q) is None  # not a population: NumPy route
 
 
 # ================================================================================ search space

@@ -23,6 +23,12 @@
  *       target then being (K - first,) and compared with y(first ..): a recursion started
  *       at rest before the samples that count.
  *
+ *   poly_mul(p, q, out)
+ *       Row-wise polynomial products out[r] = p[r] * q[r]: p (P, a) and q (P, b) with rows
+ *       some stride apart, out (P, a + b - 1) C-contiguous; each coefficient summed over the
+ *       shorter factor's coefficients in order, as flexid.costs.polynomial.poly_mul_rows's
+ *       NumPy route does (without contracted multiply-adds on x86-64: bit for bit).
+ *
  *   twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads])
  *       The twin rotor's RK4 (flexid.envs.twin_rotor_physics: the equations of its batched
  *       ``derivatives`` and ``_rk4``, with the constants divided out once and sin, cos and
@@ -688,6 +694,71 @@ static Py_ssize_t get_rows(PyObject *obj, Py_buffer *view, const char *fn, const
 fail:
     PyBuffer_Release(view);
     return -1;
+}
+
+/* Compiled for the baseline (no target clones): on x86-64 that has no fused multiply-add,
+ * so every product is rounded before it is added, as in NumPy. */
+static void poly_mul_rows_c(const double *p, Py_ssize_t ps, Py_ssize_t a, const double *q,
+                            Py_ssize_t qs, Py_ssize_t b, Py_ssize_t P, double *out)
+{
+    const int swap = b > a; /* the loop runs over the shorter factor's coefficients */
+    if (swap) {
+        const double *t = p;
+        p = q;
+        q = t;
+        Py_ssize_t u = ps;
+        ps = qs;
+        qs = u;
+        u = a;
+        a = b;
+        b = u;
+    }
+    const Py_ssize_t w = a + b - 1;
+    for (Py_ssize_t r = 0; r < P; ++r) {
+        const double *pr = p + r * ps, *qr = q + r * qs;
+        double *o = out + r * w;
+        for (Py_ssize_t k = 0; k < w; ++k) o[k] = 0.0;
+        for (Py_ssize_t i = 0; i < b; ++i) {
+            const double qi = qr[i];
+            for (Py_ssize_t j = 0; j < a; ++j) o[i + j] += qi * pr[j];
+        }
+    }
+}
+
+static PyObject *py_poly_mul(PyObject *self, PyObject *args)
+{
+    PyObject *p_obj, *q_obj, *out_obj;
+    Py_buffer p, q, out;
+    if (!PyArg_ParseTuple(args, "OOO", &p_obj, &q_obj, &out_obj)) return NULL;
+    const Py_ssize_t ps = get_rows(p_obj, &p, "poly_mul", "p");
+    if (ps < 0) return NULL;
+    const Py_ssize_t qs = get_rows(q_obj, &q, "poly_mul", "q");
+    if (qs < 0) {
+        PyBuffer_Release(&p);
+        return NULL;
+    }
+    if (get_buffer(out_obj, &out, 1, "out") < 0) {
+        PyBuffer_Release(&p);
+        PyBuffer_Release(&q);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    if (check_format(&out, "d", "out") < 0) goto done;
+    if (q.shape[0] != p.shape[0] || p.shape[1] < 1 || q.shape[1] < 1 || out.ndim != 2 ||
+        out.shape[0] != p.shape[0] || out.shape[1] != p.shape[1] + q.shape[1] - 1) {
+        PyErr_SetString(PyExc_ValueError,
+                        "poly_mul: p (P, a) and q (P, b) with a, b >= 1, out (P, a + b - 1)");
+        goto done;
+    }
+    poly_mul_rows_c((const double *)p.buf, ps, p.shape[1], (const double *)q.buf, qs,
+                    q.shape[1], p.shape[0], (double *)out.buf);
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    PyBuffer_Release(&p);
+    PyBuffer_Release(&q);
+    PyBuffer_Release(&out);
+    return result;
 }
 
 static PyObject *py_schur_cohn(PyObject *self, PyObject *args)
@@ -2114,6 +2185,8 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args); /* defined at the 
 #endif
 
 static PyMethodDef methods[] = {
+    {"poly_mul", py_poly_mul, METH_VARARGS,
+     "poly_mul(p, q, out): row-wise polynomial products of p (P, a) and q (P, b) into out."},
     {"schur_cohn", py_schur_cohn, METH_VARARGS,
      "schur_cohn(a, out): strict stability of monic denominators a (P, n) into out (P,) uint8."},
     {"ar_run", py_ar_run, METH_VARARGS,

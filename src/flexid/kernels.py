@@ -46,6 +46,7 @@ __all__ = [
     "free_fit_compiled",
     "initial_state_fit",
     "initial_state_fit_reference",
+    "poly_mul_compiled",
     "schur_cohn_compiled",
     "set_threads",
     "shifted_columns",
@@ -168,6 +169,35 @@ def schur_cohn_compiled(a: np.ndarray) -> np.ndarray:
     out = np.empty(a.shape[0], dtype=np.uint8)
     _c.schur_cohn(a, out)
     return out.view(bool)
+
+
+def poly_mul_compiled(p: np.ndarray, q: np.ndarray) -> np.ndarray | None:
+    """Compiled row-wise polynomial products, or None where they do not apply.
+
+    The products of :func:`flexid.costs.polynomial.poly_mul_rows` in one call (a NumPy
+    route forms one array per coefficient of the shorter factor, some microseconds each):
+    the same sums in the same order, each product rounded before it is added, so on x86-64
+    the same numbers bit for bit.
+
+    Parameters
+    ----------
+    p : ndarray, shape (P, a)
+    q : ndarray, shape (P, b)
+        Coefficients in powers of ``q^-1``, one polynomial per row, ``a, b >= 1``.
+
+    Returns
+    -------
+    ndarray, shape (P, a + b - 1), or None
+        None when the compiled kernels are not in use or the arguments are not two float64
+        populations of the same size.
+    """
+    if (BACKEND != "c" or not hasattr(_c, "poly_mul") or p.ndim != 2 or q.ndim != 2
+            or p.shape[0] != q.shape[0] or min(p.shape[1], q.shape[1]) < 1
+            or p.dtype != np.float64 or q.dtype != np.float64):  # fmt: skip
+        return None
+    out = np.empty((p.shape[0], p.shape[1] + q.shape[1] - 1))
+    _c.poly_mul(_rows(p), _rows(q), out)
+    return out
 
 
 def ar_recursion_reference(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:

@@ -80,12 +80,21 @@ def poly_mul_rows(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     -------
     ndarray
     """
+    out = kernels.poly_mul_compiled(p, q)  # the same sums, in one call
+    if out is not None:
+        return out
+    return poly_mul_rows_reference(p, q)
+
+
+def poly_mul_rows_reference(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """NumPy route of :func:`poly_mul_rows`: one array operation per coefficient of the
+    shorter factor (a loop over coefficients, not candidates)."""
     if q.shape[1] > p.shape[1]:
         p, q = q, p
     if q.shape[1] == 1:  # a constant factor (often the 1 of an absent A, C, D or F)
         return p * q
     out = np.zeros((p.shape[0], p.shape[1] + q.shape[1] - 1))
-    for i in range(q.shape[1]):  # over the shorter polynomial's coefficients, not candidates
+    for i in range(q.shape[1]):
         out[:, i : i + p.shape[1]] += q[:, i : i + 1] * p
     return out
 
