@@ -63,7 +63,7 @@ from ..models.polynomial import PolynomialStructure, _check_initial
 from ..stability import is_stable, pole_radius_batched
 from .arx import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
 
-__all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows"]
+__all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows", "poly_mul_rows_reference"]
 
 _DEFAULT = CostSpec()
 
@@ -88,7 +88,17 @@ def poly_mul_rows(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 def poly_mul_rows_reference(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """NumPy route of :func:`poly_mul_rows`: one array operation per coefficient of the
-    shorter factor (a loop over coefficients, not candidates)."""
+    shorter factor (a loop over coefficients, not candidates).
+
+    Parameters
+    ----------
+    p, q : ndarray
+        Coefficients in powers of ``q^-1``, one polynomial per row: (P, a) and (P, b).
+
+    Returns
+    -------
+    ndarray, shape (P, a + b - 1)
+    """
     if q.shape[1] > p.shape[1]:
         p, q = q, p
     if q.shape[1] == 1:  # a constant factor (often the 1 of an absent A, C, D or F)
