@@ -835,7 +835,7 @@ def test_initial_state_fit_computes_the_step_down_itself(simd, n):
 
 @compiled
 def test_fits_leave_the_floating_point_environment_as_found(monkeypatch):
-    # the fits that run impulse responses flush subnormal numbers to zero while they run,
+    # the least-squares fits flush subnormal numbers to zero while they run,
     # on whichever thread runs a block, and restore the caller's setting after it: subnormal
     # arithmetic afterwards, in NumPy on this thread and in the plain recursion on the
     # helpers, is exact (0.5^t down to 2^-1074: every product by 0.5 is exact)
@@ -851,6 +851,7 @@ def test_fits_leave_the_floating_point_environment_as_found(monkeypatch):
             kernels.initial_state_fit(a, rng.normal(size=(64, n)), reg, target)
             shifted = np.column_stack([np.r_[np.zeros(j), target[: k - j]] for j in range(n)])
             kernels.arx_fit_shifted(a, shifted, np.zeros(n), target, 0, free_state=True)
+            kernels.arx_fit(a, shifted, target[:n], target, 0)
         tiny = np.float64(2.0**-1022)
         assert tiny / 4 == 2.0**-1024 and tiny / 4 > 0
         impulse = np.zeros((1000, k))

@@ -51,12 +51,13 @@
 #include <stdint.h>
 #include <string.h>
 
-/* The fits that run impulse responses (the lag sums of arx_fit_shifted, the estimated initial
+/* The least-squares fits (arx_fit, the lag sums of arx_fit_shifted, the estimated initial
  * state of free_fit) run with subnormal results flushed to zero and subnormal operands read
- * as zero (x86-64's FTZ and DAZ, restored after each block): the impulse response of a fast
- * denominator decays through the subnormal range, where each operation costs about a hundred
- * cycles (a fit from poles of radius 0.5 took 7 to 20 times as long as one from radius 0.9).
- * Only values below 2.3e-308 in absolute value are changed. */
+ * as zero (x86-64's FTZ and DAZ, restored after each block): the impulse and free responses
+ * of a fast denominator decay through the subnormal range, where each operation costs about
+ * a hundred cycles (a fit from poles of radius 0.5 took 2 to 20 times as long as one from
+ * radius 0.9).  Only values below 2.3e-308 in absolute value are changed.  The plain
+ * recursions (ar_run, arx_run: the costs themselves) keep IEEE arithmetic. */
 #if defined(__x86_64__)
 #include <xmmintrin.h>
 #define FLUSH_SUBNORMALS_BEGIN const unsigned int flush_csr_ = _mm_getcsr(); _mm_setcsr(flush_csr_ | 0x8040u)
@@ -1547,8 +1548,10 @@ static int fit_unit(const void *ctx, Py_ssize_t u, void **scratch)
         *scratch = malloc((size_t)((c->nb + 1) * (c->na + c->T)) * sizeof(v4d));
         if (!*scratch) return -1;
     }
+    FLUSH_SUBNORMALS_BEGIN;
     c->fn(c->a, c->a_stride, c->P, c->na, c->reg, c->T, c->state0, c->target, c->offset,
           c->b_out, c->ok, 4 * u, (v4d *)*scratch);
+    FLUSH_SUBNORMALS_END;
     return 0;
 }
 
@@ -2573,12 +2576,11 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
     /* per sample, g_m = sum_(i <= m) T[m, i] h(. - i) for every m (independent chains, the
      * h values in registers); SK first, with its squares.  Where the impulse response has
      * decayed far enough by K in every lane that the tail is below FREE_TAIL whatever its
-     * signs, SK is not formed (its products would be subnormal numbers, which cost a
-     * hundred cycles each): by Cauchy-Schwarz, tail <= L n max|h|^2 sum_m sc_m^2 sum_i
-     * T[m, i]^2 over the h(K - n + 1 .. K + L - 1) it reads (the factor 1.01 covers the
-     * rounding of this bound and of the tail's own sum). */
+     * signs, SK is not formed (it would only show that): by Cauchy-Schwarz, tail <= L n
+     * max|h|^2 sum_m sc_m^2 sum_i T[m, i]^2 over the h(K - n + 1 .. K + L - 1) it reads (the
+     * factor 1.01 covers the rounding of this bound and of the tail's own sum). */
     v4d tail = zero, hmax = zero, cb = zero;
-    for (Py_ssize_t t = K - n + 1; t < K + L; ++t)
+    for (Py_ssize_t t = K - n + 1 > 0 ? K - n + 1 : 0; t < K + L; ++t)
         for (int l = 0; l < 4; ++l) {
             const double ah = fabs(hbuf[t][l]);
             if (!(ah <= hmax[l])) hmax[l] = ah; /* a NaN stays: not decayed */
