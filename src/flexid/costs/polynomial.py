@@ -469,16 +469,15 @@ class PolynomialCost:
             num_y[:, 0] = 0.0  # both monic: exactly zero
             lead = p["d"]
         else:  # the simulation, and output error's one-step predictor (the same filter)
-            den = poly_mul_rows(p["a"], f_all) if p["a"].shape[1] > 1 else f_all
+            den = poly_mul_rows(p["a"], f_all)
             num_y = np.zeros((n_pop, 1))
-            lead = None  # 1: no product to form
+            lead = np.ones((n_pop, 1))
         nums = []
         s = self.structure
         for j in range(s.n_inputs):
             num = np.zeros((n_pop, s.nk[j] + s.nb[j]))
             num[:, s.nk[j] :] = p["b"][j]
-            if lead is not None:
-                num = poly_mul_rows(lead, num)
+            num = poly_mul_rows(lead, num)
             for i, fi in enumerate(p["f"]):
                 if i != j:
                     num = poly_mul_rows(num, fi)
