@@ -834,6 +834,77 @@ def test_initial_state_fit_computes_the_step_down_itself(simd, n):
 
 
 @compiled
+@pytest.mark.parametrize("n", [2, 15, 18, 24])
+def test_initial_state_fit_equals_the_reference_where_the_impulse_response_stops(simd, n):
+    # blocks of 4 that mix fast poles (radius 0.2-0.5: the impulse response stops early,
+    # its tail after the record bounded below FREE_TAIL, and the Gram matrix is I) with a
+    # lightly damped one (0.97-0.995: the whole response and the tail's Gram matrix), and
+    # blocks of fast ones only; 11 rows, so the last block is partial.  The NumPy reference
+    # forms the tail in every row.  In the fast rows both solve the same normalised system
+    # (condition near 1) from errors that no pole amplifies, so they agree to a few
+    # roundings (measured 2e-15 relative); the tail left out is below FREE_TAIL = 1e-17 of
+    # the unit basis energy.  In the lightly damped rows the routes' errors from rest (a
+    # compiled recursion against lfilter, sums in different orders) differ by their
+    # roundings amplified by poles near the circle (measured up to 1.1e-9 relative): they
+    # are here to make their blocks form the tail, so they are checked loosely
+    from flexid.costs.polynomial import _energies, orthogonal_numerators
+
+    rng = np.random.default_rng(100 + n)
+    p, nb, k = 11, 6, 700
+    slow = [1, 5]
+    radius = [(0.97, 0.995) if i in slow else (0.2, 0.5) for i in range(p)]
+    a = np.vstack([stable_denominators(rng, 1, n, r) for r in radius])
+    b, reg, target = rng.normal(size=(p, nb)), rng.normal(size=(k, nb)), rng.normal(size=k)
+    den = np.hstack([np.ones((p, 1)), a])
+    T = orthogonal_numerators(den, n)
+    E = _energies(den, T)
+    sse, e, _ = kernels.initial_state_fit(a, b, reg, target)
+    sse_only = kernels.initial_state_fit(a, b, reg, target, want_errors=False)[0]
+    sse_r, e_r, _ = kernels.initial_state_fit_reference(a, b, reg, target, T, E)
+    fast = np.setdiff1d(np.arange(p), slow)
+    for got in (sse, sse_only):
+        np.testing.assert_allclose(got[fast], sse_r[fast], rtol=1e-13)
+        np.testing.assert_allclose(got[slow], sse_r[slow], rtol=1e-7)
+    scale = np.sqrt(sse_r[fast])[:, None]
+    assert (np.abs(e[fast] - e_r[fast]) <= 1e-13 * scale).all()
+
+@compiled
+@pytest.mark.parametrize(("nf", "nc", "nd"), [(1, 1, 0), (8, 2, 2), (12, 2, 1), (16, 2, 2), (22, 2, 2)])
+def test_initial_state_fit_cascade_equals_the_reference(simd, nf, nc, nd):
+    # the error from rest by the cascade e = (D/C)(target - f/F) (Box-Jenkins' one-step
+    # error, kernels.initial_state_fit's first and noise), on every instruction set: orders
+    # C F = 2 .. 24 (fused with the impulse response at 14 and below with 32 registers), 10
+    # rows (a partial block).  Poles within radius 0.9, so no rounding is amplified much:
+    # the compiled and NumPy routes (sums in different orders) agree to a few hundred
+    # roundings
+    from flexid.costs.polynomial import _energies, orthogonal_numerators, poly_mul_rows
+
+    rng = np.random.default_rng(7 * nf + nc)
+    p, nb, k = 10, 5, 500
+    f = stable_denominators(rng, p, nf, (0.2, 0.9))
+    c = stable_denominators(rng, p, nc, (0.2, 0.9))
+    d = stable_denominators(rng, p, nd, (0.2, 0.9)) if nd else np.zeros((p, 0))
+    ones = np.ones((p, 1))
+    den = poly_mul_rows(np.hstack([ones, c]), np.hstack([ones, f]))
+    n = nf + nc
+    first = np.zeros((p, n))
+    first[:, :nf] = f
+    noise = np.zeros((p, 4))
+    noise[:, :nc], noise[:, 2 : 2 + nd] = c, d
+    b, reg, target = rng.normal(size=(p, nb)), rng.normal(size=(k, nb)), rng.normal(size=k)
+    T = orthogonal_numerators(den, n)
+    E = _energies(den, T)
+    sse, e, _ = kernels.initial_state_fit(den[:, 1:], b, reg, target, first=first, noise=noise)
+    sse_r, e_r, _ = kernels.initial_state_fit_reference(
+        den[:, 1:], b, reg, target, T, E, first=first, noise=noise
+    )
+    np.testing.assert_allclose(sse, sse_r, rtol=1e-12)
+    assert (np.abs(e - e_r) <= 1e-12 * np.sqrt(sse_r)[:, None]).all()
+    # that the cascade's fitted errors are the single filter's: on the costs, against the
+    # single-model lfilter route (tests/test_polynomial_cost.py, the bj_cascade structures)
+
+
+@compiled
 def test_fits_leave_the_floating_point_environment_as_found(monkeypatch):
     # the least-squares fits flush subnormal numbers to zero while they run,
     # on whichever thread runs a block, and restore the caller's setting after it: subnormal

@@ -32,6 +32,9 @@ STRUCTS = {
     "bj": PolynomialStructure.bj(2, 2, 1, 2, 1),
     "oe2": PolynomialStructure.oe([2, 1], [2, 1], [1, 0]),
     "bj2": PolynomialStructure.bj([2, 1], 1, 2, [2, 1], [1, 1]),
+    # nd <= nc: the estimated state's error from rest by the cascade D/C (y - B/F u)
+    "bj_cascade": PolynomialStructure.bj(3, 2, 2, 2, 1),
+    "bj2_cascade": PolynomialStructure.bj([2, 1], 2, 1, [2, 1], [1, 2]),
 }
 
 
@@ -80,6 +83,18 @@ def test_cost_equals_the_single_model_reference(name, predictor, rule):
     got = cost(X)
     expected = [_reference_sse(cost, x) for x in X]
     np.testing.assert_allclose(got, expected, rtol=RTOL)
+
+
+def test_box_jenkins_estimated_state_runs_the_cascade_where_it_fits_the_same():
+    # the structures above whose estimated state takes the cascade D/C (y - B/F u), and
+    # one it must not (nd > nc: the cascade's rest would differ by more than a free
+    # response of 1/(C F)); each is then checked against the single-model route above
+    def cascade(name):
+        s = STRUCTS[name]
+        return PolynomialCost(s, _record(s.n_inputs), initial="estimate")._cascade
+
+    assert cascade("bj") and cascade("bj_cascade") and cascade("bj2_cascade")
+    assert not cascade("bj2") and not cascade("oe") and not cascade("armax")
 
 
 @pytest.mark.numerics

@@ -2251,11 +2251,16 @@ PyMODINIT_FUNC PyInit__kernels(void)
  * sse_out is NaN where a Cholesky factorisation or the step-down breaks down.  Without
  * errors_out, a block whose fits all leave at least cancel |e|^2 takes the sums of squares
  * as |e|^2 - c.r (the normal equations' identity, flexid.kernels.FREE_CANCEL) instead of
- * running the fitted free response.
+ * running the fitted free response.  With first (P, n) and noise (P, 4), the error from rest
+ * is a cascade: e = (D / C)(target - f / F), F = 1 + first_1 q^-1 + ... (zeros past its
+ * order), D / C of order 2 at most (noise: c_1, c_2, d_1, d_2), and a = C F: fewer
+ * multiply-adds than the one filter (D F y - D B u) / (C F) of Box-Jenkins, whose free
+ * responses it spans (so the fitted errors are the same).
  *
  * Per block of 4 candidates (one per lane), four recursions of 1/den in the transposed
  * direct form with the state in registers: the error from rest e (input part computed here
- * from reg), the impulse response h over K + L samples, the anti-causal recursion over e
+ * from reg), the impulse response h over K + L samples (or until what is left of it
+ * cannot matter), the anti-causal recursion over e
  * (the right-hand side), and the fitted free response, removed from e; then the small
  * algebra of the normalised basis on 4 lanes at once. */
 /* The estimated initial state is compiled at -O2 on every instruction set: -O3 makes it no
@@ -2324,7 +2329,8 @@ typedef struct {
     const double *a, *num, *reg, *target, *basis, *energies;
     Py_ssize_t P, n, nb, K, L, num_stride;
     double *errors, *sse, *coef;
-    double cancel; /* see the head of this section */
+    double cancel;      /* see the head of this section */
+    const double *first, *noise; /* the cascade (see the head of this section), or NULL */
 } free_job;
 
 /* Cholesky of the symmetric positive definite G (n x n, lower triangle read and written) on
@@ -2390,26 +2396,87 @@ free_dots(const v4d *x, const v4d *Y, const Py_ssize_t len, const int nj, v4d *o
     }
 }
 
-/* The m right-hand sides X (rows of n) <- L^-T L^-1 X, L and R from free_cholesky: the
- * operations of free_lower_solve and free_upper_solve on each row, the rows interleaved
- * (independent chains) */
+/* Rows j0 .. j0 + R - 1 of X (rows of n) <- L^-T L^-1 X: each entry subtracts its products
+ * in the order of k, as free_lower_solve and free_upper_solve do, the R rows side by side
+ * (independent chains, the partial sums in registers) */
+static inline __attribute__((always_inline)) void
+free_solve_group(const v4d *Lm, const v4d *R, v4d *X, const int n, const int j0, const int rows)
+{
+    v4d *Xr = X + j0 * n;
+    for (int i = 0; i < n; ++i) {
+        v4d s[8];
+        _Pragma("GCC unroll 8") for (int r = 0; r < rows; ++r) s[r] = Xr[r * n + i];
+        for (int k = 0; k < i; ++k) {
+            const v4d lik = Lm[i * n + k];
+            _Pragma("GCC unroll 8") for (int r = 0; r < rows; ++r) s[r] -= lik * Xr[r * n + k];
+        }
+        _Pragma("GCC unroll 8") for (int r = 0; r < rows; ++r) Xr[r * n + i] = s[r] * R[i];
+    }
+    for (int i = n - 1; i >= 0; --i) {
+        v4d s[8];
+        _Pragma("GCC unroll 8") for (int r = 0; r < rows; ++r) s[r] = Xr[r * n + i];
+        for (int k = i + 1; k < n; ++k) {
+            const v4d lki = Lm[k * n + i];
+            _Pragma("GCC unroll 8") for (int r = 0; r < rows; ++r) s[r] -= lki * Xr[r * n + k];
+        }
+        _Pragma("GCC unroll 8") for (int r = 0; r < rows; ++r) Xr[r * n + i] = s[r] * R[i];
+    }
+}
+
+/* out[i * ros + j * cos] = sum_k X[i * len + k] Y[j * len + k], k = 0 .. len - 1 in order
+ * (one sum per entry, as free_dots), for rows i0 .. i0 + tr - 1 of X and j0 .. j0 + tc - 1 of
+ * Y: a tile of tr x tc sums in registers, each X and Y value loaded once for the tile */
+static inline __attribute__((always_inline)) void
+free_tile(const v4d *X, const v4d *Y, const Py_ssize_t len, const int i0, const int j0,
+          const int tr, const int tc, v4d *out, const Py_ssize_t ros, const Py_ssize_t cos)
+{
+    const v4d zero = {0, 0, 0, 0};
+    v4d s[4][4];
+    _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
+        _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b) s[a][b] = zero;
+    for (Py_ssize_t k = 0; k < len; ++k) {
+        v4d x[4], y[4];
+        _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a) x[a] = X[(i0 + a) * len + k];
+        _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b) y[b] = Y[(j0 + b) * len + k];
+        _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
+            _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b) s[a][b] += x[a] * y[b];
+    }
+    _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
+        _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b)
+            out[(i0 + a) * ros + (j0 + b) * cos] = s[a][b];
+}
+
+/* free_tile over the nx x ny products (only the tiles that reach j <= i where lower), in
+ * tiles of t x t (t = 4 with 32 registers, 3 with 16), the edges in 1 x t, t x 1 and 1 x 1 */
+static inline __attribute__((always_inline)) void
+free_products(const v4d *X, const int nx, const v4d *Y, const int ny, const Py_ssize_t len,
+              v4d *out, const Py_ssize_t ros, const Py_ssize_t cos, const int lower,
+              const int t)
+{
+    const int mx = nx - nx % t, my = ny - ny % t;
+    for (int i = 0; i < mx; i += t)
+        for (int j = 0; j < my && (!lower || j <= i + t - 1); j += t)
+            free_tile(X, Y, len, i, j, t, t, out, ros, cos);
+    for (int i = mx; i < nx; ++i)
+        for (int j = 0; j < my && (!lower || j <= i); j += t)
+            free_tile(X, Y, len, i, j, 1, t, out, ros, cos);
+    for (int j = my; j < ny; ++j)
+        for (int i = lower ? j - j % t : 0; i < mx; i += t)
+            free_tile(X, Y, len, i, j, t, 1, out, ros, cos);
+    for (int i = mx; i < nx; ++i)
+        for (int j = my; j < ny && (!lower || j <= i); ++j)
+            free_tile(X, Y, len, i, j, 1, 1, out, ros, cos);
+}
+
+/* The m right-hand sides X (rows of n) <- L^-T L^-1 X, L and R from free_cholesky: 8 (then 4,
+ * then 1) rows at a time */
 static inline __attribute__((always_inline)) void
 free_solve_rows(const v4d *Lm, const v4d *R, v4d *X, const int n, const int m)
 {
-    for (int i = 0; i < n; ++i) {
-        for (int k = 0; k < i; ++k) {
-            const v4d lik = Lm[i * n + k];
-            for (int j = 0; j < m; ++j) X[j * n + i] -= lik * X[j * n + k];
-        }
-        for (int j = 0; j < m; ++j) X[j * n + i] *= R[i];
-    }
-    for (int i = n - 1; i >= 0; --i) {
-        for (int k = i + 1; k < n; ++k) {
-            const v4d lki = Lm[k * n + i];
-            for (int j = 0; j < m; ++j) X[j * n + i] -= lki * X[j * n + k];
-        }
-        for (int j = 0; j < m; ++j) X[j * n + i] *= R[i];
-    }
+    int j = 0;
+    for (; j + 8 <= m; j += 8) free_solve_group(Lm, R, X, n, j, 8);
+    for (; j + 4 <= m; j += 4) free_solve_group(Lm, R, X, n, j, 4);
+    for (; j < m; ++j) free_solve_group(Lm, R, X, n, j, 1);
 }
 
 /* v <- L^-1 v (lower) or L^-T v (upper: the transpose), L and R from free_cholesky */
@@ -2482,116 +2549,66 @@ static __attribute__((noinline)) void free_stepdown(const double *const al[4], c
     }
 }
 
+/* Steps 4 to 6 of free_quad_impl (the basis, the Gram matrix over the record and the solve)
+ * for the block at q of w candidates, from the impulse response in hbuf and the anti-causal
+ * sums wv; into o the coefficients c (also written to coef_out), the fitted response's
+ * forcing Nc, the sums of squares left and whether the fitted response must be run.  A
+ * function of its own (not inlined into free_quad_impl), so that the registers of the
+ * recursions are allocated without this code's. */
+typedef struct {
+    v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN], cb, Nc[FREE_MAXN], left;
+    int good[4], run, early;
+} free_alg;
+
 static inline __attribute__((always_inline)) void
-free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int wide)
+free_algebra_impl(const free_job *J, Py_ssize_t q, v4d *buf, const v4d *wv, const v4d *eep,
+                  free_alg *o, const int n, const int wide)
 {
-    const Py_ssize_t K = J->K, L = J->L, nb = J->nb, w = (J->P - q < 4) ? J->P - q : 4;
-    const double *reg = J->reg, *target = J->target;
-    const v4d zero = {0, 0, 0, 0};
-    v4d *ebuf = buf, *hbuf = buf + K, *S0 = hbuf + K + L, *SK = S0 + n * L;
-    v4d A[FREE_MAXN], Z[FREE_MAXN], Bv[64];
-    /* lanes past P run lane 0's candidate; their results are not written */
-    for (int i = 0; i < n; ++i)
-        for (int l = 0; l < 4; ++l) A[i][l] = J->a[(q + (l < w ? l : 0)) * n + i];
-    for (Py_ssize_t j = 0; j < nb; ++j)
-        for (int l = 0; l < 4; ++l) Bv[j][l] = J->num[(q + (l < w ? l : 0)) * J->num_stride + j];
-    /* 1. the error from rest, and its sum of squares */
-    v4d ee = zero;
-    for (int i = 0; i < n; ++i) Z[i] = zero;
-    /* the input part first, into ebuf, 8 samples at a time: 8 independent sums in registers
-     * (a pass of its own, so that the recursion has the registers to itself) */
-    Py_ssize_t t0 = 0;
-    for (; t0 + 8 <= K; t0 += 8) {
-        v4d f[8];
-        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] = zero;
-        for (Py_ssize_t j = 0; j < nb; ++j) {
-            const v4d bj = Bv[j];
-            _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] += bj * reg[(t0 + i) * nb + j];
+    const Py_ssize_t K = J->K, L = J->L, w = (J->P - q < 4) ? J->P - q : 4;
+    const v4d zero = {0, 0, 0, 0}, ee = *eep;
+    v4d *hbuf = buf + K, *S0 = hbuf + K + L, *SK = S0 + n * L;
+    int *good = o->good;
+    v4d *T = o->T, *sc = o->sc, R[FREE_MAXN];
+    if (!wv) {
+        /* the basis: T and sc from the step-down (or from basis and energies), and cb */
+        for (int l = 0; l < 4; ++l) good[l] = 1;
+        if (!J->basis) {
+            const double *al[4];
+            for (int l = 0; l < 4; ++l) al[l] = J->a + (q + (l < w ? l : 0)) * n;
+            free_stepdown(al, n, T, sc, good);
         }
-        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) ebuf[t0 + i] = f[i];
-    }
-    for (; t0 < K; ++t0) {
-        v4d f = zero;
-        for (Py_ssize_t j = 0; j < nb; ++j) f += Bv[j] * reg[t0 * nb + j];
-        ebuf[t0] = f;
-    }
-    /* 2. the impulse response over K + L samples: with 32 registers (wide) and an order whose
-     * two states fit them, in the same loop as the error (two independent recursions side by
-     * side); else after it, in rounds where wide */
-    const int fuse = wide && n <= 14, rounds = wide;
-    v4d Zh[FREE_MAXN];
-    for (int i = 0; i < n; ++i) Zh[i] = zero;
-    {
-        v4d ht, f = zero + 1.0;
-        FREE_STEP(Zh, A, f, ht, n);
-        hbuf[0] = ht;
-    }
-#define FREE_F_ERR(t) ebuf[t]
-#define FREE_B_ERR(t, yt)                                                                     \
-    do {                                                                                      \
-        const v4d e_ = target[t] - (yt);                                                      \
-        ebuf[t] = e_;                                                                         \
-        ee += e_ * e_;                                                                        \
-    } while (0)
-#define FREE_F_ZERO(t) zero
-#define FREE_B_H(t, yt) (hbuf[(t)] = (yt))
-    if (fuse) {
-        for (Py_ssize_t t = 0; t < K; ++t) {
-            v4d yt, ht;
-            FREE_STEP(Z, A, ebuf[t], yt, n);
-            FREE_B_ERR(t, yt);
-            FREE_STEP(Zh, A, zero, ht, n);
-            hbuf[t + 1] = ht;
+        for (int l = 0; l < 4 && J->basis; ++l) {
+            const Py_ssize_t p = q + (l < w ? l : 0);
+            for (int m = 0; m < n; ++m) {
+                sc[m][l] = 1.0 / sqrt(J->energies[p * n + m]);
+                for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
+            }
         }
-        FREE_REC(Zh, A, n, 0, K + 1, K + L, FREE_F_ZERO, FREE_B_H);
-    } else {
-        FREE_REC(Z, A, n, rounds, 0, K, FREE_F_ERR, FREE_B_ERR);
-        FREE_REC(Zh, A, n, rounds, 1, K + L, FREE_F_ZERO, FREE_B_H);
-    }
-    /* 3. w(i) = sum_(t >= i) h(t - i) e(t), the anti-causal recursion, for i < n (step s at
-     * t = K - 1 - s) */
-    v4d wv[FREE_MAXN];
-    for (int i = 0; i < n; ++i) Z[i] = wv[i] = zero;
-#define FREE_F_BACK(s) ebuf[K - 1 - (s)]
-#define FREE_B_BACK(s, yt)                                                                    \
-    do {                                                                                      \
-        if (K - 1 - (s) < n) wv[K - 1 - (s)] = (yt);                                          \
-    } while (0)
-    FREE_REC(Z, A, n, rounds, 0, K, FREE_F_BACK, FREE_B_BACK);
-    /* 4. the basis windows S0 = g(0 .. L-1), SK = g(K .. K+L-1), normalised to unit energy */
-    v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN], R[FREE_MAXN];
-    int good[4] = {1, 1, 1, 1};
-    if (!J->basis) {
-        const double *al[4];
-        for (int l = 0; l < 4; ++l) al[l] = J->a + (q + (l < w ? l : 0)) * n;
-        free_stepdown(al, n, T, sc, good);
-    }
-    for (int l = 0; l < 4 && J->basis; ++l) {
-        const Py_ssize_t p = q + (l < w ? l : 0);
+        v4d cb = zero;
         for (int m = 0; m < n; ++m) {
-            sc[m][l] = 1.0 / sqrt(J->energies[p * n + m]);
-            for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
+            v4d r = zero;
+            for (int i = 0; i <= m; ++i) r += T[m * n + i] * T[m * n + i];
+            cb += sc[m] * sc[m] * r;
         }
+        o->cb = cb;
+        return;
     }
+    /* 4. the basis windows S0 = g(0 .. L-1), SK = g(K .. K+L-1), normalised to unit energy */
     /* per sample, g_m = sum_(i <= m) T[m, i] h(. - i) for every m (independent chains, the
      * h values in registers); SK first, with its squares.  Where the impulse response has
      * decayed far enough by K in every lane that the tail is below FREE_TAIL whatever its
      * signs, SK is not formed (it would only show that): by Cauchy-Schwarz, tail <= L n
      * max|h|^2 sum_m sc_m^2 sum_i T[m, i]^2 over the h(K - n + 1 .. K + L - 1) it reads (the
      * factor 1.01 covers the rounding of this bound and of the tail's own sum). */
-    v4d tail = zero, hmax = zero, cb = zero;
-    for (Py_ssize_t t = K - n + 1 > 0 ? K - n + 1 : 0; t < K + L; ++t)
+    v4d tail = zero, hmax = zero;
+    const v4d cb = o->cb;
+    for (Py_ssize_t t = K - n + 1 > 0 ? K - n + 1 : 0; t < K + L && !o->early; ++t)
         for (int l = 0; l < 4; ++l) {
             const double ah = fabs(hbuf[t][l]);
             if (!(ah <= hmax[l])) hmax[l] = ah; /* a NaN stays: not decayed */
         }
-    for (int m = 0; m < n; ++m) {
-        v4d r = zero;
-        for (int i = 0; i <= m; ++i) r += T[m * n + i] * T[m * n + i];
-        cb += sc[m] * sc[m] * r;
-    }
     int decayed = 1;
-    for (int l = 0; l < w; ++l)
+    for (int l = 0; l < w && !o->early; ++l)
         if (!(hmax[l] < sqrt(FREE_TAIL / (1.01 * (double)L * n * cb[l])))) decayed = 0;
     if (!decayed) {
         v4d tails[4] = {zero, zero, zero, zero}; /* four partial sums: shorter chains */
@@ -2619,10 +2636,11 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
         FREE_WINDOW_SAMPLE(g, hbuf + tau, tau, n);
         for (int m = 0; m < n; ++m) S0[m * L + tau] = g[m] * sc[m];
     }
-    for (int i = 0; i < n && full; ++i) {
-        /* row i of S0 S0^T and of SK S0^T (column j of S0 SK^T, as row j of QT) */
-        free_dots(S0 + i * L, S0, L, i + 1, M0 + i * n, 1);
-        free_dots(S0 + i * L, SK, L, n, QT + i, n);
+    if (full) {
+        /* S0 S0^T (its lower triangle and some entries above it) and SK S0^T (column j of
+         * S0 SK^T as row j of QT) */
+        free_products(S0, n, S0, n, L, M0, n, 1, 1, wide ? 4 : 3);
+        free_products(S0, n, SK, n, L, QT, 1, n, 0, wide ? 4 : 3);
     }
     if (full) {
         free_cholesky(M0, R, n, good);
@@ -2634,7 +2652,7 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
         for (int j = 0; j <= i; ++j) G[i * n + j] = (i == j ? zero + 1.0 : zero) - s[j];
     }
     /* 6. the right-hand side and the normalised solve */
-    v4d c[FREE_MAXN], Nc[FREE_MAXN], rn[FREE_MAXN];
+    v4d c[FREE_MAXN], rn[FREE_MAXN], *Nc = o->Nc;
     for (int m = 0; m < n; ++m) {
         v4d s = zero;
         for (int i = 0; i <= m; ++i) s += T[m * n + i] * wv[i];
@@ -2649,6 +2667,7 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
     v4d fit = zero;
     for (int m = 0; m < n; ++m) fit += c[m] * rn[m];
     const v4d left = ee - fit;
+    o->left = left;
     int run = J->errors != NULL;
     for (Py_ssize_t l = 0; l < w; ++l)
         if (good[l] && !(left[l] >= J->cancel * ee[l])) run = 1;
@@ -2658,6 +2677,153 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
         for (int m = i; m < n; ++m) s += T[m * n + i] * c[m];
         Nc[i] = s;
     }
+    o->run = run;
+    for (Py_ssize_t l = 0; l < w; ++l)
+        for (int m = 0; m < n; ++m) J->coef[(q + l) * n + m] = c[m][l];
+}
+
+static inline __attribute__((always_inline)) void
+free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int wide,
+               void (*alg)(const free_job *, Py_ssize_t, v4d *, const v4d *, const v4d *, free_alg *))
+{
+    const Py_ssize_t K = J->K, L = J->L, nb = J->nb, w = (J->P - q < 4) ? J->P - q : 4;
+    const double *reg = J->reg, *target = J->target;
+    const v4d zero = {0, 0, 0, 0};
+    v4d *ebuf = buf, *hbuf = buf + K;
+    v4d A[FREE_MAXN], Z[FREE_MAXN], Bv[64];
+    /* lanes past P run lane 0's candidate; their results are not written */
+    for (int i = 0; i < n; ++i)
+        for (int l = 0; l < 4; ++l) A[i][l] = J->a[(q + (l < w ? l : 0)) * n + i];
+    for (Py_ssize_t j = 0; j < nb; ++j)
+        for (int l = 0; l < 4; ++l) Bv[j][l] = J->num[(q + (l < w ? l : 0)) * J->num_stride + j];
+    /* the cascade: the first recursion's denominator (order n, padded with zeros) and the
+     * c_1, c_2, d_1, d_2 of D / C */
+    const int cascade = J->first != NULL;
+    v4d A1[FREE_MAXN], CD[4];
+    for (int i = 0; i < n && cascade; ++i)
+        for (int l = 0; l < 4; ++l) A1[i][l] = J->first[(q + (l < w ? l : 0)) * n + i];
+    for (int i = 0; i < 4 && cascade; ++i)
+        for (int l = 0; l < 4; ++l) CD[i][l] = J->noise[(q + (l < w ? l : 0)) * 4 + i];
+    v4d s0 = zero, s1 = zero; /* the state of D / C */
+    /* 1. the error from rest, and its sum of squares */
+    v4d ee = zero;
+    for (int i = 0; i < n; ++i) Z[i] = zero;
+    /* the input part first, into ebuf, 8 samples at a time: 8 independent sums in registers
+     * (a pass of its own, so that the recursion has the registers to itself) */
+    Py_ssize_t t0 = 0;
+    for (; t0 + 8 <= K; t0 += 8) {
+        v4d f[8];
+        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] = zero;
+        for (Py_ssize_t j = 0; j < nb; ++j) {
+            const v4d bj = Bv[j];
+            _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) f[i] += bj * reg[(t0 + i) * nb + j];
+        }
+        _Pragma("GCC unroll 8") for (int i = 0; i < 8; ++i) ebuf[t0 + i] = f[i];
+    }
+    for (; t0 < K; ++t0) {
+        v4d f = zero;
+        for (Py_ssize_t j = 0; j < nb; ++j) f += Bv[j] * reg[t0 * nb + j];
+        ebuf[t0] = f;
+    }
+    /* the basis, from each den's step-down */
+    free_alg o;
+    o.early = 0;
+    alg(J, q, buf, NULL, &ee, &o);
+    /* 2. the impulse response over K + L samples: with 32 registers (wide) and an order whose
+     * two states fit them, in the same loop as the error (two independent recursions side by
+     * side); else after it, in rounds where wide */
+    const int fuse = wide && n <= 14, rounds = wide;
+    v4d Zh[FREE_MAXN];
+    for (int i = 0; i < n; ++i) Zh[i] = zero;
+    {
+        v4d ht, f = zero + 1.0;
+        FREE_STEP(Zh, A, f, ht, n);
+        hbuf[0] = ht;
+    }
+#define FREE_F_ERR(t) ebuf[t]
+#define FREE_B_ERR(t, yt)                                                                     \
+    do {                                                                                      \
+        const v4d e_ = target[t] - (yt);                                                      \
+        ebuf[t] = e_;                                                                         \
+        ee += e_ * e_;                                                                        \
+    } while (0)
+/* the cascade: v = target - the first recursion's output, e = (D / C) v (direct form II
+ * transposed, the state s0, s1) */
+#define FREE_B_CAS(t, wt)                                                                     \
+    do {                                                                                      \
+        const v4d v_ = target[t] - (wt), e_ = v_ + s0;                                        \
+        s0 = s1 + CD[2] * v_ - CD[0] * e_;                                                    \
+        s1 = CD[3] * v_ - CD[1] * e_;                                                         \
+        ebuf[t] = e_;                                                                         \
+        ee += e_ * e_;                                                                        \
+    } while (0)
+#define FREE_F_ZERO(t) zero
+#define FREE_B_H(t, yt) (hbuf[(t)] = (yt))
+    if (fuse && cascade) {
+        for (Py_ssize_t t = 0; t < K; ++t) {
+            v4d yt, ht;
+            FREE_STEP(Z, A1, ebuf[t], yt, n);
+            FREE_B_CAS(t, yt);
+            FREE_STEP(Zh, A, zero, ht, n);
+            hbuf[t + 1] = ht;
+        }
+        FREE_REC(Zh, A, n, 0, K + 1, K + L, FREE_F_ZERO, FREE_B_H);
+    } else if (fuse) {
+        for (Py_ssize_t t = 0; t < K; ++t) {
+            v4d yt, ht;
+            FREE_STEP(Z, A, ebuf[t], yt, n);
+            FREE_B_ERR(t, yt);
+            FREE_STEP(Zh, A, zero, ht, n);
+            hbuf[t + 1] = ht;
+        }
+        FREE_REC(Zh, A, n, 0, K + 1, K + L, FREE_F_ZERO, FREE_B_H);
+    } else {
+        if (cascade)
+            FREE_REC(Z, A1, n, rounds, 0, K, FREE_F_ERR, FREE_B_CAS);
+        else
+            FREE_REC(Z, A, n, rounds, 0, K, FREE_F_ERR, FREE_B_ERR);
+        /* in rounds of 4 n steps; after each, where the energy of what is left of h is so
+         * small in every lane that the tail after K is below FREE_TAIL, h stops (the small
+         * algebra then takes the Gram matrix as I).  From the state z before step s, the
+         * rest of h is the impulse response of z(q) / den(q), whose energy is at most
+         * (2 n - 1) r(0) |z|^2 (Gershgorin on the Toeplitz matrix of h's autocorrelation r,
+         * |r(k)| <= r(0) = E_0, the energy of h, 1 / sc_0^2); and the tail, the window after
+         * K of the normalised basis, is at most n cb times the energy of h after K - n + 1 */
+        v4d zmax;
+        for (int l = 0; l < 4; ++l)
+            zmax[l] = FREE_TAIL * o.sc[0][l] * o.sc[0][l] /
+                      (1.01 * (double)n * (2 * n - 1) * o.cb[l]);
+        Py_ssize_t s = 1;
+        while (s < K + L) {
+            const Py_ssize_t e = s + 4 * n < K + L ? s + 4 * n : K + L;
+            FREE_REC(Zh, A, n, rounds, s, e, FREE_F_ZERO, FREE_B_H);
+            s = e;
+            if (s > K - n + 1) continue;
+            v4d z2 = zero;
+            for (int i = 0; i < n; ++i) z2 += Zh[i] * Zh[i];
+            int small = 1;
+            for (int l = 0; l < w; ++l)
+                if (!(z2[l] < zmax[l])) small = 0;
+            if (small) {
+                o.early = 1;
+                break;
+            }
+        }
+    }
+    /* 3. w(i) = sum_(t >= i) h(t - i) e(t), the anti-causal recursion, for i < n (step s at
+     * t = K - 1 - s) */
+    v4d wv[FREE_MAXN];
+    for (int i = 0; i < n; ++i) Z[i] = wv[i] = zero;
+#define FREE_F_BACK(s) ebuf[K - 1 - (s)]
+#define FREE_B_BACK(s, yt)                                                                    \
+    do {                                                                                      \
+        if (K - 1 - (s) < n) wv[K - 1 - (s)] = (yt);                                          \
+    } while (0)
+    FREE_REC(Z, A, n, rounds, 0, K, FREE_F_BACK, FREE_B_BACK);
+    /* 4 to 6 */
+    alg(J, q, buf, wv, &ee, &o);
+    const v4d *Nc = o.Nc, left = o.left;
+    const int *good = o.good, run = o.run;
     /* 7. the fitted free response removed from e */
     for (int i = 0; i < n; ++i) Z[i] = zero;
     v4d sse = left;
@@ -2674,6 +2840,7 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
     if (run) FREE_REC(Z, A, n, rounds, 0, K, FREE_F_FIT, FREE_B_FIT);
 #undef FREE_F_ERR
 #undef FREE_B_ERR
+#undef FREE_B_CAS
 #undef FREE_F_ZERO
 #undef FREE_B_H
 #undef FREE_F_BACK
@@ -2682,7 +2849,6 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
 #undef FREE_B_FIT
     for (Py_ssize_t l = 0; l < w; ++l) {
         J->sse[q + l] = good[l] ? sse[l] : NAN;
-        for (int m = 0; m < n; ++m) J->coef[(q + l) * n + m] = c[m][l];
     }
 }
 
@@ -2692,13 +2858,21 @@ typedef void (*free_quad_fn)(const free_job *, Py_ssize_t, v4d *);
  * accumulators, stay in registers */
 #if defined(AR_X86)
 #define FREE_QUAD(n)                                                                          \
-    AR_TGT_G static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 0); } \
-    AR_TGT_V3 static void free_quad_v3_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 0); } \
-    AR_TGT_V4 static void free_quad_v4_##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 1); }
+    FREE_QUAD_ISA(n, g, AR_TGT_G, 0) FREE_QUAD_ISA(n, v3_, AR_TGT_V3, 0) FREE_QUAD_ISA(n, v4_, AR_TGT_V4, 1)
 #else
-#define FREE_QUAD(n)                                                                          \
-    static void free_quad_g##n(const free_job *J, Py_ssize_t q, v4d *b) { free_quad_impl(J, q, b, n, 0); }
+#define FREE_QUAD(n) FREE_QUAD_ISA(n, g, , 0)
 #endif
+/* free_quad_<isa><n> and its small algebra, not inlined into it (see free_algebra_impl) */
+#define FREE_QUAD_ISA(n, isa, TGT, wide)                                                      \
+    TGT static __attribute__((noinline)) void free_alg_##isa##n(                              \
+        const free_job *J, Py_ssize_t q, v4d *b, const v4d *wv, const v4d *ee, free_alg *o)   \
+    {                                                                                         \
+        free_algebra_impl(J, q, b, wv, ee, o, n, wide);                                       \
+    }                                                                                         \
+    TGT static void free_quad_##isa##n(const free_job *J, Py_ssize_t q, v4d *b)               \
+    {                                                                                         \
+        free_quad_impl(J, q, b, n, wide, free_alg_##isa##n);                                  \
+    }
 FREE_QUAD(1) FREE_QUAD(2) FREE_QUAD(3) FREE_QUAD(4) FREE_QUAD(5) FREE_QUAD(6)
 FREE_QUAD(7) FREE_QUAD(8) FREE_QUAD(9) FREE_QUAD(10) FREE_QUAD(11) FREE_QUAD(12)
 FREE_QUAD(13) FREE_QUAD(14) FREE_QUAD(15) FREE_QUAD(16) FREE_QUAD(17) FREE_QUAD(18)
@@ -2751,21 +2925,24 @@ static int free_unit(const void *ctx, Py_ssize_t u, void **scratch)
 
 static PyObject *py_free_fit(PyObject *self, PyObject *args)
 {
-    PyObject *objs[9];
-    Py_buffer bufs[9];
-    int have[9] = {0}, n_threads = 1;
+    PyObject *objs[11] = {NULL};
+    Py_buffer bufs[11];
+    int have[11] = {0}, n_threads = 1;
     Py_ssize_t window, num_stride = 0;
     double cancel;
-    static const char *names[9] = {"a",         "num",        "reg",     "target", "basis",
-                                   "energies",  "errors_out", "sse_out", "coef_out"};
-    if (!PyArg_ParseTuple(args, "OOOOOOndOOO|i", &objs[0], &objs[1], &objs[2], &objs[3],
+    static const char *names[11] = {"a",          "num",     "reg",      "target",
+                                    "basis",      "energies", "errors_out", "sse_out",
+                                    "coef_out",   "first",   "noise"};
+    if (!PyArg_ParseTuple(args, "OOOOOOndOOO|iOO", &objs[0], &objs[1], &objs[2], &objs[3],
                           &objs[4], &objs[5], &window, &cancel, &objs[6], &objs[7], &objs[8],
-                          &n_threads))
+                          &n_threads, &objs[9], &objs[10]))
         return NULL;
     PyObject *result = NULL;
-    for (int i = 0; i < 9; ++i) {
+    for (int i = 0; i < 11; ++i) {
+        if (objs[i] == NULL) continue;
         if (objs[i] == Py_None) {
-            if (i == 4 || i == 5 || i == 6) continue; /* basis and energies: both or neither */
+            /* basis and energies: both or neither; first and noise: both or neither */
+            if (i == 4 || i == 5 || i == 6 || i == 9 || i == 10) continue;
             PyErr_Format(PyExc_TypeError, "free_fit: %s is required", names[i]);
             goto done;
         }
@@ -2791,12 +2968,16 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
         window < n ||
         (have[6] && (bufs[6].ndim != 2 || bufs[6].shape[0] != P || bufs[6].shape[1] != K)) ||
         bufs[7].ndim != 1 || bufs[7].shape[0] != P || bufs[8].ndim != 2 ||
-        bufs[8].shape[0] != P || bufs[8].shape[1] != n) {
+        bufs[8].shape[0] != P || bufs[8].shape[1] != n || have[9] != have[10] ||
+        (have[9] && (bufs[9].ndim != 2 || bufs[9].shape[0] != P || bufs[9].shape[1] != n ||
+                     bufs[10].ndim != 2 || bufs[10].shape[0] != P ||
+                     bufs[10].shape[1] != 4))) {
         PyErr_SetString(PyExc_ValueError,
                         "free_fit: a (P, n) with 1 <= n <= 24, num (P, nb) with nb <= 64, reg "
                         "(K, nb), target (K,), basis (P, n, n) and energies (P, n) or both None, "
                         "window >= n, "
-                        "errors_out (P, K) or None, sse_out (P,), coef_out (P, n)");
+                        "errors_out (P, K) or None, sse_out (P,), coef_out (P, n), first (P, n) "
+                        "and noise (P, 4) or both None");
         goto done;
     }
     free_ctx ctx;
@@ -2806,7 +2987,9 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
                        have[5] ? (const double *)bufs[5].buf : NULL,
                        P, n, nb, K, window, num_stride,
                        have[6] ? (double *)bufs[6].buf : NULL, (double *)bufs[7].buf,
-                       (double *)bufs[8].buf, cancel};
+                       (double *)bufs[8].buf, cancel,
+                       have[9] ? (const double *)bufs[9].buf : NULL,
+                       have[10] ? (const double *)bufs[10].buf : NULL};
 #if defined(AR_X86)
     ctx.fn = ar_simd == 2   ? free_quads_v4[n]
              : ar_simd == 1 ? free_quads_v3[n]
@@ -2825,7 +3008,7 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
     result = Py_None;
     Py_INCREF(result);
 done:
-    for (int i = 0; i < 9; ++i)
+    for (int i = 0; i < 11; ++i)
         if (have[i]) PyBuffer_Release(&bufs[i]);
     return result;
 }

@@ -471,6 +471,8 @@ def initial_state_fit_reference(
     energies: np.ndarray,
     *,
     want_errors: bool = True,
+    first: np.ndarray | None = None,
+    noise: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Reference path of :func:`initial_state_fit` (NumPy; the same steps and sums).
 
@@ -483,6 +485,8 @@ def initial_state_fit_reference(
     basis : ndarray, shape (P, n, n)
     energies : ndarray, shape (P, n)
     want_errors : bool
+    first : ndarray, shape (P, n), optional
+    noise : ndarray, shape (P, 4), optional
         As for :func:`initial_state_fit`.
 
     Returns
@@ -495,7 +499,15 @@ def initial_state_fit_reference(
     a = np.ascontiguousarray(a, dtype=float)
     p, n = a.shape
     k = target.shape[0]
-    e = target - ar_recursion_reference(a, num @ reg.T, np.zeros(n))
+    if first is None:
+        e = target - ar_recursion_reference(a, num @ reg.T, np.zeros(n))
+    else:
+        v = target - ar_recursion_reference(np.asarray(first, dtype=float), num @ reg.T,
+                                            np.zeros(n))  # fmt: skip
+        forced = v.copy()
+        forced[:, 1:] += noise[:, 2:3] * v[:, :-1]
+        forced[:, 2:] += noise[:, 3:4] * v[:, :-2]
+        e = ar_recursion_reference(np.ascontiguousarray(noise[:, :2]), forced, np.zeros(2))
     width = FREE_WINDOW * n
     impulse = np.zeros((p, k + width))
     impulse[:, 0] = 1.0
@@ -550,6 +562,8 @@ def initial_state_fit(
     energies: np.ndarray | None = None,
     *,
     want_errors: bool = True,
+    first: np.ndarray | None = None,
+    noise: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Errors of ``1/den`` filters with the initial state fitted by least squares.
 
@@ -580,6 +594,13 @@ def initial_state_fit(
     :func:`~flexid.costs.polynomial.orthogonal_numerators`, rounded alike on x86-64), and a
     row whose step-down breaks down gets a NaN sum of squares.
 
+    With ``first`` and ``noise`` the error from rest is a cascade instead: ``e = (D/C)
+    (target - f/F)``, ``F = 1 + first_1 q^-1 + ...`` and ``D/C`` of order two at most, for
+    ``den = C F``.  That is the one-step error of Box-Jenkins, ``D/C (y - B/F u)``, in
+    fewer multiply-adds than its single filter ``(D F y - D B u)/(C F)`` (the inputs only
+    through ``B``, ``y`` once); the two errors from rest differ by a free response of
+    ``1/den``, so the fitted errors are the same.
+
     Parameters
     ----------
     a : ndarray, shape (P, n)
@@ -595,6 +616,11 @@ def initial_state_fit(
         ``a``, which needs :func:`free_fit_compiled` true (the reference path needs them).
     want_errors : bool
         Return the errors too (the ``(P, K)`` array), not only their sums of squares.
+    first : ndarray, shape (P, n), optional
+        ``F`` of the cascade, ``f_1 ..`` padded with zeros to ``n`` (stable).
+    noise : ndarray, shape (P, 4), optional
+        ``c_1, c_2, d_1, d_2`` of the cascade's ``D/C`` (zeros past their orders; ``C``
+        minimum phase).  Both or neither.
 
     Returns
     -------
@@ -608,6 +634,11 @@ def initial_state_fit(
     """
     a = np.ascontiguousarray(a, dtype=float)
     n = a.shape[1]
+    if (first is None) != (noise is None):
+        raise FlexidError("initial_state_fit: give both first and noise, or neither")
+    if first is not None:
+        first = np.ascontiguousarray(first, dtype=float)
+        noise = np.ascontiguousarray(noise, dtype=float)
     if free_fit_compiled(n, num.shape[1]):
         p, k = a.shape[0], target.shape[0]
         sse = np.empty(p)
@@ -620,7 +651,7 @@ def initial_state_fit(
                     np.ascontiguousarray(basis, dtype=float) if given else None,
                     np.ascontiguousarray(energies, dtype=float) if given else None,
                     FREE_WINDOW * n, FREE_CANCEL, errors, sse, coef,
-                    _threads_for(work))  # fmt: skip
+                    _threads_for(work), first, noise)  # fmt: skip
         return sse, errors, coef
     if basis is None or energies is None:
         raise FlexidError(
@@ -628,7 +659,7 @@ def initial_state_fit(
             "(flexid.costs.polynomial.orthogonal_numerators and its energies)"
         )
     return initial_state_fit_reference(
-        a, num, reg, target, basis, energies, want_errors=want_errors
+        a, num, reg, target, basis, energies, want_errors=want_errors, first=first, noise=noise
     )
 
 

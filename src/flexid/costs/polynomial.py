@@ -373,6 +373,23 @@ class PolynomialCost:
         self._reg = np.ascontiguousarray(
             np.concatenate([self._ylags[1:], *(x[nk:] for x, nk in zip(self._ulags, s.nk))]).T
         )
+        # Box-Jenkins' one-step predictor (no A; D of order at most that of C, at most two)
+        # with the state estimated: its error from rest as the cascade D/C (y - B/F u), fewer
+        # multiply-adds than the one filter (see kernels.initial_state_fit).  What the
+        # cascade's rest leaves out is a free response of 1/(C F) (what the fit removes)
+        # only where nd <= nc: the state of 1/F enters through D, the samples before the
+        # record through D's delays.  The regressors of input j are the first
+        # nb_j + sum(nf) - nf_j of its delays from nk_j (no D in the numerator)
+        self._cascade = (
+            one_step and initial == "estimate" and s.na == 0 and s.nc >= 1
+            and s.nd <= s.nc <= 2 and self._deg_den >= 1
+        )  # fmt: skip
+        if self._cascade:
+            blocks, col = [], self._deg_y
+            for nb, nf, nk, deg in zip(s.nb, s.nf, s.nk, self._deg_u):
+                blocks.append(self._reg[:, col : col + nb + sf - nf])
+                col += deg + 1 - nk
+            self._reg_cascade = np.ascontiguousarray(np.concatenate(blocks, axis=1))
         # one input whose predictor is B / (A F) u (the simulation, or output error): the
         # numerator's regressors are delays of one signal, fitted by lag sums
         # (kernels.arx_fit_shifted)
@@ -535,6 +552,8 @@ class PolynomialCost:
         ndarray, shape (P,)
             Over ``t >= start``, in output units squared.
         """
+        if self._cascade:
+            return self._estimated_cascade(X, want_errors=False)[0]
         den, num_y, nums = self._predictor(self._parts(X))
         n = den.shape[1] - 1
         if self.initial == "estimate" and n:
@@ -563,6 +582,8 @@ class PolynomialCost:
         ndarray, shape (P, K)
             Over ``t >= start``, in output units, under the cost's initial-condition rule.
         """
+        if self._cascade:
+            return self._estimated_cascade(X, want_errors=True)[1]
         den, num_y, nums = self._predictor(self._parts(X))
         if self.initial == "estimate" and den.shape[1] > 1:
             return self._estimated(den, num_y, nums, want_errors=True)[1]
@@ -608,6 +629,55 @@ class PolynomialCost:
         bad = ~np.isfinite(sse)
         if bad.any():
             e_bad = self._estimated_by_recursions(den[bad], num_y[bad], [x[bad] for x in nums])
+            sse[bad] = np.einsum("pk,pk->p", e_bad, e_bad)
+            if e is not None:
+                e[bad] = e_bad
+        return sse, e
+
+    def _estimated_cascade(
+        self, X: np.ndarray, *, want_errors: bool
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`_estimated` of Box-Jenkins' one-step predictor by the cascade.
+
+        The error from rest ``D/C (y - sum_j B_j/F_j u_j)``: one recursion of ``1/F``
+        (``F`` the product of the ``F_j``) over the inputs through ``B_j prod_(i != j) F_i``,
+        then ``D/C`` of ``y`` less its output, where the single filter of :meth:`_predictor`
+        takes ``y`` through ``(C - D) F`` and the inputs through ``D B_j prod F_i``
+        (:func:`flexid.kernels.initial_state_fit`'s ``first`` and ``noise``).  The fit of
+        the initial state of ``1/(C F)`` is the same.
+        """
+        p = self._parts(X)
+        s = self.structure
+        f_all = p["f"][0]
+        for fj in p["f"][1:]:
+            f_all = poly_mul_rows(f_all, fj)
+        den = poly_mul_rows(p["c"], f_all)
+        n_pop, n = X.shape[0], den.shape[1] - 1
+        first = np.zeros((n_pop, n))
+        first[:, : f_all.shape[1] - 1] = f_all[:, 1:]
+        noise = np.zeros((n_pop, 4))
+        noise[:, : self._nc] = p["c"][:, 1:]
+        noise[:, 2 : 2 + self._nd] = p["d"][:, 1:]
+        nums = []
+        for j in range(s.n_inputs):
+            num = p["b"][j]
+            for i, fi in enumerate(p["f"]):
+                if i != j:
+                    num = poly_mul_rows(num, fi)
+            nums.append(num)
+        num = nums[0] if len(nums) == 1 else np.concatenate(nums, axis=1)
+        basis = energies = None  # the compiled kernel runs the step-down itself
+        if not kernels.free_fit_compiled(n, num.shape[1]):
+            basis = orthogonal_numerators(den, n)
+            energies = _energies(den, basis)
+        sse, e, _ = initial_state_fit(
+            den[:, 1:], num, self._reg_cascade, self._target, basis, energies,
+            want_errors=want_errors, first=first, noise=noise,
+        )  # fmt: skip
+        bad = ~np.isfinite(sse)
+        if bad.any():
+            d, ny, ns = self._predictor(self._parts(X[bad]))
+            e_bad = self._estimated_by_recursions(d, ny, ns)
             sse[bad] = np.einsum("pk,pk->p", e_bad, e_bad)
             if e is not None:
                 e[bad] = e_bad
