@@ -2536,9 +2536,12 @@ static __attribute__((noinline)) void free_stepdown(const double *const al[4], c
             sc[m][l] = 1.0 / sqrt(e[l]);
         }
     }
-    for (int i = 0; i < n * n; ++i)
-        for (int l = 0; l < 4; ++l)
-            if (!isfinite(T[i][l])) bad[l] = 1;
+    /* T - T is NaN in a lane where some T is not finite: four sums, short chains */
+    v4d nonfinite[4] = {zero, zero, zero, zero};
+    for (int i = 0; i < n * n; ++i) nonfinite[i & 3] += T[i] - T[i];
+    for (int l = 0; l < 4; ++l)
+        if ((nonfinite[0][l] + nonfinite[1][l]) + (nonfinite[2][l] + nonfinite[3][l]) != 0)
+            bad[l] = 1;
     for (int l = 0; l < 4; ++l) {
         good[l] = bad[l] == 0;
         if (!good[l])

@@ -450,13 +450,15 @@ class PolynomialCost:
         ones, and ``ok`` marking the admissible rows, whose cost the caller fills in.
         """
         cost = np.full(X.shape[0], np.inf)
-        finite = np.isfinite(X).all(axis=1)
-        if finite.all():  # the common case: no copy of the rows
+        # the common case, every entry finite (their sum is, unless it overflows): no copy
+        if np.isfinite(X.sum()) or np.isfinite(X).all():
             ok = self._admissible(X)
+            bad = ~ok
         else:
+            finite = np.isfinite(X).all(axis=1)
             ok = finite.copy()
             ok[finite] = self._admissible(X[finite])
-        bad = finite & ~ok
+            bad = finite & ~ok
         if bad.any():
             cost[bad] = self._penalised(X[bad])
         return cost, ok
@@ -646,22 +648,22 @@ class PolynomialCost:
         (:func:`flexid.kernels.initial_state_fit`'s ``first`` and ``noise``).  The fit of
         the initial state of ``1/(C F)`` is the same.
         """
-        p = self._parts(X)
-        s = self.structure
-        f_all = p["f"][0]
-        for fj in p["f"][1:]:
+        s, sl = self.structure, self._slices
+        f = [_monic(X[:, part]) for part in sl["f"]]
+        f_all = f[0]
+        for fj in f[1:]:
             f_all = poly_mul_rows(f_all, fj)
-        den = poly_mul_rows(p["c"], f_all)
+        den = poly_mul_rows(_monic(X[:, sl["c"]]), f_all)
         n_pop, n = X.shape[0], den.shape[1] - 1
         first = np.zeros((n_pop, n))
         first[:, : f_all.shape[1] - 1] = f_all[:, 1:]
         noise = np.zeros((n_pop, 4))
-        noise[:, : self._nc] = p["c"][:, 1:]
-        noise[:, 2 : 2 + self._nd] = p["d"][:, 1:]
+        noise[:, : self._nc] = X[:, sl["c"]]
+        noise[:, 2 : 2 + self._nd] = X[:, sl["d"]]
         nums = []
         for j in range(s.n_inputs):
-            num = p["b"][j]
-            for i, fi in enumerate(p["f"]):
+            num = X[:, sl["b"][j]]
+            for i, fi in enumerate(f):
                 if i != j:
                     num = poly_mul_rows(num, fi)
             nums.append(num)
