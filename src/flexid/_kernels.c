@@ -2331,7 +2331,19 @@ typedef struct {
     double *errors, *sse, *coef;
     double cancel;      /* see the head of this section */
     const double *first, *noise; /* the cascade (see the head of this section), or NULL */
+    const Py_ssize_t *order;     /* the rows in the order of the blocks, or NULL: 0 .. P-1 */
 } free_job;
+
+/* row[l] <- the population row of lane l of the block at q (lanes past the population's end
+ * take the block's first row; their results are not written) */
+static inline __attribute__((always_inline)) void free_rows(const free_job *J, Py_ssize_t q,
+                                                            Py_ssize_t w, Py_ssize_t row[4])
+{
+    for (int l = 0; l < 4; ++l) {
+        const Py_ssize_t i = q + (l < w ? l : 0);
+        row[l] = J->order ? J->order[i] : i;
+    }
+}
 
 /* Cholesky of the symmetric positive definite G (n x n, lower triangle read and written) on
  * the 4 lanes at once, the reciprocals of the pivots into R (the solves multiply by them);
@@ -2561,6 +2573,7 @@ static __attribute__((noinline)) void free_stepdown(const double *const al[4], c
 typedef struct {
     v4d T[FREE_MAXN * FREE_MAXN], sc[FREE_MAXN], cb, Nc[FREE_MAXN], left;
     int good[4], run, early;
+    Py_ssize_t row[4]; /* the population rows of the lanes (free_rows) */
 } free_alg;
 
 static inline __attribute__((always_inline)) void
@@ -2577,11 +2590,11 @@ free_algebra_impl(const free_job *J, Py_ssize_t q, v4d *buf, const v4d *wv, cons
         for (int l = 0; l < 4; ++l) good[l] = 1;
         if (!J->basis) {
             const double *al[4];
-            for (int l = 0; l < 4; ++l) al[l] = J->a + (q + (l < w ? l : 0)) * n;
+            for (int l = 0; l < 4; ++l) al[l] = J->a + o->row[l] * n;
             free_stepdown(al, n, T, sc, good);
         }
         for (int l = 0; l < 4 && J->basis; ++l) {
-            const Py_ssize_t p = q + (l < w ? l : 0);
+            const Py_ssize_t p = o->row[l];
             for (int m = 0; m < n; ++m) {
                 sc[m][l] = 1.0 / sqrt(J->energies[p * n + m]);
                 for (int i = 0; i < n; ++i) T[m * n + i][l] = J->basis[(p * n + m) * n + i];
@@ -2632,8 +2645,6 @@ free_algebra_impl(const free_job *J, Py_ssize_t q, v4d *buf, const v4d *wv, cons
     int full = 0;
     for (Py_ssize_t l = 0; l < w; ++l)
         if (good[l] && !(tail[l] < FREE_TAIL)) full = 1;
-    for (int i = 0; i < n && !full; ++i)
-        for (int j = 0; j <= i; ++j) G[i * n + j] = i == j ? zero + 1.0 : zero;
     for (Py_ssize_t tau = 0; tau < L && full; ++tau) {
         v4d g[FREE_MAXN];
         FREE_WINDOW_SAMPLE(g, hbuf + tau, tau, n);
@@ -2641,9 +2652,11 @@ free_algebra_impl(const free_job *J, Py_ssize_t q, v4d *buf, const v4d *wv, cons
     }
     if (full) {
         /* S0 S0^T (its lower triangle and some entries above it) and SK S0^T (column j of
-         * S0 SK^T as row j of QT) */
-        free_products(S0, n, S0, n, L, M0, n, 1, 1, wide ? 4 : 3);
-        free_products(S0, n, SK, n, L, QT, 1, n, 0, wide ? 4 : 3);
+         * S0 SK^T as row j of QT), in tiles of 4 x 4 sums where 32 registers hold them,
+         * else (and for orders that 3 divides: no edge tiles) of 3 x 3 */
+        const int tile = wide && n % 3 != 0 ? 4 : 3;
+        free_products(S0, n, S0, n, L, M0, n, 1, 1, tile);
+        free_products(S0, n, SK, n, L, QT, 1, n, 0, tile);
     }
     if (full) {
         free_cholesky(M0, R, n, good);
@@ -2661,9 +2674,11 @@ free_algebra_impl(const free_job *J, Py_ssize_t q, v4d *buf, const v4d *wv, cons
         for (int i = 0; i <= m; ++i) s += T[m * n + i] * wv[i];
         c[m] = rn[m] = s * sc[m];
     }
-    free_cholesky(G, R, n, good);
-    free_lower_solve(G, R, c, n);
-    free_upper_solve(G, R, c, n);
+    if (full) { /* else G is I: c = rn */
+        free_cholesky(G, R, n, good);
+        free_lower_solve(G, R, c, n);
+        free_upper_solve(G, R, c, n);
+    }
     /* the sum of squares the fit leaves, |e|^2 - c.r at the solution of the normal equations
      * (normalised); where it is at least cancel |e|^2 its cancellation is harmless and the
      * fitted response need not be run (see initial_state_fit) */
@@ -2682,7 +2697,7 @@ free_algebra_impl(const free_job *J, Py_ssize_t q, v4d *buf, const v4d *wv, cons
     }
     o->run = run;
     for (Py_ssize_t l = 0; l < w; ++l)
-        for (int m = 0; m < n; ++m) J->coef[(q + l) * n + m] = c[m][l];
+        for (int m = 0; m < n; ++m) J->coef[o->row[l] * n + m] = c[m][l];
 }
 
 static inline __attribute__((always_inline)) void
@@ -2695,18 +2710,21 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
     v4d *ebuf = buf, *hbuf = buf + K;
     v4d A[FREE_MAXN], Z[FREE_MAXN], Bv[64];
     /* lanes past P run lane 0's candidate; their results are not written */
+    free_alg o;
+    free_rows(J, q, w, o.row);
+    const Py_ssize_t *row = o.row;
     for (int i = 0; i < n; ++i)
-        for (int l = 0; l < 4; ++l) A[i][l] = J->a[(q + (l < w ? l : 0)) * n + i];
+        for (int l = 0; l < 4; ++l) A[i][l] = J->a[row[l] * n + i];
     for (Py_ssize_t j = 0; j < nb; ++j)
-        for (int l = 0; l < 4; ++l) Bv[j][l] = J->num[(q + (l < w ? l : 0)) * J->num_stride + j];
+        for (int l = 0; l < 4; ++l) Bv[j][l] = J->num[row[l] * J->num_stride + j];
     /* the cascade: the first recursion's denominator (order n, padded with zeros) and the
      * c_1, c_2, d_1, d_2 of D / C */
     const int cascade = J->first != NULL;
     v4d A1[FREE_MAXN], CD[4];
     for (int i = 0; i < n && cascade; ++i)
-        for (int l = 0; l < 4; ++l) A1[i][l] = J->first[(q + (l < w ? l : 0)) * n + i];
+        for (int l = 0; l < 4; ++l) A1[i][l] = J->first[row[l] * n + i];
     for (int i = 0; i < 4 && cascade; ++i)
-        for (int l = 0; l < 4; ++l) CD[i][l] = J->noise[(q + (l < w ? l : 0)) * 4 + i];
+        for (int l = 0; l < 4; ++l) CD[i][l] = J->noise[row[l] * 4 + i];
     v4d s0 = zero, s1 = zero; /* the state of D / C */
     /* 1. the error from rest, and its sum of squares */
     v4d ee = zero;
@@ -2729,7 +2747,6 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
         ebuf[t0] = f;
     }
     /* the basis, from each den's step-down */
-    free_alg o;
     o.early = 0;
     alg(J, q, buf, NULL, &ee, &o);
     /* 2. the impulse response over K + L samples: with 32 registers (wide) and an order whose
@@ -2830,15 +2847,16 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
     /* 7. the fitted free response removed from e */
     for (int i = 0; i < n; ++i) Z[i] = zero;
     v4d sse = left;
-    double *err = J->errors ? J->errors + q * K : NULL;
+    double *err[4] = {NULL, NULL, NULL, NULL};
+    for (Py_ssize_t l = 0; l < w && J->errors; ++l) err[l] = J->errors + row[l] * K;
     if (run) sse = zero;
 #define FREE_F_FIT(t) ((t) < n ? Nc[(t)] : zero)
 #define FREE_B_FIT(t, yt)                                                                     \
     do {                                                                                      \
         const v4d e_ = ebuf[t] - (yt);                                                        \
         sse += e_ * e_;                                                                       \
-        if (err)                                                                              \
-            for (Py_ssize_t l_ = 0; l_ < w; ++l_) err[l_ * K + (t)] = e_[l_];                \
+        if (err[0])                                                                           \
+            for (Py_ssize_t l_ = 0; l_ < w; ++l_) err[l_][t] = e_[l_];                        \
     } while (0)
     if (run) FREE_REC(Z, A, n, rounds, 0, K, FREE_F_FIT, FREE_B_FIT);
 #undef FREE_F_ERR
@@ -2851,11 +2869,48 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
 #undef FREE_F_FIT
 #undef FREE_B_FIT
     for (Py_ssize_t l = 0; l < w; ++l) {
-        J->sse[q + l] = good[l] ? sse[l] : NAN;
+        J->sse[row[l]] = good[l] ? sse[l] : NAN;
     }
 }
 
+/* Steps of the impulse response per unit of order that the decay probe runs */
+#define FREE_PROBE 4
+
+/* The decay probe of the block at q (rows q .. q + 3 of the population, in its order): key[p]
+ * the energy of h over the last n of its first FREE_PROBE n samples relative to their whole
+ * energy, large where a pole is near the circle.  The blocks then take the rows in the order
+ * of key, slowest first (free_order): blocks of alike rows, so that fewer of them need the
+ * tail after the record or the whole impulse response, and the costliest start first. */
+static inline __attribute__((always_inline)) void free_probe_impl(const free_job *J, Py_ssize_t q,
+                                                                  double *key, const int n,
+                                                                  const int wide)
+{
+    const Py_ssize_t w = (J->P - q < 4) ? J->P - q : 4, M = FREE_PROBE * n;
+    const v4d zero = {0, 0, 0, 0};
+    v4d A[FREE_MAXN], Z[FREE_MAXN], all = zero, late = zero;
+    for (int i = 0; i < n; ++i)
+        for (int l = 0; l < 4; ++l) A[i][l] = J->a[(q + (l < w ? l : 0)) * n + i];
+    for (int i = 0; i < n; ++i) Z[i] = zero;
+    {
+        v4d ht, f = zero + 1.0;
+        FREE_STEP(Z, A, f, ht, n);
+        all = ht * ht;
+    }
+#define FREE_F_NONE(t) zero
+#define FREE_B_PROBE(t, yt)                                                                   \
+    do {                                                                                      \
+        const v4d y2_ = (yt) * (yt);                                                          \
+        all += y2_;                                                                           \
+        if ((t) >= M - n) late += y2_;                                                        \
+    } while (0)
+    FREE_REC(Z, A, n, wide, 1, M, FREE_F_NONE, FREE_B_PROBE);
+#undef FREE_F_NONE
+#undef FREE_B_PROBE
+    for (Py_ssize_t l = 0; l < w; ++l) key[q + l] = late[l] / all[l];
+}
+
 typedef void (*free_quad_fn)(const free_job *, Py_ssize_t, v4d *);
+typedef void (*free_probe_fn)(const free_job *, Py_ssize_t, double *);
 /* a block is 4 candidates, one 256-bit vector; the AVX-512 build runs 256-bit vectors too,
  * but has 32 of them: the state and the a_k of the recursions, and the small algebra's
  * accumulators, stay in registers */
@@ -2875,21 +2930,56 @@ typedef void (*free_quad_fn)(const free_job *, Py_ssize_t, v4d *);
     TGT static void free_quad_##isa##n(const free_job *J, Py_ssize_t q, v4d *b)               \
     {                                                                                         \
         free_quad_impl(J, q, b, n, wide, free_alg_##isa##n);                                  \
+    }                                                                                         \
+    TGT static void free_probe_##isa##n(const free_job *J, Py_ssize_t q, double *key)         \
+    {                                                                                         \
+        free_probe_impl(J, q, key, n, wide);                                                  \
     }
 FREE_QUAD(1) FREE_QUAD(2) FREE_QUAD(3) FREE_QUAD(4) FREE_QUAD(5) FREE_QUAD(6)
 FREE_QUAD(7) FREE_QUAD(8) FREE_QUAD(9) FREE_QUAD(10) FREE_QUAD(11) FREE_QUAD(12)
 FREE_QUAD(13) FREE_QUAD(14) FREE_QUAD(15) FREE_QUAD(16) FREE_QUAD(17) FREE_QUAD(18)
 FREE_QUAD(19) FREE_QUAD(20) FREE_QUAD(21) FREE_QUAD(22) FREE_QUAD(23) FREE_QUAD(24)
 static const free_quad_fn free_quads_generic[FREE_MAXN + 1] = AR_TABLE24(free_quad_g);
+static const free_probe_fn free_probes_generic[FREE_MAXN + 1] = AR_TABLE24(free_probe_g);
 #if defined(AR_X86)
 static const free_quad_fn free_quads_v3[FREE_MAXN + 1] = AR_TABLE24(free_quad_v3_);
 static const free_quad_fn free_quads_v4[FREE_MAXN + 1] = AR_TABLE24(free_quad_v4_);
+static const free_probe_fn free_probes_v3[FREE_MAXN + 1] = AR_TABLE24(free_probe_v3_);
+static const free_probe_fn free_probes_v4[FREE_MAXN + 1] = AR_TABLE24(free_probe_v4_);
 #endif
 
 typedef struct {
     free_job J;
     free_quad_fn fn;
+    free_probe_fn probe;
+    double *key; /* (P,): the decay probe's */
 } free_ctx;
+
+typedef struct {
+    double key;
+    Py_ssize_t row;
+} free_rank;
+
+/* slowest decay first (a NaN first of all), then the population's order */
+static int free_rank_cmp(const void *x, const void *y)
+{
+    const free_rank *a = (const free_rank *)x, *b = (const free_rank *)y;
+    const int na = isnan(a->key), nb = isnan(b->key);
+    if (na != nb) return nb - na;
+    if (!na && a->key != b->key) return a->key < b->key ? 1 : -1;
+    return (a->row > b->row) - (a->row < b->row);
+}
+
+/* Block u of the decay probe */
+static int free_probe_unit(const void *ctx, Py_ssize_t u, void **scratch)
+{
+    const free_ctx *c = (const free_ctx *)ctx;
+    (void)scratch;
+    FLUSH_SUBNORMALS_BEGIN;
+    c->probe(&c->J, 4 * u, c->key);
+    FLUSH_SUBNORMALS_END;
+    return 0;
+}
 
 /* Scratch of up to this many bytes is kept by each thread between calls (the helper threads
  * persist): a fresh buffer of some 150 KB (K = 1,500) is mapped and faulted in anew at
@@ -2992,18 +3082,42 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
                        have[6] ? (double *)bufs[6].buf : NULL, (double *)bufs[7].buf,
                        (double *)bufs[8].buf, cancel,
                        have[9] ? (const double *)bufs[9].buf : NULL,
-                       have[10] ? (const double *)bufs[10].buf : NULL};
+                       have[10] ? (const double *)bufs[10].buf : NULL, NULL};
 #if defined(AR_X86)
     ctx.fn = ar_simd == 2   ? free_quads_v4[n]
              : ar_simd == 1 ? free_quads_v3[n]
                             : free_quads_generic[n];
+    ctx.probe = ar_simd == 2   ? free_probes_v4[n]
+                : ar_simd == 1 ? free_probes_v3[n]
+                               : free_probes_generic[n];
 #else
     ctx.fn = free_quads_generic[n];
+    ctx.probe = free_probes_generic[n];
 #endif
-    int rc;
+    /* more than one block: the rows in the order of the decay probe (see free_probe_impl) */
+    int rc = 0;
+    Py_ssize_t *order = NULL;
+    free_rank *rank = NULL;
+    ctx.key = NULL;
+    if (P > 4) {
+        ctx.key = (double *)malloc((size_t)P * sizeof(double));
+        order = (Py_ssize_t *)malloc((size_t)P * sizeof(Py_ssize_t));
+        rank = (free_rank *)malloc((size_t)P * sizeof(free_rank));
+        if (!ctx.key || !order || !rank) rc = -1;
+    }
     Py_BEGIN_ALLOW_THREADS
-    rc = run_units(&ctx, free_unit, (P + 3) / 4, n_threads);
+    if (P > 4 && rc == 0) {
+        run_units_serial(&ctx, free_probe_unit, (P + 3) / 4);
+        for (Py_ssize_t p = 0; p < P; ++p) rank[p] = (free_rank){ctx.key[p], p};
+        qsort(rank, (size_t)P, sizeof(free_rank), free_rank_cmp);
+        for (Py_ssize_t p = 0; p < P; ++p) order[p] = rank[p].row;
+        ctx.J.order = order;
+    }
+    if (rc == 0) rc = run_units(&ctx, free_unit, (P + 3) / 4, n_threads);
     Py_END_ALLOW_THREADS
+    free(ctx.key);
+    free(order);
+    free(rank);
     if (rc < 0) {
         PyErr_NoMemory();
         goto done;
