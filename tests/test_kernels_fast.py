@@ -905,6 +905,23 @@ def test_initial_state_fit_cascade_equals_the_reference(simd, nf, nc, nd):
 
 
 @compiled
+def test_initial_state_fit_does_not_depend_on_the_order_of_the_rows(simd):
+    # the kernel forms its blocks of 4 from the rows in the order of a decay probe (slowest
+    # first), not in the population's: a permuted population gives each row the same block
+    # companions, so the same numbers bit for bit (the probe's keys differ between rows)
+    rng = np.random.default_rng(11)
+    p, n, nb, k = 23, 12, 4, 600
+    a = np.vstack([stable_denominators(rng, 1, n, (0.3, r)) for r in rng.uniform(0.5, 0.99, p)])
+    b, reg, target = rng.normal(size=(p, nb)), rng.normal(size=(k, nb)), rng.normal(size=k)
+    perm = rng.permutation(p)
+    sse, e, coef = kernels.initial_state_fit(a, b, reg, target)
+    sse_p, e_p, coef_p = kernels.initial_state_fit(a[perm], b[perm], reg, target)
+    np.testing.assert_array_equal(sse_p, sse[perm])
+    np.testing.assert_array_equal(e_p, e[perm])
+    np.testing.assert_array_equal(coef_p, coef[perm])
+
+
+@compiled
 def test_fits_leave_the_floating_point_environment_as_found(monkeypatch):
     # the least-squares fits flush subnormal numbers to zero while they run,
     # on whichever thread runs a block, and restore the caller's setting after it: subnormal
