@@ -869,7 +869,9 @@ def test_initial_state_fit_equals_the_reference_where_the_impulse_response_stops
     assert (np.abs(e[fast] - e_r[fast]) <= 1e-13 * scale).all()
 
 @compiled
-@pytest.mark.parametrize(("nf", "nc", "nd"), [(1, 1, 0), (8, 2, 2), (12, 2, 1), (16, 2, 2), (22, 2, 2)])
+@pytest.mark.parametrize(
+    ("nf", "nc", "nd"), [(1, 1, 0), (8, 2, 2), (12, 2, 1), (16, 2, 2), (22, 2, 2)]
+)
 def test_initial_state_fit_cascade_equals_the_reference(simd, nf, nc, nd):
     # the error from rest by the cascade e = (D/C)(target - f/F) (Box-Jenkins' one-step
     # error, kernels.initial_state_fit's first and noise), on every instruction set: orders
