@@ -835,7 +835,9 @@ def test_initial_state_fit_computes_the_step_down_itself(simd, n):
 
 @compiled
 @pytest.mark.parametrize("n", [2, 15, 18, 24])
-def test_initial_state_fit_equals_the_reference_where_the_impulse_response_stops(simd, n):
+def test_initial_state_fit_equals_the_reference_where_the_impulse_response_stops(
+    monkeypatch, simd, n
+):
     # blocks of 4 that mix fast poles (radius 0.2-0.5: the impulse response stops early,
     # its tail after the record bounded below FREE_TAIL, and the Gram matrix is I) with a
     # lightly damped one (0.97-0.995: the whole response and the tail's Gram matrix), and
@@ -849,6 +851,7 @@ def test_initial_state_fit_equals_the_reference_where_the_impulse_response_stops
     # are here to make their blocks form the tail, so they are checked loosely
     from flexid.costs.polynomial import _energies, orthogonal_numerators
 
+    monkeypatch.setattr(kernels, "BACKEND", "c")  # the compiled kernel, whatever the default
     rng = np.random.default_rng(100 + n)
     p, nb, k = 11, 6, 700
     slow = [1, 5]
@@ -872,7 +875,7 @@ def test_initial_state_fit_equals_the_reference_where_the_impulse_response_stops
 @pytest.mark.parametrize(
     ("nf", "nc", "nd"), [(1, 1, 0), (8, 2, 2), (12, 2, 1), (16, 2, 2), (22, 2, 2)]
 )
-def test_initial_state_fit_cascade_equals_the_reference(simd, nf, nc, nd):
+def test_initial_state_fit_cascade_equals_the_reference(monkeypatch, simd, nf, nc, nd):
     # the error from rest by the cascade e = (D/C)(target - f/F) (Box-Jenkins' one-step
     # error, kernels.initial_state_fit's first and noise), on every instruction set: orders
     # C F = 2 .. 24 (fused with the impulse response at 14 and below with 32 registers), 10
@@ -881,6 +884,7 @@ def test_initial_state_fit_cascade_equals_the_reference(simd, nf, nc, nd):
     # roundings
     from flexid.costs.polynomial import _energies, orthogonal_numerators, poly_mul_rows
 
+    monkeypatch.setattr(kernels, "BACKEND", "c")  # the compiled kernel, whatever the default
     rng = np.random.default_rng(7 * nf + nc)
     p, nb, k = 10, 5, 500
     f = stable_denominators(rng, p, nf, (0.2, 0.9))
@@ -907,10 +911,11 @@ def test_initial_state_fit_cascade_equals_the_reference(simd, nf, nc, nd):
 
 
 @compiled
-def test_initial_state_fit_does_not_depend_on_the_order_of_the_rows(simd):
+def test_initial_state_fit_does_not_depend_on_the_order_of_the_rows(monkeypatch, simd):
     # the kernel forms its blocks of 4 from the rows in the order of a decay probe (slowest
     # first), not in the population's: a permuted population gives each row the same block
     # companions, so the same numbers bit for bit (the probe's keys differ between rows)
+    monkeypatch.setattr(kernels, "BACKEND", "c")  # the compiled kernel, whatever the default
     rng = np.random.default_rng(11)
     p, n, nb, k = 23, 12, 4, 600
     a = np.vstack([stable_denominators(rng, 1, n, (0.3, r)) for r in rng.uniform(0.5, 0.99, p)])
