@@ -2375,39 +2375,6 @@ free_cholesky(v4d *G, v4d *R, const int n, int good[4])
     }
 }
 
-/* out[j * os] = sum_k x[k] Y[j * len + k], k = 0 .. len - 1 in order, for j < nj: 8 (then
- * 4, then 1) rows of Y at a time, so that their sums are independent chains in registers */
-static inline __attribute__((always_inline)) void
-free_dots(const v4d *x, const v4d *Y, const Py_ssize_t len, const int nj, v4d *out,
-          const Py_ssize_t os)
-{
-    const v4d zero = {0, 0, 0, 0};
-    int j = 0;
-    for (; j + 8 <= nj; j += 8) {
-        v4d s[8];
-        _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) s[jj] = zero;
-        for (Py_ssize_t k = 0; k < len; ++k) {
-            const v4d v = x[k];
-            _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) s[jj] += v * Y[(j + jj) * len + k];
-        }
-        _Pragma("GCC unroll 8") for (int jj = 0; jj < 8; ++jj) out[(j + jj) * os] = s[jj];
-    }
-    for (; j + 4 <= nj; j += 4) {
-        v4d s[4];
-        _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) s[jj] = zero;
-        for (Py_ssize_t k = 0; k < len; ++k) {
-            const v4d v = x[k];
-            _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) s[jj] += v * Y[(j + jj) * len + k];
-        }
-        _Pragma("GCC unroll 4") for (int jj = 0; jj < 4; ++jj) out[(j + jj) * os] = s[jj];
-    }
-    for (; j < nj; ++j) {
-        v4d s = zero;
-        for (Py_ssize_t k = 0; k < len; ++k) s += x[k] * Y[j * len + k];
-        out[j * os] = s;
-    }
-}
-
 /* Rows j0 .. j0 + R - 1 of X (rows of n) <- L^-T L^-1 X: each entry subtracts its products
  * in the order of k, as free_lower_solve and free_upper_solve do, the R rows side by side
  * (independent chains, the partial sums in registers) */
@@ -2436,7 +2403,7 @@ free_solve_group(const v4d *Lm, const v4d *R, v4d *X, const int n, const int j0,
 }
 
 /* out[i * ros + j * cos] = sum_k X[i * len + k] Y[j * len + k], k = 0 .. len - 1 in order
- * (one sum per entry, as free_dots), for rows i0 .. i0 + tr - 1 of X and j0 .. j0 + tc - 1 of
+ * (one sum per entry, in registers), for rows i0 .. i0 + tr - 1 of X and j0 .. j0 + tc - 1 of
  * Y: a tile of tr x tc sums in registers, each X and Y value loaded once for the tile */
 static inline __attribute__((always_inline)) void
 free_tile(const v4d *X, const v4d *Y, const Py_ssize_t len, const int i0, const int j0,
@@ -2657,15 +2624,11 @@ free_algebra_impl(const free_job *J, Py_ssize_t q, v4d *buf, const v4d *wv, cons
         const int tile = wide && n % 3 != 0 ? 4 : 3;
         free_products(S0, n, S0, n, L, M0, n, 1, 1, tile);
         free_products(S0, n, SK, n, L, QT, 1, n, 0, tile);
-    }
-    if (full) {
         free_cholesky(M0, R, n, good);
         free_solve_rows(M0, R, QT, n, n); /* row j of QT now column j of Q^T */
-    }
-    for (int i = 0; i < n && full; ++i) {
-        v4d s[FREE_MAXN];
-        free_dots(QT + i * n, QT, n, i + 1, s, 1);
-        for (int j = 0; j <= i; ++j) G[i * n + j] = (i == j ? zero + 1.0 : zero) - s[j];
+        free_products(QT, n, QT, n, n, G, n, 1, 1, tile); /* Q Q^T, its lower triangle */
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j <= i; ++j) G[i * n + j] = (i == j ? zero + 1.0 : zero) - G[i * n + j];
     }
     /* 6. the right-hand side and the normalised solve */
     v4d c[FREE_MAXN], rn[FREE_MAXN], *Nc = o->Nc;
@@ -2779,24 +2742,23 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
     } while (0)
 #define FREE_F_ZERO(t) zero
 #define FREE_B_H(t, yt) (hbuf[(t)] = (yt))
+/* the error's recursion (denominator AE, each step followed by BODY) and the impulse
+ * response's side by side, then the rest of the impulse response */
+#define FREE_FUSED(AE, BODY)                                                                  \
+    do {                                                                                      \
+        for (Py_ssize_t t = 0; t < K; ++t) {                                                  \
+            v4d yt, ht;                                                                       \
+            FREE_STEP(Z, AE, ebuf[t], yt, n);                                                 \
+            BODY(t, yt);                                                                      \
+            FREE_STEP(Zh, A, zero, ht, n);                                                    \
+            hbuf[t + 1] = ht;                                                                 \
+        }                                                                                     \
+        FREE_REC(Zh, A, n, 0, K + 1, K + L, FREE_F_ZERO, FREE_B_H);                           \
+    } while (0)
     if (fuse && cascade) {
-        for (Py_ssize_t t = 0; t < K; ++t) {
-            v4d yt, ht;
-            FREE_STEP(Z, A1, ebuf[t], yt, n);
-            FREE_B_CAS(t, yt);
-            FREE_STEP(Zh, A, zero, ht, n);
-            hbuf[t + 1] = ht;
-        }
-        FREE_REC(Zh, A, n, 0, K + 1, K + L, FREE_F_ZERO, FREE_B_H);
+        FREE_FUSED(A1, FREE_B_CAS);
     } else if (fuse) {
-        for (Py_ssize_t t = 0; t < K; ++t) {
-            v4d yt, ht;
-            FREE_STEP(Z, A, ebuf[t], yt, n);
-            FREE_B_ERR(t, yt);
-            FREE_STEP(Zh, A, zero, ht, n);
-            hbuf[t + 1] = ht;
-        }
-        FREE_REC(Zh, A, n, 0, K + 1, K + L, FREE_F_ZERO, FREE_B_H);
+        FREE_FUSED(A, FREE_B_ERR);
     } else {
         if (cascade)
             FREE_REC(Z, A1, n, rounds, 0, K, FREE_F_ERR, FREE_B_CAS);
@@ -2862,6 +2824,7 @@ free_quad_impl(const free_job *J, Py_ssize_t q, v4d *buf, const int n, const int
 #undef FREE_F_ERR
 #undef FREE_B_ERR
 #undef FREE_B_CAS
+#undef FREE_FUSED
 #undef FREE_F_ZERO
 #undef FREE_B_H
 #undef FREE_F_BACK

@@ -630,10 +630,7 @@ class PolynomialCost:
         )
         bad = ~np.isfinite(sse)
         if bad.any():
-            e_bad = self._estimated_by_recursions(den[bad], num_y[bad], [x[bad] for x in nums])
-            sse[bad] = np.einsum("pk,pk->p", e_bad, e_bad)
-            if e is not None:
-                e[bad] = e_bad
+            self._by_recursions(sse, e, bad, den[bad], num_y[bad], [x[bad] for x in nums])
         return sse, e
 
     def _estimated_cascade(
@@ -678,12 +675,24 @@ class PolynomialCost:
         )  # fmt: skip
         bad = ~np.isfinite(sse)
         if bad.any():
-            d, ny, ns = self._predictor(self._parts(X[bad]))
-            e_bad = self._estimated_by_recursions(d, ny, ns)
-            sse[bad] = np.einsum("pk,pk->p", e_bad, e_bad)
-            if e is not None:
-                e[bad] = e_bad
+            self._by_recursions(sse, e, bad, *self._predictor(self._parts(X[bad])))
         return sse, e
+
+    def _by_recursions(
+        self,
+        sse: np.ndarray,
+        e: np.ndarray | None,
+        bad: np.ndarray,
+        den: np.ndarray,
+        num_y: np.ndarray,
+        nums: list[np.ndarray],
+    ) -> None:
+        """The rows ``bad`` of ``sse`` and ``e`` (when given) by
+        :meth:`_estimated_by_recursions`, from those rows' predictor polynomials."""
+        e_bad = self._estimated_by_recursions(den, num_y, nums)
+        sse[bad] = np.einsum("pk,pk->p", e_bad, e_bad)
+        if e is not None:
+            e[bad] = e_bad
 
     def _estimated_by_recursions(
         self, den: np.ndarray, num_y: np.ndarray, nums: list[np.ndarray]
