@@ -81,7 +81,8 @@ def test_same_seed_same_numbers_and_json_is_complete():
     d = json.loads(json.dumps(a.to_dict()))
     assert d["search"]["nfev"] == 1500
     assert d["search"]["box"]["rule"].startswith("auto")
-    assert set(d["cost"]) == {"description", "value", "least_squares"}
+    assert set(d["cost"]) == {"description", "value", "search_value", "least_squares"}
+    assert d["cost"]["search_value"] is None  # a well-conditioned model is not rescored
     assert "fit_simulation" in d["validation"]
 
 

@@ -203,10 +203,14 @@ def test_grids_as_a_product_a_mapping_and_structure_objects():
     seen = []
     grid = {"arx": [{"na": 1, "nb": 2}], "oe": [{"nb": 2, "nf": 1, "nk": [1, 2]}]}
     sel = select((u, y), ("arx", "oe"), grid, progress=seen.append)
+    # nk="auto": the grid at nk = 1 and at the estimated delays, here the true [1, 2]
+    # (an entry's own nk stays)
     assert [c.label for c in sel.candidates] == [
         "ARX(na=1, nb=[2, 2], nk=[1, 1])",
         "OE(nb=[2, 2], nf=[1, 1], nk=[1, 2])",
+        "ARX(na=1, nb=[2, 2], nk=[1, 2])",
     ]
+    assert sel.delay.startswith("nk = 1, 2 (MATLAB delayest and the prewhitened")
     assert seen == sel.candidates
     assert sel.best.kind == "oe" and sel.best.passed  # it holds the true system
 
@@ -227,7 +231,7 @@ def test_manipulator_recommendation_passes_every_test():
     not: the recommendation is OE(16, 16, 1).  About 5-10 s (OE(8, 8) is the slow fit)."""
     data = flexid.generate("manipulator", preset="paper-manipulator", seed=0)
     t0 = time.perf_counter()
-    sel = select(data, ("oe",), [{"nb": 8, "nf": 8}, {"nb": 16, "nf": 16}])
+    sel = select(data, ("oe",), [{"nb": 8, "nf": 8}, {"nb": 16, "nf": 16}], nk=1)
     elapsed = time.perf_counter() - t0
     low, high = sel.candidates
     assert not low.passed

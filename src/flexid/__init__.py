@@ -10,7 +10,8 @@ Data and models
     :func:`structure`, :class:`PolynomialStructure`, :class:`PolynomialModel`,
     :class:`PolynomialCost`
 Structure selection
-    :func:`select` (AIC, FPE, MDL and the held-out tests over a grid of structures)
+    :func:`select` (AIC, FPE, MDL and the held-out tests over a grid of structures);
+    :func:`estimate_delay` (MATLAB ``delayest``, and the prewhitened cross-correlation)
 Grey-box models
     :class:`GreyBoxModel` of :class:`GreyParameter` (a plant's equations with named physical
     parameters), the built-in ones and a user's (``file.py:NAME``, or registered by
@@ -87,6 +88,7 @@ _LAZY = {
     "PolynomialModel": "models.polynomial",
     "PolynomialCost": "costs.polynomial",
     "select": "selection",
+    "estimate_delay": "delay",
     # grey-box models
     "GreyBoxModel": "models.greybox",
     "GreyParameter": "models.greybox",

@@ -64,6 +64,10 @@ class Identification:
     output_error : OEResult, PEMResult or None
         The Levenberg-Marquardt result when ``optimiser`` is ``"oe"`` or ``"pem"``, else
         None.
+    cost_search : float or None
+        The final model's cost as the search computed it (the fast direct form), where it
+        disagreed with ``cost_value`` (the model run in a well-conditioned realisation) by
+        more than :data:`flexid._identify.RESCORE_BOUND`; None where they agree.
     """
 
     model: ARX
@@ -81,6 +85,7 @@ class Identification:
     data_info: dict = field(default_factory=dict)
     search: dict = field(default_factory=dict)
     output_error: Any = None
+    cost_search: float | None = None
 
     @property
     def history(self) -> History | None:
@@ -109,6 +114,7 @@ class Identification:
         """The labelled header lines of :meth:`summary` (shared with the notebook display)."""
         items = [
             ("data", self.data_info.get("description", "")),
+            *([("delay", self.data_info["delay"])] if "delay" in self.data_info else []),
             ("cost", self.cost.describe()),
             ("search box", self.search.get("box_rule", self.box.rule)),
         ]
@@ -147,6 +153,15 @@ class Identification:
                 f"{self.cost_value:.6g}  ({ls_name} {self.cost_ls:.6g}, ratio {ratio:.4g})",
             )
         )
+        if self.cost_search is not None:
+            items.append(
+                (
+                    "rescored",
+                    f"the search's cost of this model was {self.cost_search:.6g} (its direct "
+                    "form is ill-conditioned); the final cost is the model's in second-order "
+                    "sections",
+                )
+            )
         items.append(
             (
                 "time",
@@ -267,6 +282,7 @@ class Identification:
                 "cost": {
                     "description": self.cost.describe(),
                     "value": self.cost_value,
+                    "search_value": self.cost_search,
                     "least_squares": self.cost_ls,
                 },
                 "search": {

@@ -9,6 +9,7 @@ stability and spectra.
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -30,6 +31,7 @@ from .config import (
     SearchSpec,
 )
 from .data import IOData, prepare_data
+from .delay import estimate_delay
 from .errors import BudgetError, ConfigError
 from .estimation import build_problem, greybox_of, structure_of
 from .models.greybox import GreyBoxModel
@@ -46,7 +48,7 @@ def identify(
     data: IOData | str | os.PathLike,
     na: int | None = None,
     nb: int | Sequence[int] | None = None,
-    nk: int | Sequence[int] | None = None,
+    nk: int | Sequence[int] | str | None = None,
     *,
     structure: str | PolynomialStructure | GreyBoxModel | None = None,
     greybox: str | GreyBoxModel | None = None,
@@ -63,7 +65,7 @@ def identify(
     split: float | int | None = None,
     validation: IOData | str | os.PathLike | None = None,
     output: str | int | None = None,
-    detrend: bool = False,
+    detrend: bool | str = False,
     max_lag: int = 25,
     weight: float | None = None,
     penalty: float | None = None,
@@ -87,7 +89,9 @@ def identify(
     na, nb, nk : int
         Orders and delay in MATLAB's convention.  Without ``structure`` they are the ARX
         model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` (``nb`` defaults to ``na``, ``nk`` to 1;
-        one ``nb``/``nk`` per input for several inputs).
+        one ``nb``/``nk`` per input for several inputs).  ``nk="auto"``: the delays
+        estimated from the estimation record as MATLAB ``delayest`` does
+        (:func:`flexid.delay.estimate_delay`), said in the summary.
     structure : {"arx", "armax", "oe", "bj", "greybox"}, PolynomialStructure or GreyBoxModel
         The model structure (:mod:`flexid.models.polynomial`): a name, whose orders are given as
         ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (only those the structure has, e.g.
@@ -133,8 +137,9 @@ def identify(
         A separate validation record.
     output : str or int, optional
         Output channel of a multi-output record.
-    detrend : bool
-        Remove the estimation record's means first.
+    detrend : {False, True, "constant", "linear"}
+        Remove the estimation record's means (``"constant"`` or True) or its least-squares
+        line (``"linear"``) first (:func:`flexid.data.prepare_data`).
     max_lag : int
         Lags of the correlation tests.
     weight, penalty : float, optional
@@ -211,6 +216,13 @@ def identify(
         detrend=detrend,
         load_options=load_options,
     )
+    delay_text = None
+    if isinstance(nk, str):
+        if nk != "auto":
+            raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
+        found = estimate_delay(est)
+        nk = list(found.nk) if est.n_inputs > 1 else found.nk[0]
+        delay_text = found.describe()
     structure = structure_of(structure, est.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
     polynomial = isinstance(structure, PolynomialStructure)
     structure.check_samples(est.n_samples)
@@ -246,6 +258,7 @@ def identify(
     model, result, used_params, used_seed, cost_value, oe = _search(
         estimation, structure, est, optimiser, predictor, budget, seed, params, callback
     )
+    cost_value, cost_search = rescored(objective, model, cost_value)
     t_val = time.perf_counter()
     report_est = validate(model, est, max_lag=max_lag, initial=validate_initial)
     report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
@@ -254,12 +267,15 @@ def identify(
         est, val.n_samples, list(est.input_names), [est.output_names[0]],
         est.output_units[0], est.metadata,
     )
+    if delay_text is not None:
+        info["delay"] = delay_text
     return Identification(
         model=model,
         optimiser=optimiser,
         params=used_params,
         cost=objective,
         cost_value=cost_value,
+        cost_search=cost_search,
         cost_ls=cost_ls,
         box=box,
         result=result,
@@ -271,6 +287,43 @@ def identify(
         timings=timings(t_start, t_opt, t_val, t_end),
         data_info=info,
     )
+
+
+#: Relative disagreement between a final model's cost as the search computed it (the fast
+#: direct form) and in a well-conditioned realisation beyond which the model is rescored.
+#: Where the direct form is well conditioned the two agree to about 1e-12.
+RESCORE_BOUND = 1e-6
+
+
+def rescored(objective: Any, model: Any, cost_value: float) -> tuple[float, float | None]:
+    """A final model's cost in a well-conditioned realisation, where the search's is off.
+
+    Parameters
+    ----------
+    objective : cost
+        The search's cost; rescoring needs its ``realised_cost(theta)`` (the polynomial
+        family's costs have it).
+    model : model
+        The final model (its ``theta``).
+    cost_value : float
+        The cost the search reported for it.
+
+    Returns
+    -------
+    cost : float
+        The realised cost where the two disagree by more than :data:`RESCORE_BOUND`
+        (relative), else ``cost_value``.
+    search_cost : float or None
+        ``cost_value`` when the model was rescored, else None.
+    """
+    realised = getattr(objective, "realised_cost", None)
+    theta = getattr(model, "theta", None)
+    if realised is None or theta is None or not math.isfinite(cost_value):
+        return cost_value, None
+    value = float(realised(theta))
+    if not math.isfinite(value) or abs(value - cost_value) <= RESCORE_BOUND * abs(value):
+        return cost_value, None
+    return value, cost_value
 
 
 def _search(

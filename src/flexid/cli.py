@@ -179,6 +179,13 @@ def _int_list(text: str | None, what: str) -> Any:
     return values[0] if len(values) == 1 else values
 
 
+def _delays(text: str | None, what: str) -> Any:
+    """``--nk``: a delay, one per input, or ``auto`` (estimated from the record)."""
+    if text is not None and text.strip().lower() == "auto":
+        return "auto"
+    return _int_list(text, what)
+
+
 def _columns(text: str | None) -> Any:
     """Column names or 0-based indices, comma-separated."""
     if text is None:
@@ -281,7 +288,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         args.file,
         args.na,
         _int_list(args.nb, "--nb"),
-        _int_list(args.nk, "--nk") if args.nk is not None else None,
+        _delays(args.nk, "--nk") if args.nk is not None else None,
         structure=model if model is not None else args.structure,
         nc=args.nc,
         nd=args.nd,
@@ -458,6 +465,15 @@ def _order_grid(items: Sequence[str] | None) -> dict[str, list[int]] | None:
     return grid
 
 
+def _add_detrend(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--detrend", nargs="?", const="constant", choices=("constant", "linear"),
+        help="remove the estimation record's means (constant, the value without one) or its "
+        "least-squares line (linear) (default: neither; a warning says when an offset or "
+        "drift dominates a channel)",
+    )
+
+
 def _cmd_select(args: argparse.Namespace) -> int:
     from .data import load
     from .selection import select
@@ -481,10 +497,11 @@ def _cmd_select(args: argparse.Namespace) -> int:
         data,
         structures=tuple(_names(args.structures) or ("arx", "oe")),
         orders=grid,
-        nk=_int_list(args.nk, "--nk") if args.nk is not None else 1,
+        nk=_delays(args.nk, "--nk") if args.nk is not None else "auto",
         initial=args.initial,
         criterion=args.criterion,
         max_lag=args.max_lag,
+        detrend=args.detrend,
         progress=not (args.json or args.no_progress) and sys.stderr.isatty(),
     )
     if args.figure:
@@ -805,7 +822,11 @@ def _structure_options(p: argparse.ArgumentParser, default: str, scope: str = ""
     p.add_argument("--nc", type=int, help=f"order of C (armax, bj{tail}; no default)")
     p.add_argument("--nd", type=int, help=f"order of D (bj{tail}; no default)")
     p.add_argument("--nf", help=f"order of F per input (oe, bj{tail}; no default)")
-    p.add_argument("--nk", help=f"input delay in samples per input (default 1{tail})")
+    p.add_argument(
+        "--nk",
+        help=f"input delay in samples per input (default 1{tail}); identify also takes 'auto', "
+        "the delay estimated from the estimation record (MATLAB delayest)",
+    )
 
 
 _DT_HELP = (
@@ -965,7 +986,7 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     i.add_argument("--split", type=float, help="estimation share (default 2/3) or sample index")
     _record_options(i, mat=True)
-    i.add_argument("--detrend", action="store_true", help="remove the estimation means")
+    _add_detrend(i)
     i.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
     i.add_argument(
         "--figures",
@@ -1062,10 +1083,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="a grid of one order (repeatable: a product grid), e.g. nb=8,16 nf=8,16 (default: "
         "each structure's default grid)",
     )
-    se.add_argument("--nk", help="input delay in samples (default 1)")
+    se.add_argument(
+        "--nk",
+        help="input delay in samples per input, or auto: the delays estimated from the "
+        "estimation record by MATLAB's delayest and by the prewhitened cross-correlation, the "
+        "grid at each (default auto)",
+    )
     se.add_argument("--criterion", default="simulation", help="simulation | aic | fpe | mdl")
     se.add_argument("--initial", default="estimate", help="estimate | zero | measured")
     _record_options(se)
+    _add_detrend(se)
     se.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
     se.add_argument("--figure", help="write the selection figure (PNG) here (default: none)")
     se.add_argument("--json", action="store_true", help="print a machine-readable result")

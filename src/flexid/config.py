@@ -175,8 +175,10 @@ class DataSpec:
         The output channel modelled when the record has several.
     split : float, int or None
         Estimation share in (0, 1) (default 2/3) or, above 1, the first validation sample.
-    detrend : bool
-        Remove the estimation record's means from both records (default False).
+    detrend : bool or str
+        ``"constant"`` (or true): remove the estimation record's means from both records;
+        ``"linear"``: its least-squares line (see :func:`flexid.data.prepare_data`); default
+        False.
     digest : str or None
         SHA-256 of the record read from ``file`` (its samples, sample time and channel
         names), set by :func:`flexid.compare` when it reads the file, not in configuration
@@ -204,12 +206,18 @@ class DataSpec:
     dt: float | None = None
     output: str | int | None = None
     split: float | int | None = None
-    detrend: bool = False
+    detrend: bool | str = False
     digest: str | None = None
 
     def __post_init__(self) -> None:
         if (self.plant is None) == (self.file is None):
             raise ConfigError("[data] needs exactly one of 'plant' (simulate) or 'file' (a record)")
+        numeric = isinstance(self.detrend, (int, float)) and not isinstance(self.detrend, bool)
+        if numeric or self.detrend not in (False, True, "constant", "linear"):
+            raise ConfigError(
+                f"[data] detrend must be false, true, 'constant' or 'linear', got "
+                f"{self.detrend!r}"
+            )
 
     def describe(self) -> str:
         """One line saying where the record comes from.

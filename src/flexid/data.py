@@ -50,9 +50,16 @@ from ._files import (
 from ._html import block, table
 from ._json import jsonable
 from ._validate import checked_keywords, integer, is_integer, positive_real, real
-from .errors import DataError, DataFileError, DataWarning, UnknownKeywordError, check_finite
+from .errors import (
+    DataError,
+    DataFileError,
+    DataWarning,
+    UnknownKeywordError,
+    UnknownNameError,
+    check_finite,
+)
 
-__all__ = ["IOData", "load", "prepare_data", "save"]
+__all__ = ["DETRENDS", "OFFSET_RATIO", "IOData", "detrend_kind", "load", "prepare_data", "save"]
 
 _FORMAT_VERSION = 1
 
@@ -1019,7 +1026,7 @@ def prepare_data(
     output: str | int | None = None,
     split: float | int | None = None,
     validation: IOData | str | os.PathLike | None = None,
-    detrend: bool = False,
+    detrend: bool | str | None = False,
     load_options: Mapping[str, Any] | None = None,
 ) -> tuple[IOData, IOData]:
     """Estimation and validation records from a record (or file) and a split rule.
@@ -1034,9 +1041,14 @@ def prepare_data(
         A fraction in (0, 1) (default 2/3, the paper's rule) or a sample index.
     validation : IOData or path, optional
         A separate validation record; then all of ``data`` is used for estimation.
-    detrend : bool, optional
-        Remove the means of the estimation record from both (offsets from the estimation
-        part only, so no validation information leaks into the model).
+    detrend : {False, None, True, "constant", "linear"}, optional
+        ``"constant"`` (or True): remove the means of the estimation record from both
+        (offsets from the estimation part only, so no validation information leaks into
+        the model).  ``"linear"``: remove the estimation record's least-squares line, from
+        a split record's validation part too (the line extended over its samples); a
+        separate validation record loses its own line (its time axis is its own).  Without
+        it, a :class:`~flexid.errors.DataWarning` says when a channel's offset or drift
+        dwarfs its variation (:data:`OFFSET_RATIO`).
     load_options : mapping, optional
         Options of :func:`load` for a path (``inputs``, ``outputs``, ``dt``, ...).
 
@@ -1069,7 +1081,8 @@ def prepare_data(
         est, val = data.split(index=int(split))
     else:
         est, val = data.split(split)
-    if detrend:
+    kind = detrend_kind(detrend)
+    if kind == "constant":
         u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
         info = {
             "kind": "constant",
@@ -1079,4 +1092,101 @@ def prepare_data(
         }
         est = est.replace(u=est.u - u0, y=est.y - y0, metadata={**est.metadata, "detrend": info})
         val = val.replace(u=val.u - u0, y=val.y - y0, metadata={**val.metadata, "detrend": info})
+    elif kind == "linear":
+        n_est = est.n_samples
+        lines = {k: _line(getattr(est, k)) for k in ("u", "y")}
+        info = {"kind": "linear", "from": "estimation",
+                **{f"{k}_line": [c.tolist() for c in v] for k, v in lines.items()}}  # fmt: skip
+        est = est.replace(**{k: getattr(est, k) - _line_values(lines[k], 0, n_est)
+                             for k in ("u", "y")}, metadata={**est.metadata, "detrend": info})
+        if validation is None:  # the same line, extended over the held-out samples
+            val = val.replace(**{k: getattr(val, k) - _line_values(lines[k], n_est,
+                                                                   val.n_samples)
+                                 for k in ("u", "y")}, metadata={**val.metadata, "detrend": info})
+        else:
+            val = val.detrend("linear")
+    else:
+        _warn_offsets(est)
     return est, val
+
+
+#: A channel whose mean, or whose least-squares line's rise over the record, exceeds this
+#: many standard deviations of what is left is dominated by an offset or drift.
+OFFSET_RATIO = 3.0
+DETRENDS = ("constant", "linear")
+
+
+def detrend_kind(detrend: Any) -> str | None:
+    """The detrending rule of ``prepare_data``'s ``detrend`` argument.
+
+    Parameters
+    ----------
+    detrend : {False, None, True, "constant", "linear"}
+
+    Returns
+    -------
+    str or None
+        ``"constant"``, ``"linear"`` or None.
+
+    Raises
+    ------
+    UnknownNameError
+        Another value (the error is also a DataError).
+    """
+    if detrend is None or detrend is False:
+        return None
+    if detrend is True:
+        return "constant"
+    if isinstance(detrend, str) and detrend in DETRENDS:
+        return detrend
+    raise _UnknownDetrend("detrend rule", str(detrend), DETRENDS)
+
+
+class _UnknownDetrend(UnknownNameError, DataError):
+    pass
+
+
+def _line(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per column, the least-squares line ``c0 + c1 t`` over ``t = 0 .. N - 1``."""
+    t = np.arange(x.shape[0], dtype=float)
+    c1, c0 = np.polyfit(t, x, 1) if x.shape[0] > 1 else (np.zeros(x.shape[1]), x[0])
+    return np.asarray(c0, dtype=float), np.asarray(c1, dtype=float)
+
+
+def _line_values(line: tuple[np.ndarray, np.ndarray], first: int, n: int) -> np.ndarray:
+    t = np.arange(first, first + n, dtype=float)[:, None]
+    return line[0][None, :] + line[1][None, :] * t
+
+
+def _warn_offsets(record: IOData) -> None:
+    """A DataWarning naming each channel whose offset or drift dwarfs its variation.
+
+    A record with a constant input says nothing here: no model is unique on it, and the
+    estimation says so.
+    """
+    u_spread, u_mean = record.u.std(axis=0), np.abs(record.u.mean(axis=0))
+    if np.any(u_spread <= 1e-8 * (u_mean + u_spread)):
+        return
+    found = []
+    for kind, x, names in (("output", record.y, record.output_names),
+                           ("input", record.u, record.input_names)):  # fmt: skip
+        if x.shape[0] < 3:
+            continue
+        c0, c1 = _line(x)
+        rest = x - _line_values((c0, c1), 0, x.shape[0])
+        spread, left = x.std(axis=0), rest.std(axis=0)
+        mean = x.mean(axis=0)
+        rise = np.abs(c1) * (x.shape[0] - 1)
+        for i, name in enumerate(names):
+            if spread[i] > 0 and abs(mean[i]) > OFFSET_RATIO * spread[i]:
+                found.append(f"{kind} {name!r} has mean {mean[i]:.4g} and standard deviation "
+                             f"{spread[i]:.4g}: detrend='constant' (--detrend constant)")
+            elif left[i] > 0 and rise[i] > OFFSET_RATIO * left[i]:
+                found.append(f"{kind} {name!r} drifts by {rise[i]:.4g} over the estimation "
+                             f"record against a variation of {left[i]:.4g} about the line: "
+                             "detrend='linear' (--detrend linear)")
+    if found:
+        warnings.warn(
+            "a linear model has no offset term, so it fits an offset or drift with its "
+            "dynamics: " + "; ".join(found), DataWarning, stacklevel=3,
+        )

@@ -346,6 +346,9 @@ class Selection:
         win.
     wall_time : float
         Seconds, start to finish.
+    delay : str
+        How the delays were chosen, when :func:`select` estimated them (``nk="auto"``);
+        empty when they were given.
     """
 
     candidates: list[Candidate]
@@ -359,6 +362,7 @@ class Selection:
     dt: float = 1.0
     parsimony: float = 0.01
     wall_time: float = 0.0
+    delay: str = ""
 
     @property
     def best_model(self) -> PolynomialModel | None:
@@ -403,6 +407,7 @@ class Selection:
             ),
             ("structures", ", ".join("grey-box" if k == "greybox" else k.upper() for k in kinds)),
             ("ranked by", f"{self.criterion}: {CRITERIA[self.criterion]}"),
+            *([("delay", self.delay)] if self.delay else []),
             (
                 "validation",
                 f"initial state {self.initial}, correlation tests up to lag {self.max_lag}",
@@ -533,6 +538,7 @@ class Selection:
                 "dt": self.dt,
                 "parsimony": self.parsimony,
                 "wall_time": self.wall_time,
+                "delay": self.delay,
                 "best": None if self.best is None else index[id(self.best)],
                 "best_model": None if self.best_model is None else self.best_model.to_dict(),
                 "ranking": [index[id(c)] for c in self.ranked()],
@@ -880,7 +886,7 @@ def select(
     structures: Any = ("arx", "oe"),
     orders: Any = None,
     *,
-    nk: int | Sequence[int] = 1,
+    nk: int | Sequence[int] | str = "auto",
     split: float | int | None = None,
     validation: IOData | tuple | str | os.PathLike | None = None,
     initial: str = "estimate",
@@ -890,6 +896,7 @@ def select(
     seed: int = 0,
     parsimony: float = 0.01,
     progress: bool | Callable[[Candidate], Any] = False,
+    detrend: bool | str = False,
 ) -> Selection:
     """Fit, validate and rank a grid of polynomial structures, and recommend one.
 
@@ -923,8 +930,15 @@ def select(
         order name -> values (``{"nb": range(1, 5), "nf": range(1, 5)}``; a scalar is one
         value) is the product of the values; a mapping structure name -> either of those
         gives each structure its grid (structures it leaves out keep their default grid).
-    nk : int or sequence of int, optional
-        Input delay in samples (one per input) of every grid entry without its own ``nk``.
+    nk : int, sequence of int or "auto", optional
+        Input delay in samples (one per input) of every grid entry without its own ``nk``;
+        ``"auto"`` (default): every grid entry at ``nk = 1`` and at the delays estimated
+        on the estimation record by both methods of :func:`flexid.delay.estimate_delay`
+        (MATLAB ``delayest`` and the prewhitened cross-correlation; on the DaISy dryer
+        both find 3, where ``nk = 1`` fits 70 % and ``nk = 3`` 85 %).  ``nk = 1`` stays
+        because the estimators find where the response becomes significant, which can be
+        later than where it starts (on the simulated manipulator 10-11 samples, where
+        ``nk = 1`` fits best); :attr:`Selection.delay` says what they found.
         With several inputs, a single value of ``nb``, ``nf`` or ``nk`` (in the grid or
         here) is every input's.
     split : float or int, optional
@@ -956,6 +970,9 @@ def select(
     progress : bool or callable, optional
         Show a progress bar on stderr (True), or call ``progress(candidate)`` after each
         candidate.
+    detrend : {False, True, "constant", "linear"}, optional
+        Remove the estimation record's means or least-squares line first, as
+        :func:`flexid.identify` does (:func:`flexid.data.prepare_data`).
 
     Returns
     -------
@@ -979,6 +996,7 @@ def select(
     """
     t_begin = time.perf_counter()
     from .data import prepare_data
+    from .delay import DELAY_METHODS, estimate_delay
     from .estimation import check_excitation
     from .greybox_fit import greyest
     from .prediction_error import pem
@@ -997,6 +1015,7 @@ def select(
     est, val = prepare_data(
         record,
         split=split,
+        detrend=detrend,
         validation=None if validation is None else _as_record(validation, "validation"),
     )
     if val.n_inputs != est.n_inputs:
@@ -1006,7 +1025,36 @@ def select(
         )
 
     # every grid entry is checked before any fit
-    candidates_s = _candidate_structures(structures, orders, nk, est.n_inputs)
+    delay_text = ""
+    if isinstance(nk, str):
+        if nk != "auto":
+            raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
+        conventional = tuple([1] * est.n_inputs)
+        try:
+            found = [estimate_delay(est, method=m) for m in DELAY_METHODS]
+        except DataError as exc:  # e.g. a constant input: the candidates' own checks fail
+            delays = [conventional]
+            delay_text = f"nk = 1: the delay could not be estimated ({exc})"
+        else:
+            # the estimators find where the response becomes significant, which can be later
+            # than where it starts (the manipulator's: 10-11 samples, where OE(16,16,1) fits
+            # best): the conventional nk = 1 stays a candidate, the held-out fit decides
+            delays = list(dict.fromkeys([conventional, *(d.nk for d in found)]))
+            estimated = list(dict.fromkeys(d.nk for d in found))
+            lo, hi = found[0].nk_range
+            if len(estimated) == 1:
+                text = (f"nk = {', '.join(map(str, estimated[0]))} (MATLAB delayest and the "
+                        f"prewhitened cross-correlation agree, over nk = {lo} .. {hi})")
+            else:
+                text = "; ".join(d.describe() for d in found)
+            delay_text = f"{text}; the grid at each estimate and at nk = 1"
+        candidates_s = []
+        for d in delays:
+            for s in _candidate_structures(structures, orders, list(d), est.n_inputs):
+                if s not in candidates_s:
+                    candidates_s.append(s)
+    else:
+        candidates_s = _candidate_structures(structures, orders, nk, est.n_inputs)
     for s in candidates_s:
         try:
             s.check_samples(est.n_samples)
@@ -1100,6 +1148,7 @@ def select(
         dt=float(est.dt),
         parsimony=parsimony,
         wall_time=time.perf_counter() - t_begin,
+        delay=delay_text,
     )
 
 

@@ -810,12 +810,10 @@ def validate(
         initial_one_step = None
         if initial == "measured":
             ysim = model.simulate(u_model, y_init=y_full[:start])
-        elif initial == "zero":
-            ysim = model.simulate(u_model)
-        else:
+        else:  # the polynomial form simulates in a well-conditioned realisation
             poly = _as_polynomial(model)
             ysim = _free_run(
-                lambda: poly.simulate(u_model, y_full, initial="estimate"), n, not poly.is_stable
+                lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
             )
         ysim = np.asarray(ysim, dtype=float).reshape(-1)
     for arr, what in ((y1, "one-step prediction"), (ysim, "simulated output")):

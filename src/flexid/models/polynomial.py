@@ -62,6 +62,7 @@ from .._validate import checked_keywords, integer, positive_real
 from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
 from .arx import ARX, ARXStructure, _check_samples
+from .realisation import Path, accurate_roots, run_paths
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
     import control
@@ -775,6 +776,8 @@ class PolynomialModel:
         """
         initial = _check_initial(initial)
         u, y = self._signals(u, y, need_y=True)
+        if k == 1 and initial != "measured":
+            return self._run_realised(1, u, y, initial)
         den, num_y, nums = self.predictor_polynomials(k)
         return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
 
@@ -811,21 +814,100 @@ class PolynomialModel:
         """
         initial = _check_initial(initial)
         u, y = self._signals(u, y, need_y=initial != "zero")
+        if initial != "measured":
+            return self._run_realised(np.inf, u, y, initial)
         den, num_y, nums = self.predictor_polynomials(np.inf)
-        if y is None:
-            y = np.zeros(u.shape[0])
         return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
+
+    # ------------------------------------------------------------------ realisation
+    def _roots(self, key: str, j: int = 0) -> np.ndarray:
+        """Accurate roots of ``A``, ``C``, ``D`` or input ``j``'s ``F`` or ``B`` (cached)."""
+        cache = self.__dict__.setdefault("_root_cache", {})
+        if (key, j) not in cache:
+            poly = {"a": lambda: self.a, "c": lambda: self.c, "d": lambda: self.d,
+                    "f": lambda: self.f[j], "b": lambda: self.b[j]}[key]()
+            cache[key, j] = accurate_roots(poly)
+        return cache[key, j].copy()
+
+    def realisation(self, k: float = 1) -> tuple[list[Path], np.ndarray, bool]:
+        """The one-step predictor (``k = 1``) or simulation (``k = inf``) as second-order
+        sections, well conditioned for lightly damped high-order models.
+
+        Parameters
+        ----------
+        k : {1, inf}
+
+        Returns
+        -------
+        paths : list of Path
+            One per input (``D B_j / (C F_j)`` one-step, ``B_j / (A F_j)`` simulated;
+            signal ``j + 1``) and, one-step with ``A``, ``C`` or ``D``, the measured output's
+            ``D A / C`` (signal 0) to subtract from ``y``.
+        modes : ndarray of complex
+            The poles of the direct form's denominator (``C F`` or ``A F``) with multiplicity:
+            the span of its free responses.
+        uses_y : bool
+            Whether the prediction is ``y`` less the output path (one-step with ``A``, ``C``
+            or ``D``).
+        """
+        s = self.structure
+        one_step = k != np.inf
+        noise = [] if not one_step else [self._roots("d")]
+        den = self._roots("c") if one_step else self._roots("a")
+        paths = []
+        uses_y = one_step and (s.na + s.nc + s.nd) > 0
+        if uses_y:
+            zeros = np.concatenate([self._roots("d"), self._roots("a")])
+            paths.append(Path(0, zeros, self._roots("c"), 1.0, 0, sign=-1.0))
+        modes = [den]
+        for j in range(s.n_inputs):
+            b = self.b[j]
+            nonzero = np.flatnonzero(b)
+            modes.append(self._roots("f", j))
+            if nonzero.size == 0:
+                continue
+            lead = int(nonzero[0])
+            zeros = np.concatenate([*noise, self._roots("b", j)])
+            poles = np.concatenate([den, self._roots("f", j)])
+            paths.append(Path(j + 1, zeros, poles, float(b[lead]), s.nk[j] + lead))
+        return paths, np.concatenate(modes), uses_y
+
+    def _run_realised(
+        self, k: float, u: np.ndarray, y: np.ndarray | None, initial: str
+    ) -> np.ndarray:
+        """The one-step prediction or simulation by :meth:`realisation` under ``"zero"`` or
+        ``"estimate"``: what :func:`run_predictor` computes, without the direct form's
+        rounding (see :mod:`flexid.models.realisation`)."""
+        paths, modes, uses_y = self.realisation(k)
+        n = u.shape[0]
+        y_col = np.zeros(n) if y is None else y
+        signals = np.column_stack([y_col, u])
+        # the first sample of the direct form's recursion: every polynomial's degree
+        den, num_y, nums = self.predictor_polynomials(k)
+        start = max(self.structure.start, den.size - 1, num_y.size - 1,
+                    *[p.size - 1 for p in nums])  # fmt: skip
+        if initial == "estimate" and start >= n:
+            raise ModelOrderError(
+                f"a record of {n} samples does not reach past the predictor's first sample "
+                f"(start = {start})"
+            )
+        return run_paths(paths, signals, start=start, initial=initial, modes=modes,
+                         target=y, offset=y_col if uses_y else None)  # fmt: skip
 
     # ------------------------------------------------------------------ poles, zeros
     def poles(self) -> np.ndarray:
         """Poles of the plant part: the roots of ``A`` and of every ``F_j``.
 
+        Correct to about one unit in the last place (:func:`~flexid.models.realisation.
+        accurate_roots`), also where :func:`numpy.roots` is not (clustered lightly damped
+        poles).
+
         Returns
         -------
         ndarray of complex
         """
-        parts = [self.a, *self.f]
-        return np.concatenate([np.roots(p) for p in parts if p.size > 1] or [np.zeros(0)])
+        parts = [self._roots("a"), *(self._roots("f", j) for j in range(self.structure.n_inputs))]
+        return np.concatenate(parts).astype(complex)
 
     def zeros(self, input: int = 0) -> np.ndarray:
         """Finite zeros of one input's ``B`` (leading zero coefficients dropped).
@@ -838,8 +920,7 @@ class PolynomialModel:
         -------
         ndarray of complex
         """
-        b = np.trim_zeros(self.b[input], "f")
-        return np.roots(b) if b.size > 1 else np.zeros(0, dtype=complex)
+        return self._roots("b", input)
 
     def noise_poles(self) -> np.ndarray:
         """Poles of the noise model ``C/(A D)``: the roots of ``A`` and ``D``.
@@ -848,9 +929,7 @@ class PolynomialModel:
         -------
         ndarray of complex
         """
-        return np.concatenate(
-            [np.roots(p) for p in (self.a, self.d) if p.size > 1] or [np.zeros(0)]
-        )
+        return np.concatenate([self._roots("a"), self._roots("d")]).astype(complex)
 
     def noise_zeros(self) -> np.ndarray:
         """Zeros of the noise model: the roots of ``C`` (inside the unit circle when the
@@ -860,7 +939,7 @@ class PolynomialModel:
         -------
         ndarray of complex
         """
-        return np.roots(self.c) if self.c.size > 1 else np.zeros(0, dtype=complex)
+        return self._roots("c")
 
     @property
     def max_pole_radius(self) -> float:
