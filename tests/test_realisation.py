@@ -35,6 +35,22 @@ pytestmark = pytest.mark.numerics
 FIT_BOUND = 1e-8  # percentage points (module docstring)
 DIGITS = 100
 
+# OE(16, 16, 1) of the home-built twin rotor's pitch (DE, 10,000 FE): F has two real poles
+# next to z = 1 that numpy.roots returns as a complex pair 1e-2 away
+TWIN_ROTOR_F = np.array([
+    1.0, -9.1257232956320227, 37.334373996706610, -90.037820587308317,
+    141.41124674564054, -150.50499752110122, 109.06807130474887, -52.245549375617728,
+    15.129701022511789, -1.9830677473382199, -0.075237311565754042, 0.025003662307131212,
+    0.0037885289205048345, 2.2016240053867486e-04, -9.1363648823421519e-06,
+    -4.8791970492145488e-07, 3.9611866532642509e-08,
+])
+TWIN_ROTOR_B = np.array([
+    -4.6874967757977445e-05, 0.008820901999545596, -0.05893530290156612, 0.17127845126716404,
+    -0.28141567695781305, 0.2966643992365109, -0.24163899725310342, 0.22008659794949048,
+    -0.2711336210988409, 0.3665435295119803, -0.45057287293030074, 0.4426627215043779,
+    -0.3146737578891611, 0.14876583380693148, -0.04160807979792104, 0.0052027485205696404,
+])
+
 
 def exact_polynomials(model, k):
     """``den``, ``num_y`` and ``num_j`` of the predictor, the products formed exactly."""
@@ -197,13 +213,7 @@ def test_arx_simulation_and_box_jenkins_prediction_equal_the_exact_model():
 def test_accurate_roots_equal_100_digit_roots_where_numpy_roots_are_off():
     # the two real poles next to z = 1 of a measured twin rotor OE(16,16,1) denominator:
     # numpy.roots returns them as a complex pair 1e-2 away
-    den = np.array([
-        1.0, -9.1257232956320227, 37.334373996706610, -90.037820587308317,
-        141.41124674564054, -150.50499752110122, 109.06807130474887, -52.245549375617728,
-        15.129701022511789, -1.9830677473382199, -0.075237311565754042, 0.025003662307131212,
-        0.0037885289205048345, 2.2016240053867486e-04, -9.1363648823421519e-06,
-        -4.8791970492145488e-07, 3.9611866532642509e-08,
-    ])
+    den = TWIN_ROTOR_F
     with mp.workdps(DIGITS):
         ascending = [mp.mpf(float(v)) for v in den[::-1]]
         exact = mp.polyroots(ascending, maxsteps=3000, extraprec=3000, asc=True)
@@ -226,3 +236,67 @@ def test_accurate_roots_of_simple_and_degenerate_polynomials():
     np.testing.assert_array_equal(accurate_roots([0.0, 1.0, 0.25]), [-0.25])  # leading zero
     r = accurate_roots([1.0, 0.0, 1.0])
     np.testing.assert_array_equal(np.sort_complex(r), [-1j, 1j])
+
+
+# ------------------------------------------------------------------ the costs the searches use
+WELL_CONDITIONED = [
+    PolynomialStructure.arx(3, 2, 1),
+    PolynomialStructure.armax(2, 2, 2, 0),
+    PolynomialStructure.oe(3, 3, 1),
+    PolynomialStructure.bj(2, 2, 2, 3, 1),
+    PolynomialStructure.bj([2, 1], 2, 1, [2, 3], [1, 2]),
+    PolynomialStructure(na=2, nb=[2], nc=1, nd=2, nf=[2], nk=[1]),
+]
+
+
+def stable_monic(rng, n, radius=0.8):
+    poles = [radius * rng.uniform(0.4, 1) * np.exp(1j * s * a)
+             for a in rng.uniform(0.1, 3, size=n // 2) for s in (1, -1)]  # fmt: skip
+    poles += list(rng.uniform(-radius, radius, size=n % 2))
+    return np.poly(poles).real[1:] if n else np.zeros(0)
+
+
+@pytest.mark.parametrize("s", WELL_CONDITIONED, ids=repr)
+def test_realised_cost_equals_the_batched_cost_where_the_direct_form_is_well_conditioned(s):
+    """The two routes compute one cost (same samples, same rules): on well-conditioned models
+    they agree to rounding (1e-12 relative; measured at most 2e-15)."""
+    from flexid.costs.polynomial import PolynomialCost
+
+    rng = np.random.default_rng(11)
+    theta = np.zeros(s.n_params)
+    sl = s.slices()
+    for part in [sl["a"], sl["c"], sl["d"], *sl["f"]]:
+        theta[part] = stable_monic(rng, part.stop - part.start)
+    for part in sl["b"]:
+        theta[part] = rng.normal(size=part.stop - part.start)
+    u, y = rng.normal(size=(300, s.n_inputs)), rng.normal(size=300)
+    for predictor in ("one-step", "simulation")[: 1 if s.has_noise_model else 2]:
+        for rule in ("zero", "estimate"):
+            cost = PolynomialCost(s, (u, y), predictor=predictor, initial=rule, metric="sse")
+            batched = float(cost(theta)[0])
+            assert cost.realised_cost(theta) == pytest.approx(batched, rel=1e-12, abs=0)
+
+
+def test_a_final_model_is_rescored_where_the_search_direct_form_is_off():
+    """The twin rotor's OE(16, 16, 1): the batched (direct-form) cost is off by orders of
+    magnitude on this record, the realised one equals the exact model's to 1e-9, and
+    ``rescored`` reports both."""
+    from flexid._identify import RESCORE_BOUND, rescored
+    from flexid.costs.polynomial import PolynomialCost
+
+    model = PolynomialStructure.oe(16, 16, 1).model(np.concatenate([TWIN_ROTOR_B,
+                                                                    TWIN_ROTOR_F[1:]]))
+    rng = np.random.default_rng(0)
+    u = np.sign(rng.normal(size=(500, 1)))
+    y = model.simulate(u) + 0.5 * rng.normal(size=500) + 0.05 * np.cumsum(rng.normal(size=500))
+    cost = PolynomialCost(model.structure, (u, y), initial="estimate", metric="sse")
+    batched, realised = float(cost(model.theta)[0]), cost.realised_cost(model.theta)
+    s = model.structure
+    exact = exact_predictor(*exact_polynomials(model, np.inf), u, y, s.start, "estimate")
+    with mp.workdps(50):
+        exact_sse = float(mp.fsum((mp.mpf(float(y[t])) - exact[t]) ** 2
+                                  for t in range(s.start, y.size)))  # fmt: skip
+    assert realised == pytest.approx(exact_sse, rel=1e-9)
+    assert abs(batched - realised) > 1e3 * realised > RESCORE_BOUND * realised
+    assert rescored(cost, model, batched) == (realised, batched)
+    assert rescored(cost, model, realised) == (realised, None)
