@@ -299,3 +299,14 @@ def test_selection_figure_writes_a_png(oe_selection, tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 20_000
     fig = selection_figure(oe_selection, criterion=False)
     assert len(fig.axes) == 1
+
+
+def test_select_and_identify_give_one_model_for_one_structure():
+    """A candidate of select is the model identify's reference finds for that structure (the
+    same Levenberg-Marquardt starts, flexid.config.REFERENCE_STARTS), with the same fit."""
+    data = oe_record(n=600)
+    sel = select(data, "bj", [{"nb": 2, "nc": 1, "nd": 1, "nf": 2}], nk=1)
+    ident = flexid.identify(data, structure="bj", nb=2, nc=1, nd=1, nf=2, nk=1)
+    np.testing.assert_array_equal(sel.best.model.theta, ident.model.theta)
+    assert sel.best.fit_simulation == ident.validation.fit_simulation
+    assert sel.best.fit_one_step == ident.validation.fit_one_step

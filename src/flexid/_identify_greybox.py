@@ -17,7 +17,7 @@ from typing import Any
 
 from ._identification import Identification, _indent, data_info, timings
 from ._json import jsonable
-from .config import CostSpec, SearchSpec
+from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
 from .data import IOData, load
 from .diagnostics import format_fit
 from .errors import ConfigError
@@ -225,7 +225,7 @@ def identify_greybox(
     max_lag: int,
     callback: Callable | None,
     load_options: Mapping[str, Any] | None,
-    reference_starts: int = 3,
+    reference_starts: int = GREYBOX_REFERENCE_STARTS,
 ) -> GreyBoxIdentification:
     """:func:`flexid.identify` for a grey-box model (called by it; see its parameters)."""
     from .config import LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR

@@ -103,6 +103,12 @@ OUTPUT_ERROR = "oe"
 PREDICTION_ERROR = "pem"
 #: The ``optimiser`` names of the references, which take no FE budget.
 REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR)
+#: Levenberg-Marquardt starts of the polynomial references beside the deterministic ones
+#: (least squares, Steiglitz-McBride, Hannan-Rissanen), in identify, compare and select alike,
+#: so one structure gives one model whichever job fits it.
+REFERENCE_STARTS = 4
+#: Starts of the grey-box reference (:func:`flexid.greybox_fit.greyest`).
+GREYBOX_REFERENCE_STARTS = 3
 #: The named model structures (their orders: :data:`flexid.models.polynomial.STRUCTURES`).
 STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
 #: The structure name of a grey-box model (:mod:`flexid.models.greybox`), beside the

@@ -20,7 +20,7 @@ import numpy as np
 from scipy import linalg
 
 from ._validate import checked_keywords, is_integer, positive_real
-from .config import CostSpec, SearchSpec, auto_initial
+from .config import REFERENCE_STARTS, CostSpec, SearchSpec, auto_initial
 from .costs.arx import ARXCost
 from .data import IOData
 from .errors import (
@@ -629,7 +629,9 @@ class EstimationProblem:
             "box_rule": self.box_rule,
         }
 
-    def output_error_reference(self, *, starts: int = 4, seed: int = 0) -> OEResult | None:
+    def output_error_reference(
+        self, *, starts: int = REFERENCE_STARTS, seed: int = 0
+    ) -> OEResult | None:
         """The output-error reference of a simulation cost; ``None`` for one-step.
 
         Levenberg-Marquardt from least squares and stable starts
@@ -936,7 +938,9 @@ class PolynomialEstimationProblem(EstimationProblem):
             text += f"; {self.box_rule}"
         return text
 
-    def output_error_reference(self, *, starts: int = 4, seed: int = 0) -> PEMResult:
+    def output_error_reference(
+        self, *, starts: int = REFERENCE_STARTS, seed: int = 0
+    ) -> PEMResult:
         """The prediction-error reference (:func:`flexid.prediction_error.pem`) of this cost.
 
         Levenberg-Marquardt on the structure's prediction errors (with this cost's predictor

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .config import CostSpec, SearchSpec
+from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
 from .costs.greybox import GreyBoxCost
 from .errors import ConfigError
 from .models.greybox import GreyBoxModel
@@ -170,7 +170,9 @@ class GreyBoxEstimationProblem:
             "box_rule": self.box_rule,
         }
 
-    def output_error_reference(self, *, starts: int = 3, seed: int = 0) -> GreyBoxReference:
+    def output_error_reference(
+        self, *, starts: int = GREYBOX_REFERENCE_STARTS, seed: int = 0
+    ) -> GreyBoxReference:
         """The gradient reference, :func:`flexid.greybox_fit.greyest`, from the given values.
 
         Cached for the last ``(starts, seed)``.

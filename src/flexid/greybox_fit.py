@@ -48,6 +48,7 @@ import numpy as np
 from scipy import optimize
 
 from ._validate import checked_keywords, integer, real
+from .config import GREYBOX_REFERENCE_STARTS
 from .costs.greybox import GreyBoxCost
 from .diagnostics import fit_percent
 from .errors import ConfigError
@@ -247,7 +248,7 @@ def greyest(
     data: Any,
     model: GreyBoxModel,
     *,
-    starts: int = 3,
+    starts: int = GREYBOX_REFERENCE_STARTS,
     seed: int | np.random.Generator = 0,
     x0: Any = None,
     max_nfev: int | None = None,

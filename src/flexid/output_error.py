@@ -58,6 +58,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ._validate import integer, positive_int, real
+from .config import REFERENCE_STARTS
 from .costs.arx import ARXCost
 from .errors import ConfigError, DataError
 from .kernels import ar_recursion
@@ -502,7 +503,7 @@ def _run_lm(
 def output_error(
     cost: ARXCost,
     *,
-    starts: int = 4,
+    starts: int = REFERENCE_STARTS,
     seed: int | np.random.Generator | None = 0,
     max_nfev: int | None = None,
     x0: Any = None,

@@ -102,6 +102,7 @@ from scipy import linalg, signal
 from scipy.optimize import least_squares
 
 from ._validate import checked_keywords, integer, real
+from .config import REFERENCE_STARTS
 from .costs.polynomial import orthogonal_numerators
 from .errors import ConfigError, DataError
 from .models.arx import _io_arrays
@@ -1009,7 +1010,7 @@ def pem(
     structure: PolynomialStructure,
     *,
     initial: str = "estimate",
-    starts: int = 4,
+    starts: int = REFERENCE_STARTS,
     seed: int | np.random.Generator = 0,
     r_max: float = 1.0,
     max_nfev: int | None = None,

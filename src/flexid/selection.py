@@ -80,6 +80,7 @@ from scipy import linalg
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, integer, real
+from .config import GREYBOX_REFERENCE_STARTS, REFERENCE_STARTS
 from .diagnostics import format_fit
 from .errors import (
     ConfigError,
@@ -892,7 +893,7 @@ def select(
     initial: str = "estimate",
     criterion: str = "simulation",
     max_lag: int = 25,
-    starts: int = 2,
+    starts: int | None = None,
     seed: int = 0,
     parsimony: float = 0.01,
     progress: bool | Callable[[Candidate], Any] = False,
@@ -958,7 +959,10 @@ def select(
         ``start + 2 max_lag + 2`` samples for every candidate.
     starts : int, optional
         Extra random/perturbed starts of each PEM fit (>= 0; see
-        :func:`flexid.prediction_error.pem`).
+        :func:`flexid.prediction_error.pem`).  Default: the references' own
+        (:data:`flexid.config.REFERENCE_STARTS`, and
+        :data:`~flexid.config.GREYBOX_REFERENCE_STARTS` for a grey-box model), so a
+        candidate's model is the one :func:`flexid.identify` finds for that structure.
     seed : int, optional
         Seed of those starts (>= 0); every PEM fit uses it, so a candidate's result does not
         depend on the rest of the grid.
@@ -1005,7 +1009,10 @@ def select(
     criterion = _check_criterion(criterion)
     initial = _check_initial(initial)
     max_lag = integer(max_lag, "max_lag", error=ConfigError, minimum=1)
+    starts_gb = GREYBOX_REFERENCE_STARTS if starts is None else starts
+    starts = REFERENCE_STARTS if starts is None else starts
     starts = integer(starts, "starts", error=ConfigError, minimum=0)
+    starts_gb = integer(starts_gb, "starts", error=ConfigError, minimum=0)
     seed = integer(seed, "seed", error=ConfigError, minimum=0)
     parsimony = real(parsimony, "parsimony", error=ConfigError, minimum=0)
     if split is not None and validation is not None:
@@ -1086,7 +1093,7 @@ def select(
             elif s.kind == "greybox":
                 t0 = time.perf_counter()
                 try:
-                    res = greyest(est, s, starts=starts, seed=seed)
+                    res = greyest(est, s, starts=starts_gb, seed=seed)
                     model, sse, local = res.model, res.sse, res.local_minimum
                 except FlexidError as exc:
                     model, sse, local = exc, math.nan, False
