@@ -86,7 +86,13 @@ def exact_polynomials(model, k):
 
 
 def exact_predictor(den, num_y, nums, u, y, start, initial):
-    """The direct form of one model at ``DIGITS`` significant digits (see the docstring)."""
+    """The direct form of one model at ``DIGITS`` significant digits (see the docstring).
+
+    ``initial``: ``"zero"`` (from rest at ``t = 0``), ``"estimate"`` (MATLAB's: the state at
+    ``t = 0`` of the observer canonical form of order ``max(deg den, deg num)``, fitted to
+    every sample) or ``"estimate-start"`` (the costs': the direct form's ``n`` past outputs at
+    ``t = start``, fitted to ``t >= start``, the samples before it the measured outputs).
+    """
     with mp.workdps(DIGITS):
         n = len(den) - 1
         a = den
@@ -107,27 +113,42 @@ def exact_predictor(den, num_y, nums, u, y, start, initial):
                 out.append(ft - mp.fsum(a[i] * out[-i] for i in range(1, n + 1)))
             return out[n:]
 
-        if initial == "zero" or n == 0:
+        if initial == "zero":
             return recursion(f, [mp.mpf(0)] * n)
-        K = N - start
-        base = recursion(f[start:], [mp.mpf(0)] * n)
-        cols = []
-        for i in range(n):
-            past = [mp.mpf(0)] * n
-            past[n - 1 - i] = mp.mpf(1)
-            cols.append(recursion([mp.mpf(0)] * K, past))
-        r = [Y[start + t] - base[t] for t in range(K)]
+        if initial == "estimate":
+            first, base = 0, recursion(f, [mp.mpf(0)] * n)
+            order = max(n, *(len(num) - 1 for num, _ in signals))
+            padded = list(a) + [mp.mpf(0)] * (order + 1 - len(a))
+            cols = []
+            for i in range(order):  # y(t) = x_1(t), x_k(t+1) = -a_k x_1(t) + x_(k+1)(t)
+                x = [mp.mpf(0)] * order
+                x[i] = mp.mpf(1)
+                col = []
+                for _ in range(N):
+                    col.append(x[0])
+                    x = [-padded[k + 1] * x[0] + (x[k + 1] if k + 1 < order else 0)
+                         for k in range(order)]  # fmt: skip
+                cols.append(col)
+        else:
+            first, base = start, recursion(f[start:], [mp.mpf(0)] * n)
+            cols = []
+            for i in range(n):
+                past = [mp.mpf(0)] * n
+                past[n - 1 - i] = mp.mpf(1)
+                cols.append(recursion([mp.mpf(0)] * (N - start), past))
+        K, m = N - first, len(cols)
+        r = [Y[first + t] - base[t] for t in range(K)]
         # normal equations: with 100 digits the direct form's conditioning (squared) still
         # leaves tens of correct digits
-        G = mp.matrix(n, n)
-        h = mp.matrix(n, 1)
-        for i in range(n):
+        G = mp.matrix(m, m)
+        h = mp.matrix(m, 1)
+        for i in range(m):
             h[i] = mp.fsum(cols[i][t] * r[t] for t in range(K))
-            for j in range(i, n):
+            for j in range(i, m):
                 G[i, j] = G[j, i] = mp.fsum(cols[i][t] * cols[j][t] for t in range(K))
-        x = mp.lu_solve(G, h)
-        return Y[:start] + [
-            base[t] + mp.fsum(cols[i][t] * x[i] for i in range(n)) for t in range(K)
+        x = mp.lu_solve(G, h) if m else []
+        return Y[:first] + [
+            base[t] + mp.fsum(cols[i][t] * x[i] for i in range(m)) for t in range(K)
         ]
 
 
@@ -162,18 +183,26 @@ def record(rng, model, n_samples=400):
 
 
 def check(model, u, y, k, initial):
+    """The reported fit (every sample, MATLAB's rule) against the exact model's; returns the
+    exact fit and the float64 direct form's of the costs' rule (``t >= start``)."""
     s = model.structure
     den, num_y, nums = model.predictor_polynomials(k)
-    start = max(s.start, den.size - 1, num_y.size - 1, *[p.size - 1 for p in nums])
     exact_polys = exact_polynomials(model, k)
-    exact = exact_fit(y, exact_predictor(*exact_polys, u, y, start, initial), s.start)
+    exact = exact_fit(y, exact_predictor(*exact_polys, u, y, 0, initial), 0)
     ours = model.simulate(u, y, initial=initial) if k == np.inf else model.predict(
         u, y, initial=initial
     )
-    got = fit_percent(y[s.start :], ours[s.start :])
+    assert abs(fit_percent(y, ours) - exact) <= FIT_BOUND, (fit_percent(y, ours), exact)
+    # the costs' rule, from the direct form's state at start
+    start = max(s.start, den.size - 1, num_y.size - 1, *[p.size - 1 for p in nums])
+    rule = "estimate-start" if initial == "estimate" else initial
+    exact_start = exact_fit(y, exact_predictor(*exact_polys, u, y, start, rule), s.start)
+    ours = model.simulate(u, y, initial=initial, from_start=True) if k == np.inf else (
+        model.predict(u, y, initial=initial, from_start=True)
+    )
+    assert abs(fit_percent(y[s.start :], ours[s.start :]) - exact_start) <= FIT_BOUND
     direct = run_predictor(den, num_y, nums, u, y, s.start, initial)[0]
-    assert abs(got - exact) <= FIT_BOUND, (got, exact)
-    return exact, fit_percent(y[s.start :], direct[s.start :])
+    return exact_start, fit_percent(y[s.start :], direct[s.start :])
 
 
 @pytest.mark.parametrize("order", [4, 8, 12, 16, 20, 24])
@@ -292,7 +321,7 @@ def test_a_final_model_is_rescored_where_the_search_direct_form_is_off():
     cost = PolynomialCost(model.structure, (u, y), initial="estimate", metric="sse")
     batched, realised = float(cost(model.theta)[0]), cost.realised_cost(model.theta)
     s = model.structure
-    exact = exact_predictor(*exact_polynomials(model, np.inf), u, y, s.start, "estimate")
+    exact = exact_predictor(*exact_polynomials(model, np.inf), u, y, s.start, "estimate-start")
     with mp.workdps(50):
         exact_sse = float(mp.fsum((mp.mpf(float(y[t])) - exact[t]) ** 2
                                   for t in range(s.start, y.size)))  # fmt: skip

@@ -64,7 +64,8 @@ def test_criteria_follow_their_formulas_from_independent_sses(oe_selection):
             phi, target = arx.regressors(u, y)
             e = target - phi @ arx.least_squares(u, y).theta
         else:
-            e = c.model.residuals(u, y, initial="estimate")[s.start :]
+            # the rule PEM minimises: the direct form's state at start
+            e = c.model.residuals(u, y, initial="estimate", from_start=True)[s.start :]
         sse = float(e @ e)
         k = y.size - s.start
         assert c.K == k == e.size

@@ -456,11 +456,10 @@ def test_validate_numbers_match_independent_computation():
     assert [t.name for t in rep.correlation_tests] == ["auto e", "cross torque-e"]
     assert rep.correlation_tests[0].bound == pytest.approx(1.96 / math.sqrt(600 - 2), rel=1e-4)
     np.testing.assert_allclose(rep.arrays()["time"], np.arange(2, 600) * 0.01)
-    # zero initial conditions: a different simulation, still over t >= start
+    # zero initial conditions: a different simulation, over every sample (MATLAB's)
     rep0 = validate(model, (u, y), max_lag=10, initial="zero")
-    assert rep0.fit_simulation == pytest.approx(
-        fit_percent(y[start:], model.simulate(u)[start:]), abs=1e-10
-    )
+    assert rep0.start == 0
+    assert rep0.fit_simulation == pytest.approx(fit_percent(y, model.simulate(u)), abs=1e-10)
     # split: only the second part is used
     reps = validate(model, IOData(u, y, dt=0.01), max_lag=10, split=0.5)
     assert reps.n_samples == 300
@@ -515,7 +514,7 @@ def test_summary_and_to_dict():
     assert d["fit_one_step"] == rep.fit_one_step and d["passed"] == rep.passed
     d = rep.to_dict(arrays=True)
     json.dumps(d, allow_nan=False)
-    assert len(d["arrays"]["y"]) == 800 - 2
+    assert len(d["arrays"]["y"]) == 800  # the estimated initial state: every sample
     assert len(d["correlation_tests"][0]["values"]) == 25
     panels = rep.correlation_panels()
     assert len(panels) == 2 and panels[0][3] == rep.correlation_tests[0].bound

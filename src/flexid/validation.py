@@ -567,11 +567,13 @@ def _report(
     y_full: np.ndarray, y1_full: np.ndarray | None, ysim_full: np.ndarray, u_full: np.ndarray,
     *, start: int, dt: float, max_lag: int, names: list[str], output_name: str, initial: str,
     initial_one_step: str | None, poles: Any, zeros: Any, predictor_stable: bool | None = None,
+    test_start: int | None = None,
 ) -> ValidationReport:
     """The report of one record from the model's outputs over it, scored over ``t >= start``.
 
     ``y1_full`` None: an output-error model, whose one-step prediction is its simulation
-    (a simulation that overflowed then leaves the correlation tests a zero residual).
+    (a simulation that overflowed then leaves the correlation tests a zero residual).  The
+    correlation tests use the residual over ``t >= test_start`` (default ``start``).
     """
     n = y_full.size
     seg = slice(start, n)
@@ -584,8 +586,9 @@ def _report(
     else:
         y1 = y1_full[seg]
         e = y - y1
-    tests = residual_tests(e, u, max_lag, names)
-    nonlinear = billings_voon_tests(e, u, max_lag, names)
+    skip = 0 if test_start is None else max(test_start - start, 0)
+    tests = residual_tests(e[skip:], u[skip:], max_lag, names)
+    nonlinear = billings_voon_tests(e[skip:], u[skip:], max_lag, names)
     f, p_meas = psd(y, dt)
     if diverged:  # an unstable model's free run overflowed: a result to report, not an error
         p_model = np.full_like(p_meas, np.nan)
@@ -671,6 +674,14 @@ def _as_polynomial(model: Any) -> PolynomialModel:
         ) from None
 
 
+def _has_polynomial(model: Any) -> bool:
+    try:
+        _as_polynomial(model)
+    except DataError:
+        return False
+    return True
+
+
 def _free_run(run: Any, n: int, unstable: bool) -> np.ndarray:
     """``run()`` as a float vector; for an ``unstable`` filter an overflow gives inf.
 
@@ -721,11 +732,14 @@ def validate(
     initial : {"estimate", "zero", "measured"}
         Initial-condition rule (:data:`INITIAL_RULES`) of the simulation, and of the
         one-step predictor when it has a state (a polynomial model with ``C`` or ``F``):
-        the state at ``t = start`` fitted by least squares to the measured output (default,
-        as MATLAB ``compare``), the model run from rest over the whole record, or the
-        recursion started from the measured outputs before ``start``.  For an ARX model
-        ``"measured"`` and ``"zero"`` run :meth:`ARX.simulate <flexid.models.arx.ARX.simulate>`
-        and ``"estimate"`` its polynomial form.
+        the initial state at ``t = 0`` fitted by least squares to the measured output
+        (default, as MATLAB ``compare``), the model run from rest over the whole record (in
+        both, every sample counts, as in MATLAB), or the recursion started from the measured
+        outputs before ``start`` (counted from ``start``).  The first two run in a
+        well-conditioned realisation (:mod:`flexid.models.realisation`); an ARX model runs
+        its polynomial form, except :meth:`ARX.simulate <flexid.models.arx.ARX.simulate>`
+        under ``"measured"``.  The correlation tests always use the one-step residual over
+        ``t >= start``, where the predictor uses measured data only.
     split : float or int, optional
         Validate on the *second* part of ``data.split(split)`` only (a fraction in (0, 1) or
         a sample index); default: the whole record.
@@ -796,6 +810,7 @@ def validate(
 
     u_model = u_full[:, 0] if u_full.shape[1] == 1 else u_full
     predictor_stable = None
+    first = start if initial == "measured" else 0  # MATLAB counts every sample
     if isinstance(model, PolynomialModel):
         predictor_stable = model.predictor_stable
         y1 = _free_run(
@@ -805,17 +820,22 @@ def validate(
             lambda: model.simulate(u_model, y_full, initial=initial), n, not model.is_stable
         )
         initial_one_step = initial if model.structure.n_state else None
-    else:  # ARX-like: its one-step predictor is a finite filter, with no state
+    elif initial == "measured" or (initial == "zero" and not _has_polynomial(model)):
+        # ARX-like by its own routes: its one-step predictor has no state
+        first = start
         y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
         initial_one_step = None
-        if initial == "measured":
-            ysim = model.simulate(u_model, y_init=y_full[:start])
-        else:  # the polynomial form simulates in a well-conditioned realisation
-            poly = _as_polynomial(model)
-            ysim = _free_run(
-                lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
-            )
-        ysim = np.asarray(ysim, dtype=float).reshape(-1)
+        own = model.simulate(u_model, y_init=y_full[:start]) if initial == "measured" else (
+            model.simulate(u_model)
+        )
+        ysim = np.asarray(own, dtype=float).reshape(-1)
+    else:  # its polynomial form, in a well-conditioned realisation
+        poly = _as_polynomial(model)
+        y1 = _free_run(lambda: poly.predict(u_model, y_full, initial=initial), n, False)
+        initial_one_step = initial
+        ysim = _free_run(
+            lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
+        )
     for arr, what in ((y1, "one-step prediction"), (ysim, "simulated output")):
         if arr.size != n:
             raise DataError(f"the model's {what} has {arr.size} samples, the record {n}")
@@ -823,9 +843,9 @@ def validate(
 
     n_u = u_full.shape[1]
     return _report(
-        y_full, y1, ysim, u_full, start=start, dt=sample_time, max_lag=max_lag,
+        y_full, y1, ysim, u_full, start=first, dt=sample_time, max_lag=max_lag,
         names=list(record.input_names), output_name=str(record.output_names[0]),
         initial=initial, initial_one_step=initial_one_step, poles=model.poles(),
         zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
-        predictor_stable=predictor_stable,
+        predictor_stable=predictor_stable, test_start=start,
     )

@@ -1008,9 +1008,9 @@ class PolynomialCost:
             return float(self(X)[0])
         model = self.structure.model(theta)
         if self.predictor == "one-step":
-            yhat = model.predict(self.u, self.y, initial=self.initial)
+            yhat = model.predict(self.u, self.y, initial=self.initial, from_start=True)
         else:
-            yhat = model.simulate(self.u, self.y, initial=self.initial)
+            yhat = model.simulate(self.u, self.y, initial=self.initial, from_start=True)
         e = self._target - yhat[self.start :]
         return float(self._from_sse(np.array([e @ e]))[0])
 

@@ -35,8 +35,13 @@ error always being counted over ``t >= start`` (:attr:`PolynomialStructure.start
 sample where every term of every predictor uses measured data only):
 
 ``"estimate"``
-    the predictor's initial state (its ``n`` past outputs ``yhat(start-1..start-n)``) fitted by
-    least squares to the measured output, as MATLAB ``compare`` and ``pem`` do by default;
+    the predictor's initial state fitted by least squares to the measured output, as MATLAB
+    ``compare`` and ``pem`` do by default.  :meth:`PolynomialModel.predict` and ``simulate``
+    (and so every reported fit) fit the state at ``t = 0`` of the predictor's realisation
+    (order ``max(deg den, deg num)``), and every sample counts, as in MATLAB; the costs and
+    :func:`run_predictor` fit the direct form's ``n`` past outputs
+    ``yhat(start-1..start-n)`` and count ``t >= start`` (the two differ by the samples the
+    state is fitted to);
 ``"zero"``
     every signal zero before ``t = 0`` and the filter run from rest over the whole record;
 ``"measured"``
@@ -752,7 +757,8 @@ class PolynomialModel:
         return u, y
 
     def predict(
-        self, u: Any, y: Any = None, *, k: float = 1, initial: str = "estimate"
+        self, u: Any, y: Any = None, *, k: float = 1, initial: str = "estimate",
+        from_start: bool = False,
     ) -> np.ndarray:
         """``k``-step-ahead prediction of the output.
 
@@ -767,36 +773,54 @@ class PolynomialModel:
             with); ``inf`` gives the simulation.
         initial : {"estimate", "zero", "measured"}, optional
             Initial-condition rule (see the module docstring; default ``"estimate"``).
+        from_start : bool, optional
+            Under ``"estimate"``, fit the direct form's state at ``t = start`` (the costs'
+            rule, the samples before it the measured outputs) instead of the state at
+            ``t = 0`` (MATLAB's, the default).
 
         Returns
         -------
         ndarray, shape (N,)
             The prediction in output units (the samples before ``structure.start`` are the
-            measured outputs under ``"estimate"`` and ``"measured"``).
+            measured outputs under ``"measured"``, and under ``"estimate"`` with
+            ``from_start``).
+
+        Notes
+        -----
+        ``k = 1`` and ``inf`` under ``"estimate"`` and ``"zero"`` run in a well-conditioned
+        realisation (:meth:`realisation`); other horizons and ``"measured"`` (a direct-form
+        rule by definition) in the direct form (:func:`run_predictor`), which lightly damped
+        high-order models make inaccurate.
         """
         initial = _check_initial(initial)
         u, y = self._signals(u, y, need_y=True)
-        if k == 1 and initial != "measured":
-            return self._run_realised(1, u, y, initial)
+        if k in (1, np.inf) and initial != "measured":
+            return self._run_realised(k, u, y, initial, from_start)
         den, num_y, nums = self.predictor_polynomials(k)
         return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
 
-    def residuals(self, u: Any, y: Any = None, *, initial: str = "estimate") -> np.ndarray:
+    def residuals(
+        self, u: Any, y: Any = None, *, initial: str = "estimate", from_start: bool = False
+    ) -> np.ndarray:
         """One-step prediction errors ``y - predict(u, y)``: the innovations' estimate.
 
         Parameters
         ----------
         u, y : see :meth:`predict`
         initial : {"estimate", "zero", "measured"}, optional
+        from_start : bool, optional
+            See :meth:`predict`.
 
         Returns
         -------
         ndarray, shape (N,)
         """
         u, y = self._signals(u, y, need_y=True)
-        return y - self.predict(u, y, initial=initial)
+        return y - self.predict(u, y, initial=initial, from_start=from_start)
 
-    def simulate(self, u: Any, y: Any = None, *, initial: str = "zero") -> np.ndarray:
+    def simulate(
+        self, u: Any, y: Any = None, *, initial: str = "zero", from_start: bool = False
+    ) -> np.ndarray:
         """Free-run simulation ``y_sim = sum_j B_j/(A F_j) u_j(t - nk_j)``.
 
         Parameters
@@ -807,6 +831,8 @@ class PolynomialModel:
             Measured output, needed by ``"estimate"`` and ``"measured"``.
         initial : {"zero", "estimate", "measured"}, optional
             Initial-condition rule (default ``"zero"``: from rest).
+        from_start : bool, optional
+            See :meth:`predict`.
 
         Returns
         -------
@@ -815,7 +841,7 @@ class PolynomialModel:
         initial = _check_initial(initial)
         u, y = self._signals(u, y, need_y=initial != "zero")
         if initial != "measured":
-            return self._run_realised(np.inf, u, y, initial)
+            return self._run_realised(np.inf, u, y, initial, from_start)
         den, num_y, nums = self.predictor_polynomials(np.inf)
         return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
 
@@ -873,26 +899,40 @@ class PolynomialModel:
         return paths, np.concatenate(modes), uses_y
 
     def _run_realised(
-        self, k: float, u: np.ndarray, y: np.ndarray | None, initial: str
+        self, k: float, u: np.ndarray, y: np.ndarray | None, initial: str,
+        from_start: bool = False,
     ) -> np.ndarray:
         """The one-step prediction or simulation by :meth:`realisation` under ``"zero"`` or
-        ``"estimate"``: what :func:`run_predictor` computes, without the direct form's
-        rounding (see :mod:`flexid.models.realisation`)."""
+        ``"estimate"``, without the direct form's rounding (:mod:`flexid.models.realisation`).
+
+        ``"estimate"`` fits the initial state at ``t = 0`` of the predictor's realisation
+        (MATLAB ``compare``'s): its free responses are the modes of the direct form's
+        denominator and, where a numerator reaches further back than the denominator, the
+        first samples alone.  ``from_start``: the costs' rule instead, the state at
+        ``t = start`` of the direct form (:func:`run_predictor`), the samples before it the
+        measured outputs.
+        """
         paths, modes, uses_y = self.realisation(k)
         n = u.shape[0]
         y_col = np.zeros(n) if y is None else y
         signals = np.column_stack([y_col, u])
-        # the first sample of the direct form's recursion: every polynomial's degree
         den, num_y, nums = self.predictor_polynomials(k)
-        start = max(self.structure.start, den.size - 1, num_y.size - 1,
-                    *[p.size - 1 for p in nums])  # fmt: skip
-        if initial == "estimate" and start >= n:
+        reach = max(num_y.size - 1, *[p.size - 1 for p in nums])  # the numerators' memory
+        n_den = den.size - 1
+        if from_start:  # the direct form's first sample: every polynomial's degree
+            start = max(self.structure.start, n_den, reach)
+            leading = 0
+        else:  # a realisation of order max(n_den, reach): the extra poles at 0 free the
+            start = 0  # first samples (and a root at exactly 0 gives no mode: the same)
+            leading = max(n_den, reach) - int(np.count_nonzero(modes))
+        if initial == "estimate" and start + leading >= n:
             raise ModelOrderError(
                 f"a record of {n} samples does not reach past the predictor's first sample "
-                f"(start = {start})"
+                f"(start = {start + leading})"
             )
         return run_paths(paths, signals, start=start, initial=initial, modes=modes,
-                         target=y, offset=y_col if uses_y else None)  # fmt: skip
+                         target=y, offset=y_col if uses_y else None,
+                         leading=leading)  # fmt: skip
 
     # ------------------------------------------------------------------ poles, zeros
     def poles(self) -> np.ndarray:

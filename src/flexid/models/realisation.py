@@ -304,6 +304,7 @@ def run_paths(
     modes: np.ndarray,
     target: np.ndarray | None = None,
     offset: np.ndarray | None = None,
+    leading: int = 0,
 ) -> np.ndarray:
     """The sum of the paths' responses under an initial-condition rule.
 
@@ -323,6 +324,10 @@ def run_paths(
         The measured output (needed by ``"estimate"``).
     offset : ndarray, shape (N,), optional
         A signal added to the paths' sum before the fit (the one-step predictor's ``y``).
+    leading : int, optional
+        Free responses of poles at the origin beside the modes: the first ``leading``
+        samples from ``start`` are fitted exactly (a realisation whose numerator reaches
+        further back than its denominator).
 
     Returns
     -------
@@ -339,6 +344,8 @@ def run_paths(
     if target is None:
         raise ValueError("the rule 'estimate' needs the measured output")
     basis = free_response_basis(modes, n - start)
+    if leading:
+        basis = np.column_stack([basis, np.eye(n - start, leading)])
     fitted = target.astype(float).copy()
     seg = out[start:]
     if basis.shape[1] and np.all(np.isfinite(seg)):
