@@ -29,8 +29,8 @@ def record(name: str) -> Path:
 
 def test_twin_rotor_oe16_prints_the_fit_of_the_exact_model():
     """The home-built twin rotor, OE(16, 16, 1) by DE: its poles crowd z = 1, so the direct
-    form printed "< -999 %" with an output of 5.4e7 (on this machine the model found has
-    55.96 % over t >= 16, 55.68 % over every sample, the issue's 55.7 %).  Whatever model the search ends on, the
+    form printed "< -999 %" with an output of 5.4e7.  On this machine the model found has
+    55.68 % over every sample (the issue's 55.7 %).  Whatever model the search ends on, the
     printed held-out fit is the exact model's (its direct form at 100 digits,
     ``tests/test_realisation.py``'s reference)."""
     mp = pytest.importorskip("mpmath")

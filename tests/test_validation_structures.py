@@ -142,7 +142,6 @@ def _modal_basis(den, n):
 def test_one_step_fit_equals_an_independent_lfilter_cascade(kind):
     u, y, e = _record(kind)
     model = _true_model(kind)
-    start = model.structure.start
     rep0 = validate(model, IOData(u, y), initial="zero")
     assert rep0.start == 0  # from rest, every sample counts (MATLAB's rule)
     yhat, bound = _independent_one_step(kind, u, y)
