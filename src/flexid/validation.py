@@ -210,17 +210,20 @@ def _rule_text(initial: str, start: int) -> str:
 class ValidationReport:
     """Everything :func:`validate` measured on one record (single output).
 
-    Fits, RMSEs and error ranges are over the samples ``t >= start``; ``initial`` states
-    how the simulation's initial state was set and ``initial_one_step`` the one-step
-    predictor's (:attr:`initial_rule` and :attr:`initial_rule_one_step` in words).  The
-    correlation tests use the one-step residual over the same samples.
+    Fits, RMSEs and error ranges are over the samples ``t >= start``: every sample
+    (``start = 0``) under the rules ``"estimate"`` and ``"zero"``, as MATLAB ``compare``,
+    from the model's first full regressor under ``"measured"``; ``initial`` states how the
+    simulation's initial state was set and ``initial_one_step`` the one-step predictor's
+    (:attr:`initial_rule` and :attr:`initial_rule_one_step` in words).  The correlation
+    tests use the one-step residual from the model's first full regressor on, where the
+    predictor uses measured data only.
 
     Attributes
     ----------
     n_samples : int
         Samples in the record.
     start : int
-        First evaluated sample (``model.structure.start``).
+        First evaluated sample: 0, or ``model.structure.start`` under ``"measured"``.
     dt : float
         Sample time in seconds.
     initial : str
@@ -400,9 +403,12 @@ class ValidationReport:
         """
         rule = self.initial_rule
         n_eval = self.n_samples - self.start
+        counted = "every sample" if self.start == 0 else (
+            f"t >= {self.start} ({n_eval} samples)"
+        )
         lines = [
             f"Validation on {self.n_samples} samples (dt = {self.dt:g} s); fit, RMSE and errors "
-            f"over t >= {self.start} ({n_eval} samples)",
+            f"over {counted}",
             "",
             "Fit (NRMSE %)",
             f"  one-step prediction    {format_fit(self.fit_one_step):>9} %   "
