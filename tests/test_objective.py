@@ -296,6 +296,6 @@ def test_bad_input():
     X[1, 2] = np.nan
     F = cost(X)
     assert np.isinf(F[1]) and np.isfinite(F[[0, 2]]).all()
-    assert "K=298" in cost.describe()
+    assert "K = 298 samples" in cost.describe()
     with pytest.raises(DataError):
         ARXCost(s, (u, y), weight=-1.0)

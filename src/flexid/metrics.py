@@ -16,7 +16,7 @@ import numpy as np
 
 from .errors import UnknownNameError
 
-__all__ = ["METRICS", "METRIC_TABLE", "Metric", "metric_from_sse", "metrics_rst"]
+__all__ = ["METRICS", "METRIC_TABLE", "Metric", "describe_cost", "metric_from_sse", "metrics_rst"]
 
 
 @dataclass(frozen=True)
@@ -34,12 +34,16 @@ class Metric:
         One sentence.
     from_sse : callable
         ``from_sse(sse, K, w, std_y) -> metric``, elementwise over a population's ``sse``.
+    words : str
+        The metric in plain words, with ``{errors}`` for what is squared and ``{w}`` for the
+        weight (:func:`describe_cost`).
     """
 
     name: str
     formula: str
     description: str
     from_sse: Callable[[np.ndarray, int, float, float], np.ndarray]
+    words: str = ""
 
 
 #: The metrics, by name; the first is the default.
@@ -50,29 +54,73 @@ METRIC_TABLE: dict[str, Metric] = {
             "paper", "w sqrt(SSE) / K",
             "Nasir & Tokhi's eq. 5-6 (w = 1000), plus a penalty for an unstable candidate",
             lambda sse, k, w, s: np.sqrt(sse) * (w / k),
+            "{w} x the root of the sum of squared {errors}, divided by their number (the "
+            "paper's cost, eq. 5-6)",
         ),
         Metric(
             "rmse", "sqrt(SSE / K)", "root mean squared error, in the output's unit",
             lambda sse, k, w, s: np.sqrt(sse / k),
+            "root-mean-square {errors}",
         ),
         Metric(
             "nrmse", "sqrt(SSE / K) / std(y)",
             "root mean squared error over the output's standard deviation (no unit)",
             lambda sse, k, w, s: np.sqrt(sse / k) / (s if s > 0 else 1.0),
+            "root-mean-square {errors} over the output's standard deviation",
         ),
         Metric(
             "sse", "SSE", "sum of squared errors, in the output's unit squared",
             lambda sse, k, w, s: sse,
+            "sum of squared {errors}",
         ),
         Metric(
             "mse", "SSE / K", "mean squared error, in the output's unit squared",
             lambda sse, k, w, s: sse / k,
+            "mean squared {errors}",
         ),
     )
 }
 
 #: The metrics' names, the default first.
 METRICS: tuple[str, ...] = tuple(METRIC_TABLE)
+
+
+def describe_cost(
+    metric: str, errors: str, k: int, weight: float = 1000.0,
+    penalty: float | None = None, graded: bool = False,
+) -> str:
+    """A cost in plain words: what is squared, over how many samples, and the penalty.
+
+    Parameters
+    ----------
+    metric : str
+        A name of :data:`METRIC_TABLE`.
+    errors : str
+        What the errors are, e.g. ``"one-step prediction errors of OE(nb=2, nf=2, nk=1)"``.
+    k : int
+        Number of error samples.
+    weight : float, optional
+        ``w`` of the paper's cost.
+    penalty : float, optional
+        The stability penalty (None: no penalty is said).
+    graded : bool, optional
+        The penalty grows with the largest pole radius (``penalty * radius``).
+
+    Returns
+    -------
+    str
+        For example ``"1000 x the root of the sum of squared one-step prediction errors of
+        OE(nb=2, nf=2, nk=1), divided by their number (the paper's cost, eq. 5-6), over
+        K = 997 samples; an unstable candidate costs the zero prediction's cost plus 1e+09 x
+        its largest pole radius"``.
+    """
+    text = METRIC_TABLE[metric].words.format(errors=errors, w=f"{weight:g}")
+    text += f", over K = {k} samples"
+    if penalty is not None:
+        scale = " x its largest pole radius" if graded else ""
+        text += (f"; an unstable candidate costs the zero prediction's cost plus "
+                 f"{penalty:g}{scale}")  # fmt: skip
+    return text
 
 
 def metric_from_sse(

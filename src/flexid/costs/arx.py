@@ -26,8 +26,9 @@ from .._validate import real
 from ..config import CostSpec
 from ..errors import DataError, UnknownNameError
 from ..kernels import ar_recursion, arx_recursion
-from ..metrics import METRICS, metric_from_sse
+from ..metrics import METRICS, describe_cost, metric_from_sse
 from ..models.arx import ARXStructure, _io_arrays
+from ..models.polynomial import INITIAL_RULES
 from ..stability import is_stable, pole_radius_batched
 
 __all__ = [
@@ -526,16 +527,20 @@ class ARXCost:
         Returns
         -------
         str
-            For example ``"paper cost (eq. 5-6, w=1000, penalty 1e+09), one-step predictor,
-            K=997"``.
+            In plain words (:func:`flexid.metrics.describe_cost`), e.g. ``"1000 x the root
+            of the sum of squared one-step prediction errors of ARX(na=8, nb=8, nk=1),
+            divided by their number (the paper's cost, eq. 5-6), over K = 997 samples; an
+            unstable candidate costs the zero prediction's cost plus 1e+09"``.
         """
-        pen = f"penalty {self.penalty:g}" if self.penalty_kind == "flat" else "graded penalty"
-        if self.metric == "paper":
-            name = f"paper cost (eq. 5-6, w={self.weight:g}, {pen})"
+        s = self.structure
+        nb, nk = (list(v) if len(v) > 1 else v[0] for v in (s.nb, s.nk))
+        model = f"ARX(na={s.na}, nb={nb}, nk={nk})"
+        if self.predictor == "simulation":
+            errors = f"simulation errors of {model} ({INITIAL_RULES[self.initial]})"
         else:
-            name = f"{self.metric.upper()} (stability {pen})"
-        extra = f", initial {self.initial}" if self.predictor == "simulation" else ""
-        return f"{name}, {self.predictor} predictor{extra}, K={self.K}"
+            errors = f"one-step prediction errors of {model}"
+        return describe_cost(self.metric, errors, self.K, self.weight, self.penalty,
+                             self.penalty_kind == "graded")  # fmt: skip
 
     def __repr__(self) -> str:
         return f"ARXCost({self.structure!r}, {self.describe()})"

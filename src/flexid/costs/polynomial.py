@@ -59,7 +59,8 @@ from .._validate import real
 from ..config import CostSpec
 from ..errors import ConfigError, DataError, UnknownNameError
 from ..kernels import ar_recursion, arx_recursion, initial_state_fit
-from ..models.polynomial import PolynomialStructure, _check_initial
+from ..metrics import describe_cost
+from ..models.polynomial import INITIAL_RULES, PolynomialStructure, _check_initial
 from ..stability import is_stable, pole_radius_batched
 from .arx import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
 
@@ -1021,16 +1022,10 @@ class PolynomialCost:
         -------
         str
         """
-        pen = f"penalty {self.penalty:g}" if self.penalty_kind == "flat" else "graded penalty"
-        if self.metric == "paper":
-            name = f"paper cost (eq. 5-6, w={self.weight:g}, {pen})"
-        else:
-            name = f"{self.metric.upper()} (stability {pen})"
-        what = "prediction error" if self.predictor == "one-step" else "simulation error"
-        return (
-            f"{name}, {self.structure!r} {self.predictor} {what}, initial state "
-            f"{self.initial}, K={self.K}"
-        )
+        what = "one-step prediction" if self.predictor == "one-step" else "simulation"
+        errors = f"{what} errors of {self.structure!r} ({INITIAL_RULES[self.initial]})"
+        return describe_cost(self.metric, errors, self.K, self.weight, self.penalty,
+                             self.penalty_kind == "graded")  # fmt: skip
 
     def __repr__(self) -> str:
         return f"PolynomialCost({self.describe()})"
