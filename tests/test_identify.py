@@ -145,3 +145,19 @@ def test_bad_input_raises_typed_errors(tmp_path):
     y[10, 0] = np.nan
     with pytest.raises(DataError, match="10"):
         identify(IOData(data.u, y, dt=0.01), 2, optimiser="ls")
+
+
+def test_the_record_channel_names_reach_the_model_and_its_exports():
+    rng = np.random.default_rng(4)
+    data = IOData(rng.normal(size=(400, 2)), rng.normal(size=400),
+                         input_names=["torque", "u2"], output_names="tip")  # fmt: skip
+    for kw in ({"na": 2, "nb": 2, "nk": 1}, {"structure": "oe", "nb": 1, "nf": 1, "nk": 1}):
+        model = identify(data, optimiser="ls", **kw).model
+        sys = model.to_control()
+        assert sys.input_labels == ["torque", "u2"] and sys.output_labels == ["tip"]
+        again = type(model).from_dict(json.loads(json.dumps(model.to_dict())))
+        assert again.input_names == ("torque", "u2") and again.output_name == "tip"
+        old = {k: v for k, v in model.to_dict().items() if k not in ("input_names", "output_name")}
+        assert type(model).from_dict(old).input_names == ("u1", "u2")  # older dictionaries
+    noise = identify(data, structure="oe", nb=1, nf=1, nk=1, optimiser="ls").model
+    assert noise.to_control(noise=True).input_labels == ["e"]

@@ -258,6 +258,7 @@ def identify(
     model, result, used_params, used_seed, cost_value, oe = _search(
         estimation, structure, est, optimiser, predictor, budget, seed, params, callback
     )
+    model = model.named(est.input_names, est.output_names[0])
     cost_value, cost_search = rescored(objective, model, cost_value)
     t_val = time.perf_counter()
     report_est = validate(model, est, max_lag=max_lag, initial=validate_initial)

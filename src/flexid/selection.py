@@ -1117,6 +1117,8 @@ def select(
             if isinstance(model, FlexidError):
                 c.error = str(model)
             else:
+                named = getattr(model, "named", None)  # a grey-box model has its channels
+                model = named(est.input_names, est.output_names[0]) if named else model
                 c.model, c.sse = model, float(sse)
                 t0 = time.perf_counter()
                 try:

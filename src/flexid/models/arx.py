@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
@@ -26,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on 
     from scipy import signal
 
 
-__all__ = ["ARX", "ARXStructure"]
+__all__ = ["ARX", "ARXStructure", "channel_names"]
 
 
 def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
@@ -96,6 +97,36 @@ def _check_samples(structure: Any, n_samples: int, what: str) -> None:
             f"for {structure.n_params} parameters (need more than "
             f"{structure.start + structure.n_params} samples)"
         )
+
+
+def channel_names(
+    input_names: Sequence[str] | None, output_name: str | None, n_inputs: int
+) -> tuple[tuple[str, ...], str]:
+    """A model's channel names: the given ones, or ``u`` (``u1, u2, ..``) and ``y``.
+
+    Parameters
+    ----------
+    input_names : sequence of str or None
+    output_name : str or None
+    n_inputs : int
+
+    Returns
+    -------
+    input_names : tuple of str
+    output_name : str
+
+    Raises
+    ------
+    DataError
+        A count of names other than ``n_inputs``.
+    """
+    if input_names is None:
+        names = ("u",) if n_inputs == 1 else tuple(f"u{j + 1}" for j in range(n_inputs))
+    else:
+        names = (input_names,) if isinstance(input_names, str) else tuple(map(str, input_names))
+        if len(names) != n_inputs:
+            raise DataError(f"{len(names)} input name(s) {list(names)} for {n_inputs} input(s)")
+    return names, "y" if output_name is None else str(output_name)
 
 
 class ARXStructure:
@@ -300,6 +331,10 @@ class ARX:
         Sample time in seconds.
     param_std, noise_variance : optional
         Uncertainty from least squares.
+    input_names : sequence of str, optional
+        The inputs' channel names (default ``u``, or ``u1, u2, ..``).
+    output_name : str, optional
+        The output's channel name (default ``y``).
     """
 
     def __init__(
@@ -309,6 +344,8 @@ class ARX:
         dt: float = 1.0,
         param_std: Any = None,
         noise_variance: float | None = None,
+        input_names: Sequence[str] | None = None,
+        output_name: str | None = None,
     ) -> None:
         theta = np.array(theta, dtype=float).reshape(-1)
         if theta.shape != (structure.n_params,):
@@ -323,6 +360,27 @@ class ARX:
         self.dt = dt
         self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
         self.noise_variance = None if noise_variance is None else float(noise_variance)
+        self.input_names, self.output_name = channel_names(
+            input_names, output_name, structure.n_inputs
+        )
+
+    def named(self, input_names: Sequence[str], output_name: str) -> ARX:
+        """A copy with the record's channel names (kept in exports and dictionaries).
+
+        Parameters
+        ----------
+        input_names : sequence of str
+        output_name : str
+
+        Returns
+        -------
+        ARX
+        """
+        out = copy.copy(self)
+        out.input_names, out.output_name = channel_names(
+            input_names, output_name, self.structure.n_inputs
+        )
+        return out
 
     # ------------------------------------------------------------------ polynomials
     @property
@@ -496,9 +554,10 @@ class ARX:
             num, den = self._tf_num_den(j)
             nums.append(num)
             dens.append(den)
+        names = {"inputs": list(self.input_names), "outputs": [self.output_name]}
         if self.structure.n_inputs == 1:
-            return control.tf(nums[0], dens[0], self.dt)
-        return control.tf([nums], [dens], self.dt)
+            return control.tf(nums[0], dens[0], self.dt, **names)
+        return control.tf([nums], [dens], self.dt, **names)
 
     def to_dlti(self, input: int = 0) -> signal.dlti:
         """One input's transfer function as a SciPy discrete-time system.
@@ -526,8 +585,8 @@ class ARX:
         -------
         dict
             The orders (``na``, ``nb``, ``nk``), ``theta``, ``param_names``, ``dt`` (s),
-            ``param_std``, ``noise_variance`` and the derived ``stable`` and
-            ``max_pole_radius``.
+            ``param_std``, ``noise_variance``, the channel names ``input_names`` and
+            ``output_name``, and the derived ``stable`` and ``max_pole_radius``.
         """
         return {
             "na": self.structure.na,
@@ -540,6 +599,8 @@ class ARX:
             "noise_variance": self.noise_variance,
             "stable": self.is_stable,
             "max_pole_radius": self.max_pole_radius,
+            "input_names": list(self.input_names),
+            "output_name": self.output_name,
         }
 
     @classmethod
@@ -570,6 +631,8 @@ class ARX:
                 dt=d.get("dt", 1.0),
                 param_std=d.get("param_std"),
                 noise_variance=d.get("noise_variance"),
+                input_names=d.get("input_names"),
+                output_name=d.get("output_name"),
             )
         except KeyError as exc:
             raise DataError(f"ARX dictionary lacks the key {exc.args[0]!r}") from None

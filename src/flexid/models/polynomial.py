@@ -55,6 +55,7 @@ record; ``"estimate"`` removes that transient, ``"zero"`` suits a record that st
 
 from __future__ import annotations
 
+import copy
 import json
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
@@ -66,7 +67,7 @@ from .._json import jsonable
 from .._validate import checked_keywords, integer, positive_real
 from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
-from .arx import ARX, ARXStructure, _check_samples
+from .arx import ARX, ARXStructure, _check_samples, channel_names
 from .realisation import Path, accurate_roots, run_paths
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
@@ -623,6 +624,10 @@ class PolynomialModel:
         Standard errors of ``theta``.
     noise_variance : float, optional
         Variance of the innovation ``e`` (output units squared).
+    input_names : sequence of str, optional
+        The inputs' channel names (default ``u``, or ``u1, u2, ..``).
+    output_name : str, optional
+        The output's channel name (default ``y``).
     """
 
     def __init__(
@@ -632,6 +637,8 @@ class PolynomialModel:
         dt: float = 1.0,
         param_std: Any = None,
         noise_variance: float | None = None,
+        input_names: Sequence[str] | None = None,
+        output_name: str | None = None,
     ) -> None:
         if not isinstance(structure, PolynomialStructure):
             raise DataError(
@@ -649,6 +656,27 @@ class PolynomialModel:
         self.dt = positive_real(dt, "dt", error=DataError, unit="s")
         self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
         self.noise_variance = None if noise_variance is None else float(noise_variance)
+        self.input_names, self.output_name = channel_names(
+            input_names, output_name, structure.n_inputs
+        )
+
+    def named(self, input_names: Sequence[str], output_name: str) -> PolynomialModel:
+        """A copy with the record's channel names (kept in exports and dictionaries).
+
+        Parameters
+        ----------
+        input_names : sequence of str
+        output_name : str
+
+        Returns
+        -------
+        PolynomialModel
+        """
+        out = copy.copy(self)
+        out.input_names, out.output_name = channel_names(
+            input_names, output_name, self.structure.n_inputs
+        )
+        return out
 
     # ------------------------------------------------------------------ polynomials
     def _part(self, key: str) -> np.ndarray:
@@ -1029,12 +1057,14 @@ class PolynomialModel:
         """
         import control
 
+        outputs = [self.output_name]
         if noise:
-            return control.tf(*self._noise_tf(), self.dt)
+            return control.tf(*self._noise_tf(), self.dt, inputs=["e"], outputs=outputs)
         parts = [self._plant_tf(j) for j in range(self.structure.n_inputs)]
+        names = {"inputs": list(self.input_names), "outputs": outputs}
         if len(parts) == 1:
-            return control.tf(*parts[0], self.dt)
-        return control.tf([[p[0] for p in parts]], [[p[1] for p in parts]], self.dt)
+            return control.tf(*parts[0], self.dt, **names)
+        return control.tf([[p[0] for p in parts]], [[p[1] for p in parts]], self.dt, **names)
 
     def to_dlti(self, input: int = 0, *, noise: bool = False) -> signal.dlti:
         """One input's plant ``B/(A F)`` (or the noise model) as a SciPy ``dlti``.
@@ -1062,8 +1092,9 @@ class PolynomialModel:
         -------
         dict
             The structure's orders (:meth:`PolynomialStructure.to_dict`), ``theta``,
-            ``param_names``, ``dt`` (s), ``param_std``, ``noise_variance``, and the derived
-            ``stable`` and ``max_pole_radius``.
+            ``param_names``, ``dt`` (s), ``param_std``, ``noise_variance``, the channel names
+            ``input_names`` and ``output_name``, and the derived ``stable`` and
+            ``max_pole_radius``.
         """
         return {
             **self.structure.to_dict(),
@@ -1074,6 +1105,8 @@ class PolynomialModel:
             "noise_variance": self.noise_variance,
             "stable": self.is_stable,
             "max_pole_radius": self.max_pole_radius,
+            "input_names": list(self.input_names),
+            "output_name": self.output_name,
         }
 
     @classmethod
@@ -1104,6 +1137,8 @@ class PolynomialModel:
             dt=model.dt,
             param_std=None if model.param_std is None else model.param_std.copy(),
             noise_variance=model.noise_variance,
+            input_names=getattr(model, "input_names", None),
+            output_name=getattr(model, "output_name", None),
         )
 
     @classmethod
@@ -1126,6 +1161,8 @@ class PolynomialModel:
             dt=d.get("dt", 1.0),
             param_std=d.get("param_std"),
             noise_variance=d.get("noise_variance"),
+            input_names=d.get("input_names"),
+            output_name=d.get("output_name"),
         )
 
     def to_json(self) -> str:
