@@ -257,8 +257,10 @@ class ValidationReport:
         comparison keeps the run.
     initial_one_step : str or None
         Initial-condition rule of the one-step predictor: ``initial`` when that predictor has
-        a state (a polynomial model with ``C`` or ``F``), None when it is a finite filter of
-        the measured signals (ARX) and no rule applies.
+        a state, None when it is a finite filter of the measured signals (ARX under
+        ``"measured"``) and no rule applies.
+    output_unit : str
+        The output's unit from the record (empty when the record gives none).
     """
 
     n_samples: int
@@ -289,6 +291,7 @@ class ValidationReport:
     output_name: str = "y"
     simulation_diverged: bool = False
     initial_one_step: str | None = None
+    output_unit: str = ""
 
     @property
     def initial_rule(self) -> str:
@@ -416,7 +419,7 @@ class ValidationReport:
             f"  simulation (free run)  {format_fit(self.fit_simulation):>9} %   [{rule}]"
             + ("  DIVERGED: the unstable free run overflowed" if self.simulation_diverged else ""),
             "",
-            "Errors y - yhat",
+            f"Errors y - yhat [{self.output_unit or 'output units'}]",
             f"  {'':22} {'RMSE':>11} {'min':>11} {'max':>11}",
         ]
         for label, r, (lo, hi) in (
@@ -499,6 +502,7 @@ class ValidationReport:
             "stability": self.stability.to_dict(),
             "input_names": [str(n) for n in self.input_names],
             "output_name": str(self.output_name),
+            "output_unit": self.output_unit,
         }
         if arrays:
             out["arrays"] = jsonable(self.arrays())
@@ -573,7 +577,7 @@ def _report(
     y_full: np.ndarray, y1_full: np.ndarray | None, ysim_full: np.ndarray, u_full: np.ndarray,
     *, start: int, dt: float, max_lag: int, names: list[str], output_name: str, initial: str,
     initial_one_step: str | None, poles: Any, zeros: Any, predictor_stable: bool | None = None,
-    test_start: int | None = None,
+    test_start: int | None = None, output_unit: str = "",
 ) -> ValidationReport:
     """The report of one record from the model's outputs over it, scored over ``t >= start``.
 
@@ -636,6 +640,7 @@ def _report(
         output_name=output_name,
         simulation_diverged=diverged,
         initial_one_step=initial_one_step,
+        output_unit=output_unit,
     )
 
 
@@ -851,6 +856,7 @@ def validate(
     return _report(
         y_full, y1, ysim, u_full, start=first, dt=sample_time, max_lag=max_lag,
         names=list(record.input_names), output_name=str(record.output_names[0]),
+        output_unit=str(record.output_units[0]),
         initial=initial, initial_one_step=initial_one_step, poles=model.poles(),
         zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
         predictor_stable=predictor_stable, test_start=start,
