@@ -12,7 +12,7 @@ import pytest
 from scipy import signal
 
 import flexid
-from flexid.errors import ConfigError, ModelOrderError, UnknownNameError
+from flexid.errors import ConfigError, DataError, ModelOrderError, UnknownNameError
 from flexid.models.arx import ARXStructure
 from flexid.models.polynomial import structure
 from flexid.selection import DEFAULT_GRIDS, Selection, arx_grid, select
@@ -283,8 +283,8 @@ def test_bad_input_is_a_typed_error_naming_the_argument(monkeypatch):
         select(data, ("oe",), [3])
     with pytest.raises(ConfigError, match="structures is empty"):
         select(data, ())
-    with pytest.raises(ConfigError, match="split or validation"):
-        select(data, split=0.5, validation=data)
+    with pytest.raises(DataError, match="the estimation range must be a sample range"):
+        select(data, split=0.5, validation=data)  # with a validation record: one range
     with pytest.raises(ConfigError, match="max_lag"):
         select(data, max_lag=0)
     with pytest.raises(ConfigError, match="parsimony"):

@@ -43,7 +43,7 @@ from . import kernels
 from ._comparison_result import ComparisonResult, _f
 from ._validate import checked_keywords, positive_int
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
-from .data import IOData, prepare_data
+from .data import IOData, prepare_data, split_parts
 from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
 from .optimisers import Budget, get, minimize
@@ -166,10 +166,12 @@ class _Context:
             # the record's start: its "validation record" is the whole record
             if d.detrend:
                 raise ConfigError("[data] detrend: a grey-box model's physics see the raw record")
-            split = 2 / 3 if d.split is None else d.split
-            est = record.split(split)[0] if isinstance(split, float) else record.split(
-                index=int(split))[0]
-            return cls(spec, est, record)
+            if isinstance(d.split, (str, list, tuple)):
+                raise ConfigError(
+                    "[data] split: a grey-box comparison splits at one sample (a fraction or "
+                    "an index): its validation runs on from the record's start"
+                )
+            return cls(spec, split_parts(record, d.split)[0], record)
         est, val = prepare_data(record, output=d.output, split=d.split, detrend=d.detrend)
         return cls(spec, est, val)
 

@@ -179,6 +179,41 @@ def _int_list(text: str | None, what: str) -> Any:
     return values[0] if len(values) == 1 else values
 
 
+_SPLIT_HELP = (
+    "estimation share in (0, 1) (default 2/3), a sample index, or the two parts as sample "
+    "ranges START:STOP,START:STOP (e.g. 0:1000,1000:); with --validation, one range of the "
+    "record to estimate on"
+)
+
+
+def _split(text: str | None) -> Any:
+    """``--split``: a fraction, a sample index, or sample ranges (kept as text)."""
+    if text is None or ":" in text:
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise ConfigError(f"--split must be a fraction, a sample index or sample ranges "
+                          f"START:STOP,START:STOP, got {text!r}") from None  # fmt: skip
+    if value > 1:
+        if not value.is_integer():
+            raise ConfigError(
+                f"--split must be a fraction in (0, 1) or a sample index, got {text}"
+            )
+        return int(value)
+    return value
+
+
+def _add_validation(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--split", help=_SPLIT_HELP)
+    parser.add_argument(
+        "--validation", metavar="FILE",
+        help="validate on this record (read with the same channel and sample-time options) "
+        "and estimate on all of the first, or on its --split range (default: the held-out "
+        "part of the first)",
+    )
+
+
 def _delays(text: str | None, what: str) -> Any:
     """``--nk``: a delay, one per input, or ``auto`` (estimated from the record)."""
     if text is not None and text.strip().lower() == "auto":
@@ -273,13 +308,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         if Path(args.file).suffix.lower() != ".mat":
             raise ConfigError(f"--variable is for MATLAB .mat files, not {args.file!r}")
         load_options["variable"] = args.variable
-    split: Any = args.split
-    if split is not None and split > 1:
-        if not float(split).is_integer():
-            raise ConfigError(
-                f"--split must be a fraction in (0, 1) or a sample index, got {split}"
-            )
-        split = int(split)
+    split = _split(args.split)
     budget: Any = args.budget
     if args.iterations is not None:
         budget = {"max_fe": args.budget, "max_iter": args.iterations}
@@ -303,6 +332,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         budget=budget,
         seed=args.seed,
         split=split,
+        validation=args.validation,
         output=_columns(args.output)[0] if args.output is not None else None,
         detrend=args.detrend,
         max_lag=args.max_lag,
@@ -480,6 +510,8 @@ def _cmd_select(args: argparse.Namespace) -> int:
 
     if (args.file is None) == (args.plant is None):
         raise ConfigError("give a record file or --plant (a simulated record), not both")
+    given = (("inputs", _columns(args.inputs)), ("outputs", _columns(args.outputs)))
+    options = {k: v for k, v in (*given, ("dt", args.dt)) if v is not None}
     if args.plant is not None:
         from .config import default_spec
         from .datasets import generate
@@ -487,11 +519,12 @@ def _cmd_select(args: argparse.Namespace) -> int:
         preset = default_spec(plant=args.plant).data.preset  # the built-in comparison's record
         data = generate(args.plant, preset=preset, seed=args.data_seed)
     else:
-        given = (("inputs", _columns(args.inputs)), ("outputs", _columns(args.outputs)))
-        options = {k: v for k, v in (*given, ("dt", args.dt)) if v is not None}
         data = load(args.file, **options)
+    validation = None if args.validation is None else load(args.validation, **options)
     if args.output is not None:
         data = data.select(outputs=[_columns(args.output)[0]])
+        if validation is not None:
+            validation = validation.select(outputs=[_columns(args.output)[0]])
     grid = _order_grid(args.orders)
     result = select(
         data,
@@ -502,6 +535,8 @@ def _cmd_select(args: argparse.Namespace) -> int:
         criterion=args.criterion,
         max_lag=args.max_lag,
         detrend=args.detrend,
+        split=_split(args.split),
+        validation=validation,
         progress=not (args.json or args.no_progress) and sys.stderr.isatty(),
     )
     if args.figure:
@@ -984,7 +1019,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="also stop after this many iterations (default: no limit)",
     )
     i.add_argument("--seed", type=int, default=0, help="seed (default 0)")
-    i.add_argument("--split", type=float, help="estimation share (default 2/3) or sample index")
+    _add_validation(i)
     _record_options(i, mat=True)
     _add_detrend(i)
     i.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
@@ -1093,6 +1128,7 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("--initial", default="estimate", help="estimate | zero | measured")
     _record_options(se)
     _add_detrend(se)
+    _add_validation(se)
     se.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
     se.add_argument("--figure", help="write the selection figure (PNG) here (default: none)")
     se.add_argument("--json", action="store_true", help="print a machine-readable result")

@@ -179,8 +179,10 @@ class DataSpec:
         Sample time of ``file`` in seconds, when the file does not give it.
     output : str, int or None
         The output channel modelled when the record has several.
-    split : float, int or None
-        Estimation share in (0, 1) (default 2/3) or, above 1, the first validation sample.
+    split : float, int, str, list or None
+        Estimation share in (0, 1) (default 2/3), above 1 the first validation sample, or
+        the two parts as sample ranges, ``[[0, 1000], [1000, 1473]]`` or
+        ``"0:1000,1000:"`` (:func:`flexid.data.split_parts`).
     detrend : bool or str
         ``"constant"`` (or true): remove the estimation record's means from both records;
         ``"linear"``: its least-squares line (see :func:`flexid.data.prepare_data`); default
@@ -211,7 +213,7 @@ class DataSpec:
     outputs: Any = None
     dt: float | None = None
     output: str | int | None = None
-    split: float | int | None = None
+    split: float | int | str | list | None = None
     detrend: bool | str = False
     digest: str | None = None
 

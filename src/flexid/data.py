@@ -59,7 +59,16 @@ from .errors import (
     check_finite,
 )
 
-__all__ = ["DETRENDS", "OFFSET_RATIO", "IOData", "detrend_kind", "load", "prepare_data", "save"]
+__all__ = [
+    "DETRENDS",
+    "OFFSET_RATIO",
+    "IOData",
+    "detrend_kind",
+    "load",
+    "prepare_data",
+    "save",
+    "split_parts",
+]
 
 _FORMAT_VERSION = 1
 
@@ -1037,10 +1046,13 @@ def prepare_data(
         The record; a path is read with :func:`flexid.data.load`.
     output : str or int, optional
         The output channel to model when the record has several.
-    split : float or int, optional
-        A fraction in (0, 1) (default 2/3, the paper's rule) or a sample index.
+    split : float, int, str or pair of ranges, optional
+        A fraction in (0, 1) (default 2/3, the paper's rule), a sample index, or the two
+        parts as sample ranges (:func:`split_parts`); with ``validation``, a range of
+        ``data`` to estimate on.
     validation : IOData or path, optional
-        A separate validation record; then all of ``data`` is used for estimation.
+        A separate validation record; then all of ``data`` (or the range ``split``) is used
+        for estimation.
     detrend : {False, None, True, "constant", "linear"}, optional
         ``"constant"`` (or True): remove the means of the estimation record from both
         (offsets from the estimation part only, so no validation information leaks into
@@ -1077,10 +1089,10 @@ def prepare_data(
         if output is not None:
             val = val.select(outputs=[output])
         est = data
-    elif is_integer(split) and split > 1:
-        est, val = data.split(index=int(split))
+        if split is not None:  # a range of the estimation record
+            est = split_parts(data, split, validation=False)[0]
     else:
-        est, val = data.split(split)
+        est, val = split_parts(data, split)
     kind = detrend_kind(detrend)
     if kind == "constant":
         u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
@@ -1094,19 +1106,109 @@ def prepare_data(
         val = val.replace(u=val.u - u0, y=val.y - y0, metadata={**val.metadata, "detrend": info})
     elif kind == "linear":
         n_est = est.n_samples
+        # a split record's validation part: its samples' place after the estimation start
+        shift = val.metadata.get("split", {}).get("start", n_est) - est.metadata.get(
+            "split", {}).get("start", 0)
         lines = {k: _line(getattr(est, k)) for k in ("u", "y")}
         info = {"kind": "linear", "from": "estimation",
                 **{f"{k}_line": [c.tolist() for c in v] for k, v in lines.items()}}  # fmt: skip
         est = est.replace(**{k: getattr(est, k) - _line_values(lines[k], 0, n_est)
                              for k in ("u", "y")}, metadata={**est.metadata, "detrend": info})
         if validation is None:  # the same line, extended over the held-out samples
-            val = val.replace(**{k: getattr(val, k) - _line_values(lines[k], n_est,
+            val = val.replace(**{k: getattr(val, k) - _line_values(lines[k], shift,
                                                                    val.n_samples)
                                  for k in ("u", "y")}, metadata={**val.metadata, "detrend": info})
         else:
             val = val.detrend("linear")
     else:
         _warn_offsets(est)
+    return est, val
+
+
+def _range(value: Any, n: int, what: str) -> tuple[int, int]:
+    """``(start, stop)`` of a sample range: a pair (``None`` for an open end) or ``"a:b"``."""
+    if isinstance(value, str):
+        parts = value.split(":")
+        if len(parts) != 2:
+            raise DataError(f"{what} must be a sample range START:STOP, got {value!r}")
+        try:
+            value = [int(p) if p.strip() else None for p in parts]
+        except ValueError:
+            raise DataError(f"{what} must be a sample range START:STOP, got {value!r}") from None
+    if isinstance(value, slice):
+        value = (value.start, value.stop)
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise DataError(f"{what} must be a sample range (start, stop), got {value!r}")
+    start, stop = (
+        default if v is None else integer(v, what, error=DataError)
+        for v, default in zip(value, (0, n))
+    )
+    start, stop = (v + n if v < 0 else v for v in (start, stop))
+    if not 0 <= start < stop <= n or stop - start < 2:
+        raise DataError(
+            f"{what} {start}:{stop} is not a range of at least 2 samples within the "
+            f"{n}-sample record"
+        )
+    return start, stop
+
+
+def split_parts(
+    data: IOData, split: Any = None, *, validation: bool = True
+) -> tuple[IOData, IOData | None]:
+    """The estimation and validation parts of a record by a split rule.
+
+    Parameters
+    ----------
+    data : IOData
+    split : float, int, str or pair of ranges, optional
+        A fraction in (0, 1) of the samples for estimation (default 2/3), a sample index
+        (``[0, index)`` and ``[index, N)``), or the two parts as sample ranges: a pair of
+        ``(start, stop)`` pairs (``None`` for an open end, negative counts from the end) or
+        the text ``"START:STOP,START:STOP"`` (the command line's ``--split 0:1000,1000:``).
+        Ranges must not overlap: the validation part is held out.
+    validation : bool, optional
+        False: ``split`` is the estimation range alone (a separate validation record).
+
+    Returns
+    -------
+    estimation, validation : IOData
+        With ``metadata["split"]`` (``part``, ``start``, ``stop``); validation None when
+        ``validation`` is False.
+
+    Raises
+    ------
+    DataError
+        A fraction, index or range out of bounds, or overlapping ranges.
+    """
+    n = data.n_samples
+    if isinstance(split, str) and ":" in split:
+        split = split.split(",")
+    ranges = isinstance(split, (list, tuple)) or isinstance(split, slice)
+    if not validation:  # one range: a pair of ends, "START:STOP" or a slice
+        if isinstance(split, list) and len(split) == 1:
+            split = split[0]
+        a, b = _range(split, n, "the estimation range")
+        part = data[a:b]
+        part.metadata["split"] = {"part": "estimation", "start": a, "stop": b}
+        return part, None
+    if not ranges:
+        if is_integer(split) and split > 1:
+            return data.split(index=int(split))
+        return data.split(split)
+    if isinstance(split, slice) or len(split) != 2:
+        raise DataError(
+            f"split as ranges needs two of them (estimation, validation), got {split!r}"
+        )
+    (a, b), (c, d) = (_range(r, n, what) for r, what in
+                      zip(split, ("the estimation range", "the validation range")))  # fmt: skip
+    if max(a, c) < min(b, d):
+        raise DataError(
+            f"the estimation range {a}:{b} and the validation range {c}:{d} overlap: the "
+            "validation part must be held out"
+        )
+    est, val = data[a:b], data[c:d]
+    est.metadata["split"] = {"part": "estimation", "start": a, "stop": b}
+    val.metadata["split"] = {"part": "validation", "start": c, "stop": d}
     return est, val
 
 

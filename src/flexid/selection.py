@@ -1015,9 +1015,6 @@ def select(
     starts_gb = integer(starts_gb, "starts", error=ConfigError, minimum=0)
     seed = integer(seed, "seed", error=ConfigError, minimum=0)
     parsimony = real(parsimony, "parsimony", error=ConfigError, minimum=0)
-    if split is not None and validation is not None:
-        raise ConfigError("give split or validation, not both (with validation, all of data "
-                          "is for estimation)")
     record = _as_record(data, "data")
     est, val = prepare_data(
         record,
