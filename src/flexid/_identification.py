@@ -104,7 +104,7 @@ class Identification:
         name = (
             repr(s)
             if isinstance(s, PolynomialStructure)
-            else f"ARX(na={s.na}, nb={list(s.nb)}, nk={list(s.nk)})"
+            else f"ARX(na={s.na}, nb={_orders(s.nb)}, nk={_orders(s.nk)})"
         )
         return f"{name} identified by {self.optimiser}" + (
             f" (seed {self.seed})" if self.seed is not None else ""
@@ -301,6 +301,12 @@ class Identification:
                 "data": self.data_info,
             }
         )
+
+
+def _orders(values: Any) -> Any:
+    """Per-input orders as printed: one value for one input, else the list."""
+    values = list(values)
+    return values[0] if len(values) == 1 else values
 
 
 def _structure_dict(structure: Any) -> dict[str, Any]:
