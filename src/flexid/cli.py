@@ -516,8 +516,10 @@ def _cmd_select(args: argparse.Namespace) -> int:
         from .config import default_spec
         from .datasets import generate
 
-        preset = default_spec(plant=args.plant).data.preset  # the built-in comparison's record
-        data = generate(args.plant, preset=preset, seed=args.data_seed)
+        builtin = default_spec(plant=args.plant)  # the built-in comparison's record
+        data = generate(args.plant, preset=builtin.data.preset, seed=args.data_seed)
+        # a simulated plant's delay is known: its comparison's model says it
+        plant_nk = builtin.model.nk if builtin.model.nk is not None else 1
     else:
         data = load(args.file, **options)
     validation = None if args.validation is None else load(args.validation, **options)
@@ -530,7 +532,9 @@ def _cmd_select(args: argparse.Namespace) -> int:
         data,
         structures=tuple(_names(args.structures) or ("arx", "oe")),
         orders=grid,
-        nk=_delays(args.nk, "--nk") if args.nk is not None else "auto",
+        nk=_delays(args.nk, "--nk") if args.nk is not None else (
+            "auto" if args.plant is None else plant_nk
+        ),
         initial=args.initial,
         criterion=args.criterion,
         max_lag=args.max_lag,
@@ -1120,9 +1124,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     se.add_argument(
         "--nk",
-        help="input delay in samples per input, or auto: the delays estimated from the "
-        "estimation record by MATLAB's delayest and by the prewhitened cross-correlation, the "
-        "grid at each (default auto)",
+        help="input delay in samples per input, or auto: the grid at nk = 1 and at the delays "
+        "estimated from the estimation record by MATLAB's delayest and by the prewhitened "
+        "cross-correlation (default auto for a record file; with --plant, the plant's known "
+        "delay)",
     )
     se.add_argument("--criterion", default="simulation", help="simulation | aic | fpe | mdl")
     se.add_argument("--initial", default="estimate", help="estimate | zero | measured")
