@@ -21,16 +21,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from test_realisation import (  # noqa: E402
+from flexid.diagnostics import fit_percent
+from flexid.models.polynomial import PolynomialStructure, run_predictor
+from test_realisation import (
     exact_fit,
     exact_polynomials,
     exact_predictor,
     lightly_damped,
     record,
 )
-
-from flexid.diagnostics import fit_percent  # noqa: E402
-from flexid.models.polynomial import PolynomialStructure, run_predictor  # noqa: E402
 
 
 def main() -> None:

@@ -237,6 +237,22 @@ def test_xcorr_sign_convention_and_autocorrelation():
     assert np.all(xcorr(np.ones(10), b[:10], 3)[1] == 0.0)
 
 
+@pytest.mark.numerics
+def test_xcorr_of_a_diverging_signal_is_not_zero():
+    """A residual that grows to 1e200 (an unstable predictor) has the correlations of its
+    shape: the sums must not overflow to inf and every coefficient to 0 (which passes every
+    test)."""
+    rng = np.random.default_rng(5)
+    u = rng.normal(size=400)
+    e = np.r_[0.0, u[:-1]] * 1.05 ** np.arange(400) * 1e190  # grows past 1e200
+    lags, r = xcorr(e, u, 5)
+    _, r_small = xcorr(e / 1e190, u, 5)
+    np.testing.assert_allclose(r, r_small, rtol=0, atol=1e-12)  # the scale cancels
+    assert abs(r[lags == 1][0]) > 0.05
+    auto, cross = residual_tests(e, u[:, None], 5)
+    assert not (auto.passed and cross[0].passed)
+
+
 def test_xcorr_bad_input():
     with pytest.raises(DataError, match="different lengths"):
         xcorr(np.ones(5), np.ones(6), 2)
