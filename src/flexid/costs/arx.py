@@ -276,6 +276,37 @@ class ARXCost:
             out[finite] = self._costs(X[finite])
         return out
 
+    def realised_cost(self, theta: Any) -> float:
+        """This cost of one candidate with its simulation run in a well-conditioned realisation.
+
+        The batched simulation runs ``1/A`` in the direct form, which lightly damped
+        high-order candidates make inaccurate (:mod:`flexid.models.realisation`); a final
+        model is rescored with this (:func:`flexid._identify.rescored`).
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_params,)
+
+        Returns
+        -------
+        float
+            The cost; the batched one for the one-step predictor (no recursion), under
+            ``"measured"`` (a direct-form rule by definition) and for an unstable candidate
+            (the penalty applies).
+        """
+        from ..models.polynomial import PolynomialModel
+
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        X = population(theta[None, :], self.n_params)
+        na = self.structure.na
+        if (self.predictor == "one-step" or self.initial == "measured"
+                or not np.isfinite(theta).all() or not is_stable(X[:, :na])[0]):  # fmt: skip
+            return float(self(X)[0])
+        model = PolynomialModel.from_arx(self.structure.model(theta))
+        ysim = model.simulate(self.u, initial="zero")
+        e = self.y[self.structure.start :] - ysim[self.structure.start :]
+        return float(self._from_sse(np.array([e @ e]))[0])
+
     def _costs(self, X: np.ndarray) -> np.ndarray:
         """Costs of finite rows ``X`` (P, n_params)."""
         stable = is_stable(X[:, : self.structure.na])
