@@ -313,7 +313,7 @@ def rescored(objective: Any, model: Any, cost_value: float) -> tuple[float, floa
     -------
     cost : float
         The realised cost where the two disagree by more than :data:`RESCORE_BOUND`
-        (relative), else ``cost_value``.
+        (relative, and above the cost's ``rounding_floor()``), else ``cost_value``.
     search_cost : float or None
         ``cost_value`` when the model was rescored, else None.
     """
@@ -322,7 +322,10 @@ def rescored(objective: Any, model: Any, cost_value: float) -> tuple[float, floa
     if realised is None or theta is None or not math.isfinite(cost_value):
         return cost_value, None
     value = float(realised(theta))
-    if not math.isfinite(value) or abs(value - cost_value) <= RESCORE_BOUND * abs(value):
+    floor = getattr(objective, "rounding_floor", lambda: 0.0)()
+    if not math.isfinite(value) or abs(value - cost_value) <= RESCORE_BOUND * max(
+        abs(value), floor
+    ):
         return cost_value, None
     return value, cost_value
 

@@ -982,6 +982,19 @@ class PolynomialCost:
         theta = np.asarray(theta, dtype=float).reshape(1, -1)
         return self.prediction_errors(theta)[0]
 
+    def rounding_floor(self) -> float:
+        """The cost of an error of 1e-8 output standard deviations at every sample.
+
+        Two routes to a cost that differ by less than this differ by rounding (a noise-free
+        record fitted exactly has a cost of that order); :func:`flexid._identify.rescored`
+        rescores only above it.
+
+        Returns
+        -------
+        float
+        """
+        return float(self._from_sse(np.array([self.K * (1e-8 * self._std_y) ** 2]))[0])
+
     def realised_cost(self, theta: Any) -> float:
         """This cost of one candidate with its predictor run in a well-conditioned realisation.
 
