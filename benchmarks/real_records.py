@@ -91,18 +91,14 @@ CASES = [
          character="wing flutter, a highly coloured input; known to be hard in simulation",
          reason="the input is so coloured that it barely excites order 16 (flexid warns) "
                 "and the held-out third is poorly predicted by any free run"),
-    Case("cd_player_arm y1", "cd_player_arm.csv",
-         {"inputs": ["u1", "u2"], "outputs": ["y1", "y2"]}, output="y1",
-         note="inputs u1, u2; dt = 1 sample",
-         character="closed-loop data converted to open-loop equivalent, inputs highly coloured",
-         reason="closed-loop data made open-loop equivalent, coloured inputs: the residual "
-                "stays correlated with its own past and the inputs"),
-    Case("cd_player_arm y2", "cd_player_arm.csv",
-         {"inputs": ["u1", "u2"], "outputs": ["y1", "y2"]}, output="y2",
-         note="inputs u1, u2; dt = 1 sample",
-         character="closed-loop data converted to open-loop equivalent, inputs highly coloured",
-         reason="closed-loop data made open-loop equivalent, coloured inputs: the residual "
-                "stays correlated with its own past and the inputs"),
+    *[Case(f"cd_player_arm {y}", "cd_player_arm.csv",
+           {"inputs": ["u1", "u2"], "outputs": ["y1", "y2"]}, output=y,
+           note="inputs u1, u2; dt = 1 sample",
+           character="closed-loop data converted to open-loop equivalent, inputs highly "
+                     "coloured",
+           reason="closed-loop data made open-loop equivalent, coloured inputs: the residual "
+                  "stays correlated with its own past and the inputs")
+      for y in ("y1", "y2")],
     Case("twinrotor_prbs_a", "twinrotor_prbs_a.csv",
          {"inputs": ["u"], "outputs": ["y"], "dt": 0.1}, detrend="constant",
          note="dt 0.1 s (nominal); the pitch's 23.8 degree offset removed with the means",

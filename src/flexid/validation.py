@@ -685,14 +685,6 @@ def _as_polynomial(model: Any) -> PolynomialModel:
         ) from None
 
 
-def _has_polynomial(model: Any) -> bool:
-    try:
-        _as_polynomial(model)
-    except DataError:
-        return False
-    return True
-
-
 def _free_run(run: Any, n: int, unstable: bool) -> np.ndarray:
     """``run()`` as a float vector; for an ``unstable`` filter an overflow gives inf.
 
@@ -831,22 +823,28 @@ def validate(
             lambda: model.simulate(u_model, y_full, initial=initial), n, not model.is_stable
         )
         initial_one_step = initial if model.structure.n_state else None
-    elif initial == "measured" or (initial == "zero" and not _has_polynomial(model)):
-        # ARX-like by its own routes: its one-step predictor has no state
-        first = start
-        y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
-        initial_one_step = None
-        own = model.simulate(u_model, y_init=y_full[:start]) if initial == "measured" else (
-            model.simulate(u_model)
-        )
-        ysim = np.asarray(own, dtype=float).reshape(-1)
-    else:  # its polynomial form, in a well-conditioned realisation
-        poly = _as_polynomial(model)
-        y1 = _free_run(lambda: poly.predict(u_model, y_full, initial=initial), n, False)
-        initial_one_step = initial
-        ysim = _free_run(
-            lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
-        )
+    else:
+        poly = None  # its polynomial form, in a well-conditioned realisation, where it has one
+        if initial != "measured":
+            try:
+                poly = _as_polynomial(model)
+            except DataError:
+                if initial == "estimate":
+                    raise
+        if poly is None:  # ARX-like by its own routes: its one-step predictor has no state
+            first = start
+            y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
+            initial_one_step = None
+            own = model.simulate(u_model, y_init=y_full[:start]) if initial == "measured" else (
+                model.simulate(u_model)
+            )
+            ysim = np.asarray(own, dtype=float).reshape(-1)
+        else:
+            y1 = _free_run(lambda: poly.predict(u_model, y_full, initial=initial), n, False)
+            initial_one_step = initial
+            ysim = _free_run(
+                lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
+            )
     for arr, what in ((y1, "one-step prediction"), (ysim, "simulated output")):
         if arr.size != n:
             raise DataError(f"the model's {what} has {arr.size} samples, the record {n}")

@@ -37,6 +37,7 @@ __all__ = [
     "PENALTY_KINDS",
     "PREDICTORS",
     "ARXCost",
+    "ErrorCost",
     "metric_from_sse",
     "population",
     "simulate_population",
@@ -131,7 +132,45 @@ def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) ->
     return y
 
 
-class ARXCost:
+class ErrorCost:
+    """What a cost of one model's errors needs besides its batched route: the cost of an error
+    vector and the rounding floor below which two routes' costs are the same.
+
+    A cost class sets ``K`` (error samples), ``_std_y`` and ``_from_sse``.
+    """
+
+    K: int
+    _std_y: float
+
+    def cost_of_errors(self, e: np.ndarray) -> float:
+        """The cost of one model's error samples.
+
+        Parameters
+        ----------
+        e : ndarray, shape (K,)
+            ``y - yhat`` over the counted samples.
+
+        Returns
+        -------
+        float
+        """
+        return float(self._from_sse(np.array([e @ e]))[0])
+
+    def rounding_floor(self) -> float:
+        """The cost of an error of 1e-8 output standard deviations at every sample.
+
+        Two routes to a cost that differ by less than this differ by rounding (a noise-free
+        record fitted exactly has a cost of that order); :func:`flexid._identify.rescored`
+        rescores only above it.
+
+        Returns
+        -------
+        float
+        """
+        return float(self._from_sse(np.array([self.K * (1e-8 * self._std_y) ** 2]))[0])
+
+
+class ARXCost(ErrorCost):
     """The cost an optimiser minimises to identify an ARX model.
 
     Parameters
@@ -276,19 +315,6 @@ class ARXCost:
             out[finite] = self._costs(X[finite])
         return out
 
-    def rounding_floor(self) -> float:
-        """The cost of an error of 1e-8 output standard deviations at every sample.
-
-        Two routes to a cost that differ by less than this differ by rounding (a noise-free
-        record fitted exactly has a cost of that order); :func:`flexid._identify.rescored`
-        rescores only above it.
-
-        Returns
-        -------
-        float
-        """
-        return float(self._from_sse(np.array([self.K * (1e-8 * self._std_y) ** 2]))[0])
-
     def realised_cost(self, theta: Any) -> float:
         """This cost of one candidate with its simulation run in a well-conditioned realisation.
 
@@ -317,8 +343,7 @@ class ARXCost:
             return float(self(X)[0])
         model = PolynomialModel.from_arx(self.structure.model(theta))
         ysim = model.simulate(self.u, initial="zero")
-        e = self.y[self.structure.start :] - ysim[self.structure.start :]
-        return float(self._from_sse(np.array([e @ e]))[0])
+        return self.cost_of_errors(self.y[self.structure.start :] - ysim[self.structure.start :])
 
     def _costs(self, X: np.ndarray) -> np.ndarray:
         """Costs of finite rows ``X`` (P, n_params)."""

@@ -62,7 +62,7 @@ from ..kernels import ar_recursion, arx_recursion, initial_state_fit
 from ..metrics import describe_cost
 from ..models.polynomial import INITIAL_RULES, PolynomialStructure, _check_initial
 from ..stability import is_stable, pole_radius_batched
-from .arx import METRICS, PENALTY_KINDS, PREDICTORS, metric_from_sse, population
+from .arx import METRICS, PENALTY_KINDS, PREDICTORS, ErrorCost, metric_from_sse, population
 
 __all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows", "poly_mul_rows_reference"]
 
@@ -266,7 +266,7 @@ def _lags(x: np.ndarray, n_lags: int, t0: int, n: int) -> np.ndarray:
     return np.stack([pad[n_lags + t0 - lag : n_lags + n - lag] for lag in range(n_lags)])
 
 
-class PolynomialCost:
+class PolynomialCost(ErrorCost):
     """The cost an optimiser minimises to identify a polynomial model.
 
     Parameters
@@ -982,19 +982,6 @@ class PolynomialCost:
         theta = np.asarray(theta, dtype=float).reshape(1, -1)
         return self.prediction_errors(theta)[0]
 
-    def rounding_floor(self) -> float:
-        """The cost of an error of 1e-8 output standard deviations at every sample.
-
-        Two routes to a cost that differ by less than this differ by rounding (a noise-free
-        record fitted exactly has a cost of that order); :func:`flexid._identify.rescored`
-        rescores only above it.
-
-        Returns
-        -------
-        float
-        """
-        return float(self._from_sse(np.array([self.K * (1e-8 * self._std_y) ** 2]))[0])
-
     def realised_cost(self, theta: Any) -> float:
         """This cost of one candidate with its predictor run in a well-conditioned realisation.
 
@@ -1025,8 +1012,7 @@ class PolynomialCost:
             yhat = model.predict(self.u, self.y, initial=self.initial, from_start=True)
         else:
             yhat = model.simulate(self.u, self.y, initial=self.initial, from_start=True)
-        e = self._target - yhat[self.start :]
-        return float(self._from_sse(np.array([e @ e]))[0])
+        return self.cost_of_errors(self._target - yhat[self.start :])
 
     def describe(self) -> str:
         """One line naming the metric, penalty, structure, predictor, rule and ``K``.

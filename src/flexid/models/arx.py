@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on 
     from scipy import signal
 
 
-__all__ = ["ARX", "ARXStructure", "channel_names"]
+__all__ = ["ARX", "ARXStructure", "NamedChannels", "channel_names"]
 
 
 def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
@@ -127,6 +127,33 @@ def channel_names(
         if len(names) != n_inputs:
             raise DataError(f"{len(names)} input name(s) {list(names)} for {n_inputs} input(s)")
     return names, "y" if output_name is None else str(output_name)
+
+
+class NamedChannels:
+    """The record's channel names a model keeps (``input_names``, ``output_name``)."""
+
+    input_names: tuple[str, ...]
+    output_name: str
+    structure: Any
+
+    def named(self, input_names: Sequence[str], output_name: str) -> Any:
+        """A copy with the record's channel names (kept in exports and dictionaries).
+
+        Parameters
+        ----------
+        input_names : sequence of str
+        output_name : str
+
+        Returns
+        -------
+        model
+            Of the same class.
+        """
+        out = copy.copy(self)
+        out.input_names, out.output_name = channel_names(
+            input_names, output_name, self.structure.n_inputs
+        )
+        return out
 
 
 class ARXStructure:
@@ -319,7 +346,7 @@ class ARXStructure:
         return ARX(self, theta, dt=dt)
 
 
-class ARX:
+class ARX(NamedChannels):
     """An ARX model with its parameters.
 
     Parameters
@@ -363,24 +390,6 @@ class ARX:
         self.input_names, self.output_name = channel_names(
             input_names, output_name, structure.n_inputs
         )
-
-    def named(self, input_names: Sequence[str], output_name: str) -> ARX:
-        """A copy with the record's channel names (kept in exports and dictionaries).
-
-        Parameters
-        ----------
-        input_names : sequence of str
-        output_name : str
-
-        Returns
-        -------
-        ARX
-        """
-        out = copy.copy(self)
-        out.input_names, out.output_name = channel_names(
-            input_names, output_name, self.structure.n_inputs
-        )
-        return out
 
     # ------------------------------------------------------------------ polynomials
     @property

@@ -55,7 +55,6 @@ record; ``"estimate"`` removes that transient, ``"zero"`` suits a record that st
 
 from __future__ import annotations
 
-import copy
 import json
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
@@ -67,7 +66,7 @@ from .._json import jsonable
 from .._validate import checked_keywords, integer, positive_real
 from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
-from .arx import ARX, ARXStructure, _check_samples, channel_names
+from .arx import ARX, ARXStructure, NamedChannels, _check_samples, channel_names
 from .realisation import Path, accurate_roots, run_paths
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
@@ -610,7 +609,7 @@ def run_predictor(
 
 
 # ================================================================================ model
-class PolynomialModel:
+class PolynomialModel(NamedChannels):
     """A polynomial model (ARX, ARMAX, OE, BJ or general) with its parameters.
 
     Parameters
@@ -659,24 +658,6 @@ class PolynomialModel:
         self.input_names, self.output_name = channel_names(
             input_names, output_name, structure.n_inputs
         )
-
-    def named(self, input_names: Sequence[str], output_name: str) -> PolynomialModel:
-        """A copy with the record's channel names (kept in exports and dictionaries).
-
-        Parameters
-        ----------
-        input_names : sequence of str
-        output_name : str
-
-        Returns
-        -------
-        PolynomialModel
-        """
-        out = copy.copy(self)
-        out.input_names, out.output_name = channel_names(
-            input_names, output_name, self.structure.n_inputs
-        )
-        return out
 
     # ------------------------------------------------------------------ polynomials
     def _part(self, key: str) -> np.ndarray:
