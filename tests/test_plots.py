@@ -167,3 +167,10 @@ def test_figures_of_two_comparisons_with_one_name_do_not_replace_each_other(tmp_
     names_a = {p.name for p in comparison_figures(first, tmp_path, prefix=a)}
     names_b = {p.name for p in comparison_figures(second, tmp_path, prefix=b)}
     assert not names_a & names_b
+
+
+def test_pole_zero_map_keeps_the_unit_circle_readable_beside_a_far_zero():
+    fig = plot_pole_zero([0.99 * np.exp(0.1j), 0.99 * np.exp(-0.1j)], [181.36, -0.5])
+    ax = fig.axes[0]
+    assert ax.get_xlim() == (-1.2, 1.2) and ax.get_ylim() == (-1.2, 1.2)
+    assert any("zeros at 181.4" in t.get_text() for t in ax.texts)

@@ -286,13 +286,23 @@ def _repeated(roots: np.ndarray) -> list[tuple[complex, int]]:
     return out
 
 
+def _root_text(root: complex) -> str:
+    root = complex(root)
+    return f"{root.real:.4g}" if root.imag == 0 else f"{root.real:.4g}{root.imag:+.4g}j"
+
+
+#: Roots beyond this radius are named rather than drawn in the pole-zero map.
+_VIEW_RADIUS = 3.0
+
+
 def plot_pole_zero(
     poles: Any, zeros: Any, *, ax: Axes | None = None, title: str = "Pole-zero map"
 ) -> Figure:
     """Poles (x) and zeros (o) in the z-plane with the unit circle (dotted).
 
     A root that occurs several times (within a relative ``1e-4``) is labelled with its
-    multiplicity.
+    multiplicity.  The view holds the unit circle and the roots within radius 3; farther
+    roots (a non-minimum-phase zero at 181, say) are named in a line of text instead.
 
     Parameters
     ----------
@@ -324,7 +334,20 @@ def plot_pole_zero(
                         textcoords="offset points", fontsize=9)
     ax.axhline(0, color="0.7", lw=0.5)
     ax.axvline(0, color="0.7", lw=0.5)
-    ax.set_aspect("equal", adjustable="datalim")
+    # a far root (a zero at 181, say) would shrink the unit circle to a dot: the view holds
+    # the roots within radius 3 and names the others
+    radii = np.abs(np.concatenate([poles, zeros]).astype(complex))
+    near = radii[radii <= _VIEW_RADIUS]
+    lim = max(1.2, 1.1 * float(near.max())) if near.size else 1.2
+    far = [f"{name} at {', '.join(map(_root_text, roots[np.abs(roots) > lim]))}"
+           for name, roots in (("poles", poles), ("zeros", zeros))
+           if np.any(np.abs(roots) > lim)]  # fmt: skip
+    if far:
+        ax.text(0.02, 0.02, "outside the view: " + "; ".join(far), transform=ax.transAxes,
+                fontsize=8, va="bottom", wrap=True)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("real")
     ax.set_ylabel("imaginary")
     ax.set_title(title)
