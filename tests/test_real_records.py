@@ -84,3 +84,22 @@ def test_select_and_identify_give_one_model_for_one_structure():
     ident = flexid.identify(path, structure="bj", nb=2, nc=2, nd=2, nf=7, nk=1)
     np.testing.assert_array_equal(sel.best.model.theta, ident.model.theta)
     assert sel.best.fit_simulation == ident.validation.fit_simulation
+
+
+def test_cd_player_arm_oe_reference_drops_crawling_extra_starts():
+    """The CD player arm's first output, OE([8, 8], [8, 8], [1, 1]) on the first 2/3: two of
+    the random and perturbed starts crawl (SSE 11.1 and 11.6 after 640 evaluations, 40 %
+    above the best run's 7.58).  Run to their budgets they cost 6,400 of 7,200 evaluations
+    and ended 40 % above; the reference drops them and ends at the same minimum."""
+    from flexid.prediction_error import oe
+
+    data = flexid.load(record("cd_player_arm"), inputs=["u1", "u2"], outputs=["y1"])
+    est, _ = data.split(2 / 3)
+    res = oe(est, [8, 8], [8, 8], [1, 1], initial="estimate")
+    dropped = [r for r in res.runs if "too slowly" in r.message]
+    assert dropped and all(r.kind in ("perturbed", "random") for r in dropped)
+    assert all(r.sse > res.sse for r in dropped)
+    assert res.nfev < 3_000
+    # the best run's minimum is 7.583 here; another machine's rounding may pick another
+    # start's minimum, not one 5 % higher
+    assert res.local_minimum and res.sse < 8.0
