@@ -186,8 +186,20 @@ def test_convergence_of_an_identification(identification_set, ident):
     fig = identification_set["convergence"]
     ax = fig.axes[0]
     assert_log_fe_axis(ax, ident.nfev)
-    assert ax.get_yscale() == "log" and ax.get_ylabel() == "best cost"
+    # the paper's cost of the tip acceleration carries the output's unit
+    assert ax.get_yscale() == "log"
+    assert ax.get_ylabel() == "best paper cost, w sqrt(SSE) / K [m/s^2]"
     assert_looks_right(fig)
+
+
+def test_every_axis_of_an_identification_states_its_unit(identification_set):
+    """A reader never guesses a unit: counts (function evaluations) are the one label
+    without brackets."""
+    for name, fig in identification_set.items():
+        for ax in fig.axes:
+            for label in (ax.get_xlabel(), ax.get_ylabel()):
+                if label and label != "function evaluations":
+                    assert "[" in label and label.endswith("]"), (name, label)
 
 
 @pytest.mark.parametrize("name", ["estimation_simulation", "estimation_one_step",
@@ -215,7 +227,7 @@ def test_spectra_state_the_decibel_reference(identification_set):
 def test_pole_zero_map(identification_set):
     fig = identification_set["pole_zero"]
     ax = fig.axes[0]
-    assert (ax.get_xlabel(), ax.get_ylabel()) == ("real", "imaginary")  # the z-plane
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("Re z [-]", "Im z [-]")  # the z-plane
     assert_looks_right(fig)
 
 
@@ -241,7 +253,7 @@ def test_fe_to_target(result):
         fig = plots.plot_fe_to_target(result, target)
         ax = fig.axes[0]
         assert_log_fe_axis(ax, result.spec.budget)
-        assert ax.get_ylabel() == "fraction of runs at target"
+        assert ax.get_ylabel() == "fraction of runs at target [-]"
         assert_looks_right(fig, text_ok=True)
 
 

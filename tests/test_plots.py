@@ -107,7 +107,7 @@ def test_comparison_figures_read_at_a_glance():
     ax = fig.axes[0]
     assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
     assert ax.get_xlim() == (1, budget)
-    assert ax.get_ylabel() == f"best cost / {name}"
+    assert ax.get_ylabel() == f"best cost / {name} [-]"
     assert any(line.get_label().startswith(name) for line in ax.lines)
     assert _legend_outside(fig)
     for target in result.spec.targets:

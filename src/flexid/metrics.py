@@ -16,7 +16,15 @@ import numpy as np
 
 from .errors import UnknownNameError
 
-__all__ = ["METRICS", "METRIC_TABLE", "Metric", "describe_cost", "metric_from_sse", "metrics_rst"]
+__all__ = [
+    "METRICS",
+    "METRIC_TABLE",
+    "Metric",
+    "cost_label",
+    "describe_cost",
+    "metric_from_sse",
+    "metrics_rst",
+]
 
 
 @dataclass(frozen=True)
@@ -37,6 +45,10 @@ class Metric:
     words : str
         The metric in plain words, with ``{errors}`` for what is squared and ``{w}`` for the
         weight (:func:`describe_cost`).
+    label : str
+        A few words for an axis (:func:`cost_label`).
+    power : int
+        The power of the output's unit the metric carries (0: none).
     """
 
     name: str
@@ -44,6 +56,8 @@ class Metric:
     description: str
     from_sse: Callable[[np.ndarray, int, float, float], np.ndarray]
     words: str = ""
+    label: str = ""
+    power: int = 1
 
 
 #: The metrics, by name; the first is the default.
@@ -56,27 +70,35 @@ METRIC_TABLE: dict[str, Metric] = {
             lambda sse, k, w, s: np.sqrt(sse) * (w / k),
             "{w} x the root of the sum of squared {errors}, divided by their number (the "
             "paper's cost, eq. 5-6)",
+            "paper cost, w sqrt(SSE) / K",
         ),
         Metric(
             "rmse", "sqrt(SSE / K)", "root mean squared error, in the output's unit",
             lambda sse, k, w, s: np.sqrt(sse / k),
             "root-mean-square {errors}",
+            "RMS error",
         ),
         Metric(
             "nrmse", "sqrt(SSE / K) / std(y)",
             "root mean squared error over the output's standard deviation (no unit)",
             lambda sse, k, w, s: np.sqrt(sse / k) / (s if s > 0 else 1.0),
             "root-mean-square {errors} over the output's standard deviation",
+            "RMS error / std(y)",
+            0,
         ),
         Metric(
             "sse", "SSE", "sum of squared errors, in the output's unit squared",
             lambda sse, k, w, s: sse,
             "sum of squared {errors}",
+            "sum of squared errors",
+            2,
         ),
         Metric(
             "mse", "SSE / K", "mean squared error, in the output's unit squared",
             lambda sse, k, w, s: sse / k,
             "mean squared {errors}",
+            "mean squared error",
+            2,
         ),
     )
 }
@@ -121,6 +143,31 @@ def describe_cost(
         text += (f"; an unstable candidate costs the zero prediction's cost plus "
                  f"{penalty:g}{scale}")  # fmt: skip
     return text
+
+
+def cost_label(metric: str, unit: str = "") -> str:
+    """An axis label of a cost: the metric in a few words and its unit.
+
+    Parameters
+    ----------
+    metric : str
+        A name of :data:`METRIC_TABLE`.
+    unit : str, optional
+        The output's unit (``""``: unknown, said as "output unit").
+
+    Returns
+    -------
+    str
+        For example ``"RMS error [deg]"``, ``"mean squared error [(deg)^2]"``,
+        ``"RMS error / std(y) [-]"``.
+    """
+    m = METRIC_TABLE[metric]
+    base = unit or "output unit"
+    if m.power == 0:
+        return f"{m.label} [-]"
+    if m.power == 1:
+        return f"{m.label} [{base}]"
+    return f"{m.label} [({base})^{m.power}]"
 
 
 def metric_from_sse(

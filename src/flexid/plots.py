@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import FlexidError
+from .metrics import cost_label
 from .statistics import convergence_band
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -124,12 +125,22 @@ def _outside_legend(ax) -> None:
 
 
 # ============================================================================ identification
+def _cost_unit(cost: Any, unit: str) -> str:
+    """The unit of a cost's errors: the output's, or its standard deviations where a cost
+    of several outputs divides each output's error by its own."""
+    y = getattr(cost, "y", None)
+    if y is not None and np.ndim(y) == 2 and np.shape(y)[1] > 1:
+        return "output std"
+    return unit
+
+
 def plot_convergence(
     histories: dict[str, Any],
     *,
     ax=None,
     reference: float | None = None,
     reference_label: str = "least squares",
+    cost: str = "cost",
 ) -> Figure:
     """Best cost against function evaluations (log axis), one line per run/optimiser.
 
@@ -144,6 +155,8 @@ def plot_convergence(
         A horizontal line (the reference's cost); not drawn when NaN or infinite.
     reference_label : str
         What the reference is, for the legend.
+    cost : str, optional
+        The cost with its unit, for the axis (:func:`flexid.metrics.cost_label`).
 
     Returns
     -------
@@ -165,7 +178,7 @@ def plot_convergence(
     ax.set_xlim(1, last)
     ax.set_yscale("log")
     ax.set_xlabel("function evaluations")
-    ax.set_ylabel("best cost")
+    ax.set_ylabel(f"best {cost}")
     ax.set_title("Convergence", fontsize=10)
     _readable_log_ticks(ax)
     ax.grid(True, which="both", alpha=0.3)
@@ -348,8 +361,8 @@ def plot_pole_zero(
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)
     ax.set_aspect("equal", adjustable="box")
-    ax.set_xlabel("real")
-    ax.set_ylabel("imaginary")
+    ax.set_xlabel("Re z [-]")
+    ax.set_ylabel("Im z [-]")
     ax.set_title(title)
     _outside_legend(ax)
     return fig
@@ -385,6 +398,7 @@ def plot_correlations(
         ax.axhline(0, color="k", lw=0.5)
         ax.set_title(name, fontsize=10)
         ax.set_ylim(-1.05, 1.05)
+        ax.set_ylabel("correlation [-]")
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("lag [samples]")
     if title:
@@ -431,6 +445,7 @@ def identification_figures(
             {ident.optimiser: ident.history},
             reference=ident.cost_ls,
             reference_label="least squares" if arx else "ARX least squares read as the model",
+            cost=cost_label(ident.cost.metric, _cost_unit(ident.cost, unit)),
         )
         paths.append(_save(fig, outdir / f"{p}convergence.png"))
     for part, report in (("estimation", ident.estimation), ("validation", ident.validation)):
@@ -539,9 +554,9 @@ def plot_comparison_convergence(result: ComparisonResult, *, ax: Axes | None = N
             ax.plot(band["fe"], band[edge] / scale, color=style["color"], lw=0.5, alpha=0.6)
     if relative:
         ax.axhline(1.0, color="k", ls="--", lw=1, label=f"{name} ({ref:.4g})")
-        ax.set_ylabel(f"best cost / {name}")
+        ax.set_ylabel(f"best cost / {name} [-]")
     else:
-        ax.set_ylabel("best cost")
+        ax.set_ylabel(f"best {cost_label(result.spec.cost.metric)}")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlim(1, max_fe)
@@ -601,7 +616,7 @@ def plot_fe_to_target(
     ax.set_xlim(1, max_fe)
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("function evaluations")
-    ax.set_ylabel("fraction of runs at target")
+    ax.set_ylabel("fraction of runs at target [-]")
     ax.set_title(f"FE to reach {name} x (1 + {target:g})", fontsize=10)
     _readable_log_ticks(ax)
     ax.grid(True, which="both", alpha=0.3)
@@ -639,7 +654,7 @@ def plot_ecdf(ecdf: dict[str, Any], *, ax: Axes | None = None, title: str = "") 
     ax.set_xlim(left=1)  # the first evaluation
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("function evaluations")
-    ax.set_ylabel("fraction of (run, target) pairs reached")
+    ax.set_ylabel("fraction of (run, target) pairs reached [-]")
     ax.set_title(title or f"ECDF over {n_targets} targets reference x (1 + d)")
     _readable_log_ticks(ax)
     ax.grid(True, which="both", alpha=0.3)
@@ -938,7 +953,7 @@ def suite_figure(
     for ax in panels[n:]:
         ax.set_visible(False)
     for ax in axes[:, 0]:
-        ax.set_ylabel("fraction of triples reached")
+        ax.set_ylabel("fraction of triples reached [-]")
     for ax in panels[:n]:
         ax.set_xlabel("function evaluations / dimension")
         ax.tick_params(labelbottom=True)
