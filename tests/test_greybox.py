@@ -234,7 +234,7 @@ def test_unknown_parameter_and_channel_are_named():
     with pytest.raises(UnknownNameError, match="twin-rotor-pitch"):
         greybox_model("twin-rotor-pitchh")
     data = _pitch_record(50).replace(input_names=("voltage",))
-    with pytest.raises(DataError, match=r"input channel\(s\) \['main_rotor'\]"):
+    with pytest.raises(DataError, match=r"input column\(s\) \[.main_rotor.\]"):
         GreyBoxCost(model, data)
 
 

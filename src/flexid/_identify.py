@@ -139,7 +139,9 @@ def identify(
         Output channel of a multi-output record.
     detrend : {False, True, "constant", "linear"}
         Remove the estimation record's means (``"constant"`` or True) or its least-squares
-        line (``"linear"``) first (:func:`flexid.data.prepare_data`).
+        line (``"linear"``) first (:func:`flexid.data.prepare_data`); for a grey-box model,
+        from the whole record it runs on (the model then describes the deviations from the
+        estimation record's operating point).
     max_lag : int
         Lags of the correlation tests.
     weight, penalty : float, optional
@@ -147,7 +149,11 @@ def identify(
     initial : str, optional
         Initial-condition rule of the cost: ``"estimate"``, ``"zero"``, ``"measured"`` or
         ``"auto"`` (the default: ``"measured"`` for ARX, ``"estimate"`` otherwise; see
-        :func:`flexid.estimation.resolve_initial`).
+        :func:`flexid.estimation.resolve_initial`).  For a grey-box model, ``"estimate"``
+        estimates the initial value of every state that is an output, searched over the
+        estimation record's range of that output widened by its span on each side
+        (:meth:`~flexid.models.greybox.GreyBoxModel.with_initial_states`); the default is the
+        model's own initial state.
 
         ``predictor``, ``weight``, ``penalty`` and ``initial`` override the fields of ``cost``
         (a metric name or a whole :class:`~flexid.config.CostSpec`); what is not given is
@@ -192,9 +198,9 @@ def identify(
         given = {
             "na": na, "nb": nb, "nk": nk, "nc": nc, "nd": nd, "nf": nf, "output": output,
             "bounds": None if bounds == "auto" else bounds, "penalty": penalty,
-            "initial": initial, "parametrisation": parametrisation,
+            "parametrisation": parametrisation,
             "penalty_kind": penalty_kind, "init": init, "numerator": numerator,
-            "search": search, "detrend": detrend or None,
+            "search": search,
         }
         extra = sorted(k for k, v in given.items() if v is not None)
         if extra:
@@ -206,7 +212,7 @@ def identify(
             data, model_gb, optimiser=optimiser, params=params, cost=cost,
             predictor=predictor, weight=weight, budget=budget, seed=seed, split=split,
             validation=validation, max_lag=max_lag, callback=callback,
-            load_options=load_options,
+            load_options=load_options, initial=initial, detrend=detrend,
         )
     est, val = prepare_data(
         data,

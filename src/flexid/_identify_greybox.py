@@ -15,10 +15,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import numpy as np
+
 from ._identification import Identification, _indent, data_info, timings
 from ._json import jsonable
 from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
-from .data import IOData, load
+from .data import IOData, detrend_kind, load
 from .diagnostics import format_fit
 from .errors import ConfigError
 from .estimation import build_problem
@@ -204,9 +206,62 @@ def _record(
     if isinstance(data, IOData):
         return data
     options = dict(load_options or {})
-    options.setdefault("inputs", list(model.inputs))
-    options.setdefault("outputs", list(model.outputs))
+    options.setdefault("inputs", [model.column(name)[0] for name in model.inputs])
+    options.setdefault("outputs", [model.column(name)[0] for name in model.outputs])
     return load(data, **options)
+
+
+def _detrended(est: IOData, val: IOData, kind: str, same: bool) -> tuple[IOData, IOData]:
+    """The estimation record and the validation one less the estimation record's means
+    (``"constant"``) or least-squares lines (``"linear"``, extended over ``val`` when it is
+    the whole record the estimation part begins, ``same``; else ``val`` loses its own)."""
+    n = est.n_samples
+    if kind == "constant":
+        u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
+        return est.replace(u=est.u - u0, y=est.y - y0), val.replace(u=val.u - u0, y=val.y - y0)
+    def design(count: int) -> np.ndarray:
+        return np.column_stack([np.ones(count), np.arange(count, dtype=float)])
+
+    lines = {k: np.linalg.lstsq(design(n), getattr(est, k), rcond=None)[0] for k in ("u", "y")}
+    est = est.replace(**{k: getattr(est, k) - design(n) @ lines[k] for k in lines})
+    if not same:
+        return est, val.detrend("linear")
+    m = val.n_samples
+    return est, val.replace(**{k: getattr(val, k) - design(m) @ lines[k] for k in lines})
+
+
+def _initial_state_on(fitted: GreyBoxModel, record: IOData) -> GreyBoxModel:
+    """``fitted`` with its estimated initial states refitted on another record (its
+    physical parameters held): a separate validation record starts from its own state, as
+    MATLAB ``compare`` estimates it."""
+    from .greybox_fit import greyest
+
+    states = set(fitted.estimated_initial_states)
+    held = fitted.fixing(*(n for n in fitted.free if n[:-2] not in states or n[-2:] != "_0"))
+    start = _estimated_initial_state(held, record)
+    return greyest(record, start, starts=0).model
+
+
+def _estimated_initial_state(model: GreyBoxModel, est: IOData) -> GreyBoxModel:
+    """``model`` with the initial value of each state that is an output estimated: from the
+    record's first sample, within its range widened by the range's span on each side."""
+    from .costs.greybox import record_for
+
+    _, y, _ = record_for(model, est)
+    states = {}
+    for k, name in enumerate(model.outputs):
+        if name not in model.states:
+            continue
+        lo, hi = float(y[:, k].min()), float(y[:, k].max())
+        span = max(hi - lo, 1e-9 * max(abs(lo), abs(hi), 1.0))
+        states[name] = (float(y[0, k]), lo - span, hi + span)
+    if not states:
+        raise ConfigError(
+            f"grey-box model {model.name!r}: none of its outputs {list(model.outputs)} is a "
+            f"state {list(model.states)}, so initial='estimate' has nothing to estimate; give "
+            "the initial states with GreyBoxModel.with_initial_states"
+        )
+    return model.with_initial_states(**states)
 
 
 def identify_greybox(
@@ -226,6 +281,8 @@ def identify_greybox(
     callback: Callable | None,
     load_options: Mapping[str, Any] | None,
     reference_starts: int = GREYBOX_REFERENCE_STARTS,
+    initial: str | None = None,
+    detrend: bool | str | None = None,
 ) -> GreyBoxIdentification:
     """:func:`flexid.identify` for a grey-box model (called by it; see its parameters)."""
     from .config import LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR
@@ -245,6 +302,16 @@ def identify_greybox(
         est = record.split(split)[0] if isinstance(split, float) else record.split(
             index=int(split))[0]
         val_record, val_split = record, split
+    kind = detrend_kind(detrend)
+    if kind is not None:
+        est, val_record = _detrended(est, val_record, kind, val_split is not None)
+    if initial not in (None, "auto", "model", "estimate"):
+        raise ConfigError(
+            f"grey-box model {model.name!r}: initial must be 'estimate' (the initial values "
+            f"of the states that are outputs) or 'model' (its own x0), got {initial!r}"
+        )
+    if initial == "estimate":
+        model = _estimated_initial_state(model, est)
     model.check_samples(est.n_samples)
     base = cost if isinstance(cost, CostSpec) else CostSpec()
     given = {
@@ -272,19 +339,23 @@ def identify_greybox(
         fitted = model.model(estimation.theta(result.x))
         used_params, cost_value = dict(result.params), float(result.fun)
     t_val = time.perf_counter()
+    on_val = fitted
+    if val_split is None and fitted.estimated_initial_states:
+        on_val = _initial_state_on(fitted, val_record)
     reports: dict[str, tuple[ValidationReport, ValidationReport]] = {}
     for name in model.outputs:
         reports[name] = (
             validate(fitted, est, max_lag=max_lag, output=name),
-            validate(fitted, val_record, max_lag=max_lag, split=val_split, output=name),
+            validate(on_val, val_record, max_lag=max_lag, split=val_split, output=name),
         )
     t_end = time.perf_counter()
     first = reports[model.outputs[0]]
     n_val = val_record.n_samples - (0 if val_split is None else est.n_samples)
     units = dict(zip(record.output_names, record.output_units))
+    column, factor = model.column(model.outputs[0])
     info = data_info(
-        est, n_val, list(model.inputs), list(model.outputs), units.get(model.outputs[0], ""),
-        record.metadata,
+        est, n_val, list(model.inputs), list(model.outputs),
+        units.get(column, "") if factor == 1.0 else "", record.metadata,
     )
     return GreyBoxIdentification(
         model=fitted,

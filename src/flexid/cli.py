@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import signal
 import sys
 import warnings
@@ -426,6 +427,9 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     _check_positive(args.runs, "--runs")
     _check_positive(args.workers, "--workers")
     _check_run_timeout(args.run_timeout, "--run-timeout")
+    if args.channels:
+        raise ConfigError("--channels maps a record's columns to a grey-box model's channels: "
+                          "compare runs on a plant's own record (use identify or greybox)")
     orders = {
         "structure": args.structure, "na": args.na, "nb": _int_list(args.nb, "--nb"),
         "nc": args.nc, "nd": args.nd, "nf": _int_list(args.nf, "--nf"),
@@ -571,14 +575,35 @@ def _greybox_from_args(args: argparse.Namespace, name: str | None) -> Any:
     """The grey-box model ``name`` with the command line's parameter changes, or None."""
     changes = _parameter_changes(args)
     if name is None:
-        if changes:
-            raise ConfigError("--set, --fix and --free change a grey-box model's parameters: "
+        if changes or args.channels:
+            raise ConfigError("--set, --fix, --free and --channels are a grey-box model's: "
                               "give --structure greybox --greybox NAME")
         return None
     from .models.greybox_library import greybox_model
 
     model = greybox_model(name)
-    return model.with_parameters(**changes) if changes else model
+    model = model.with_parameters(**changes) if changes else model
+    columns = _channel_columns(args.channels)
+    return model.reading(**columns) if columns else model
+
+
+def _channel_columns(text: str | None) -> dict[str, tuple[str, float]]:
+    """``--channels main_rotor=u,pitch=y*0.0174533`` as ``{channel: (column, factor)}``."""
+    out: dict[str, tuple[str, float]] = {}
+    for item in _names(text) or []:
+        channel, sep, rhs = item.partition("=")
+        column, star, factor = rhs.partition("*")
+        try:
+            value = float(factor) if star else 1.0
+        except ValueError:
+            value = math.nan
+        if not (sep and channel.strip() and column.strip()) or not math.isfinite(value):
+            raise ConfigError(
+                f"--channels: {item!r} is not CHANNEL=COLUMN or CHANNEL=COLUMN*FACTOR (e.g. "
+                "pitch=y*0.0174533 for a pitch logged in degrees)"
+            )
+        out[channel.strip()] = (column.strip(), value)
+    return out
 
 
 def _greybox_name(args: argparse.Namespace) -> str | None:
@@ -914,6 +939,13 @@ def _parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--free",
         help="grey-box parameters to estimate, comma-separated (default: the model's)",
+    )
+    p.add_argument(
+        "--channels",
+        metavar="CHANNEL=COLUMN[*FACTOR],..",
+        help="the record's column each grey-box channel is read from, and the factor to the "
+        "model's unit, e.g. main_rotor=u,pitch=y*0.0174533 (default: the columns named as "
+        "the model's channels, unscaled)",
     )
 
 

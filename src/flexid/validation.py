@@ -195,13 +195,16 @@ def stability_report(poles: Any, zeros: Any = (), dt: float = 1.0) -> StabilityR
 # ============================================================================ report
 #: The rule of a grey-box model's validation: its own initial state at the record's start.
 GREYBOX_RULE = "model"
+#: The same, with some of that state estimated (parameters ``<state>_0``).
+GREYBOX_ESTIMATED_RULE = "model, estimated"
 
 
 def _rule_text(initial: str, start: int) -> str:
     """An initial-condition rule in words (the measured rule says which samples it used)."""
-    if initial == GREYBOX_RULE:
+    if initial in (GREYBOX_RULE, GREYBOX_ESTIMATED_RULE):
         run_on = f", run on through t < {start}" if start else ""
-        return f"the model's initial state at t = 0{run_on}"
+        what = "estimated initial state" if initial == GREYBOX_ESTIMATED_RULE else "initial state"
+        return f"the model's {what} at t = 0{run_on}"
     text = INITIAL_RULES.get(initial, initial)
     return f"{text} before t = {start}" if initial == "measured" else text
 
@@ -566,10 +569,11 @@ def _validate_greybox(
     max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
     with np.errstate(all="ignore"):
         ysim_full = model.simulate(model.nominal, u_full, sample_time)[0, :, k]
+    rule = GREYBOX_ESTIMATED_RULE if model.estimated_initial_states else GREYBOX_RULE
     return _report(
         y_full, None, ysim_full, u_full, start=start, dt=sample_time, max_lag=max_lag,
-        names=list(model.inputs), output_name=str(model.outputs[k]), initial=GREYBOX_RULE,
-        initial_one_step=GREYBOX_RULE, poles=_linearised_poles(model, sample_time), zeros=[],
+        names=list(model.inputs), output_name=str(model.outputs[k]), initial=rule,
+        initial_one_step=rule, poles=_linearised_poles(model, sample_time), zeros=[],
     )
 
 

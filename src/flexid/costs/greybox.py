@@ -38,8 +38,10 @@ def record_for(model: GreyBoxModel, data: Any, dt: float | None = None) -> tuple
     ----------
     model : GreyBoxModel
     data : IOData or (u, y)
-        An :class:`~flexid.data.IOData` is read by channel name (the model's ``inputs`` and
-        ``outputs``); a ``(u, y)`` pair by position.
+        An :class:`~flexid.data.IOData` is read by column name (the model's ``inputs`` and
+        ``outputs``, or the columns and unit factors of
+        :meth:`GreyBoxModel.reading <flexid.models.greybox.GreyBoxModel.reading>`); a
+        ``(u, y)`` pair by position, in the model's units.
     dt : float, optional
         Sample time [s] of a ``(u, y)`` pair (an IOData has its own).
 
@@ -59,18 +61,22 @@ def record_for(model: GreyBoxModel, data: Any, dt: float | None = None) -> tuple
 
     if isinstance(data, IOData):
         picked = []
-        for kind, wanted, have in (
-            ("input", model.inputs, data.input_names),
-            ("output", model.outputs, data.output_names),
+        for kind, wanted, have, values in (
+            ("input", model.inputs, data.input_names, data.u),
+            ("output", model.outputs, data.output_names, data.y),
         ):
-            missing = [name for name in wanted if name not in have]
+            columns = [model.column(name) for name in wanted]
+            missing = [column for column, _ in columns if column not in have]
             if missing:
                 raise DataError(
-                    f"grey-box model {model.name!r} reads {kind} channel(s) {missing}, which "
-                    f"the record does not have (its {kind}s: {list(have)})"
+                    f"grey-box model {model.name!r} reads {kind} column(s) {missing}, which "
+                    f"the record does not have (its {kind}s: {list(have)}); map the model's "
+                    f"channels {list(wanted)} to the record's columns with "
+                    "GreyBoxModel.reading (--channels)"
                 )
-            picked.append([list(have).index(name) for name in wanted])
-        u, y, dt = data.u[:, picked[0]], data.y[:, picked[1]], float(data.dt)
+            index = [list(have).index(column) for column, _ in columns]
+            picked.append(values[:, index] * np.array([f for _, f in columns]))
+        u, y, dt = picked[0], picked[1], float(data.dt)
     else:
         try:
             u, y = data

@@ -221,12 +221,24 @@ class GreyBoxModel:
         when flexid's compiled kernels run.
     description : str
         One paragraph for reports: what the model is and what it cannot separate.
+    columns : mapping, optional
+        The record's column each channel is read from and the factor that converts it to
+        the model's unit: ``{"pitch": ("y", pi / 180)}`` reads the model's ``pitch`` [rad]
+        as ``pi/180`` times the record's column ``y`` [deg] (see :meth:`reading`); a channel
+        not named is read from the column of its own name, unscaled.
 
     Raises
     ------
     ConfigError
         Repeated or empty names, parameters that are not :class:`GreyParameter`, an ``x0``
-        of the wrong length, a non-positive substep.
+        of the wrong length, a non-positive substep, a column given for a channel the model
+        does not read.
+
+    Notes
+    -----
+    **Initial state.**  A parameter named ``<state>_0`` (:meth:`with_initial_states`) is that
+    state's value at ``t = 0``: fixed, it sets the initial state; estimated, the state is
+    fitted with the physical parameters (MATLAB ``idnlgrey``'s free ``InitialStates``).
     """
 
     def __init__(
@@ -243,6 +255,7 @@ class GreyBoxModel:
         substep: float | None = None,
         compiled: Compiled | None = None,
         description: str = "",
+        columns: Mapping[str, Any] | None = None,
     ) -> None:
         if not callable(derivatives) or not callable(output):
             raise ConfigError(f"grey-box model {name!r}: derivatives and output must be callable")
@@ -272,12 +285,42 @@ class GreyBoxModel:
         self.substep = None if substep is None else float(substep)
         self.compiled = compiled
         self.description = description
+        self.columns = self._checked_columns(columns or {})
+        # (parameter index, state index) of every parameter that is an initial state
+        self._initial = [
+            (i, self.states.index(p.name[:-2]))
+            for i, p in enumerate(params)
+            if p.name.endswith("_0") and p.name[:-2] in self.states
+        ]
+
+    def _checked_columns(self, columns: Mapping[str, Any]) -> dict[str, tuple[str, float]]:
+        out = {}
+        for channel, spec in columns.items():
+            if channel not in self.inputs + self.outputs:
+                raise ConfigError(
+                    f"grey-box model {self.name!r} has no channel {channel!r} to read from a "
+                    f"column (its inputs {list(self.inputs)}, outputs {list(self.outputs)})"
+                )
+            column, factor = (spec, 1.0) if isinstance(spec, str) else tuple(spec)
+            factor = float(factor)
+            if not (math.isfinite(factor) and factor != 0.0):
+                raise ConfigError(
+                    f"grey-box model {self.name!r}: the factor converting column {column!r} to "
+                    f"channel {channel!r} must be finite and non-zero, got {factor!r}"
+                )
+            out[str(channel)] = (str(column), factor)
+        return out
 
     # ------------------------------------------------------------------ parameters
     @property
     def names(self) -> tuple[str, ...]:
         """Every parameter's name, in order."""
         return tuple(p.name for p in self.parameters)
+
+    @property
+    def estimated_initial_states(self) -> tuple[str, ...]:
+        """The states whose value at ``t = 0`` is estimated (a free ``<state>_0``)."""
+        return tuple(self.states[j] for i, j in self._initial if not self.parameters[i].fixed)
 
     @property
     def free(self) -> tuple[str, ...]:
@@ -368,6 +411,82 @@ class GreyBoxModel:
         """
         return self.with_parameters(**{n: {"fixed": not free} for n in names})
 
+    def reading(self, **columns: Any) -> GreyBoxModel:
+        """A copy that reads channels from the record's columns of other names and units.
+
+        Parameters
+        ----------
+        **columns
+            ``channel="column"`` or ``channel=("column", factor)``: the model's ``channel``
+            is ``factor`` times the record's ``column`` (e.g. ``pitch=("y", math.pi / 180)``
+            for a pitch logged in degrees).  Channels not named keep their reading.
+
+        Returns
+        -------
+        GreyBoxModel
+
+        Raises
+        ------
+        ConfigError
+            A channel the model does not read, a zero or non-finite factor.
+        """
+        return self._copy(columns={**self.columns, **columns})
+
+    def column(self, channel: str) -> tuple[str, float]:
+        """The record's column a channel is read from and the factor to the model's unit.
+
+        Parameters
+        ----------
+        channel : str
+            One of :attr:`inputs` or :attr:`outputs`.
+
+        Returns
+        -------
+        column : str
+        factor : float
+        """
+        return self.columns.get(channel, (channel, 1.0))
+
+    def with_initial_states(self, **states: Any) -> GreyBoxModel:
+        """A copy whose initial state is estimated (or set) for the named states.
+
+        Parameters
+        ----------
+        **states
+            ``state=(value, lower, upper)`` adds the estimated parameter ``<state>_0`` (the
+            state at ``t = 0``, the search starting at ``value``); ``state=value`` sets it,
+            fixed.  A state that already has one is changed.
+
+        Returns
+        -------
+        GreyBoxModel
+
+        Raises
+        ------
+        UnknownNameError
+            A state the model does not have.
+        ConfigError
+            Reversed bounds or a value outside them.
+        """
+        params = list(self.parameters)
+        names = [p.name for p in params]
+        for state, spec in states.items():
+            if state not in self.states:
+                raise UnknownNameError(f"state of grey-box model {self.name!r}", state, self.states)
+            if isinstance(spec, (int, float)):
+                new = GreyParameter(f"{state}_0", float(spec), fixed=True,
+                                    description=f"{state} at t = 0")  # fmt: skip
+            else:
+                value, lower, upper = spec
+                new = GreyParameter(f"{state}_0", value, lower, upper, scale="linear",
+                                    description=f"{state} at t = 0")  # fmt: skip
+            if new.name in names:
+                params[names.index(new.name)] = new
+            else:
+                params.append(new)
+                names.append(new.name)
+        return self._copy(parameters=params)
+
     def _copy(self, **changes: Any) -> GreyBoxModel:
         kwargs = {
             "states": self.states,
@@ -378,6 +497,7 @@ class GreyBoxModel:
             "substep": self.substep,
             "compiled": self.compiled,
             "description": self.description,
+            "columns": self.columns,
         }
         kwargs.update(changes)
         return GreyBoxModel(self.name, self.derivatives, self.output, **kwargs)
@@ -482,6 +602,7 @@ class GreyBoxModel:
             "states": list(self.states),
             "inputs": list(self.inputs),
             "outputs": list(self.outputs),
+            "columns": {k: {"column": c, "factor": f} for k, (c, f) in self.columns.items()},
             "parameters": {
                 p.name: {
                     "value": p.value,
@@ -608,7 +729,8 @@ class GreyBoxModel:
         dt : float
             Sample time [s].
         x0 : array_like, shape (n_x,) or (P, n_x), optional
-            Initial states; default the model's ``x0``.
+            Initial states; default the model's ``x0``.  The states with a ``<state>_0``
+            parameter start from its value in ``theta`` either way.
         reference : bool
             Use the NumPy route even where a compiled one exists.
 
@@ -634,6 +756,10 @@ class GreyBoxModel:
         n_sub = self.n_substeps(dt)
         x0 = self.x0 if x0 is None else np.asarray(x0, dtype=float)
         x0 = np.broadcast_to(x0, (theta.shape[0], len(self.states)))
+        if self._initial:
+            x0 = x0.copy()
+            for i_param, i_state in self._initial:
+                x0[:, i_state] = theta[:, i_param]
         from ..kernels import BACKEND
 
         route = self.compiled if (self.compiled and BACKEND == "c" and not reference) else None
