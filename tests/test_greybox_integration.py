@@ -150,7 +150,8 @@ def test_identify_fits_a_user_model_by_the_reference_and_by_an_optimiser(model_f
         ({"optimiser": "ls"}, ConfigError, "no least-squares estimate"),
         ({"na": 2}, ConfigError, "does not take na"),
         ({"predictor": "one-step"}, ConfigError, "no one-step predictor"),
-        ({"detrend": True}, ConfigError, "does not take detrend"),
+        ({"detrend": "quadratic"}, UnknownNameError, "quadratic"),
+        ({"initial": "zero"}, ConfigError, "initial must be .estimate."),
     ],
 )
 def test_identify_refuses_what_a_greybox_model_cannot_take(model_file, kwargs, error, match):
@@ -163,7 +164,7 @@ def test_identify_refuses_what_a_greybox_model_cannot_take(model_file, kwargs, e
 def test_identify_names_a_missing_channel(model_file):
     data = _record(model_file, n=60)
     wrong = flexid.IOData(data.u, data.y, dt=data.dt, input_names=["u"], output_names=["y"])
-    with pytest.raises(DataError, match=r"reads input channel\(s\) \['force'\]"):
+    with pytest.raises(DataError, match=r"reads input column\(s\) \['force'\]"):
         flexid.identify(wrong, structure=greybox_model(f"{model_file}:MODEL"))
 
 

@@ -22,7 +22,7 @@ from ._json import jsonable
 from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
 from .data import IOData, detrend_kind, load
 from .diagnostics import format_fit
-from .errors import ConfigError
+from .errors import ConfigError, DataError
 from .estimation import build_problem
 from .greybox_estimation import START_NAME
 from .models.greybox import GreyBoxModel
@@ -208,7 +208,16 @@ def _record(
     options = dict(load_options or {})
     options.setdefault("inputs", [model.column(name)[0] for name in model.inputs])
     options.setdefault("outputs", [model.column(name)[0] for name in model.outputs])
-    return load(data, **options)
+    try:
+        return load(data, **options)
+    except DataError as exc:
+        if "no column" not in str(exc):
+            raise
+        raise type(exc)(
+            f"{exc}; map the channels {list(model.inputs + model.outputs)} of grey-box model "
+            f"{model.name!r} to the record's columns with --channels CHANNEL=COLUMN[*FACTOR] "
+            "(GreyBoxModel.reading)"
+        ) from None
 
 
 def _detrended(est: IOData, val: IOData, kind: str, same: bool) -> tuple[IOData, IOData]:

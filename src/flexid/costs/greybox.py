@@ -22,6 +22,7 @@ import numpy as np
 from .._validate import real
 from ..config import CostSpec
 from ..errors import DataError, UnknownNameError
+from ..metrics import describe_cost
 from ..models.greybox import GreyBoxModel
 from ..optimisers import Problem
 from .arx import METRICS, metric_from_sse, population
@@ -258,16 +259,20 @@ class GreyBoxCost:
         return Problem(objective, lower, upper, name=name or model.name)
 
     def describe(self) -> str:
-        """One line: metric, model, record length.
+        """One line in plain words: the metric, what is squared, the record's length.
 
         Returns
         -------
         str
+            For example ``"root-mean-square simulation errors of grey-box model
+            twin-rotor-pitch (6 estimated parameters), over K = 982 samples"``.
         """
-        return (
-            f"{self.metric.upper()} of the simulation error of grey-box model "
-            f"{self.model.name} ({self.n_params} estimated parameters), K={self.K}"
+        scaled = " (each output's over its standard deviation)" if self.y.shape[1] > 1 else ""
+        errors = (
+            f"simulation errors{scaled} of grey-box model {self.model.name} "
+            f"({self.n_params} estimated parameters)"
         )
+        return describe_cost(self.metric, errors, self.K, self.weight)
 
     def __repr__(self) -> str:
         return f"GreyBoxCost({self.describe()})"
