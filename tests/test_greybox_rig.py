@@ -160,5 +160,6 @@ def test_command_line_maps_channels_in_one_option(tmp_path, capsys):
         assert main([*base, "--channels", bad]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], err
+    # compare runs on a plant's own record or a configuration's: it has no columns to map
     assert main(["compare", "--plant", "twin-rotor", "--channels", "a=b"]) == 2
     assert "--channels" in capsys.readouterr().err

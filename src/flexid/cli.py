@@ -427,9 +427,6 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     _check_positive(args.runs, "--runs")
     _check_positive(args.workers, "--workers")
     _check_run_timeout(args.run_timeout, "--run-timeout")
-    if args.channels:
-        raise ConfigError("--channels maps a record's columns to a grey-box model's channels: "
-                          "compare runs on a plant's own record (use identify or greybox)")
     orders = {
         "structure": args.structure, "na": args.na, "nb": _int_list(args.nb, "--nb"),
         "nc": args.nc, "nd": args.nd, "nf": _int_list(args.nf, "--nf"),
@@ -574,8 +571,9 @@ def _parameter_changes(args: argparse.Namespace) -> dict[str, dict[str, Any]]:
 def _greybox_from_args(args: argparse.Namespace, name: str | None) -> Any:
     """The grey-box model ``name`` with the command line's parameter changes, or None."""
     changes = _parameter_changes(args)
+    channels = getattr(args, "channels", None)
     if name is None:
-        if changes or args.channels:
+        if changes or channels:
             raise ConfigError("--set, --fix, --free and --channels are a grey-box model's: "
                               "give --structure greybox --greybox NAME")
         return None
@@ -583,7 +581,7 @@ def _greybox_from_args(args: argparse.Namespace, name: str | None) -> Any:
 
     model = greybox_model(name)
     model = model.with_parameters(**changes) if changes else model
-    columns = _channel_columns(args.channels)
+    columns = _channel_columns(channels)
     return model.reading(**columns) if columns else model
 
 
@@ -924,6 +922,17 @@ def _record_options(p: argparse.ArgumentParser, *, mat: bool = False) -> None:
     p.add_argument("--dt", type=float, help=_DT_HELP)
 
 
+def _channels_option(p: argparse.ArgumentParser) -> None:
+    """``--channels``: where a grey-box model reads its channels in a record file."""
+    p.add_argument(
+        "--channels",
+        metavar="CHANNEL=COLUMN[*FACTOR],..",
+        help="the record's column each grey-box channel is read from, and the factor to the "
+        "model's unit, e.g. main_rotor=u,pitch=y*0.0174533 (default: the columns named as "
+        "the model's channels, unscaled)",
+    )
+
+
 def _parameter_options(p: argparse.ArgumentParser) -> None:
     """``--set``, ``--fix`` and ``--free``: a grey-box model's parameters."""
     p.add_argument(
@@ -939,13 +948,6 @@ def _parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--free",
         help="grey-box parameters to estimate, comma-separated (default: the model's)",
-    )
-    p.add_argument(
-        "--channels",
-        metavar="CHANNEL=COLUMN[*FACTOR],..",
-        help="the record's column each grey-box channel is read from, and the factor to the "
-        "model's unit, e.g. main_rotor=u,pitch=y*0.0174533 (default: the columns named as "
-        "the model's channels, unscaled)",
     )
 
 
@@ -1022,6 +1024,7 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("identify", help="identify a polynomial model (ARX, ARMAX, OE, BJ)")
     i.add_argument("file", help="record: .csv, .npz, .dat or .mat")
     _structure_options(i, "default arx")
+    _channels_option(i)
     i.add_argument(
         "--optimiser",
         default=PREDICTION_ERROR,
@@ -1217,6 +1220,7 @@ def build_parser() -> argparse.ArgumentParser:
     gb.add_argument("--starts", type=int, default=3, help="random starts of pem (default 3)")
     gb.add_argument("--seed", type=int, default=0, help="seed of the starts or the run (default 0)")
     _parameter_options(gb)
+    _channels_option(gb)
     gb.add_argument("--json", action="store_true", help="machine-readable result")
     gb.add_argument("--no-progress", action="store_true", help="no progress bar")
     gb.add_argument("--split", type=_value, help="estimation share (default 2/3) or split index")

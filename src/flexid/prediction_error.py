@@ -94,11 +94,11 @@ Notes
   to ``1.1`` times the best of the runs before it (where it would be continued; a run within
   that may be crawling towards a better minimum: on the dryer, OE(8,8,3) from a random start
   at 1.01 times the best reaches 0.81 times it in 1,700 more evaluations).  On the CD player
-  arm's first output (two inputs, 1,365 samples), OE([8,8],[8,8],[1,1]) spent 6,400 of its 7,200 evaluations on two such crawls
-  ending 40 % above the best, and OE([3,3],[3,3],[1,1]) 29,000 of 33,000 on continued runs
-  that gained 1 %.  The structured starts are never abandoned for crawling: the slow valley
-  of the twin rotor's OE(5,5,1) gains 0.5 % in its first 1,000 continued evaluations and
-  15 % in the next 900.
+  arm's first output (two inputs, 1,365 samples), OE([8,8],[8,8],[1,1]) spent 6,400 of its
+  7,200 evaluations on two such crawls ending 40 % above the best, and OE([3,3],[3,3],[1,1])
+  29,000 of 33,000 on continued runs that gained 1 %.  The structured starts are never
+  abandoned for crawling: the slow valley of the twin rotor's OE(5,5,1) gains 0.5 % in its
+  first 1,000 continued evaluations and 15 % in the next 900.
 """
 
 from __future__ import annotations
