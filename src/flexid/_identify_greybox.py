@@ -15,12 +15,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-import numpy as np
-
 from ._identification import Identification, _indent, data_info, timings
 from ._json import jsonable
 from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
-from .data import IOData, detrend_kind, load
+from .data import IOData, detrend_kind, detrend_pair, load
 from .diagnostics import format_fit
 from .errors import ConfigError, DataError
 from .estimation import build_problem
@@ -220,33 +218,14 @@ def _record(
         ) from None
 
 
-def _detrended(est: IOData, val: IOData, kind: str, same: bool) -> tuple[IOData, IOData]:
-    """The estimation record and the validation one less the estimation record's means
-    (``"constant"``) or least-squares lines (``"linear"``, extended over ``val`` when it is
-    the whole record the estimation part begins, ``same``; else ``val`` loses its own)."""
-    n = est.n_samples
-    if kind == "constant":
-        u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
-        return est.replace(u=est.u - u0, y=est.y - y0), val.replace(u=val.u - u0, y=val.y - y0)
-    def design(count: int) -> np.ndarray:
-        return np.column_stack([np.ones(count), np.arange(count, dtype=float)])
-
-    lines = {k: np.linalg.lstsq(design(n), getattr(est, k), rcond=None)[0] for k in ("u", "y")}
-    est = est.replace(**{k: getattr(est, k) - design(n) @ lines[k] for k in lines})
-    if not same:
-        return est, val.detrend("linear")
-    m = val.n_samples
-    return est, val.replace(**{k: getattr(val, k) - design(m) @ lines[k] for k in lines})
-
-
 def _initial_state_on(fitted: GreyBoxModel, record: IOData) -> GreyBoxModel:
     """``fitted`` with its estimated initial states refitted on another record (its
     physical parameters held): a separate validation record starts from its own state, as
     MATLAB ``compare`` estimates it."""
     from .greybox_fit import greyest
 
-    states = set(fitted.estimated_initial_states)
-    held = fitted.fixing(*(n for n in fitted.free if n[:-2] not in states or n[-2:] != "_0"))
+    initial = {f"{state}_0" for state in fitted.estimated_initial_states}
+    held = fitted.fixing(*(name for name in fitted.free if name not in initial))
     start = _estimated_initial_state(held, record)
     return greyest(record, start, starts=0).model
 
@@ -313,7 +292,8 @@ def identify_greybox(
         val_record, val_split = record, split
     kind = detrend_kind(detrend)
     if kind is not None:
-        est, val_record = _detrended(est, val_record, kind, val_split is not None)
+        # a held-out part is validated by running on from the record's start (shift 0)
+        est, val_record = detrend_pair(est, val_record, kind, 0 if val_split is not None else None)
     if initial not in (None, "auto", "model", "estimate"):
         raise ConfigError(
             f"grey-box model {model.name!r}: initial must be 'estimate' (the initial values "

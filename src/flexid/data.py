@@ -64,6 +64,7 @@ __all__ = [
     "OFFSET_RATIO",
     "IOData",
     "detrend_kind",
+    "detrend_pair",
     "load",
     "prepare_data",
     "save",
@@ -1094,34 +1095,53 @@ def prepare_data(
     else:
         est, val = split_parts(data, split)
     kind = detrend_kind(detrend)
-    if kind == "constant":
-        u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
-        info = {
-            "kind": "constant",
-            "u_mean": u0.tolist(),
-            "y_mean": y0.tolist(),
-            "from": "estimation",
-        }
-        est = est.replace(u=est.u - u0, y=est.y - y0, metadata={**est.metadata, "detrend": info})
-        val = val.replace(u=val.u - u0, y=val.y - y0, metadata={**val.metadata, "detrend": info})
-    elif kind == "linear":
-        n_est = est.n_samples
+    if kind is not None:
         # a split record's validation part: its samples' place after the estimation start
-        shift = val.metadata.get("split", {}).get("start", n_est) - est.metadata.get(
-            "split", {}).get("start", 0)
-        lines = {k: _line(getattr(est, k)) for k in ("u", "y")}
-        info = {"kind": "linear", "from": "estimation",
-                **{f"{k}_line": [c.tolist() for c in v] for k, v in lines.items()}}  # fmt: skip
-        est = est.replace(**{k: getattr(est, k) - _line_values(lines[k], 0, n_est)
-                             for k in ("u", "y")}, metadata={**est.metadata, "detrend": info})
-        if validation is None:  # the same line, extended over the held-out samples
-            val = val.replace(**{k: getattr(val, k) - _line_values(lines[k], shift,
-                                                                   val.n_samples)
-                                 for k in ("u", "y")}, metadata={**val.metadata, "detrend": info})
-        else:
-            val = val.detrend("linear")
+        shift = None if validation is not None else val.metadata.get("split", {}).get(
+            "start", est.n_samples) - est.metadata.get("split", {}).get("start", 0)
+        est, val = detrend_pair(est, val, kind, shift)
     else:
         _warn_offsets(est)
+    return est, val
+
+
+def detrend_pair(
+    est: IOData, val: IOData, kind: str, shift: int | None
+) -> tuple[IOData, IOData]:
+    """An estimation record and its validation record less the estimation record's offsets.
+
+    Parameters
+    ----------
+    est, val : IOData
+        The estimation and validation records.
+    kind : {"constant", "linear"}
+        Remove the estimation record's means, or its least-squares line per channel.
+    shift : int or None
+        Where ``val``'s first sample lies after ``est``'s first (``0`` when ``val`` is the
+        whole record ``est`` begins, ``est.n_samples`` for the part after it): the line is
+        extended there.  None: ``val`` is another experiment and loses its own line.
+
+    Returns
+    -------
+    est, val : IOData
+        Detrended, each with ``metadata["detrend"]`` saying what was removed.
+    """
+    if kind == "constant":
+        u0, y0 = est.u.mean(axis=0), est.y.mean(axis=0)
+        info = {"kind": "constant", "u_mean": u0.tolist(), "y_mean": y0.tolist(),
+                "from": "estimation"}  # fmt: skip
+        est = est.replace(u=est.u - u0, y=est.y - y0, metadata={**est.metadata, "detrend": info})
+        val = val.replace(u=val.u - u0, y=val.y - y0, metadata={**val.metadata, "detrend": info})
+        return est, val
+    lines = {k: _line(getattr(est, k)) for k in ("u", "y")}
+    info = {"kind": "linear", "from": "estimation",
+            **{f"{k}_line": [c.tolist() for c in v] for k, v in lines.items()}}  # fmt: skip
+    est = est.replace(**{k: getattr(est, k) - _line_values(lines[k], 0, est.n_samples)
+                         for k in lines}, metadata={**est.metadata, "detrend": info})  # fmt: skip
+    if shift is None:
+        return est, val.detrend("linear")
+    val = val.replace(**{k: getattr(val, k) - _line_values(lines[k], shift, val.n_samples)
+                         for k in lines}, metadata={**val.metadata, "detrend": info})  # fmt: skip
     return est, val
 
 

@@ -757,9 +757,9 @@ class GreyBoxModel:
         x0 = self.x0 if x0 is None else np.asarray(x0, dtype=float)
         x0 = np.broadcast_to(x0, (theta.shape[0], len(self.states)))
         if self._initial:
+            params, states = (list(index) for index in zip(*self._initial))
             x0 = x0.copy()
-            for i_param, i_state in self._initial:
-                x0[:, i_state] = theta[:, i_param]
+            x0[:, states] = theta[:, params]
         from ..kernels import BACKEND
 
         route = self.compiled if (self.compiled and BACKEND == "c" and not reference) else None
