@@ -263,10 +263,11 @@ def xcorr(a: Any, b: Any, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
     max_lag = integer(
         max_lag, f"max_lag for {n} samples", error=DataError, minimum=0, maximum=n - 1
     )
-    # the coefficients do not depend on the signals' scale: each is scaled to a peak of 1
-    # first, so that a diverging residual (1e200, say) cannot overflow the sums to inf and
-    # every coefficient to 0 (which would pass every test)
-    a, b = (x / peak if (peak := float(np.max(np.abs(x)))) > 0 else x for x in (a, b))
+    # the coefficients do not depend on the signals' scale: each is scaled to a peak in
+    # [0.5, 1) first, so that a diverging residual (1e200, say) cannot overflow the sums to
+    # inf and every coefficient to 0 (which would pass every test); by a power of two, which
+    # is exact, since a rounding here would be amplified by the centring that follows
+    a, b = (np.ldexp(x, -math.frexp(float(np.max(np.abs(x))))[1]) for x in (a, b))
     a = a - a.mean()
     b = b - b.mean()
     lags = np.arange(-max_lag, max_lag + 1)
