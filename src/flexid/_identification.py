@@ -7,7 +7,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -68,6 +68,9 @@ class Identification:
         The final model's cost as the search computed it (the fast direct form), where it
         disagreed with ``cost_value`` (the model run in a well-conditioned realisation) by
         more than :data:`flexid._identify.RESCORE_BOUND`; None where they agree.
+    estimation_records : tuple of ValidationReport
+        With several estimation records, the validation on each (``estimation`` is the
+        first); empty with one.
     """
 
     model: ARX
@@ -86,6 +89,7 @@ class Identification:
     search: dict = field(default_factory=dict)
     output_error: Any = None
     cost_search: float | None = None
+    estimation_records: tuple = ()
 
     @property
     def history(self) -> History | None:
@@ -233,8 +237,11 @@ class Identification:
         lines.append("")
         lines.append(self.model.summary())
         lines.append("")
-        lines.append("Estimation record")
-        lines.append(_indent(self.estimation.summary()))
+        estimation = self.estimation_records or (self.estimation,)
+        for i, report in enumerate(estimation):
+            several = f" {i + 1} of {len(estimation)}" if len(estimation) > 1 else ""
+            lines.append(f"Estimation record{several}")
+            lines.append(_indent(report.summary()))
         lines.append("Validation record (held out)")
         lines.append(_indent(self.validation.summary()))
         advice = self.advice()
@@ -296,6 +303,8 @@ class Identification:
                 },
                 "model": m.to_dict(),
                 "estimation": self.estimation.to_dict(),
+                **({"estimation_records": [r.to_dict() for r in self.estimation_records]}
+                   if self.estimation_records else {}),
                 "validation": self.validation.to_dict(),
                 "timings": {k: round(v, 6) for k, v in self.timings.items()},
                 "data": self.data_info,
@@ -371,19 +380,24 @@ def timings(t_start: float, t_opt: float, t_val: float, t_end: float) -> dict[st
 
 
 def data_info(
-    est: IOData, n_validation: int, inputs: list[str], outputs: list[str], unit: str,
-    metadata: Mapping[str, Any],
+    est: IOData | Sequence[IOData], n_validation: int, inputs: list[str], outputs: list[str],
+    unit: str, metadata: Mapping[str, Any],
 ) -> dict[str, Any]:
     """What an identification says of its records (:attr:`Identification.data_info`)."""
+    records = tuple(est) if isinstance(est, (list, tuple)) else (est,)
     assumed = bool(metadata.get("dt_assumed"))  # no time column, no dt given
     named = f"output {outputs[0]!r}" if len(outputs) == 1 else f"outputs {outputs}"
-    return {
+    n_est = sum(r.n_samples for r in records)
+    counts = (f" ({' + '.join(str(r.n_samples) for r in records)} in {len(records)} records)"
+              if len(records) > 1 else "")  # fmt: skip
+    est = records[0]
+    out = {
         "description": (
-            f"{est.n_samples} estimation + {n_validation} validation samples, dt {est.dt:g} s"
+            f"{n_est} estimation{counts} + {n_validation} validation samples, dt {est.dt:g} s"
             f"{' (ASSUMED: the record has no time column; give --dt or dt=)' if assumed else ''}"
             f", inputs {inputs}, {named}"
         ),
-        "n_estimation": est.n_samples,
+        "n_estimation": n_est,
         "n_validation": n_validation,
         "dt": est.dt,
         "inputs": inputs,
@@ -391,3 +405,8 @@ def data_info(
         "output_unit": unit,
         "source": metadata.get("source") or metadata.get("plant"),
     }
+    if len(records) > 1:
+        out["estimation_records"] = [
+            {"n_samples": r.n_samples, "source": r.metadata.get("source")} for r in records
+        ]
+    return out

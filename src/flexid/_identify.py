@@ -30,7 +30,7 @@ from .config import (
     CostSpec,
     SearchSpec,
 )
-from .data import IOData, prepare_data
+from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
 from .errors import BudgetError, ConfigError
 from .estimation import build_problem, greybox_of, structure_of
@@ -83,9 +83,12 @@ def identify(
 
     Parameters
     ----------
-    data : IOData or path
+    data : IOData or path, or a list of them
         The record (CSV, NPZ, ``.dat`` or MATLAB ``.mat`` when a path; see
-        :func:`flexid.data.load`).
+        :func:`flexid.data.load`).  A list: several estimation records of one system (MATLAB
+        ``merge``), fitted together, each with its own initial state; then ``validation``
+        is required, ``split`` is not taken, and an ARX structure is read as a polynomial
+        one (:func:`flexid.data.prepare_data`).
     na, nb, nk : int
         Orders and delay in MATLAB's convention.  Without ``structure`` they are the ARX
         model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` (``nb`` defaults to ``na``, ``nk`` to 1;
@@ -202,6 +205,11 @@ def identify(
             "penalty_kind": penalty_kind, "init": init, "numerator": numerator,
             "search": search,
         }
+        if is_records(data):
+            raise ConfigError(
+                f"grey-box model {model_gb.name!r}: several estimation records are not "
+                "supported (its states run on from one record's start); estimate on one"
+            )
         extra = sorted(k for k, v in given.items() if v is not None)
         if extra:
             raise ConfigError(
@@ -222,17 +230,22 @@ def identify(
         detrend=detrend,
         load_options=load_options,
     )
+    records = est if isinstance(est, tuple) else (est,)
+    first = records[0]
     delay_text = None
     if isinstance(nk, str):
         if nk != "auto":
             raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
-        found = estimate_delay(est)
-        nk = list(found.nk) if est.n_inputs > 1 else found.nk[0]
+        found = estimate_delay(first if len(records) == 1 else joined(records))
+        nk = list(found.nk) if first.n_inputs > 1 else found.nk[0]
         delay_text = found.describe()
-    structure = structure_of(structure, est.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
+    structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
+    if len(records) > 1 and not isinstance(structure, PolynomialStructure):
+        # one cost over several records is the polynomial family's (ARX read as one of it)
+        structure = PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
     polynomial = isinstance(structure, PolynomialStructure)
-    structure.check_samples(est.n_samples)
-    structure.check_samples(val.n_samples)
+    for record in (*records, val):
+        structure.check_samples(record.n_samples)
     given = {
         "parametrisation": parametrisation,
         "penalty": penalty_kind,
@@ -262,17 +275,19 @@ def identify(
 
     t_opt = time.perf_counter()
     model, result, used_params, used_seed, cost_value, oe = _search(
-        estimation, structure, est, optimiser, predictor, budget, seed, params, callback
+        estimation, structure, first, optimiser, predictor, budget, seed, params, callback
     )
-    model = model.named(est.input_names, est.output_names[0])
+    model = model.named(first.input_names, first.output_names[0])
     cost_value, cost_search = rescored(objective, model, cost_value)
     t_val = time.perf_counter()
-    report_est = validate(model, est, max_lag=max_lag, initial=validate_initial)
+    reports = tuple(
+        validate(model, r, max_lag=max_lag, initial=validate_initial) for r in records
+    )
     report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
     t_end = time.perf_counter()
     info = data_info(
-        est, val.n_samples, list(est.input_names), [est.output_names[0]],
-        est.output_units[0], est.metadata,
+        records, val.n_samples, list(first.input_names), [first.output_names[0]],
+        first.output_units[0], first.metadata,
     )
     if delay_text is not None:
         info["delay"] = delay_text
@@ -286,8 +301,9 @@ def identify(
         cost_ls=cost_ls,
         box=box,
         result=result,
-        estimation=report_est,
+        estimation=reports[0],
         validation=report_val,
+        estimation_records=reports if len(reports) > 1 else (),
         seed=used_seed,
         search={**estimation.to_dict(), "description": estimation.describe()},
         output_error=oe,

@@ -306,8 +306,9 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if args.dt is not None:
         load_options["dt"] = args.dt
     if args.variable is not None:
-        if Path(args.file).suffix.lower() != ".mat":
-            raise ConfigError(f"--variable is for MATLAB .mat files, not {args.file!r}")
+        for file in args.file:
+            if Path(file).suffix.lower() != ".mat":
+                raise ConfigError(f"--variable is for MATLAB .mat files, not {file!r}")
         load_options["variable"] = args.variable
     split = _split(args.split)
     budget: Any = args.budget
@@ -315,7 +316,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         budget = {"max_fe": args.budget, "max_iter": args.iterations}
     model = _greybox_from_args(args, _greybox_name(args))
     ident = identify(
-        args.file,
+        args.file[0] if len(args.file) == 1 else args.file,
         args.na,
         _int_list(args.nb, "--nb"),
         _delays(args.nk, "--nk") if args.nk is not None else None,
@@ -1022,7 +1023,11 @@ def build_parser() -> argparse.ArgumentParser:
     g.set_defaults(func=_cmd_generate)
 
     i = sub.add_parser("identify", help="identify a polynomial model (ARX, ARMAX, OE, BJ)")
-    i.add_argument("file", help="record: .csv, .npz, .dat or .mat")
+    i.add_argument(
+        "file", nargs="+",
+        help="record: .csv, .npz, .dat or .mat; several: estimation records of one system, "
+        "fitted together, each with its own initial state (then --validation FILE is needed)",
+    )
     _structure_options(i, "default arx")
     _channels_option(i)
     i.add_argument(

@@ -65,6 +65,8 @@ __all__ = [
     "IOData",
     "detrend_kind",
     "detrend_pair",
+    "is_records",
+    "joined",
     "load",
     "prepare_data",
     "save",
@@ -1043,8 +1045,9 @@ def prepare_data(
 
     Parameters
     ----------
-    data : IOData or path
-        The record; a path is read with :func:`flexid.data.load`.
+    data : IOData, path, or list of them
+        The record; a path is read with :func:`flexid.data.load`.  A list (or tuple) of
+        records: several estimation records (see Notes).
     output : str or int, optional
         The output channel to model when the record has several.
     split : float, int, str or pair of ranges, optional
@@ -1067,15 +1070,29 @@ def prepare_data(
 
     Returns
     -------
-    est, val : IOData
-        The estimation and validation records, one output each.
+    est : IOData or tuple of IOData
+        The estimation record, one output; a tuple of them when ``data`` is several records.
+    val : IOData
+        The validation record, one output.
 
     Raises
     ------
     DataError
-        A record with several outputs and no ``output`` chosen.
+        A record with several outputs and no ``output`` chosen; several records whose
+        channels or sample times differ, or without a ``validation`` record.
+
+    Notes
+    -----
+    Several estimation records (a list of records or paths, MATLAB's ``merge``) are
+    separate experiments of one system: a model is fitted to all of them at once, each with
+    its own initial state.  They need a separate ``validation`` record (none is split off)
+    and the same channels and sample time.  ``detrend="constant"`` removes the means of all
+    the estimation samples together (one operating point, which the model describes) from
+    every record; ``"linear"`` removes each record's own least-squares line.
     """
     options = dict(load_options or {})
+    if is_records(data):
+        return _prepare_records(data, output, split, validation, detrend, options)
     if not isinstance(data, IOData):
         data = load(data, **options)
     if output is not None:
@@ -1103,6 +1120,96 @@ def prepare_data(
     else:
         _warn_offsets(est)
     return est, val
+
+
+def is_records(data: Any) -> bool:
+    """Whether ``data`` is several records (a list or tuple of records or paths).
+
+    A tuple of two arrays ``(u, y)`` is one record, not two.
+
+    Parameters
+    ----------
+    data : any
+
+    Returns
+    -------
+    bool
+    """
+    if not isinstance(data, (list, tuple)) or not data:
+        return False
+    return all(isinstance(d, (IOData, str, os.PathLike)) for d in data)
+
+
+def joined(records: Sequence[IOData]) -> IOData:
+    """Several records one after another, as one (for what reads one record: checks, delay
+    estimates); the first record's names, units, sample time and metadata.
+
+    Parameters
+    ----------
+    records : sequence of IOData
+        With the same channels.
+
+    Returns
+    -------
+    IOData
+    """
+    first = records[0]
+    return first.replace(u=np.vstack([r.u for r in records]),
+                         y=np.vstack([r.y for r in records]))  # fmt: skip
+
+
+def _prepare_records(
+    data: Sequence[Any], output: Any, split: Any, validation: Any, detrend: Any,
+    options: dict[str, Any],
+) -> tuple[tuple[IOData, ...], IOData]:
+    """:func:`prepare_data` of several estimation records."""
+    if validation is None:
+        raise DataError(
+            f"{len(data)} estimation records need a separate validation record "
+            "(validation=... / --validation FILE): none is split off"
+        )
+    if split is not None:
+        raise DataError(
+            "split with several estimation records: cut each record before (record[a:b]); "
+            "the validation record is separate"
+        )
+    records = [d if isinstance(d, IOData) else load(d, **options) for d in data]
+    val = validation if isinstance(validation, IOData) else load(validation, **options)
+    if output is not None:
+        records = [r.select(outputs=[output]) for r in records]
+        val = val.select(outputs=[output])
+    first = records[0]
+    for i, r in enumerate([*records, val]):
+        what = "the validation record" if i == len(records) else f"estimation record {i}"
+        if r.n_outputs != 1:
+            raise DataError(
+                f"{what} has {r.n_outputs} outputs {list(r.output_names)}; the models here "
+                "have one output: choose it (output=... or --output NAME)"
+            )
+        if r.n_inputs != first.n_inputs:
+            raise DataError(
+                f"{what} has {r.n_inputs} input(s), estimation record 0 has {first.n_inputs}"
+            )
+        if not np.isclose(r.dt, first.dt, rtol=1e-9, atol=0.0):
+            raise DataError(
+                f"{what} is sampled every {r.dt:g} s, estimation record 0 every {first.dt:g} s"
+            )
+    kind = detrend_kind(detrend)
+    if kind == "constant":
+        u0 = np.concatenate([r.u for r in records]).mean(axis=0)
+        y0 = np.concatenate([r.y for r in records]).mean(axis=0)
+        info = {"kind": "constant", "u_mean": u0.tolist(), "y_mean": y0.tolist(),
+                "from": f"{len(records)} estimation records"}  # fmt: skip
+        records = [r.replace(u=r.u - u0, y=r.y - y0, metadata={**r.metadata, "detrend": info})
+                   for r in [*records, val]]  # fmt: skip
+        val = records.pop()
+    elif kind == "linear":
+        records = [r.detrend("linear") for r in records]
+        val = val.detrend("linear")
+    else:
+        for r in records:
+            _warn_offsets(r)
+    return tuple(records), val
 
 
 def detrend_pair(

@@ -22,7 +22,7 @@ from scipy import linalg
 from ._validate import checked_keywords, is_integer, positive_real
 from .config import REFERENCE_STARTS, CostSpec, SearchSpec, auto_initial
 from .costs.arx import ARXCost
-from .data import IOData
+from .data import IOData, joined
 from .errors import (
     ConfigError,
     DataError,
@@ -734,8 +734,11 @@ def build_problem(
 
     Parameters
     ----------
-    est : IOData
-        Estimation record (one output).
+    est : IOData or sequence of IOData
+        Estimation record (one output), or several records of one system: one cost over
+        them all, each record with its own initial state
+        (:class:`~flexid.costs.experiments.MultiExperimentCost`; an ARX structure is then
+        read as a polynomial one).
     structure : ARXStructure, PolynomialStructure or GreyBoxModel
         Model orders (see :func:`model_structure`), or a grey-box model (then see
         :func:`flexid.greybox_estimation.build_greybox_problem`).
@@ -765,18 +768,28 @@ def build_problem(
         When they barely are (:func:`check_excitation`).
     """
     check_search(search)
+    several = isinstance(est, (list, tuple))
     if isinstance(structure, GreyBoxModel):
+        if several:
+            raise ConfigError(
+                f"grey-box model {structure.name!r}: several estimation records are not "
+                "supported; estimate on one"
+            )
         from .greybox_estimation import build_greybox_problem
 
         return build_greybox_problem(est, structure, cost, search, bounds=bounds)
     # before any fit: a problem without a unique answer gets an error, not a huge model
-    check_excitation(est, structure)
+    # (several records: on them joined, whose junctions add a few rows to a rank test)
+    check_excitation(joined(est) if several else est, structure)
     cost = replace(cost, initial=resolve_initial(cost.initial, structure))
-    if cost.initial == "estimate" and not isinstance(structure, PolynomialStructure):
-        # ARXCost has no estimated initial state; the polynomial cost covers ARX as well
+    if (cost.initial == "estimate" or several) and not isinstance(
+        structure, PolynomialStructure
+    ):
+        # ARXCost has neither an estimated initial state nor several records; the polynomial
+        # cost covers ARX as well
         structure = PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
     if isinstance(structure, PolynomialStructure):
-        if structure.kind != "arx" or cost.initial == "estimate":
+        if structure.kind != "arx" or cost.initial == "estimate" or several:
             return _build_polynomial(est, structure, cost, search, bounds=bounds)
         structure = structure.arx_structure()
     try:
@@ -960,10 +973,8 @@ class PolynomialEstimationProblem(EstimationProblem):
             from .prediction_error import pem
 
             cost = self.cost
-            ref = pem(
-                (cost.u, cost.y), self.structure, initial=cost.initial, starts=starts,
-                seed=seed,
-            )
+            data = list(cost.records) if len(cost.records) > 1 else cost.records[0]
+            ref = pem(data, self.structure, initial=cost.initial, starts=starts, seed=seed)
             ref.cost = float(cost(ref.theta)[0])
             self._oe = ((starts, seed), ref)
         return self._oe[1]
@@ -998,10 +1009,10 @@ def _build_polynomial(
     bounds: Any = "auto",
 ) -> PolynomialEstimationProblem:
     """:func:`build_problem` for a structure other than ARX."""
-    from .costs.polynomial import PolynomialCost
+    from .costs.experiments import polynomial_cost
     from .polynomial_space import PolynomialSpace
 
-    objective = PolynomialCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
+    objective = polynomial_cost(structure, est, **asdict(cost), penalty_kind=search.penalty)
     b_ls = np.nan_to_num(objective.theta_ls[structure.b_columns])
     if isinstance(bounds, str) and bounds == "auto":
         half = _round_up(2.0 * float(np.max(np.abs(b_ls)))) if b_ls.size else 1.0

@@ -517,6 +517,10 @@ class _Problem:
     def refit_b(self, theta: np.ndarray) -> np.ndarray:
         """``theta`` with ``B`` the least-squares optimum of the from-rest error given the
         other polynomials (``e = D A/C y - sum_j B_j D/(C F_j) u_j`` is linear in ``B``)."""
+        return _with_b(self, theta, *self.b_system(theta))
+
+    def b_system(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The regressors (K, sum nb) and target (K,) of ``B`` in :meth:`refit_b`."""
         s, st = self.s, self.start
         a, _, c, d, f = self.parts(theta)
         target = _iir(np.convolve(d, a), c, self.y)[st:]
@@ -524,21 +528,55 @@ class _Problem:
         for j, (nb, nk) in enumerate(zip(s.nb, s.nk)):
             g = _iir(d, np.convolve(c, f[j]), self.u[:, j])
             cols.append(_lagged(g, nk, nk + nb - 1, st))
-        sol = _lstsq(np.hstack(cols), target)
-        out = theta.copy()
-        if sol is not None:
-            i = 0
-            for sl in self.sl["b"]:
-                k = sl.stop - sl.start
-                out[sl] = sol[i : i + k]
-                i += k
-        return out
+        return np.hstack(cols), target
 
     def plant_residual(self, theta: np.ndarray) -> np.ndarray:
         """``v = A y - sum_j B_j/F_j u_j`` over ``t >= start`` (from rest)."""
         a, b, _, _, f = self.parts(theta)
         w = [_iir(b[j], f[j], self.u[:, j]) for j in range(self.m)]
         return (_fir(a, self.y) - np.sum(w, axis=0))[self.start :]
+
+
+def _with_b(prob: Any, theta: np.ndarray, phi: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``theta`` with ``B`` the least-squares solution of ``phi b = target`` (unchanged when
+    that breaks down)."""
+    sol = _lstsq(phi, target)
+    out = theta.copy()
+    if sol is not None:
+        i = 0
+        for sl in prob.sl["b"]:
+            k = sl.stop - sl.start
+            out[sl] = sol[i : i + k]
+            i += k
+    return out
+
+
+class _Problems:
+    """Prediction errors and Jacobians of one structure on several records (experiments):
+    each record's errors, under its own initial state, one after another."""
+
+    def __init__(self, s: PolynomialStructure, records: list, initial: str):
+        self.each = [_Problem(s, u, y, initial) for u, y in records]
+        first = self.each[0]
+        self.s, self.initial, self.start, self.m = s, initial, first.start, first.m
+        self.sl, self.n, self.rooted = first.sl, first.n, first.rooted
+        self.K = sum(p.K for p in self.each)
+        self.energy = sum(p.energy for p in self.each)
+        self.nfev = 0
+        self.njev = 0
+        # the constraints and polynomials depend on theta only
+        self.parts, self.admissible = first.parts, first.admissible
+        self.max_radius, self.predictor_ok = first.max_radius, first.predictor_ok
+
+    def errors(self, theta: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        found = [p.errors(theta, jac) for p in self.each]
+        e = np.concatenate([f[0] for f in found])
+        return e, (np.vstack([f[1] for f in found]) if jac else None)
+
+    def refit_b(self, theta: np.ndarray) -> np.ndarray:
+        systems = [p.b_system(theta) for p in self.each]
+        phi = np.vstack([sys[0] for sys in systems])
+        return _with_b(self, theta, phi, np.concatenate([sys[1] for sys in systems]))
 
 
 # =================================================================================== starts
@@ -737,11 +775,12 @@ def _plant_starts(prob: _Problem) -> list[tuple[str, np.ndarray]]:
 
 
 def _output_error_plant(
-    prob: _Problem, s: PolynomialStructure, u: np.ndarray, y: np.ndarray, initial: str, tol: float
+    prob: _Problem, s: PolynomialStructure, data: Any, initial: str, tol: float
 ) -> np.ndarray:
-    """``theta`` with ``B`` and the ``F_j`` of the output-error fit of ``s``'s plant."""
+    """``theta`` with ``B`` and the ``F_j`` of the output-error fit of ``s``'s plant on
+    ``data`` (a ``(u, y)`` pair or a list of them)."""
     plant = PolynomialStructure.oe(s.nb, s.nf, s.nk)
-    fit = pem((u, y), plant, initial=initial, starts=0, tol=tol)
+    fit = pem(data, plant, initial=initial, starts=0, tol=tol)
     prob.nfev += fit.nfev  # the reference's cost counts every evaluation it made
     prob.njev += fit.njev
     sl = plant.slices()
@@ -935,7 +974,20 @@ def _data(data: Any, s: PolynomialStructure) -> tuple[np.ndarray, np.ndarray, fl
     if isinstance(data, tuple) and len(data) == 2:
         u, y = _signals(s, *data)
         return u, y, 1.0
-    raise DataError(f"data must be an IOData or a (u, y) tuple, got {type(data).__name__}")
+    raise DataError(
+        f"data must be an IOData, a (u, y) tuple or a list of them, got {type(data).__name__}"
+    )
+
+
+def _records(data: Any, s: PolynomialStructure) -> tuple[list, float]:
+    """The ``(u, y)`` arrays of one record or of a list of them, and the sample time."""
+    if not isinstance(data, list):
+        u, y, dt = _data(data, s)
+        return [(u, y)], dt
+    if not data:
+        raise DataError("data is an empty list of records")
+    found = [_data(d, s) for d in data]
+    return [(u, y) for u, y, _ in found], found[0][2]
 
 
 def _theta(theta: Any, s: PolynomialStructure, what: str) -> np.ndarray:
@@ -1061,9 +1113,11 @@ def pem(
 
     Parameters
     ----------
-    data : IOData or tuple of (u, y)
+    data : IOData, tuple of (u, y), or list of them
         Single-output record: ``u`` shape (N,) or (N, n_u), ``y`` shape (N,); an IOData's
-        ``dt`` (s) goes to the model (1.0 for a tuple).
+        ``dt`` (s) goes to the model (1.0 for a tuple).  A list: several records of one
+        system (experiments), whose errors are minimised together, each record under its
+        own initial state; the starts are fitted on the records joined end to end.
     structure : PolynomialStructure
         From :func:`flexid.models.polynomial.structure` (an
         :class:`~flexid.models.arx.ARXStructure` is accepted too).
@@ -1110,12 +1164,21 @@ def pem(
     r_max = real(r_max, "r_max", error=ConfigError, minimum=0, maximum=1, low_open=True)
     max_nfev = integer(max_nfev, "max_nfev", error=ConfigError, minimum=1, none_ok=True)
     tol = real(tol, "tol", error=ConfigError, minimum=0, maximum=1, low_open=True, high_open=True)
-    u, y, dt = _data(data, s)
+    records, dt = _records(data, s)
     x0 = None if x0 is None else _theta(x0, s, "x0")
     rng = np.random.default_rng(seed)
-    prob = _Problem(s, u, y, initial)
-
-    start_list = _starts(prob, u, y, initial, tol, starts, rng, r_max, x0)
+    if len(records) == 1:
+        prob = first = _Problem(s, *records[0], initial)
+    else:
+        # the starts are fitted on the records joined end to end: the junctions perturb a
+        # start, not the minimum Levenberg-Marquardt then finds on the records apart
+        prob = _Problems(s, records, initial)
+        first = _Problem(s, np.vstack([r[0] for r in records]),
+                         np.concatenate([r[1] for r in records]), initial)  # fmt: skip
+    start_list = _starts(first, records if len(records) > 1 else records[0], initial, tol,
+                         starts, rng, r_max, x0)  # fmt: skip
+    if first is not prob:
+        prob.nfev, prob.njev = first.nfev, first.njev
     runs: list[PEMRun] = []
     for kind, th in start_list:
         floor = min((r.sse for r in runs), default=np.inf)
@@ -1171,7 +1234,7 @@ def pem(
 
 
 def _starts(
-    prob: _Problem, u: np.ndarray, y: np.ndarray, initial: str, tol: float, starts: int,
+    prob: _Problem, data: Any, initial: str, tol: float, starts: int,
     rng: np.random.Generator, r_max: float, x0: np.ndarray | None,
 ) -> list[tuple[str, np.ndarray]]:
     """``(kind, theta)`` of every start of :func:`pem`, each admissible (module notes)."""
@@ -1179,7 +1242,7 @@ def _starts(
     start_list = [(k, _with_noise_model(prob, th, r_max)) for k, th in _plant_starts(prob)]
     if any(s.nf) and (s.nc or s.nd) and not s.na:
         # the output-error model itself (C = D = 1), which the noise model then refines
-        oe_plant = _output_error_plant(prob, s, u, y, initial, tol)
+        oe_plant = _output_error_plant(prob, s, data, initial, tol)
         start_list.append(("output-error", _make_admissible(prob, oe_plant, r_max)))
     if not start_list:  # every linear fit broke down (rank-deficient data): start from B only
         start_list = [("least-squares", _make_admissible(prob, np.zeros(prob.n), r_max))]

@@ -7,6 +7,9 @@
 :mod:`flexid.costs.polynomial`
     :class:`~flexid.costs.polynomial.PolynomialCost`: the prediction-error and simulation
     costs of the polynomial family, with variable projection of ``B``.
+:mod:`flexid.costs.experiments`
+    :class:`~flexid.costs.experiments.MultiExperimentCost`: the polynomial costs over several
+    records at once, each with its own initial state.
 :mod:`flexid.costs.greybox`
     :class:`~flexid.costs.greybox.GreyBoxCost`: a grey-box model's simulation cost.
 
@@ -24,6 +27,7 @@ _LAZY = {
     "ARXCost": "arx",
     "PolynomialCost": "polynomial",
     "GreyBoxCost": "greybox",
+    "MultiExperimentCost": "experiments",
 }
 
 __all__ = sorted(_LAZY)

@@ -290,6 +290,9 @@ class PolynomialCost(ErrorCost):
     ----------
     K : int
         Error samples ``N - start``.
+    records : tuple of (u, y)
+        The record's arrays, ``u`` (N, n_u) and ``y`` (N,) (one pair: several are
+        :class:`~flexid.costs.experiments.MultiExperimentCost`).
     n_params : int
     theta_ls : ndarray, shape (n_params,)
         The least-squares start: ARX least squares of orders ``(na + nf, nb, nk)`` read as
@@ -342,6 +345,7 @@ class PolynomialCost(ErrorCost):
         self.metric, self.predictor, self.initial = metric, predictor, initial
         self.weight, self.penalty, self.penalty_kind = float(weight), float(penalty), penalty_kind
         self.u, self.y = u, y
+        self.records = ((u, y),)
         s = structure
         self.n_params = s.n_params
         self.start = s.start
@@ -846,8 +850,42 @@ class PolynomialCost(ErrorCost):
 
     def _fitted_b_recursions(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_fitted_b` by one recursion per coefficient of ``B``, any structure."""
+        blocks, z, bases = self.b_regressors(X)
+        coefs = _least_squares_rows(blocks, z)
+        resid = z.copy()
+        for F, c in zip(blocks, coefs):
+            resid -= (c[:, None, :] @ F)[:, 0]
+        n_u = self.structure.n_inputs
+        return self._b_of(np.concatenate(coefs[:n_u], axis=1), bases), np.einsum(
+            "pk,pk->p", resid, resid
+        )
+
+    def b_regressors(
+        self, X: np.ndarray
+    ) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
+        """The linear least-squares problem of ``B`` given the other polynomials.
+
+        The error is ``z - sum_j sum_m c_jm g_jm (- free responses)``: the regressors of
+        each input's ``B_j`` in the orthogonal numerators' basis, then (under ``"estimate"``)
+        the free responses from ``start``.
+
+        Parameters
+        ----------
+        X : ndarray, shape (P, n_params)
+            Admissible candidates (their ``B`` entries are ignored).
+
+        Returns
+        -------
+        blocks : list of ndarray, shapes (P, n_i, K)
+            One block per input (``nb_j`` rows), then the free responses' block (``n`` rows)
+            when the initial state is estimated.
+        z : ndarray, shape (P, K)
+            The target.
+        bases : list of ndarray, shapes (P, nb_j, nb_j)
+            The numerators' bases: ``b_j = c_j @ bases[j]`` (:meth:`_b_of`).
+        """
         if self.initial == "measured":
-            return self._fitted_b_measured(X)
+            return self._b_regressors_measured(X)
         p = self._parts(X)
         s = self.structure
         n_pop = X.shape[0]
@@ -880,14 +918,7 @@ class PolynomialCost(ErrorCost):
             den, _, _ = self._predictor({**p, "b": [np.zeros((n_pop, nb)) for nb in s.nb]})
             if den.shape[1] > 1:
                 blocks.append(self._free_responses(den))
-        z = np.ascontiguousarray(z)
-        coefs = _least_squares_rows(blocks, z)
-        resid = z.copy()
-        for F, c in zip(blocks, coefs):
-            resid -= (c[:, None, :] @ F)[:, 0]
-        return self._b_of(np.concatenate(coefs[: s.n_inputs], axis=1), bases), np.einsum(
-            "pk,pk->p", resid, resid
-        )
+        return blocks, np.ascontiguousarray(z), bases
 
     def _b_of(self, coef: np.ndarray, bases: list[np.ndarray]) -> np.ndarray:
         """``b`` (P, sum nb) from coefficients in the orthogonal numerators' basis."""
@@ -898,8 +929,10 @@ class PolynomialCost(ErrorCost):
             i += nb
         return np.concatenate(out, axis=1) if out else coef
 
-    def _fitted_b_measured(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Variable projection under ``"measured"``: one recursion per ``b`` coefficient.
+    def _b_regressors_measured(
+        self, X: np.ndarray
+    ) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
+        """:meth:`b_regressors` under ``"measured"``: one recursion per ``b`` coefficient.
 
         The recursion starts at ``t = start`` from the measured outputs, so a shifted
         regressor is not a shift of another one (their transients differ).
@@ -934,10 +967,8 @@ class PolynomialCost(ErrorCost):
         y, _ = ar_recursion(den[:, 1:], forced, state)
         y = y.reshape(n_pop, group, self.K)
         z = self._target - y[:, 0]
-        regs = y[:, 1:]
-        (coef,) = _least_squares_rows([regs], z)
-        resid = z - (coef[:, None, :] @ regs)[:, 0]
-        return self._b_of(coef, bases), np.einsum("pk,pk->p", resid, resid)
+        edges = np.cumsum([0, *s.nb])
+        return [y[:, 1 + lo : 1 + hi] for lo, hi in pairwise(edges)], z, bases
 
     # ------------------------------------------------------------------ least-squares start
     def _least_squares_start(self) -> np.ndarray:
@@ -949,7 +980,7 @@ class PolynomialCost(ErrorCost):
             return theta
         nf = s.nf[0]
         try:
-            arx = ARXStructure(s.na + nf, s.nb, s.nk).least_squares(self.u, self.y)
+            arx = ARXStructure(s.na + nf, s.nb, s.nk).least_squares(list(self.records))
         except Exception:  # rank deficient or too short: no least-squares start
             return theta
         a = arx.theta[: s.na + nf]
@@ -1002,17 +1033,31 @@ class PolynomialCost(ErrorCost):
             ``"measured"`` (a direct-form rule by definition), the batched cost.
         """
         theta = np.asarray(theta, dtype=float).reshape(-1)
+        e = self.realised_errors(theta)
+        return float(self(theta)[0]) if e is None else self.cost_of_errors(e)
+
+    def realised_errors(self, theta: np.ndarray) -> np.ndarray | None:
+        """The errors (K,) behind :meth:`realised_cost`; None where it takes the batched cost.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (n_params,)
+
+        Returns
+        -------
+        ndarray, shape (K,), or None
+        """
         X = population(theta[None, :], self.n_params)
         if self.initial == "measured" or not np.isfinite(theta).all() or not (
             self._admissible(X)[0]
         ):
-            return float(self(X)[0])
+            return None
         model = self.structure.model(theta)
         if self.predictor == "one-step":
             yhat = model.predict(self.u, self.y, initial=self.initial, from_start=True)
         else:
             yhat = model.simulate(self.u, self.y, initial=self.initial, from_start=True)
-        return self.cost_of_errors(self._target - yhat[self.start :])
+        return self._target - yhat[self.start :]
 
     def describe(self) -> str:
         """One line naming the metric, penalty, structure, predictor, rule and ``K``.

@@ -299,6 +299,8 @@ class ARXStructure:
         Parameters
         ----------
         u, y : see :meth:`regressors`
+            Or ``u`` a list of records (IOData or ``(u, y)`` pairs) and no ``y``: separate
+            experiments, whose regressors are stacked (each from its own ``start``).
         dt : float
             Sample time in seconds (taken from an IOData when one is given).
 
@@ -310,9 +312,13 @@ class ARXStructure:
         """
         from ..data import IOData
 
-        if isinstance(u, IOData):
-            dt = u.dt
-        phi, target = self.regressors(u, y)
+        records = u if isinstance(u, list) and y is None else [u if y is None else (u, y)]
+        if isinstance(records[0], IOData):
+            dt = records[0].dt
+        pairs = [self.regressors(*r) if isinstance(r, tuple) else self.regressors(r)
+                 for r in records]  # fmt: skip
+        phi = np.concatenate([p[0] for p in pairs])
+        target = np.concatenate([p[1] for p in pairs])
         q, r = linalg.qr(phi, mode="economic")
         diag = np.abs(np.diag(r))
         if diag.size and diag.min() <= diag.max() * 1e-13:
