@@ -11,7 +11,9 @@ import pytest
 from scipy import optimize, signal
 
 import flexid
+from flexid._compare import _Context
 from flexid.cli import main
+from flexid.config import load_config
 from flexid.costs.experiments import MultiExperimentCost
 from flexid.costs.polynomial import PolynomialCost
 from flexid.data import IOData, prepare_data
@@ -183,3 +185,38 @@ def test_command_line_takes_several_records(tmp_path, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "need a separate validation record" in err[0]
+
+
+def test_a_comparison_config_takes_several_records_and_a_validation_file(tmp_path):
+    """``[data] file`` as a list and ``validation``, relative to the config: the comparison's
+    least-squares row is identify's on the same records, and its store key changes with
+    the numbers of any of the files."""
+    a, b = experiments()
+    val = experiments(seed=1)[0]
+    for name, r in (("a", a), ("b", b), ("v", val)):
+        r.save(tmp_path / f"{name}.csv")
+    config = tmp_path / "c.toml"
+    config.write_text(
+        '[data]\nfile = ["a.csv", "b.csv"]\nvalidation = "v.csv"\ndetrend = "constant"\n'
+        '[model]\nstructure = "oe"\nnb = 2\nnf = 2\nnk = 1\n[[optimisers]]\nname = "de"\n'
+        "[run]\nruns = 1\nbudget = 300\n",
+        encoding="utf-8",
+    )
+    (spec,) = load_config(config)
+    assert spec.data.file == [str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]
+    assert spec.data.validation == str(tmp_path / "v.csv")
+    result = flexid.compare(spec, store=tmp_path / "s.sqlite")
+    ls = result.reference
+    ident = flexid.identify([tmp_path / "a.csv", tmp_path / "b.csv"], structure="oe", nb=2,
+                            nf=2, nk=1, optimiser="ls", validation=tmp_path / "v.csv",
+                            detrend="constant")  # fmt: skip
+    np.testing.assert_allclose(ls["theta"], ident.model.theta, rtol=1e-12)
+    assert ls["validation"]["fit_simulation"] == pytest.approx(
+        ident.validation.fit_simulation, abs=1e-9
+    )
+    key = _Context.from_spec(spec).spec.key
+    val.replace(y=val.y * 1.01).save(tmp_path / "v.csv")
+    assert _Context.from_spec(spec).spec.key != key
+    config.write_text('[data]\nfile = ["a.csv", "b.csv"]\n', encoding="utf-8")
+    with pytest.raises(ConfigError, match="give the validation record"):
+        load_config(config)

@@ -46,6 +46,8 @@ from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _chec
 from .data import IOData, prepare_data, split_parts
 from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
+from .models.arx import ARXStructure
+from .models.polynomial import PolynomialStructure
 from .optimisers import Budget, get, minimize
 from .store import ResultStore
 from .validation import validate
@@ -63,17 +65,16 @@ def run_seed(comparison_seed: int, run: int) -> int:
     return int(child.generate_state(1, dtype=np.uint64)[0] >> np.uint64(1))
 
 
-def build_data(spec: ComparisonSpec) -> IOData:
-    """The record of a comparison: simulated from the plant, or read from the file."""
+def build_data(spec: ComparisonSpec) -> IOData | list[IOData]:
+    """The record of a comparison: simulated from the plant, or read from the file (a list
+    of records when ``[data] file`` lists several)."""
     d = spec.data
     if d.file is not None:
         from .data import load
 
-        options = {
-            k: v
-            for k, v in (("inputs", d.inputs), ("outputs", d.outputs), ("dt", d.dt))
-            if v is not None
-        }
+        options = _file_options(d)
+        if isinstance(d.file, list):
+            return [load(f, **options) for f in d.file]
         return load(d.file, **options)
     from .datasets import generate
 
@@ -89,6 +90,20 @@ def build_data(spec: ComparisonSpec) -> IOData:
     if d.outputs is not None:
         options["outputs"] = d.outputs
     return generate(d.plant, sensors=d.sensors, **options)
+
+
+def _file_options(d: Any) -> dict[str, Any]:
+    """The reading options of ``[data]``'s files."""
+    pairs = (("inputs", d.inputs), ("outputs", d.outputs), ("dt", d.dt))
+    return {k: v for k, v in pairs if v is not None}
+
+
+def _records_digest(records: list[IOData]) -> str:
+    """SHA-256 of several records' digests in order (one record: its own digest)."""
+    if len(records) == 1:
+        return _record_digest(records[0])
+    joined = ",".join(_record_digest(r) for r in records)
+    return hashlib.sha256(joined.encode()).hexdigest()
 
 
 def _record_digest(data: IOData) -> str:
@@ -121,21 +136,31 @@ def _record_digest(data: IOData) -> str:
 class _Context:
     """What every run of a comparison shares: records, structure, cost, box."""
 
-    def __init__(self, spec: ComparisonSpec, est: IOData, val: IOData) -> None:
+    def __init__(
+        self, spec: ComparisonSpec, est: IOData | tuple[IOData, ...], val: IOData
+    ) -> None:
         self.spec = spec
         self.est = est
         self.val = val
+        #: the estimation records (one, or several fitted together)
+        self.records = est if isinstance(est, tuple) else (est,)
+        self.dt = self.records[0].dt
         m = spec.model
         self.greybox = m.structure == GREYBOX
         try:
             if self.greybox:
                 self.structure = m.greybox_model()
             else:
-                self.structure = structure_of(m.structure, est.n_inputs, **m.orders())
+                self.structure = structure_of(m.structure, self.records[0].n_inputs,
+                                              **m.orders())  # fmt: skip
         except ModelOrderError as exc:
             raise ConfigError(f"[model]: {exc}") from None
-        self.structure.check_samples(est.n_samples)
-        self.structure.check_samples(val.n_samples)
+        if len(self.records) > 1 and isinstance(self.structure, ARXStructure):
+            # one cost over several records is the polynomial family's (ARX read as one of it)
+            s = self.structure
+            self.structure = PolynomialStructure.arx(s.na, s.nb, s.nk)
+        for record in (*self.records, val):
+            self.structure.check_samples(record.n_samples)
         self.estimation = build_problem(
             est, self.structure, spec.cost, spec.search, bounds=spec.bounds
         )
@@ -156,14 +181,26 @@ class _Context:
     def from_spec(cls, spec: ComparisonSpec) -> _Context:
         d = spec.data
         record = build_data(spec)
+        validation = None
+        if d.validation is not None:
+            from .data import load
+
+            validation = load(d.validation, **_file_options(d))
         if d.file is not None:
             # a file's path does not say which numbers it held: its digest goes into the key,
             # so runs on an edited file never join the runs on what it held before
-            d = replace(d, digest=_record_digest(record))
+            records = record if isinstance(record, list) else [record]
+            every = [*records, *([validation] if validation is not None else [])]
+            d = replace(d, digest=_records_digest(every))
             spec = replace(spec, data=d)
         if spec.model.structure == GREYBOX:
             # a grey-box model reads its own channels, and is validated by running on from
             # the record's start: its "validation record" is the whole record
+            if d.validation is not None or isinstance(d.file, list):
+                raise ConfigError(
+                    "[data] validation or several files: a grey-box comparison runs on one "
+                    "record from its start"
+                )
             if d.detrend:
                 raise ConfigError("[data] detrend: a grey-box model's physics see the raw record")
             if isinstance(d.split, (str, list, tuple)):
@@ -172,7 +209,8 @@ class _Context:
                     "an index): its validation runs on from the record's start"
                 )
             return cls(spec, split_parts(record, d.split)[0], record)
-        est, val = prepare_data(record, output=d.output, split=d.split, detrend=d.detrend)
+        est, val = prepare_data(record, output=d.output, split=d.split, detrend=d.detrend,
+                                validation=validation)  # fmt: skip
         return cls(spec, est, val)
 
     def respecified(self, **changes: Any) -> _Context:
@@ -246,7 +284,8 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
 def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
     if ctx.greybox:
         return _greybox_numbers(model, ctx)
-    est_err = model.residuals(ctx.est.u, ctx.est.y[:, 0])[ctx.structure.start :]
+    est_err = np.concatenate([model.residuals(r.u, r.y[:, 0])[ctx.structure.start :]
+                              for r in ctx.records])  # fmt: skip
     return {
         "theta": [float(v) for v in model.theta],
         "stable": bool(model.is_stable),
@@ -277,7 +316,7 @@ def _greybox_numbers(model, ctx: _Context) -> dict[str, Any]:
 
 def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     t0 = time.perf_counter()
-    model = ctx.structure.model(ctx.theta_ls, dt=ctx.est.dt)
+    model = ctx.structure.model(ctx.theta_ls, dt=ctx.dt)
     cost = ctx.estimation.cost_ls
     record = {
         "label": LEAST_SQUARES,
@@ -298,7 +337,7 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     oe = ctx.estimation.output_error_reference()
     if oe is not None:
         # the simulation cost's own optimum (least squares is not): the reference of targets
-        oe_model = ctx.structure.model(oe.theta, dt=ctx.est.dt)
+        oe_model = ctx.structure.model(oe.theta, dt=ctx.dt)
         n_params = len(oe.theta)
         record["output_error"] = {
             "cost": float(oe.cost),
@@ -359,7 +398,7 @@ def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, An
     try:
         budget = Budget(max_fe=ctx.spec.max_fe)
         result = minimize(opt.name, ctx.estimation.problem, budget, seed, params=opt.params)
-        model = ctx.structure.model(ctx.estimation.theta(result.x), dt=ctx.est.dt)
+        model = ctx.structure.model(ctx.estimation.theta(result.x), dt=ctx.dt)
         record.update(
             status="ok",
             cost=float(result.fun),

@@ -169,8 +169,13 @@ class DataSpec:
         Physical parameter overrides of the plant.
     sensors : {"lab", "ideal"}
         The plant read through its measurement chain (``"lab"``, default) or exactly.
-    file : str or None
-        A recorded CSV/NPZ/DAT file to read instead of simulating.
+    file : str, list of str, or None
+        A recorded CSV/NPZ/DAT file to read instead of simulating; a list: several
+        estimation records of one system, fitted together, each with its own initial state
+        (they need ``validation``).
+    validation : str or None
+        A recorded file to validate on (read with the same ``inputs``, ``outputs`` and
+        ``dt``); ``file`` is then all estimation (or the range ``split``).
     inputs : list of str or None
         Input columns of ``file``.
     outputs : list of str or None
@@ -208,7 +213,8 @@ class DataSpec:
     signal_options: dict = field(default_factory=dict)
     plant_params: dict = field(default_factory=dict)
     sensors: str = "lab"
-    file: str | None = None
+    file: str | list | None = None
+    validation: str | None = None
     inputs: Any = None
     outputs: Any = None
     dt: float | None = None
@@ -220,6 +226,18 @@ class DataSpec:
     def __post_init__(self) -> None:
         if (self.plant is None) == (self.file is None):
             raise ConfigError("[data] needs exactly one of 'plant' (simulate) or 'file' (a record)")
+        files = self.file if isinstance(self.file, list) else [self.file]
+        if self.file is not None and not (files and all(isinstance(f, str) for f in files)):
+            raise ConfigError(f"[data] file must be a path or a list of paths, got {self.file!r}")
+        if self.validation is not None and (
+            self.file is None or not isinstance(self.validation, str)
+        ):
+            raise ConfigError("[data] validation is the path of a recorded file beside 'file'")
+        if len(files) > 1 and self.validation is None:
+            raise ConfigError(
+                f"[data] file lists {len(files)} estimation records: give the validation "
+                "record ('validation = \"PATH\"'); none is split off"
+            )
         numeric = isinstance(self.detrend, (int, float)) and not isinstance(self.detrend, bool)
         if numeric or self.detrend not in (False, True, "constant", "linear"):
             raise ConfigError(
@@ -236,7 +254,9 @@ class DataSpec:
             ``"file PATH"``, or ``"PLANT / PRESET-OR-SIGNAL[ / SENSORS sensors] (seed S)"``.
         """
         if self.file is not None:
-            return f"file {self.file}"
+            files = self.file if isinstance(self.file, list) else [self.file]
+            text = f"file{'s' if len(files) > 1 else ''} {', '.join(files)}"
+            return text + (f" (validation {self.validation})" if self.validation else "")
         parts = [self.plant, self.preset or self.signal or "default signal"]
         if self.sensors != "lab":
             parts.append(f"{self.sensors} sensors")
@@ -695,10 +715,12 @@ class ComparisonSpec:
 
 
 def _data_dict(data: DataSpec) -> dict[str, Any]:
-    """``asdict(data)`` without an unset digest: keys of simulated records stay as they were."""
+    """``asdict(data)`` without an unset digest or validation file: the keys of comparisons
+    without them stay as they were."""
     out = asdict(data)
-    if out["digest"] is None:
-        del out["digest"]
+    for name in ("digest", "validation"):
+        if out[name] is None:
+            del out[name]
     return out
 
 
@@ -916,8 +938,14 @@ def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
     # a relative data file is relative to the configuration file
     out = []
     for spec in specs:
-        if spec.data.file is not None and not Path(spec.data.file).is_absolute():
-            data = replace(spec.data, file=str((path.parent / spec.data.file).resolve()))
+        if spec.data.file is not None:
+            def beside(name: str) -> str:
+                return name if Path(name).is_absolute() else str((path.parent / name).resolve())
+
+            files = spec.data.file
+            files = [beside(f) for f in files] if isinstance(files, list) else beside(files)
+            val = spec.data.validation
+            data = replace(spec.data, file=files, validation=None if val is None else beside(val))
             spec = replace(spec, data=data)
         reference = spec.model.greybox or ""
         file_part = reference.rpartition(":")[0]
