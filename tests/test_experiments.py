@@ -163,6 +163,12 @@ def test_identify_on_several_records():
     # ARX by least squares: the stacked regressors' solution, read as a polynomial model
     arx = flexid.identify([a, b], 2, 2, 1, optimiser="ls", validation=val)
     assert arx.model.structure.kind == "arx"
+    # FIR (no denominator): nothing to search, the stacked least squares
+    fir = flexid.identify([a, b], 0, 2, 1, optimiser="ls", validation=val)
+    rows = [np.column_stack([r.u[1:-1, 0], r.u[:-2, 0]]) for r in (a, b)]
+    target = np.concatenate([r.y[2:, 0] for r in (a, b)])
+    fir_ls = np.linalg.lstsq(np.vstack(rows), target, rcond=None)[0]
+    np.testing.assert_allclose(fir.model.theta, fir_ls, rtol=1e-10)
     # a metaheuristic searches the pooled cost too
     de = flexid.identify([a, b], structure="oe", nb=2, nf=2, nk=1, validation=val,
                          optimiser="de", budget=3000, seed=0)  # fmt: skip

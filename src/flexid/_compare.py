@@ -46,8 +46,6 @@ from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _chec
 from .data import IOData, prepare_data, split_parts
 from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
-from .models.arx import ARXStructure
-from .models.polynomial import PolynomialStructure
 from .optimisers import Budget, get, minimize
 from .store import ResultStore
 from .validation import validate
@@ -155,15 +153,13 @@ class _Context:
                                               **m.orders())  # fmt: skip
         except ModelOrderError as exc:
             raise ConfigError(f"[model]: {exc}") from None
-        if len(self.records) > 1 and isinstance(self.structure, ARXStructure):
-            # one cost over several records is the polynomial family's (ARX read as one of it)
-            s = self.structure
-            self.structure = PolynomialStructure.arx(s.na, s.nb, s.nk)
         for record in (*self.records, val):
             self.structure.check_samples(record.n_samples)
         self.estimation = build_problem(
             est, self.structure, spec.cost, spec.search, bounds=spec.bounds
         )
+        if len(self.records) > 1:
+            self.structure = self.estimation.structure  # ARX: the polynomial family's there
         if self.greybox:
             return  # its start is the parameters' given values, always finite
         if not np.isfinite(self.theta_ls).all():  # the least-squares row every comparison has

@@ -240,9 +240,6 @@ def identify(
         nk = list(found.nk) if first.n_inputs > 1 else found.nk[0]
         delay_text = found.describe()
     structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
-    if len(records) > 1 and not isinstance(structure, PolynomialStructure):
-        # one cost over several records is the polynomial family's (ARX read as one of it)
-        structure = PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
     polynomial = isinstance(structure, PolynomialStructure)
     for record in (*records, val):
         structure.check_samples(record.n_samples)
@@ -269,6 +266,8 @@ def identify(
     cost_spec = replace(base, **{k: v for k, v in cost_given.items() if v is not None})
     predictor = cost_spec.predictor  # build_problem resolves the "auto" initial rule
     estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
+    if len(records) > 1:
+        structure = estimation.structure  # ARX is fitted as the polynomial family's there
     objective = estimation.cost
     box = estimation.box
     cost_ls = estimation.cost_ls

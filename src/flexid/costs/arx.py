@@ -136,7 +136,8 @@ class ErrorCost:
     """What a cost of one model's errors needs besides its batched route: the cost of an error
     vector and the rounding floor below which two routes' costs are the same.
 
-    A cost class sets ``K`` (error samples), ``_std_y`` and ``_from_sse``.
+    A cost class sets ``K`` (error samples), ``_std_y`` and ``_from_sse``, and says in
+    ``realised_errors(theta)`` what its errors are in a well-conditioned realisation.
     """
 
     K: int
@@ -155,6 +156,27 @@ class ErrorCost:
         float
         """
         return float(self._from_sse(np.array([e @ e]))[0])
+
+    def realised_cost(self, theta: Any) -> float:
+        """This cost of one candidate with its predictor run in a well-conditioned realisation.
+
+        The batched costs run each candidate in the direct form, which is fast and, for a
+        lightly damped high-order candidate, can be far off the candidate's true cost (see
+        :mod:`flexid.models.realisation`); a final model is rescored with this
+        (:func:`flexid._identify.rescored`).
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_params,)
+
+        Returns
+        -------
+        float
+            The cost of :meth:`realised_errors`; the batched cost where they are None.
+        """
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        e = self.realised_errors(theta)
+        return float(self(theta)[0]) if e is None else self.cost_of_errors(e)
 
     def rounding_floor(self) -> float:
         """The cost of an error of 1e-8 output standard deviations at every sample.
@@ -315,35 +337,31 @@ class ARXCost(ErrorCost):
             out[finite] = self._costs(X[finite])
         return out
 
-    def realised_cost(self, theta: Any) -> float:
-        """This cost of one candidate with its simulation run in a well-conditioned realisation.
-
-        The batched simulation runs ``1/A`` in the direct form, which lightly damped
-        high-order candidates make inaccurate (:mod:`flexid.models.realisation`); a final
-        model is rescored with this (:func:`flexid._identify.rescored`).
+    def realised_errors(self, theta: np.ndarray) -> np.ndarray | None:
+        """The simulation errors behind :meth:`realised_cost`, ``1/A`` run in a
+        well-conditioned realisation.
 
         Parameters
         ----------
-        theta : array_like, shape (n_params,)
+        theta : ndarray, shape (n_params,)
 
         Returns
         -------
-        float
-            The cost; the batched one for the one-step predictor (no recursion), under
-            ``"measured"`` (a direct-form rule by definition) and for an unstable candidate
-            (the penalty applies).
+        ndarray, shape (K,), or None
+            None for the one-step predictor (no recursion), under ``"measured"`` (a
+            direct-form rule by definition) and for an unstable candidate (the penalty
+            applies).
         """
         from ..models.polynomial import PolynomialModel
 
-        theta = np.asarray(theta, dtype=float).reshape(-1)
         X = population(theta[None, :], self.n_params)
         na = self.structure.na
         if (self.predictor == "one-step" or self.initial == "measured"
                 or not np.isfinite(theta).all() or not is_stable(X[:, :na])[0]):  # fmt: skip
-            return float(self(X)[0])
+            return None
         model = PolynomialModel.from_arx(self.structure.model(theta))
         ysim = model.simulate(self.u, initial="zero")
-        return self.cost_of_errors(self.y[self.structure.start :] - ysim[self.structure.start :])
+        return self.y[self.structure.start :] - ysim[self.structure.start :]
 
     def _costs(self, X: np.ndarray) -> np.ndarray:
         """Costs of finite rows ``X`` (P, n_params)."""

@@ -16,9 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..metrics import describe_cost
 from ..models.polynomial import INITIAL_RULES, PolynomialStructure
-from .arx import population
 from .polynomial import PolynomialCost
 
 __all__ = ["MultiExperimentCost", "polynomial_cost"]
@@ -46,6 +44,12 @@ class MultiExperimentCost(PolynomialCost):
         The records' arrays.
     theta_ls, cost_ls
         The least-squares start (ARX regressors of every record stacked) and its cost.
+
+    Notes
+    -----
+    Errors, sums of squares and realised errors are those of
+    :class:`~flexid.costs.polynomial.PolynomialCost`, over every record: the records'
+    counted samples one after another.
     """
 
     def __init__(
@@ -66,32 +70,9 @@ class MultiExperimentCost(PolynomialCost):
         self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
 
     def sse(self, X: np.ndarray) -> np.ndarray:
-        """Sums of squared errors over every record.
-
-        Parameters
-        ----------
-        X : ndarray, shape (P, n_params)
-            Admissible candidates.
-
-        Returns
-        -------
-        ndarray, shape (P,)
-            In output units squared.
-        """
         return np.sum([c.sse(X) for c in self.parts], axis=0)
 
     def prediction_errors(self, X: np.ndarray) -> np.ndarray:
-        """Prediction errors of admissible candidates on every record.
-
-        Parameters
-        ----------
-        X : ndarray, shape (P, n_params)
-
-        Returns
-        -------
-        ndarray, shape (P, K)
-            The records' counted samples one after another, in output units.
-        """
         return np.concatenate([c.prediction_errors(X) for c in self.parts], axis=1)
 
     def _fitted_b(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -130,47 +111,11 @@ class MultiExperimentCost(PolynomialCost):
         return blocks, np.concatenate([p[1] for p in parts], axis=1), parts[0][2]
 
     def realised_errors(self, theta: np.ndarray) -> np.ndarray | None:
-        """Errors of every record in a well-conditioned realisation.
-
-        Parameters
-        ----------
-        theta : ndarray, shape (n_params,)
-
-        Returns
-        -------
-        ndarray, shape (K,), or None
-            None where :meth:`realised_cost` takes the batched cost.
-        """
         found = [c.realised_errors(theta) for c in self.parts]
         return None if any(e is None for e in found) else np.concatenate(found)
 
-    def residuals(self, theta: Any) -> np.ndarray:
-        """Prediction errors of one admissible candidate on every record.
-
-        Parameters
-        ----------
-        theta : array_like, shape (n_params,)
-
-        Returns
-        -------
-        ndarray, shape (K,)
-        """
-        return self.prediction_errors(population(theta, self.n_params))[0]
-
-    def describe(self) -> str:
-        """One line naming the metric, penalty, structure, predictor, rule, records and ``K``.
-
-        Returns
-        -------
-        str
-        """
-        what = "one-step prediction" if self.predictor == "one-step" else "simulation"
-        errors = (
-            f"{what} errors of {self.structure!r} on {len(self.parts)} records "
-            f"({INITIAL_RULES[self.initial]}, each its own)"
-        )
-        return describe_cost(self.metric, errors, self.K, self.weight, self.penalty,
-                             self.penalty_kind == "graded")  # fmt: skip
+    def _scope(self) -> str:
+        return f" on {len(self.parts)} records ({INITIAL_RULES[self.initial]}, each its own)"
 
     def __repr__(self) -> str:
         return f"MultiExperimentCost({self.describe()})"

@@ -1013,31 +1013,10 @@ class PolynomialCost(ErrorCost):
         theta = np.asarray(theta, dtype=float).reshape(1, -1)
         return self.prediction_errors(theta)[0]
 
-    def realised_cost(self, theta: Any) -> float:
-        """This cost of one candidate with its predictor run in a well-conditioned realisation.
-
-        The batched costs run each candidate in the direct form, which is fast and, for a
-        lightly damped high-order candidate, can be far off the candidate's true cost (see
-        :mod:`flexid.models.realisation`).  This is the same cost computed by
-        :meth:`PolynomialModel.predict <flexid.models.polynomial.PolynomialModel.predict>` /
-        ``simulate``, correct to the bound stated there; a final model is rescored with it.
-
-        Parameters
-        ----------
-        theta : array_like, shape (n_params,)
-
-        Returns
-        -------
-        float
-            The cost; for an inadmissible candidate (the penalty applies) or under the rule
-            ``"measured"`` (a direct-form rule by definition), the batched cost.
-        """
-        theta = np.asarray(theta, dtype=float).reshape(-1)
-        e = self.realised_errors(theta)
-        return float(self(theta)[0]) if e is None else self.cost_of_errors(e)
-
     def realised_errors(self, theta: np.ndarray) -> np.ndarray | None:
-        """The errors (K,) behind :meth:`realised_cost`; None where it takes the batched cost.
+        """The errors behind :meth:`realised_cost`: the predictor run by
+        :meth:`PolynomialModel.predict <flexid.models.polynomial.PolynomialModel.predict>` /
+        ``simulate``, correct to the bound stated there.
 
         Parameters
         ----------
@@ -1046,6 +1025,8 @@ class PolynomialCost(ErrorCost):
         Returns
         -------
         ndarray, shape (K,), or None
+            None for an inadmissible candidate (the penalty applies) and under the rule
+            ``"measured"`` (a direct-form rule by definition).
         """
         X = population(theta[None, :], self.n_params)
         if self.initial == "measured" or not np.isfinite(theta).all() or not (
@@ -1067,9 +1048,13 @@ class PolynomialCost(ErrorCost):
         str
         """
         what = "one-step prediction" if self.predictor == "one-step" else "simulation"
-        errors = f"{what} errors of {self.structure!r} ({INITIAL_RULES[self.initial]})"
+        errors = f"{what} errors of {self.structure!r}{self._scope()}"
         return describe_cost(self.metric, errors, self.K, self.weight, self.penalty,
                              self.penalty_kind == "graded")  # fmt: skip
+
+    def _scope(self) -> str:
+        """Where the errors are counted, for :meth:`describe`."""
+        return f" ({INITIAL_RULES[self.initial]})"
 
     def __repr__(self) -> str:
         return f"PolynomialCost({self.describe()})"
