@@ -293,7 +293,7 @@ def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
 
 def _greybox_numbers(model, ctx: _Context) -> dict[str, Any]:
     """:func:`_model_numbers` of a grey-box model: its simulation errors, its linearisation."""
-    from .validation import _linearised_poles
+    from .greybox_family import _linearised_poles
 
     cost = ctx.estimation.cost
     with np.errstate(all="ignore"):

@@ -33,7 +33,8 @@ from .config import (
 from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
 from .errors import BudgetError, ConfigError
-from .estimation import build_problem, greybox_of, structure_of
+from .estimation import build_problem, structure_of
+from .greybox_family import greybox_of
 from .models.greybox import GreyBoxModel
 from .models.polynomial import PolynomialStructure, _check_initial
 from .optimisers import Budget, minimize

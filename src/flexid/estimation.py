@@ -30,8 +30,8 @@ from .errors import (
     ModelOrderError,
     UnknownNameError,
 )
+from .families import family_of
 from .models.arx import ARXStructure
-from .models.greybox import GreyBoxModel
 from .models.polynomial import STRUCTURES, PolynomialStructure
 from .models.polynomial import structure as _named_structure
 from .optimisers import Problem
@@ -52,8 +52,8 @@ __all__ = [
     "check_excitation",
     "check_search",
     "choose_reference",
-    "greybox_of",
     "model_structure",
+    "pose_polynomial",
     "resolve_initial",
     "search_box",
     "structure_of",
@@ -241,51 +241,6 @@ def structure_of(
     if made.kind == "arx":
         return made.arx_structure()
     return made
-
-
-def greybox_of(structure: Any, greybox: str | GreyBoxModel | None) -> GreyBoxModel | None:
-    """The grey-box model that ``structure`` and ``greybox`` name, or None for a polynomial.
-
-    Parameters
-    ----------
-    structure : str, structure object, GreyBoxModel or None
-    greybox : str, GreyBoxModel or None
-        The model of ``structure="greybox"`` (a name of
-        :func:`flexid.models.greybox_library.greybox_model`).
-
-    Returns
-    -------
-    GreyBoxModel or None
-
-    Raises
-    ------
-    ConfigError
-        ``structure="greybox"`` without ``greybox``, or ``greybox`` with another structure.
-    UnknownNameError
-        An unknown grey-box model name.
-    """
-    if isinstance(structure, GreyBoxModel):
-        if greybox is not None:
-            raise ConfigError("give the grey-box model as structure or as greybox, not both")
-        return structure
-    if isinstance(structure, str) and structure.lower() == "greybox":
-        if greybox is None:
-            raise ConfigError(
-                "structure 'greybox' needs the model: greybox='twin-rotor-pitch' (or "
-                "--greybox NAME; 'flexid list greybox' lists them)"
-            )
-        if isinstance(greybox, GreyBoxModel):
-            return greybox
-        from .models.greybox_library import greybox_model
-
-        return greybox_model(greybox)
-    if greybox is not None:
-        raise ConfigError(
-            f"greybox={greybox!r} is the model of structure='greybox', not of "
-            f"structure={structure!r}"
-        )
-    return None
-
 
 
 # ================================================================================ rules
@@ -768,16 +723,35 @@ def build_problem(
         When they barely are (:func:`check_excitation`).
     """
     check_search(search)
-    several = isinstance(est, (list, tuple))
-    if isinstance(structure, GreyBoxModel):
-        if several:
-            raise ConfigError(
-                f"grey-box model {structure.name!r}: several estimation records are not "
-                "supported; estimate on one"
-            )
-        from .greybox_estimation import build_greybox_problem
+    return family_of(structure).pose(est, structure, cost, search, bounds=bounds)
 
-        return build_greybox_problem(est, structure, cost, search, bounds=bounds)
+
+def pose_polynomial(
+    est: IOData | Sequence[IOData],
+    structure: ARXStructure | PolynomialStructure,
+    cost: CostSpec,
+    search: SearchSpec,
+    *,
+    bounds: Any = "auto",
+) -> EstimationProblem:
+    """The polynomial family's :meth:`~flexid.families.Family.pose` (see :func:`build_problem`).
+
+    ARX is posed on its one-step least-squares cost (:class:`~flexid.costs.arx.ARXCost`,
+    the paper's route) where that cost serves; every other case on the polynomial cost.
+
+    Parameters
+    ----------
+    est : IOData or sequence of IOData
+    structure : ARXStructure or PolynomialStructure
+    cost : CostSpec
+    search : SearchSpec
+    bounds : see :func:`flexid.search_box`
+
+    Returns
+    -------
+    EstimationProblem
+    """
+    several = isinstance(est, (list, tuple))
     # before any fit: a problem without a unique answer gets an error, not a huge model
     # (several records: on them joined, whose junctions add a few rows to a rank test)
     check_excitation(joined(est) if several else est, structure)

@@ -33,7 +33,6 @@ from ._validate import checked_keywords, positive_real
 from .data import IOData
 from .diagnostics import (
     CorrelationTest,
-    _check_max_lag,
     _peak,
     billings_voon_tests,
     error_range,
@@ -43,9 +42,9 @@ from .diagnostics import (
     residual_tests,
     rmse,
 )
-from .errors import DataError, FlexidError, ModelOrderError, check_finite
-from .models.arx import ARX
-from .models.polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure, _check_initial
+from .errors import DataError, FlexidError, check_finite
+from .families import family_of
+from .models.polynomial import INITIAL_RULES, _check_initial
 
 __all__ = [
     "INITIAL_RULES",
@@ -513,70 +512,6 @@ class ValidationReport:
 
 
 # ============================================================================ entry point
-def _linearised_poles(model: Any, dt: float) -> np.ndarray:
-    """Discrete poles of a grey-box model linearised at its initial state with zero input.
-
-    Central differences of ``f`` (relative step 1e-6 of each state's scale, at least 1e-6);
-    states whose derivative is identically zero there (a locked axis) are left out, since
-    they hold their value rather than respond.
-    """
-    x0 = model.x0.astype(float)
-    n = x0.size
-    step = 1e-6 * np.maximum(np.abs(x0), 1.0)
-    X = np.repeat(x0[None, :], 2 * n, axis=0)
-    X[np.arange(n), np.arange(n)] += step
-    X[n + np.arange(n), np.arange(n)] -= step
-    from .models.greybox import ParameterSet
-
-    theta = np.repeat(model.nominal[None, :], 2 * n, axis=0)
-    u = np.zeros((2 * n, len(model.inputs)))
-    f = np.asarray(model.derivatives(X, u, ParameterSet(model.names, theta)), dtype=float)
-    J = ((f[:n] - f[n:]) / (2 * step)[:, None]).T  # J[i, j] = d f_i / d x_j
-    moving = np.flatnonzero(np.any(J != 0.0, axis=1))
-    return np.exp(np.linalg.eigvals(J[np.ix_(moving, moving)]) * dt)
-
-
-def _validate_greybox(
-    model: Any, data: Any, *, max_lag: int, split: float | int | None, dt: float | None,
-    output: str | None = None,
-) -> ValidationReport:
-    """:func:`validate` for a grey-box model: simulated from its own initial state."""
-    from .costs.greybox import record_for
-
-    u_full, y_all, sample_time = record_for(model, data, dt)
-    if output is None:
-        if y_all.shape[1] != 1:
-            raise DataError(
-                f"grey-box model {model.name!r} has outputs {list(model.outputs)}: give the "
-                "one to validate (output=...)"
-            )
-        k = 0
-    elif output in model.outputs:
-        k = list(model.outputs).index(output)
-    else:
-        raise DataError(
-            f"grey-box model {model.name!r} has no output {output!r} (its outputs: "
-            f"{list(model.outputs)})"
-        )
-    y_full = y_all[:, k]
-    n = y_full.size
-    start = 0
-    if split is not None:  # the same split as IOData.split, evaluated after run-in
-        record = IOData(u_full, y_full, dt=sample_time)
-        parts = record.split(split) if isinstance(split, float) else record.split(index=split)
-        start = parts[0].n_samples
-    n_eval = n - start
-    max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
-    with np.errstate(all="ignore"):
-        ysim_full = model.simulate(model.nominal, u_full, sample_time)[0, :, k]
-    rule = GREYBOX_ESTIMATED_RULE if model.estimated_initial_states else GREYBOX_RULE
-    return _report(
-        y_full, None, ysim_full, u_full, start=start, dt=sample_time, max_lag=max_lag,
-        names=list(model.inputs), output_name=str(model.outputs[k]), initial=rule,
-        initial_one_step=rule, poles=_linearised_poles(model, sample_time), zeros=[],
-    )
-
-
 def _report(
     y_full: np.ndarray, y1_full: np.ndarray | None, ysim_full: np.ndarray, u_full: np.ndarray,
     *, start: int, dt: float, max_lag: int, names: list[str], output_name: str, initial: str,
@@ -668,27 +603,6 @@ def _model_dt(model: Any) -> float | None:
     return dt if math.isfinite(dt) and dt > 0 else None
 
 
-def _as_polynomial(model: Any) -> PolynomialModel:
-    """The polynomial form of an ARX-like model, for the ``"estimate"`` rule."""
-    if isinstance(model, ARX):
-        return PolynomialModel.from_arx(model)
-    to_polynomial = getattr(model, "to_polynomial", None)
-    if callable(to_polynomial):
-        return to_polynomial()
-    try:  # a duck-typed ARX: A = [1, a_1 ..], one B per input, structure.nk
-        s = model.structure
-        theta = np.concatenate(
-            [np.asarray(model.a, dtype=float)[1:], *[np.asarray(b, dtype=float) for b in model.b]]
-        )
-        return PolynomialStructure.arx(s.na, s.nb, s.nk).model(theta, dt=_model_dt(model) or 1.0)
-    except AttributeError:
-        raise DataError(
-            f"initial='estimate' needs the model as a polynomial model: {type(model).__name__} "
-            "has no to_polynomial() (nor a, b and structure.na/nb/nk); pass initial='measured' "
-            "or 'zero'"
-        ) from None
-
-
 def _free_run(run: Any, n: int, unstable: bool) -> np.ndarray:
     """``run()`` as a float vector; for an ``unstable`` filter an overflow gives inf.
 
@@ -775,91 +689,6 @@ def validate(
         input count does not match the data.
     """
     initial = _check_initial(initial)
-    from .models.greybox import GreyBoxModel
-
-    if isinstance(model, GreyBoxModel):
-        return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt,
-                                 output=output)
-    if output is not None:
-        raise DataError("output= selects a grey-box model's output; this model has one")
-    record = _as_record(data, dt if dt is not None else _model_dt(model))
-    if split is not None:
-        if isinstance(split, float):
-            record = record.split(split)[1]
-        else:
-            record = record.split(index=split)[1]
-    if record.n_outputs != 1:
-        raise DataError(
-            f"validate() takes a single-output record, got {record.n_outputs} outputs "
-            f"{list(record.output_names)}; use data.select(outputs=...) first"
-        )
-    check_finite(record.u, "input u")
-    check_finite(record.y, "output y")
-    sample_time = float(record.dt)
-    u_full = record.u
-    y_full = record.y[:, 0]
-    n = y_full.size
-    structure = getattr(model, "structure", None)
-    start = int(getattr(structure, "start", 0))
-    nb = getattr(structure, "nb", None)
-    if nb is not None and len(tuple(np.atleast_1d(nb))) != u_full.shape[1]:
-        raise ModelOrderError(
-            f"the model has {len(tuple(np.atleast_1d(nb)))} input(s), the record "
-            f"{u_full.shape[1]}"
-        )
-    if n <= start:
-        raise ModelOrderError(
-            f"a record of {n} samples does not reach past the model's first full regressor "
-            f"(start = {start})"
-        )
-    n_eval = n - start
-    max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
-
-    u_model = u_full[:, 0] if u_full.shape[1] == 1 else u_full
-    predictor_stable = None
-    first = start if initial == "measured" else 0  # MATLAB counts every sample
-    if isinstance(model, PolynomialModel):
-        predictor_stable = model.predictor_stable
-        y1 = _free_run(
-            lambda: model.predict(u_model, y_full, initial=initial), n, not predictor_stable
-        )
-        ysim = _free_run(
-            lambda: model.simulate(u_model, y_full, initial=initial), n, not model.is_stable
-        )
-        initial_one_step = initial if model.structure.n_state else None
-    else:
-        poly = None  # its polynomial form, in a well-conditioned realisation, where it has one
-        if initial != "measured":
-            try:
-                poly = _as_polynomial(model)
-            except DataError:
-                if initial == "estimate":
-                    raise
-        if poly is None:  # ARX-like by its own routes: its one-step predictor has no state
-            first = start
-            y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
-            initial_one_step = None
-            own = model.simulate(u_model, y_init=y_full[:start]) if initial == "measured" else (
-                model.simulate(u_model)
-            )
-            ysim = np.asarray(own, dtype=float).reshape(-1)
-        else:
-            y1 = _free_run(lambda: poly.predict(u_model, y_full, initial=initial), n, False)
-            initial_one_step = initial
-            ysim = _free_run(
-                lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
-            )
-    for arr, what in ((y1, "one-step prediction"), (ysim, "simulated output")):
-        if arr.size != n:
-            raise DataError(f"the model's {what} has {arr.size} samples, the record {n}")
-    check_finite(y1, "the model's one-step prediction")
-
-    n_u = u_full.shape[1]
-    return _report(
-        y_full, y1, ysim, u_full, start=first, dt=sample_time, max_lag=max_lag,
-        names=list(record.input_names), output_name=str(record.output_names[0]),
-        output_unit=str(record.output_units[0]),
-        initial=initial, initial_one_step=initial_one_step, poles=model.poles(),
-        zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
-        predictor_stable=predictor_stable, test_start=start,
+    return family_of(model, default="polynomial").validate(
+        model, data, max_lag=max_lag, initial=initial, split=split, dt=dt, output=output
     )

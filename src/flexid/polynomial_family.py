@@ -1,0 +1,156 @@
+"""The polynomial family (ARX, ARMAX, OE, BJ) in the one model interface.
+
+:class:`PolynomialFamily` poses a polynomial structure with
+:func:`flexid.estimation.pose_polynomial` (ARX on its one-step least-squares cost where that
+serves, every other case on the polynomial cost) and validates a polynomial model, an ARX
+model or a model duck-typed to one, in a well-conditioned realisation.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .config import CostSpec, SearchSpec
+from .diagnostics import _check_max_lag
+from .errors import DataError, ModelOrderError, check_finite
+from .estimation import EstimationProblem, pose_polynomial
+from .families import Family
+from .models.arx import ARX, ARXStructure
+from .models.polynomial import PolynomialModel, PolynomialStructure
+from .validation import (
+    ValidationReport,
+    _as_record,
+    _free_run,
+    _model_dt,
+    _report,
+)
+
+__all__ = ["PolynomialFamily"]
+
+
+class PolynomialFamily(Family):
+    """The polynomial models ``A y = B/F u + C/D e``, ARX among them."""
+
+    name = "polynomial"
+    structures = (PolynomialStructure, ARXStructure)
+    models = (PolynomialModel, ARX)
+
+    def pose(
+        self, data: Any, structure: Any, cost: CostSpec, search: SearchSpec, *, bounds: Any
+    ) -> EstimationProblem:
+        return pose_polynomial(data, structure, cost, search, bounds=bounds)
+
+    pose.__doc__ = None  # Family.pose's
+
+    def validate(
+        self, model: Any, data: Any, *, max_lag: int, initial: str,
+        split: float | int | None, dt: float | None, output: str | None,
+    ) -> ValidationReport:
+        if output is not None:
+            raise DataError("output= selects a grey-box model's output; this model has one")
+        record = _as_record(data, dt if dt is not None else _model_dt(model))
+        if split is not None:
+            if isinstance(split, float):
+                record = record.split(split)[1]
+            else:
+                record = record.split(index=split)[1]
+        if record.n_outputs != 1:
+            raise DataError(
+                f"validate() takes a single-output record, got {record.n_outputs} outputs "
+                f"{list(record.output_names)}; use data.select(outputs=...) first"
+            )
+        check_finite(record.u, "input u")
+        check_finite(record.y, "output y")
+        sample_time = float(record.dt)
+        u_full = record.u
+        y_full = record.y[:, 0]
+        n = y_full.size
+        structure = getattr(model, "structure", None)
+        start = int(getattr(structure, "start", 0))
+        nb = getattr(structure, "nb", None)
+        if nb is not None and len(tuple(np.atleast_1d(nb))) != u_full.shape[1]:
+            raise ModelOrderError(
+                f"the model has {len(tuple(np.atleast_1d(nb)))} input(s), the record "
+                f"{u_full.shape[1]}"
+            )
+        if n <= start:
+            raise ModelOrderError(
+                f"a record of {n} samples does not reach past the model's first full regressor "
+                f"(start = {start})"
+            )
+        n_eval = n - start
+        max_lag = _check_max_lag(max_lag, n_eval, f"the evaluated part (t >= {start})")
+
+        u_model = u_full[:, 0] if u_full.shape[1] == 1 else u_full
+        predictor_stable = None
+        first = start if initial == "measured" else 0  # MATLAB counts every sample
+        if isinstance(model, PolynomialModel):
+            predictor_stable = model.predictor_stable
+            y1 = _free_run(
+                lambda: model.predict(u_model, y_full, initial=initial), n, not predictor_stable
+            )
+            ysim = _free_run(
+                lambda: model.simulate(u_model, y_full, initial=initial), n, not model.is_stable
+            )
+            initial_one_step = initial if model.structure.n_state else None
+        else:
+            poly = None  # its polynomial form, in a well-conditioned realisation, where it has one
+            if initial != "measured":
+                try:
+                    poly = _as_polynomial(model)
+                except DataError:
+                    if initial == "estimate":
+                        raise
+            if poly is None:  # ARX-like by its own routes: its one-step predictor has no state
+                first = start
+                y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
+                initial_one_step = None
+                own = model.simulate(u_model, y_init=y_full[:start]) if initial == "measured" else (
+                    model.simulate(u_model)
+                )
+                ysim = np.asarray(own, dtype=float).reshape(-1)
+            else:
+                y1 = _free_run(lambda: poly.predict(u_model, y_full, initial=initial), n, False)
+                initial_one_step = initial
+                ysim = _free_run(
+                    lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
+                )
+        for arr, what in ((y1, "one-step prediction"), (ysim, "simulated output")):
+            if arr.size != n:
+                raise DataError(f"the model's {what} has {arr.size} samples, the record {n}")
+        check_finite(y1, "the model's one-step prediction")
+
+        n_u = u_full.shape[1]
+        return _report(
+            y_full, y1, ysim, u_full, start=first, dt=sample_time, max_lag=max_lag,
+            names=list(record.input_names), output_name=str(record.output_names[0]),
+            output_unit=str(record.output_units[0]),
+            initial=initial, initial_one_step=initial_one_step, poles=model.poles(),
+            zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
+            predictor_stable=predictor_stable, test_start=start,
+        )
+
+    validate.__doc__ = None  # Family.validate's
+
+
+def _as_polynomial(model: Any) -> PolynomialModel:
+    """The polynomial form of an ARX-like model, for the ``"estimate"`` rule."""
+    if isinstance(model, ARX):
+        return PolynomialModel.from_arx(model)
+    to_polynomial = getattr(model, "to_polynomial", None)
+    if callable(to_polynomial):
+        return to_polynomial()
+    try:  # a duck-typed ARX: A = [1, a_1 ..], one B per input, structure.nk
+        s = model.structure
+        theta = np.concatenate(
+            [np.asarray(model.a, dtype=float)[1:], *[np.asarray(b, dtype=float) for b in model.b]]
+        )
+        return PolynomialStructure.arx(s.na, s.nb, s.nk).model(theta, dt=_model_dt(model) or 1.0)
+    except AttributeError:
+        raise DataError(
+            f"initial='estimate' needs the model as a polynomial model: {type(model).__name__} "
+            "has no to_polynomial() (nor a, b and structure.na/nb/nk); pass initial='measured' "
+            "or 'zero'"
+        ) from None

@@ -1,0 +1,131 @@
+"""The one model interface: every structure and model finds its family, and the jobs ask it.
+
+One test runs over every built-in structure kind and model; the others register a family of
+their own and check that :func:`flexid.estimation.build_problem` and :func:`flexid.validate`
+dispatch to it, as they do to the built-in ones.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import flexid
+from flexid import families
+from flexid.config import CostSpec, SearchSpec
+from flexid.errors import ConfigError
+from flexid.estimation import build_problem
+from flexid.families import Family, family_of, register_family
+from flexid.greybox_family import GreyBoxFamily
+from flexid.models.arx import ARXStructure
+from flexid.models.greybox_library import greybox_model
+from flexid.polynomial_family import PolynomialFamily
+
+
+@pytest.fixture
+def record():
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(400)
+    from scipy import signal
+
+    y = signal.lfilter([0.0, 0.5, 0.2], [1.0, -1.2, 0.5], u) + 0.01 * rng.standard_normal(400)
+    return flexid.IOData(u, y, dt=0.1)
+
+
+@pytest.fixture
+def restore_registry():
+    before = list(families._FAMILIES)
+    yield
+    families._FAMILIES[:] = before
+
+
+def builtin_objects():
+    """One structure and one model of every built-in kind, with the family that owns it."""
+    out = [(ARXStructure(2, 2), "polynomial"), (ARXStructure(2, 2).model([0.1, 0.2, 1, 2]),
+                                                 "polynomial")]
+    for name, orders in (
+        ("arx", {"na": 2, "nb": 2}),
+        ("armax", {"na": 2, "nb": 2, "nc": 1}),
+        ("oe", {"nb": 2, "nf": 2}),
+        ("bj", {"nb": 2, "nc": 1, "nd": 1, "nf": 2}),
+    ):
+        s = flexid.structure(name, **orders)
+        out += [(s, "polynomial"), (s.model(np.zeros(s.n_params)), "polynomial")]
+    out.append((greybox_model("twin-rotor-pitch"), "greybox"))
+    return out
+
+
+@pytest.mark.parametrize("obj,name", builtin_objects(), ids=lambda v: getattr(v, "name", None)
+                         or type(v).__name__)
+def test_every_builtin_structure_and_model_finds_its_family(obj, name):
+    family = family_of(obj)
+    assert family.name == name
+    assert isinstance(family, PolynomialFamily if name == "polynomial" else GreyBoxFamily)
+
+
+def test_an_object_of_no_family_is_a_clear_error():
+    with pytest.raises(ConfigError, match=r"dict is not a structure or model.*polynomial"):
+        family_of({"na": 2})
+    assert family_of({"na": 2}, default="polynomial").name == "polynomial"
+
+
+def test_register_family_takes_only_families(restore_registry):
+    with pytest.raises(ConfigError, match="takes a Family"):
+        register_family(PolynomialFamily)  # the class, not an instance
+
+
+class Tagged:
+    """A structure of a family of the test's own: an OE structure under another type."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+
+class TaggedFamily(Family):
+    """Poses and validates a :class:`Tagged` structure as the polynomial family does, and
+    records each call, so that the test sees the jobs ask it."""
+
+    name = "tagged"
+    structures = (Tagged,)
+    models = (Tagged,)
+
+    def __init__(self):
+        self.calls: list[str] = []
+
+    def pose(self, data, structure, cost, search, *, bounds):
+        self.calls.append("pose")
+        return family_of(structure.inner).pose(data, structure.inner, cost, search,
+                                               bounds=bounds)
+
+    def validate(self, model, data, *, max_lag, initial, split, dt, output):
+        self.calls.append("validate")
+        return family_of(model.inner).validate(
+            model.inner, data, max_lag=max_lag, initial=initial, split=split, dt=dt,
+            output=output,
+        )
+
+
+def test_build_problem_and_validate_ask_a_registered_family(record, restore_registry):
+    family = register_family(TaggedFamily())
+    oe = flexid.structure("oe", nb=2, nf=2)
+    cost = CostSpec(predictor="simulation")
+    tagged = build_problem(record, Tagged(oe), cost, SearchSpec())
+    direct = build_problem(record, oe, cost, SearchSpec())
+    assert family.calls == ["pose"]
+    Z = direct.problem.initial_population(6, seed=0)
+    np.testing.assert_array_equal(tagged.problem.objective(Z), direct.problem.objective(Z))
+
+    model = oe.model([0.5, 0.2, -1.2, 0.5], dt=0.1)
+    report = flexid.validate(Tagged(model), record)
+    assert family.calls == ["pose", "validate"]
+    assert report.fit_simulation == flexid.validate(model, record).fit_simulation
+
+
+def test_a_later_registration_of_a_name_replaces_it(restore_registry):
+    class Other(TaggedFamily):
+        pass
+
+    register_family(TaggedFamily())
+    register_family(Other())
+    assert [f.name for f in families.families()].count("tagged") == 1
+    assert type(family_of(Tagged(None))) is Other
