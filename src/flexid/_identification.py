@@ -16,6 +16,7 @@ from .config import SearchSpec
 from .costs.arx import ARXCost
 from .data import IOData
 from .diagnostics import format_fit
+from .families import family_of
 from .models.arx import ARX
 from .models.polynomial import PolynomialStructure
 from .optimisers import History
@@ -105,11 +106,7 @@ class Identification:
 
     def _title(self) -> str:
         s = self.model.structure
-        name = (
-            repr(s)
-            if isinstance(s, PolynomialStructure)
-            else f"ARX(na={s.na}, nb={_orders(s.nb)}, nk={_orders(s.nk)})"
-        )
+        name = family_of(s).title(s)
         return f"{name} identified by {self.optimiser}" + (
             f" (seed {self.seed})" if self.seed is not None else ""
         )
@@ -282,7 +279,7 @@ class Identification:
         m = self.model
         return jsonable(
             {
-                "structure": _structure_dict(m.structure),
+                "structure": family_of(m.structure).structure_dict(m.structure),
                 "optimiser": self.optimiser,
                 "params": self.params,
                 "seed": self.seed,
@@ -310,24 +307,6 @@ class Identification:
                 "data": self.data_info,
             }
         )
-
-
-def _orders(values: Any) -> Any:
-    """Per-input orders as printed: one value for one input, else the list."""
-    values = list(values)
-    return values[0] if len(values) == 1 else values
-
-
-def _structure_dict(structure: Any) -> dict[str, Any]:
-    """The structure's name and orders (an ARX structure's as before, with its name)."""
-    if isinstance(structure, PolynomialStructure):
-        return structure.to_dict()
-    return {
-        "structure": "arx",
-        "na": structure.na,
-        "nb": list(structure.nb),
-        "nk": list(structure.nk),
-    }
 
 
 _REPORT_ROWS = (

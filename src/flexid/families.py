@@ -63,6 +63,35 @@ class Family(abc.ABC):
         """
         return isinstance(obj, (*self.structures, *self.models))
 
+    def title(self, structure: Any) -> str:
+        """The structure as a summary names it (default: its ``repr``).
+
+        Parameters
+        ----------
+        structure : object
+            A structure of this family.
+
+        Returns
+        -------
+        str
+        """
+        return repr(structure)
+
+    def structure_dict(self, structure: Any) -> dict[str, Any]:
+        """The structure's name and orders as a result's JSON stores them.
+
+        Parameters
+        ----------
+        structure : object
+            A structure of this family.
+
+        Returns
+        -------
+        dict
+            ``structure.to_dict()`` by default.
+        """
+        return structure.to_dict()
+
     @abc.abstractmethod
     def pose(
         self, data: Any, structure: Any, cost: CostSpec, search: SearchSpec, *, bounds: Any

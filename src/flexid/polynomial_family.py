@@ -37,6 +37,20 @@ class PolynomialFamily(Family):
     structures = (PolynomialStructure, ARXStructure)
     models = (PolynomialModel, ARX)
 
+    def title(self, structure: Any) -> str:
+        if isinstance(structure, ARXStructure):
+            return f"ARX(na={structure.na}, nb={_orders(structure.nb)}, nk={_orders(structure.nk)})"
+        return repr(structure)
+
+    title.__doc__ = None  # Family.title's
+
+    def structure_dict(self, structure: Any) -> dict[str, Any]:
+        if isinstance(structure, ARXStructure):  # as results stored it before: with its name
+            return {"structure": "arx", **structure.to_dict()}
+        return structure.to_dict()
+
+    structure_dict.__doc__ = None  # Family.structure_dict's
+
     def pose(
         self, data: Any, structure: Any, cost: CostSpec, search: SearchSpec, *, bounds: Any
     ) -> EstimationProblem:
@@ -154,3 +168,9 @@ def _as_polynomial(model: Any) -> PolynomialModel:
             "has no to_polynomial() (nor a, b and structure.na/nb/nk); pass initial='measured' "
             "or 'zero'"
         ) from None
+
+
+def _orders(values: Any) -> Any:
+    """Per-input orders as printed: one value for one input, else the list."""
+    values = list(values)
+    return values[0] if len(values) == 1 else values
