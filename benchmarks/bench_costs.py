@@ -170,9 +170,10 @@ def main() -> None:
     f_sim = k * (nparam + 1)  # recursion na, input part nb, squared error 1 per sample
     f_roots = 10 * na**3  # np.roots: eigenvalues of the companion matrix, ~10 n^3
     f_lf = n * (na + 1 + nb + 1)  # lfilter: the numerator and denominator taps per sample
-    # fitted numerator (README "Numerator"), by lag sums: two recursions (v, h), the lag sums
-    # of v, h and the target for the basis of nb + L delays (L = na here; the nb - 1 sums of
-    # h with later v from the recursion instead), the plain recursion at the solution; the
+    # fitted numerator (docs/identification.rst, "The numerator"), by lag sums: two
+    # recursions (v, h), the lag sums of v, h and the target for the basis of nb + L delays
+    # (L = na here; the nb - 1 sums of h with later v from the recursion instead), the plain
+    # recursion at the solution; the
     # route it replaced: nb + 1 recursions, the (nb, nb) Gram matrix and right-hand side
     # twice (refinement), the residual, then the plain cost
     f_fit = k * (2 * na + 3 * (nb + na) - 1 - (nb - 1)) + f_sim + f_stab

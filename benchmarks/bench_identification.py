@@ -45,7 +45,7 @@ SPACES = {
 
 
 def problems():
-    # the README's table was measured on the plants without their measurement chain
+    # docs/measurements/search-spaces.md was measured on the plants without their measurement chain
     man = flexid.generate("manipulator", preset="paper-manipulator", seed=0, sensors="ideal")
     yield "manipulator ARX(8,8,1)", man, (8, 8, 1)
     trs = flexid.generate(

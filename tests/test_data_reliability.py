@@ -375,7 +375,7 @@ def test_the_command_line_says_when_dt_is_a_median_step(tmp_path, capsys, comman
 
 
 def test_a_configs_relative_data_file_is_read_from_the_configs_folder(tmp_path, monkeypatch):
-    # what the README states: not the current directory
+    # what docs/guide/compare.rst states: not the current directory
     from flexid.config import load_config
 
     folder = tmp_path / "experiments"

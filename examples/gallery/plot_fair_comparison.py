@@ -9,7 +9,8 @@ result lives in memory here; give ``compare`` a ``store`` path to keep every fin
 in an SQLite file, so that an interrupted comparison resumes.
 
 The budget (1,500 FE, 4 runs) is kept small so that the documentation builds quickly; the
-README's tables use 20 runs and the paper's budgets.
+measured paper experiments (:doc:`/measurements/paper-experiments`) use 20 runs and the
+paper's budgets.
 """
 
 # %%

@@ -46,7 +46,7 @@ plot_convergence({"HBCSD": hb.history}, reference=hb.cost_ls)
 # The one-step prediction uses the measured past outputs; the simulation (free run) uses
 # only the input. An eighth-order ARX model predicts one step well but does not simulate
 # this record: with its measurement chain the plant has more than eight poles in the band
-# that matters (see the README's table of fits).
+# that matters (see the table of fits in :doc:`/measurements/paper-character`).
 val = hb.validation.arrays()
 output, unit = hb.data_info["output"], hb.data_info["output_unit"]  # from the record
 plot_time_response(
