@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,7 +22,7 @@ from scipy import linalg
 from ._validate import checked_keywords, is_integer, positive_real
 from .config import REFERENCE_STARTS, CostSpec, SearchSpec, auto_initial
 from .costs.arx import ARXCost
-from .data import IOData, joined
+from .data import IOData
 from .errors import (
     ConfigError,
     DataError,
@@ -35,7 +35,7 @@ from .models.arx import ARXStructure
 from .models.polynomial import STRUCTURES, PolynomialStructure
 from .models.polynomial import structure as _named_structure
 from .optimisers import Problem
-from .parametrisation import PARAMETRISATIONS, Parametrisation, SearchBox, make_parametrisation
+from .parametrisation import PARAMETRISATIONS, Parametrisation, SearchBox
 from .stability import is_stable
 
 if TYPE_CHECKING:  # pragma: no cover - the references load on first use
@@ -53,7 +53,6 @@ __all__ = [
     "check_search",
     "choose_reference",
     "model_structure",
-    "pose_polynomial",
     "resolve_initial",
     "search_box",
     "structure_of",
@@ -724,123 +723,6 @@ def build_problem(
     """
     check_search(search)
     return family_of(structure).pose(est, structure, cost, search, bounds=bounds)
-
-
-def pose_polynomial(
-    est: IOData | Sequence[IOData],
-    structure: ARXStructure | PolynomialStructure,
-    cost: CostSpec,
-    search: SearchSpec,
-    *,
-    bounds: Any = "auto",
-) -> EstimationProblem:
-    """The polynomial family's :meth:`~flexid.families.Family.pose` (see :func:`build_problem`).
-
-    ARX is posed on its one-step least-squares cost (:class:`~flexid.costs.arx.ARXCost`,
-    the paper's route) where that cost serves; every other case on the polynomial cost.
-
-    Parameters
-    ----------
-    est : IOData or sequence of IOData
-    structure : ARXStructure or PolynomialStructure
-    cost : CostSpec
-    search : SearchSpec
-    bounds : see :func:`flexid.search_box`
-
-    Returns
-    -------
-    EstimationProblem
-    """
-    several = isinstance(est, (list, tuple))
-    # before any fit: a problem without a unique answer gets an error, not a huge model
-    # (several records: on them joined, whose junctions add a few rows to a rank test)
-    check_excitation(joined(est) if several else est, structure)
-    cost = replace(cost, initial=resolve_initial(cost.initial, structure))
-    if (cost.initial == "estimate" or several) and not isinstance(
-        structure, PolynomialStructure
-    ):
-        # ARXCost has neither an estimated initial state nor several records; the polynomial
-        # cost covers ARX as well
-        structure = PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
-    if isinstance(structure, PolynomialStructure):
-        if structure.kind != "arx" or cost.initial == "estimate" or several:
-            return _build_polynomial(est, structure, cost, search, bounds=bounds)
-        structure = structure.arx_structure()
-    try:
-        objective = ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
-    except np.linalg.LinAlgError as exc:  # exactly singular regressors with exciting inputs
-        raise DataError(
-            f"the regressors of {structure!r} are singular on the estimation record ({exc}): "
-            "an output that is zero or constant, or orders the data cannot determine; use "
-            "lower orders or other data"
-        ) from None
-    box = search_box(structure, bounds, objective.theta_ls)
-    na = structure.na
-    b_lo, b_hi = box.lower[na:], box.upper[na:]
-    param = make_parametrisation(
-        search.parametrisation,
-        structure,
-        b_lower=b_lo,
-        b_upper=b_hi,
-        a_lower=box.lower[:na],
-        a_upper=box.upper[:na],
-        r_max=search.r_max,
-        real_pairs=search.real_pairs,
-        k_max=search.k_max,
-    )
-    fit = search.numerator == "fit"
-    if fit and na == 0:
-        raise ConfigError(
-            "numerator = 'fit' searches the denominator, and na = 0 has none: least squares "
-            "is the optimum"
-        )
-    keep = slice(0, na) if fit else slice(None)
-    sampler = None
-    if search.init == "stable" and search.parametrisation == "coefficients" and na:
-        # stable denominators drawn uniformly in the pole-pair space, b uniform in its box
-        poles = make_parametrisation(
-            "poles", structure, b_lower=b_lo, b_upper=b_hi, r_max=search.r_max
-        )
-
-        def sampler(size: int, rng: np.random.Generator) -> np.ndarray:
-            Z = poles.lower + (poles.upper - poles.lower) * rng.random((size, poles.n_search))
-            X = np.clip(poles.to_coefficients(Z), param.lower, param.upper)
-            return X[:, keep]
-
-    if search.parametrisation == "coefficients" and not fit:
-        evaluate = objective  # the search vector is theta
-    elif fit:
-
-        def evaluate(Z: np.ndarray) -> np.ndarray:
-            # the fit and the cost at it in one pass (ARXCost.fitted): the costs of
-            # objective(_coefficients_of(...)) without simulating each candidate twice
-            return objective.fitted(_denominators_of(Z, param))[1]
-
-    else:
-
-        def evaluate(Z: np.ndarray) -> np.ndarray:
-            return objective(_coefficients_of(Z, param, objective, search.numerator))
-
-    problem = Problem(evaluate, param.lower[keep], param.upper[keep], name="arx", sampler=sampler)
-    if fit:
-        rule = "b fitted (unbounded)"
-        if search.parametrisation == "coefficients":
-            rule = f"a box: {box.rule}; {rule}"
-    elif search.parametrisation == "coefficients":
-        rule = box.rule
-    else:
-        # the b part of the automatic rule (its a part, "C(na, k) (...)", has commas too)
-        rule = box.rule.split("stable A), ", 1)[-1] if box.rule.startswith("auto") else box.rule
-        rule = f"b box: {rule}"
-    return EstimationProblem(
-        structure=structure,
-        cost=objective,
-        parametrisation=param,
-        problem=problem,
-        search=search,
-        box=box,
-        box_rule=rule,
-    )
 
 
 def check_search(search: SearchSpec) -> None:
