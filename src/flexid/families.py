@@ -3,8 +3,8 @@
 A model family (the polynomial models ARX, ARMAX, OE and BJ; grey-box models; one of your
 own) registers one :class:`Family` object.  :func:`flexid.estimation.build_problem` and
 :func:`flexid.validate`, and through them :func:`flexid.identify`, :func:`flexid.select`,
-:func:`flexid.compare` and the suite, find it with :func:`family_of` from the structure or model they hold and ask it, so
-none of them asks which family it holds.
+:func:`flexid.compare` and the suite, find it with :func:`family_of` from the structure or
+model they hold and ask it, so none of them asks which family it holds.
 
 The object is what identification needs of a family that the structure and model cannot
 say themselves (they live a layer below the costs and the searches):
