@@ -8,6 +8,7 @@ model or a model duck-typed to one, in a well-conditioned realisation.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, replace
 from typing import Any
@@ -18,7 +19,7 @@ from .config import CostSpec, SearchSpec
 from .costs.arx import ARXCost
 from .data import IOData, joined
 from .diagnostics import _check_max_lag
-from .errors import ConfigError, DataError, ModelOrderError, check_finite
+from .errors import ConfigError, DataError, FlexidError, ModelOrderError, check_finite
 from .estimation import (
     EstimationProblem,
     _build_polynomial,
@@ -33,13 +34,7 @@ from .models.arx import ARX, ARXStructure
 from .models.polynomial import PolynomialModel, PolynomialStructure
 from .optimisers import Problem
 from .parametrisation import make_parametrisation
-from .validation import (
-    ValidationReport,
-    _as_record,
-    _free_run,
-    _model_dt,
-    _report,
-)
+from .validation import ValidationReport, _report
 
 __all__ = ["PolynomialFamily", "pose_polynomial"]
 
@@ -307,3 +302,39 @@ def _orders(values: Any) -> Any:
     """Per-input orders as printed: one value for one input, else the list."""
     values = list(values)
     return values[0] if len(values) == 1 else values
+
+
+def _as_record(data: Any, dt: float | None) -> IOData:
+    if isinstance(data, IOData):
+        return data
+    if isinstance(data, (tuple, list)) and len(data) == 2:
+        u, y = data
+        return IOData(u, y, dt=1.0 if dt is None else dt)
+    raise DataError(
+        f"data must be an IOData or a (u, y) pair of arrays, got {type(data).__name__}"
+    )
+
+
+def _model_dt(model: Any) -> float | None:
+    dt = getattr(model, "dt", None)
+    try:
+        dt = float(dt)
+    except (TypeError, ValueError):
+        return None
+    return dt if math.isfinite(dt) and dt > 0 else None
+
+
+def _free_run(run: Any, n: int, unstable: bool) -> np.ndarray:
+    """``run()`` as a float vector; for an ``unstable`` filter an overflow gives inf.
+
+    The least-squares fit of an initial state raises ValueError when the free responses of
+    an unstable filter overflow; that is a diverged run to report, not an error.
+    """
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):
+            out = run()
+    except ValueError as exc:
+        if isinstance(exc, FlexidError) or not unstable:
+            raise
+        return np.full(n, np.inf)
+    return np.asarray(out, dtype=float).reshape(-1)

@@ -22,7 +22,6 @@ Initial conditions
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,7 +29,6 @@ import numpy as np
 
 from ._json import jsonable
 from ._validate import checked_keywords, positive_real
-from .data import IOData
 from .diagnostics import (
     CorrelationTest,
     _peak,
@@ -42,7 +40,7 @@ from .diagnostics import (
     residual_tests,
     rmse,
 )
-from .errors import DataError, FlexidError, check_finite
+from .errors import DataError, check_finite
 from .families import family_of
 from .models.polynomial import INITIAL_RULES, _check_initial
 
@@ -581,42 +579,6 @@ def _report(
         initial_one_step=initial_one_step,
         output_unit=output_unit,
     )
-
-
-def _as_record(data: Any, dt: float | None) -> IOData:
-    if isinstance(data, IOData):
-        return data
-    if isinstance(data, (tuple, list)) and len(data) == 2:
-        u, y = data
-        return IOData(u, y, dt=1.0 if dt is None else dt)
-    raise DataError(
-        f"data must be an IOData or a (u, y) pair of arrays, got {type(data).__name__}"
-    )
-
-
-def _model_dt(model: Any) -> float | None:
-    dt = getattr(model, "dt", None)
-    try:
-        dt = float(dt)
-    except (TypeError, ValueError):
-        return None
-    return dt if math.isfinite(dt) and dt > 0 else None
-
-
-def _free_run(run: Any, n: int, unstable: bool) -> np.ndarray:
-    """``run()`` as a float vector; for an ``unstable`` filter an overflow gives inf.
-
-    The least-squares fit of an initial state raises ValueError when the free responses of
-    an unstable filter overflow; that is a diverged run to report, not an error.
-    """
-    try:
-        with np.errstate(over="ignore", invalid="ignore"):
-            out = run()
-    except ValueError as exc:
-        if isinstance(exc, FlexidError) or not unstable:
-            raise
-        return np.full(n, np.inf)
-    return np.asarray(out, dtype=float).reshape(-1)
 
 
 @checked_keywords
