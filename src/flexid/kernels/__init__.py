@@ -39,7 +39,7 @@ import os
 import numpy as np
 from scipy import signal
 
-from .errors import FlexidError
+from ..errors import FlexidError
 
 __all__ = [
     "BACKEND",
@@ -61,7 +61,7 @@ __all__ = [
 ]
 
 try:  # pragma: no cover - depends on the build
-    from . import _kernels as _c
+    from .. import _kernels as _c
 except ImportError:  # pragma: no cover - depends on the build
     _c = None
 
