@@ -5,7 +5,8 @@ installed on a machine with a C compiler.  It runs the Schur-Cohn stability test
 autoregressive recursion of a whole population in compiled loops, several candidates per
 SIMD register.  Without it (or with ``FLEXID_KERNELS=numpy`` in the environment) the same
 functions run the NumPy/SciPy reference path, which the tests compare against the compiled
-one.
+one.  The extension is built from the C files beside this module (``src/flexid/kernels``,
+one job each: ``docs/architecture.md`` lists them); they are not needed at run time.
 
 Environment variable ``FLEXID_KERNELS``:
 
