@@ -46,7 +46,8 @@ def test_the_walk_finds_the_public_modules():
     for name in ("flexid", "flexid.config", "flexid.envs", "flexid.optimisers", "flexid.signals"):
         assert name in PUBLIC_MODULES
     assert PUBLIC_PACKAGES == [
-        "flexid", "flexid.costs", "flexid.envs", "flexid.models", "flexid.optimisers"
+        "flexid", "flexid.costs", "flexid.envs", "flexid.kernels", "flexid.models",
+        "flexid.optimisers",
     ]
     assert not any(part.startswith("_") for m in PUBLIC_MODULES for part in m.split("."))
 

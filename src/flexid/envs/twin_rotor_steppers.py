@@ -540,7 +540,7 @@ def _compiled():
     return c
 
 
-#: The compiled stepper's parameter vector, in the order of ``TRS_PARAMS`` in _kernels.c.
+#: The compiled stepper's parameters, in the order of ``TRS_PARAMS`` in kernels/twin_rotor.h.
 KERNEL_PARAMETERS = ("I1", "I2", "a1", "b1", "a2", "b2", "Mg", "B1psi", "B2psi", "B1phi",
                      "B2phi", "Kgy", "k1", "k2", "T11", "T10", "T21", "T20", "Tp", "T0", "kc",
                      "coulomb_velocity")  # fmt: skip

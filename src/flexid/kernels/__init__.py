@@ -5,7 +5,8 @@ installed on a machine with a C compiler.  It runs the Schur-Cohn stability test
 autoregressive recursion of a whole population in compiled loops, several candidates per
 SIMD register.  Without it (or with ``FLEXID_KERNELS=numpy`` in the environment) the same
 functions run the NumPy/SciPy reference path, which the tests compare against the compiled
-one.
+one.  The extension is built from the C files beside this module (``src/flexid/kernels``,
+one job each: ``docs/architecture.md`` lists them); they are not needed at run time.
 
 Environment variable ``FLEXID_KERNELS``:
 
@@ -39,7 +40,7 @@ import os
 import numpy as np
 from scipy import signal
 
-from .errors import FlexidError
+from ..errors import FlexidError
 
 __all__ = [
     "BACKEND",
@@ -61,7 +62,7 @@ __all__ = [
 ]
 
 try:  # pragma: no cover - depends on the build
-    from . import _kernels as _c
+    from .. import _kernels as _c
 except ImportError:  # pragma: no cover - depends on the build
     _c = None
 
