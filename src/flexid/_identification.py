@@ -18,7 +18,6 @@ from .data import IOData
 from .diagnostics import format_fit
 from .families import family_of
 from .models.arx import ARX
-from .models.polynomial import PolynomialStructure
 from .optimisers import History
 from .parametrisation import SearchBox
 from .validation import ValidationReport
@@ -143,11 +142,7 @@ class Identification:
                 )
             )
         ratio = self.cost_value / self.cost_ls if self.cost_ls > 0 else float("nan")
-        ls_name = (
-            "ARX least squares read as the structure"
-            if isinstance(self.model.structure, PolynomialStructure)
-            else "least squares"
-        )
+        ls_name = family_of(self.model.structure).start_name(self.model.structure)
         items.append(
             (
                 "final cost",
@@ -189,10 +184,7 @@ class Identification:
         problems: list[str] = []
         tries: list[str] = []
         structure = self.model.structure
-        arx = not isinstance(structure, PolynomialStructure) or structure.kind == "arx"
-        reference = "optimiser='ls'" if arx and self.cost.predictor == "one-step" else (
-            "optimiser='oe'" if arx else "optimiser='pem'"
-        )
+        reference = family_of(structure).reference_hint(structure, self.cost.predictor)
         if self.result is not None:
             if self.cost_ls > 0 and self.cost_value > 1.1 * self.cost_ls:
                 problems.append(

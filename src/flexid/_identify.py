@@ -16,15 +16,11 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
-import numpy as np
-
 from ._identification import Identification, data_info, timings
 from ._identify_greybox import identify_greybox
 from ._validate import checked_keywords, integer
 from .config import (
     IDENTIFY_BUDGET,
-    LEAST_SQUARES,
-    OUTPUT_ERROR,
     PREDICTION_ERROR,
     REFERENCES,
     CostSpec,
@@ -34,6 +30,7 @@ from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
 from .errors import BudgetError, ConfigError
 from .estimation import build_problem, structure_of
+from .families import family_of
 from .greybox_family import greybox_of
 from .models.greybox import GreyBoxModel
 from .models.polynomial import PolynomialStructure, _check_initial
@@ -241,7 +238,6 @@ def identify(
         nk = list(found.nk) if first.n_inputs > 1 else found.nk[0]
         delay_text = found.describe()
     structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
-    polynomial = isinstance(structure, PolynomialStructure)
     for record in (*records, val):
         structure.check_samples(record.n_samples)
     given = {
@@ -252,7 +248,7 @@ def identify(
     }
     overrides = {k: v for k, v in given.items() if v is not None}
     search = replace(search or SearchSpec(), **overrides)
-    if optimiser in REFERENCES and not polynomial and structure.na == 0:
+    if optimiser in REFERENCES and structure.kind == "arx" and structure.na == 0:
         # an FIR model (na = 0) has no denominator to search, so the default numerator="fit"
         # space does not exist; a reference searches nothing: the space is only recorded
         search = replace(search, numerator="search")
@@ -265,7 +261,6 @@ def identify(
     }
     base = cost if isinstance(cost, CostSpec) else CostSpec()
     cost_spec = replace(base, **{k: v for k, v in cost_given.items() if v is not None})
-    predictor = cost_spec.predictor  # build_problem resolves the "auto" initial rule
     estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
     if len(records) > 1:
         structure = estimation.structure  # ARX is fitted as the polynomial family's there
@@ -275,7 +270,7 @@ def identify(
 
     t_opt = time.perf_counter()
     model, result, used_params, used_seed, cost_value, oe = _search(
-        estimation, structure, first, optimiser, predictor, budget, seed, params, callback
+        estimation, structure, first, optimiser, budget, seed, params, callback
     )
     model = model.named(first.input_names, first.output_names[0])
     cost_value, cost_search = rescored(objective, model, cost_value)
@@ -353,44 +348,18 @@ def rescored(objective: Any, model: Any, cost_value: float) -> tuple[float, floa
 
 
 def _search(
-    estimation: Any, structure: Any, est: IOData, optimiser: str, predictor: str, budget: Any,
+    estimation: Any, structure: Any, est: IOData, optimiser: str, budget: Any,
     seed: int | None, params: Mapping[str, Any] | None, callback: Callable | None,
 ) -> tuple[Any, Any, dict, int | None, float, Any]:
-    """Fit a polynomial structure by least squares, its gradient reference or an optimiser.
+    """Fit a structure by its family's own estimate (``"ls"``, ``"pem"``, ``"oe"``) or an
+    optimiser.
 
     Returns ``(model, optimiser result or None, hyper-parameters used, seed used, cost,
     reference result or None)``.
     """
-    polynomial = isinstance(structure, PolynomialStructure)
-    objective, cost_ls = estimation.cost, estimation.cost_ls
-    # the gradient reference of the one-step ARX cost is its exact optimum, least squares
-    arx_ls = optimiser == PREDICTION_ERROR and not polynomial and predictor != "simulation"
-    if (optimiser == LEAST_SQUARES or arx_ls) and not polynomial:
-        return structure.least_squares(est.u, est.y[:, 0], dt=est.dt), None, {}, None, \
-            cost_ls, None
-    if optimiser == LEAST_SQUARES:
-        if not np.isfinite(objective.theta_ls).all():
-            raise ConfigError(
-                f"{structure!r} has no least-squares start (its F polynomials differ in "
-                "order); use optimiser='pem'"
-            )
-        return structure.model(objective.theta_ls, dt=est.dt), None, {}, None, cost_ls, None
-    if optimiser in (OUTPUT_ERROR, PREDICTION_ERROR):
-        if not polynomial and predictor != "simulation":
-            raise ConfigError(
-                "the output-error reference ('oe') minimises the simulation cost: use "
-                "predictor='simulation' (--predictor simulation); least squares ('ls') is "
-                "the optimum of the one-step cost"
-            )
-        oe = estimation.output_error_reference(seed=0 if seed is None else seed)
-        if polynomial:
-            model = type(oe.model)(
-                structure, oe.theta, dt=est.dt, param_std=oe.model.param_std,
-                noise_variance=oe.model.noise_variance,
-            )
-        else:
-            model = structure.model(oe.theta, dt=est.dt)
-        return model, None, {"starts": len(oe.runs)}, seed, float(oe.cost), oe
+    if optimiser in REFERENCES:
+        fit = family_of(structure).fit(estimation, structure, optimiser, data=est, seed=seed)
+        return fit.model, None, fit.params, fit.seed, fit.cost, fit.result
     result = minimize(optimiser, estimation.problem, budget, seed, params=params,
                       callback=callback)
     model = structure.model(estimation.theta(result.x), dt=est.dt)

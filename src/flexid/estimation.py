@@ -30,10 +30,9 @@ from .errors import (
     ModelOrderError,
     UnknownNameError,
 )
-from .families import family_of
+from .families import family_named, family_of
 from .models.arx import ARXStructure
-from .models.polynomial import STRUCTURES, PolynomialStructure
-from .models.polynomial import structure as _named_structure
+from .models.polynomial import PolynomialStructure
 from .optimisers import Problem
 from .parametrisation import PARAMETRISATIONS, Parametrisation, SearchBox
 from .stability import is_stable
@@ -168,25 +167,18 @@ def search_box(
 
 
 # ================================================================================ structure
-def _per_input(value: Any, n_inputs: int) -> Any:
-    """A scalar order repeated for every input (``nb``, ``nf``, ``nk``)."""
-    if value is None or n_inputs == 1 or not is_integer(value):
-        return value
-    return [int(value)] * n_inputs
-
-
-def structure_of(
-    structure: str | PolynomialStructure | None,
-    n_inputs: int,
-    **orders: Any,
-) -> ARXStructure | PolynomialStructure:
+def structure_of(structure: Any, n_inputs: int, **orders: Any) -> Any:
     """The model structure of an identification, from a name or object and the orders.
+
+    The family that builds the name (:func:`flexid.families.family_named`) or owns the object
+    (:func:`flexid.families.family_of`) makes it (:meth:`flexid.families.Family.structure`).
 
     Parameters
     ----------
-    structure : str, PolynomialStructure or None
-        ``None`` (ARX from ``na``, ``nb``, ``nk``), a name of
-        :data:`flexid.models.polynomial.STRUCTURES` with its orders, or a structure (no orders).
+    structure : str, structure object or None
+        ``None`` (ARX from ``na``, ``nb``, ``nk``), a structure name of a registered family
+        (:data:`flexid.models.polynomial.STRUCTURES` with its orders, for the polynomial
+        family), or a structure (no orders).
     n_inputs : int
         Inputs of the record (a scalar ``nb``, ``nf`` or ``nk`` applies to each).
     **orders : int, sequence of int or None
@@ -194,9 +186,9 @@ def structure_of(
 
     Returns
     -------
-    ARXStructure or PolynomialStructure
+    object
         An :class:`~flexid.models.arx.ARXStructure` for ARX (the paper's path, unchanged),
-        otherwise the polynomial structure.
+        otherwise the family's structure.
 
     Raises
     ------
@@ -205,41 +197,17 @@ def structure_of(
         record's inputs.
     UnknownNameError
         An unknown structure name.
+    ConfigError
+        An object of no registered family.
     """
-    given = {k: v for k, v in orders.items() if v is not None}
-    if isinstance(structure, PolynomialStructure):
-        extra = sorted(k for k in given if k != "nk" or given[k] != 1)
-        if extra:
-            raise ModelOrderError(
-                f"give either a structure object or orders, not both (got {', '.join(extra)} "
-                f"with {structure!r})"
-            )
-        made = structure
-    else:
+    if structure is None or isinstance(structure, str):
         name = "arx" if structure is None else str(structure).lower()
-        if name not in STRUCTURES:
-            raise UnknownNameError("model structure", str(structure), tuple(STRUCTURES))
-        if name == "arx":
-            extra = sorted(k for k in given if k not in STRUCTURES["arx"])
-            if extra:
-                hint = "" if structure is not None else " (pass structure='armax', 'oe' or 'bj')"
-                raise ModelOrderError(
-                    f"the arx structure has no order {', '.join(extra)}; it takes na, nb, nk"
-                    + hint
-                )
-            if "na" not in given:
-                raise ModelOrderError("the arx structure needs the order na (and nb, nk)")
-            return model_structure(given["na"], given.get("nb"), given.get("nk", 1), n_inputs)
-        per = {k: _per_input(v, n_inputs) for k, v in given.items()}
-        made = _named_structure(name, **per)
-    if made.n_inputs != n_inputs:
-        raise ModelOrderError(
-            f"the record has {n_inputs} input(s) but {made!r} has {made.n_inputs} "
-            "(one nb, nf and nk per input)"
-        )
-    if made.kind == "arx":
-        return made.arx_structure()
-    return made
+        try:
+            family = family_named(name)
+        except UnknownNameError as exc:  # the name as given, not lowered
+            raise UnknownNameError(exc.kind, str(structure), exc.known) from None
+        return family.structure(name, n_inputs, **orders)
+    return family_of(structure).structure(structure, n_inputs, **orders)
 
 
 # ================================================================================ rules
@@ -265,7 +233,7 @@ def resolve_initial(initial: str, structure: Any) -> str:
     """
     if initial != "auto":
         return initial
-    return auto_initial(getattr(structure, "kind", "arx"))  # an ARXStructure has no kind
+    return auto_initial(structure.kind)
 
 
 def model_structure(

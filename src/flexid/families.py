@@ -9,9 +9,19 @@ model they hold and ask it, so none of them asks which family it holds.
 The object is what identification needs of a family that the structure and model cannot
 say themselves (they live a layer below the costs and the searches):
 
+- :meth:`Family.structure`: the structure a name and its orders give (``"oe", nb=2, nf=2``);
 - :meth:`Family.pose`: a record, a structure, a cost and a search as an
   :class:`~flexid.estimation.EstimationProblem` (its search space and batched cost);
+- :meth:`Family.fit`: the family's own estimate (least squares, its gradient reference)
+  where it has one, for ``identify(optimiser="ls")`` or ``"pem"``;
+- :meth:`Family.reference`: that reference straight from a record, for :func:`flexid.select`;
 - :meth:`Family.validate`: a model's validation report on a record.
+
+What the jobs read of a structure itself: ``kind`` (its name), ``orders`` (a dict),
+``n_params``, ``n_inputs``, ``start`` (the first sample a cost scores), ``check_samples(n)``,
+``model(theta, dt=...)`` and ``to_dict()``; of a model: ``structure``, ``theta``,
+``named(inputs, output)``, ``is_stable``, ``summary()`` and ``to_dict()``.
+``examples/recipe_family.py`` writes a family in one file.
 
 Examples
 --------
@@ -25,12 +35,47 @@ from __future__ import annotations
 
 import abc
 import importlib
+from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from .config import CostSpec, SearchSpec
-from .errors import ConfigError
+from .errors import ConfigError, ModelOrderError, UnknownNameError
 
-__all__ = ["Family", "families", "family_of", "register_family"]
+__all__ = [
+    "Family",
+    "ReferenceFit",
+    "families",
+    "family_named",
+    "family_of",
+    "register_family",
+    "structure_names",
+]
+
+
+@dataclass
+class ReferenceFit:
+    """A family's own estimate of a structure: its least squares or gradient reference.
+
+    Attributes
+    ----------
+    model : object
+        The fitted model.
+    cost : float
+        Its value of the posed cost.
+    params : dict
+        What the method used (``{"starts": 4}``), as a result records an optimiser's
+        hyper-parameters.
+    seed : int or None
+        The seed of its random starts (None: it has none).
+    result : object, optional
+        The reference's own result (standard errors, optimality), or None.
+    """
+
+    model: Any
+    cost: float
+    params: dict = field(default_factory=dict)
+    seed: int | None = None
+    result: Any = None
 
 
 class Family(abc.ABC):
@@ -44,11 +89,19 @@ class Family(abc.ABC):
         The structure classes it poses (an instance of one belongs to the family).
     models : tuple of type
         The model classes it validates.
+    names : tuple of str
+        The structure names :meth:`structure` builds from orders (``"arx"``, ``"oe"``); a
+        job's ``structure="oe"`` finds the family by them.
+    reads_channels : bool
+        Whether its models read a record's channels by their own names (a grey-box model),
+        rather than take the record's inputs in order.
     """
 
     name: ClassVar[str]
     structures: ClassVar[tuple[type, ...]] = ()
     models: ClassVar[tuple[type, ...]] = ()
+    names: ClassVar[tuple[str, ...]] = ()
+    reads_channels: ClassVar[bool] = False
 
     def owns(self, obj: Any) -> bool:
         """Whether ``obj`` is a structure or model of this family.
@@ -91,6 +144,147 @@ class Family(abc.ABC):
             ``structure.to_dict()`` by default.
         """
         return structure.to_dict()
+
+    def structure(self, spec: Any, n_inputs: int, **orders: Any) -> Any:
+        """The structure a name and its orders, or a whole structure, give for a record.
+
+        Parameters
+        ----------
+        spec : str or object
+            One of :attr:`names`, or a structure of this family (then no orders).
+        n_inputs : int
+            Inputs of the record.
+        **orders : int, sequence of int or None
+            The orders by name (None: not given).
+
+        Returns
+        -------
+        object
+            The structure, checked against the record's inputs.
+
+        Raises
+        ------
+        ModelOrderError
+            Orders the structure does not have, or that do not match the inputs.
+        """
+        given = sorted(k for k, v in orders.items() if v is not None and (k, v) != ("nk", 1))
+        if isinstance(spec, str):
+            raise ConfigError(f"the {self.name} family builds no structure from a name")
+        if given:
+            raise ModelOrderError(
+                f"give either a structure object or orders, not both (got {', '.join(given)} "
+                f"with {spec!r})"
+            )
+        if not self.reads_channels and getattr(spec, "n_inputs", n_inputs) != n_inputs:
+            raise ModelOrderError(
+                f"the record has {n_inputs} input(s) but {spec!r} has {spec.n_inputs}"
+            )
+        return spec
+
+    def canonical(self, structure: Any) -> Any:
+        """The structure in the form that compares equal across its spellings (default:
+        itself); :func:`flexid.select` removes duplicate candidates by it.
+
+        Parameters
+        ----------
+        structure : object
+
+        Returns
+        -------
+        object
+        """
+        return structure
+
+    def fit(self, estimation: Any, structure: Any, method: str, *, data: Any,
+            seed: int | None) -> ReferenceFit:
+        """The family's own estimate: ``method`` ``"ls"`` (least squares), ``"pem"`` or
+        ``"oe"`` (its gradient reference) of the posed problem.
+
+        Parameters
+        ----------
+        estimation : EstimationProblem
+            The problem :meth:`pose` gave.
+        structure : object
+            The structure asked for.
+        method : {"ls", "pem", "oe"}
+        data : IOData
+            The (first) estimation record.
+        seed : int or None
+            Seed of the reference's random starts.
+
+        Returns
+        -------
+        ReferenceFit
+
+        Raises
+        ------
+        ConfigError
+            When the family has no such estimate (the default: name an optimiser).
+        """
+        raise ConfigError(
+            f"the {self.name} model family has no estimate {method!r}: name a registered "
+            "optimiser (flexid list optimisers)"
+        )
+
+    def reference(self, data: Any, structure: Any, *, initial: str, starts: int | None,
+                  seed: int) -> tuple[Any, float, bool]:
+        """The gradient reference of ``structure`` on a record, as :func:`flexid.select`
+        fits a candidate.
+
+        Parameters
+        ----------
+        data : IOData
+            The estimation record.
+        structure : object
+        initial : str
+            The initial-condition rule of its prediction errors.
+        starts : int or None
+            Starts of the reference (None: the family's default).
+        seed : int
+            Seed of its random starts.
+
+        Returns
+        -------
+        model : object
+        sse : float
+            Sum of squared one-step prediction errors of the fit (output units squared).
+        local_minimum : bool
+            Whether it verified a local minimum.
+
+        Raises
+        ------
+        ConfigError
+            When the family has none (the default).
+        """
+        raise ConfigError(f"the {self.name} model family has no reference to select with")
+
+    def reference_hint(self, structure: Any, predictor: str) -> str:
+        """The estimate a user should compare a search with, as advice names it.
+
+        Parameters
+        ----------
+        structure : object
+        predictor : str
+            The cost's predictor.
+
+        Returns
+        -------
+        str
+        """
+        return "optimiser='pem'"
+
+    def start_name(self, structure: Any) -> str:
+        """What the start of the search is, as a summary names the cost it compares with.
+
+        Parameters
+        ----------
+        structure : object
+
+        Returns
+        -------
+        str
+        """
+        return "least squares"
 
     @abc.abstractmethod
     def pose(
@@ -201,6 +395,43 @@ def families() -> tuple[Family, ...]:
     """
     _load_builtins()
     return tuple(_FAMILIES)
+
+
+def family_named(name: str) -> Family:
+    """The family that builds the structure ``name`` (``"oe"``: the polynomial family).
+
+    Parameters
+    ----------
+    name : str
+        A structure name, any case.
+
+    Returns
+    -------
+    Family
+
+    Raises
+    ------
+    UnknownNameError
+        If no registered family builds it; the message lists every name that is known.
+    """
+    _load_builtins()
+    key = str(name).lower()
+    for family in reversed(_FAMILIES):
+        if key in family.names:
+            return family
+    known = tuple(n for f in _FAMILIES for n in f.names)
+    raise UnknownNameError("model structure", str(name), known)
+
+
+def structure_names() -> tuple[str, ...]:
+    """Every structure name the registered families build, in registration order.
+
+    Returns
+    -------
+    tuple of str
+    """
+    _load_builtins()
+    return tuple(dict.fromkeys(n for f in _FAMILIES for n in f.names))
 
 
 def family_of(obj: Any, default: str | None = None) -> Family:

@@ -12,13 +12,14 @@ from typing import Any
 
 import numpy as np
 
-from .config import CostSpec, SearchSpec
+from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
 from .costs.greybox import record_for
 from .data import IOData
 from .diagnostics import _check_max_lag
 from .errors import ConfigError, DataError
 from .families import Family
-from .greybox_estimation import GreyBoxEstimationProblem, build_greybox_problem
+from .greybox_estimation import START_NAME, GreyBoxEstimationProblem, build_greybox_problem
+from .greybox_fit import greyest
 from .models.greybox import GreyBoxModel, ParameterSet
 from .models.greybox_library import greybox_model
 from .validation import (
@@ -37,6 +38,20 @@ class GreyBoxFamily(Family):
     name = "greybox"
     structures = (GreyBoxModel,)
     models = (GreyBoxModel,)
+    reads_channels = True
+
+    def reference(self, data: Any, structure: Any, *, initial: str, starts: int | None,
+                  seed: int) -> tuple[Any, float, bool]:
+        res = greyest(data, structure, seed=seed,
+                      starts=GREYBOX_REFERENCE_STARTS if starts is None else starts)
+        return res.model, res.sse, res.local_minimum
+
+    reference.__doc__ = None  # Family.reference's
+
+    def start_name(self, structure: Any) -> str:
+        return START_NAME
+
+    start_name.__doc__ = None  # Family.start_name's
 
     def pose(
         self, data: Any, structure: Any, cost: CostSpec, search: SearchSpec, *, bounds: Any

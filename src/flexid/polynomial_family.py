@@ -15,25 +15,43 @@ from typing import Any
 
 import numpy as np
 
-from .config import CostSpec, SearchSpec
+from ._validate import is_integer
+from .config import (
+    LEAST_SQUARES,
+    OUTPUT_ERROR,
+    PREDICTION_ERROR,
+    REFERENCE_STARTS,
+    CostSpec,
+    SearchSpec,
+)
 from .costs.arx import ARXCost
 from .data import IOData, joined
 from .diagnostics import _check_max_lag
-from .errors import ConfigError, DataError, FlexidError, ModelOrderError, check_finite
+from .errors import (
+    ConfigError,
+    DataError,
+    FlexidError,
+    ModelOrderError,
+    UnknownNameError,
+    check_finite,
+)
 from .estimation import (
     EstimationProblem,
     _build_polynomial,
     _coefficients_of,
     _denominators_of,
     check_excitation,
+    model_structure,
     resolve_initial,
     search_box,
 )
-from .families import Family
+from .families import Family, ReferenceFit
 from .models.arx import ARX, ARXStructure
-from .models.polynomial import PolynomialModel, PolynomialStructure
+from .models.polynomial import STRUCTURES, PolynomialModel, PolynomialStructure
+from .models.polynomial import structure as _named_structure
 from .optimisers import Problem
 from .parametrisation import make_parametrisation
+from .prediction_error import pem
 from .validation import ValidationReport, _report
 
 __all__ = ["PolynomialFamily", "pose_polynomial"]
@@ -45,6 +63,115 @@ class PolynomialFamily(Family):
     name = "polynomial"
     structures = (PolynomialStructure, ARXStructure)
     models = (PolynomialModel, ARX)
+    names = tuple(STRUCTURES)
+
+    def structure(self, spec: Any, n_inputs: int, **orders: Any) -> Any:
+        given = {k: v for k, v in orders.items() if v is not None}
+        if isinstance(spec, ARXStructure):
+            spec = PolynomialStructure.arx(spec.na, spec.nb, spec.nk)
+        if isinstance(spec, PolynomialStructure):
+            extra = sorted(k for k in given if k != "nk" or given[k] != 1)
+            if extra:
+                raise ModelOrderError(
+                    f"give either a structure object or orders, not both (got "
+                    f"{', '.join(extra)} with {spec!r})"
+                )
+            made = spec
+        else:
+            name = str(spec).lower()
+            if name not in STRUCTURES:
+                raise UnknownNameError("model structure", str(spec), tuple(STRUCTURES))
+            if name == "arx":
+                extra = sorted(k for k in given if k not in STRUCTURES["arx"])
+                if extra:
+                    raise ModelOrderError(
+                        f"the arx structure has no order {', '.join(extra)}; it takes na, nb, "
+                        "nk (pass structure='armax', 'oe' or 'bj')"
+                    )
+                if "na" not in given:
+                    raise ModelOrderError("the arx structure needs the order na (and nb, nk)")
+                return model_structure(given["na"], given.get("nb"), given.get("nk", 1),
+                                       n_inputs)  # fmt: skip
+            per = {k: _per_input(v, n_inputs) for k, v in given.items()}
+            made = _named_structure(name, **per)
+        if made.n_inputs != n_inputs:
+            raise ModelOrderError(
+                f"the record has {n_inputs} input(s) but {made!r} has {made.n_inputs} "
+                "(one nb, nf and nk per input)"
+            )
+        if made.kind == "arx":
+            return made.arx_structure()  # the paper's path: ARX's one-step least squares
+        return made
+
+    structure.__doc__ = None  # Family.structure's
+
+    def canonical(self, structure: Any) -> Any:
+        if isinstance(structure, ARXStructure):
+            return PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
+        return structure
+
+    canonical.__doc__ = None  # Family.canonical's
+
+    def fit(self, estimation: Any, structure: Any, method: str, *, data: Any,
+            seed: int | None) -> ReferenceFit:
+        polynomial = isinstance(structure, PolynomialStructure)
+        objective, cost_ls = estimation.cost, estimation.cost_ls
+        one_step = objective.predictor != "simulation"
+        # the gradient reference of the one-step ARX cost is its exact optimum, least squares
+        if not polynomial and (method == LEAST_SQUARES or (method == PREDICTION_ERROR
+                                                           and one_step)):
+            return ReferenceFit(structure.least_squares(data.u, data.y[:, 0], dt=data.dt),
+                                cost_ls)  # fmt: skip
+        if method == LEAST_SQUARES:
+            if not np.isfinite(objective.theta_ls).all():
+                raise ConfigError(
+                    f"{structure!r} has no least-squares start (its F polynomials differ in "
+                    "order); use optimiser='pem'"
+                )
+            return ReferenceFit(structure.model(objective.theta_ls, dt=data.dt), cost_ls)
+        if method not in (OUTPUT_ERROR, PREDICTION_ERROR):
+            return super().fit(estimation, structure, method, data=data, seed=seed)
+        if not polynomial and one_step:
+            raise ConfigError(
+                "the output-error reference ('oe') minimises the simulation cost: use "
+                "predictor='simulation' (--predictor simulation); least squares ('ls') is "
+                "the optimum of the one-step cost"
+            )
+        ref = estimation.output_error_reference(seed=0 if seed is None else seed)
+        if polynomial:
+            model = type(ref.model)(
+                structure, ref.theta, dt=data.dt, param_std=ref.model.param_std,
+                noise_variance=ref.model.noise_variance,
+            )
+        else:
+            model = structure.model(ref.theta, dt=data.dt)
+        return ReferenceFit(model, float(ref.cost), {"starts": len(ref.runs)}, seed, ref)
+
+    fit.__doc__ = None  # Family.fit's
+
+    def reference(self, data: Any, structure: Any, *, initial: str, starts: int | None,
+                  seed: int) -> tuple[Any, float, bool]:
+        check_excitation(data, structure)  # a structure the input cannot determine fails
+        res = pem(data, structure, initial=initial,
+                  starts=REFERENCE_STARTS if starts is None else starts, seed=seed)
+        return res.model, res.sse, res.local_minimum
+
+    reference.__doc__ = None  # Family.reference's
+
+    def reference_hint(self, structure: Any, predictor: str) -> str:
+        arx = isinstance(structure, ARXStructure) or structure.kind == "arx"
+        if not arx:
+            return "optimiser='pem'"
+        return "optimiser='ls'" if predictor == "one-step" else "optimiser='oe'"
+
+    reference_hint.__doc__ = None  # Family.reference_hint's
+
+    def start_name(self, structure: Any) -> str:
+        if isinstance(structure, PolynomialStructure):
+            return "ARX least squares read as the structure"
+        return "least squares"
+
+    start_name.__doc__ = None  # Family.start_name's
 
     def title(self, structure: Any) -> str:
         if isinstance(structure, ARXStructure):
@@ -156,6 +283,13 @@ class PolynomialFamily(Family):
         )
 
     validate.__doc__ = None  # Family.validate's
+
+
+def _per_input(value: Any, n_inputs: int) -> Any:
+    """A scalar order repeated for every input (``nb``, ``nf``, ``nk``)."""
+    if value is None or n_inputs == 1 or not is_integer(value):
+        return value
+    return [int(value)] * n_inputs
 
 
 def pose_polynomial(

@@ -80,7 +80,6 @@ from scipy import linalg
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, integer, real
-from .config import GREYBOX_REFERENCE_STARTS, REFERENCE_STARTS
 from .diagnostics import format_fit
 from .errors import (
     ConfigError,
@@ -89,6 +88,7 @@ from .errors import (
     ModelOrderError,
     UnknownNameError,
 )
+from .families import family_of
 from .models.polynomial import (
     STRUCTURES,
     PolynomialModel,
@@ -664,20 +664,16 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
 GREYBOX_PREFIX = "greybox:"
 
 
-def _candidate_structures(
-    structures: Any, orders: Any, nk: Any, n_inputs: int
-) -> list[PolynomialStructure]:
+def _candidate_structures(structures: Any, orders: Any, nk: Any, n_inputs: int) -> list[Any]:
     """Every candidate's structure, checked (orders, inputs), duplicates removed."""
-    if isinstance(structures, (str, PolynomialStructure)) or not isinstance(
-        structures, Iterable
-    ):
+    if isinstance(structures, str) or not isinstance(structures, Iterable):
         structures = (structures,)
     structures = list(structures)
     if not structures:
         raise ConfigError(f"structures is empty; give names from {tuple(STRUCTURES)}")
-    names, fixed, greybox = _requested(structures)
+    names, fixed, by_name = _requested(structures)
     made = _from_grids(names, orders, nk, n_inputs)
-    out: list[PolynomialStructure] = []
+    out: list[Any] = []
     for s in [*made, *fixed]:
         if s.n_inputs != n_inputs:
             raise ModelOrderError(
@@ -686,34 +682,29 @@ def _candidate_structures(
             )
         if s not in out:
             out.append(s)
-    return out + greybox  # a grey-box model reads its channels by name
+    return out + by_name  # a grey-box model reads its channels by name
 
 
-def _requested(structures: list[Any]) -> tuple[list[str], list[PolynomialStructure], list]:
-    """The names to take from the order grids, the structures given whole, and the grey-box
-    models, of the entries of ``structures``."""
-    from .models.arx import ARXStructure
-    from .models.greybox import GreyBoxModel
-
+def _requested(structures: list[Any]) -> tuple[list[str], list[Any], list[Any]]:
+    """The names to take from the order grids, the structures given whole that take the
+    record's inputs in order, and those that read its channels by name (grey-box models),
+    of the entries of ``structures``."""
     names: list[str] = []
-    fixed: list[PolynomialStructure] = []
-    greybox: list[GreyBoxModel] = []
+    fixed: list[Any] = []
+    by_name: list[Any] = []
     for s in structures:
-        if isinstance(s, PolynomialStructure):
-            fixed.append(s)
-        elif isinstance(s, ARXStructure):
-            fixed.append(PolynomialStructure.arx(s.na, s.nb, s.nk))
-        elif isinstance(s, GreyBoxModel):
-            greybox.append(s)
-        elif isinstance(s, str) and s.lower().startswith(GREYBOX_PREFIX):
+        if isinstance(s, str) and s.lower().startswith(GREYBOX_PREFIX):
             from .models.greybox_library import greybox_model
 
-            greybox.append(greybox_model(s[len(GREYBOX_PREFIX):]))
-        else:
+            by_name.append(greybox_model(s[len(GREYBOX_PREFIX):]))
+        elif isinstance(s, str):
             key = _check_name(s)
             if key not in names:
                 names.append(key)
-    return names, fixed, greybox
+        else:
+            family = family_of(s)
+            (by_name if family.reads_channels else fixed).append(family.canonical(s))
+    return names, fixed, by_name
 
 
 def _from_grids(names: list[str], orders: Any, nk: Any, n_inputs: int) -> list:
@@ -1001,18 +992,13 @@ def select(
     t_begin = time.perf_counter()
     from .data import prepare_data
     from .delay import DELAY_METHODS, estimate_delay
-    from .estimation import check_excitation
-    from .greybox_fit import greyest
-    from .prediction_error import pem
     from .validation import validate
 
     criterion = _check_criterion(criterion)
     initial = _check_initial(initial)
     max_lag = integer(max_lag, "max_lag", error=ConfigError, minimum=1)
-    starts_gb = GREYBOX_REFERENCE_STARTS if starts is None else starts
-    starts = REFERENCE_STARTS if starts is None else starts
-    starts = integer(starts, "starts", error=ConfigError, minimum=0)
-    starts_gb = integer(starts_gb, "starts", error=ConfigError, minimum=0)
+    if starts is not None:  # None: each family's default
+        starts = integer(starts, "starts", error=ConfigError, minimum=0)
     seed = integer(seed, "seed", error=ConfigError, minimum=0)
     parsimony = real(parsimony, "parsimony", error=ConfigError, minimum=0)
     record = _as_record(data, "data")
@@ -1087,20 +1073,12 @@ def select(
             if i in fitted:
                 model, sse, fit_time = fitted[i]
                 local = True  # least squares: the global minimum
-            elif s.kind == "greybox":
-                t0 = time.perf_counter()
-                try:
-                    res = greyest(est, s, starts=starts_gb, seed=seed)
-                    model, sse, local = res.model, res.sse, res.local_minimum
-                except FlexidError as exc:
-                    model, sse, local = exc, math.nan, False
-                fit_time = time.perf_counter() - t0
             else:
                 t0 = time.perf_counter()
-                try:
-                    check_excitation(est, s)  # a candidate the input cannot determine fails
-                    res = pem(est, s, initial=initial, starts=starts, seed=seed)
-                    model, sse, local = res.model, res.sse, res.local_minimum
+                try:  # a candidate the input cannot determine fails, and the search goes on
+                    model, sse, local = family_of(s).reference(
+                        est, s, initial=initial, starts=starts, seed=seed
+                    )
                 except FlexidError as exc:
                     model, sse, local = exc, math.nan, False
                 fit_time = time.perf_counter() - t0

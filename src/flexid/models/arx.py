@@ -171,6 +171,8 @@ class ARXStructure:
 
     Attributes
     ----------
+    kind : str
+        ``"arx"``, the structure's name (as a polynomial structure's ``kind``).
     n_params : int
         ``na + sum(nb)``.
     start : int
@@ -178,6 +180,8 @@ class ARXStructure:
     param_names : list of str
         ``["a1", ..., "b1", ...]`` (with ``[u_i]`` suffixes for several inputs).
     """
+
+    kind = "arx"
 
     def __init__(self, na: int, nb: int | Sequence[int], nk: int | Sequence[int] = 1) -> None:
         (self.na,) = _orders(na, "na", 0)
