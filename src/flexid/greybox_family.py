@@ -26,7 +26,7 @@ from .validation import (
     GREYBOX_ESTIMATED_RULE,
     GREYBOX_RULE,
     ValidationReport,
-    _report,
+    residual_report,
 )
 
 __all__ = ["GreyBoxFamily", "greybox_of"]
@@ -127,7 +127,7 @@ def _validate_greybox(
     with np.errstate(all="ignore"):
         ysim_full = model.simulate(model.nominal, u_full, sample_time)[0, :, k]
     rule = GREYBOX_ESTIMATED_RULE if model.estimated_initial_states else GREYBOX_RULE
-    return _report(
+    return residual_report(
         y_full, None, ysim_full, u_full, start=start, dt=sample_time, max_lag=max_lag,
         names=list(model.inputs), output_name=str(model.outputs[k]), initial=rule,
         initial_one_step=rule, poles=_linearised_poles(model, sample_time), zeros=[],

@@ -52,7 +52,7 @@ from .models.polynomial import structure as _named_structure
 from .optimisers import Problem
 from .parametrisation import make_parametrisation
 from .prediction_error import pem
-from .validation import ValidationReport, _report
+from .validation import ValidationReport, residual_report
 
 __all__ = ["PolynomialFamily", "pose_polynomial"]
 
@@ -273,7 +273,7 @@ class PolynomialFamily(Family):
         check_finite(y1, "the model's one-step prediction")
 
         n_u = u_full.shape[1]
-        return _report(
+        return residual_report(
             y_full, y1, ysim, u_full, start=first, dt=sample_time, max_lag=max_lag,
             names=list(record.input_names), output_name=str(record.output_names[0]),
             output_unit=str(record.output_units[0]),

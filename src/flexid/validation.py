@@ -48,6 +48,7 @@ __all__ = [
     "INITIAL_RULES",
     "StabilityReport",
     "ValidationReport",
+    "residual_report",
     "stability_report",
     "validate",
 ]
@@ -510,17 +511,57 @@ class ValidationReport:
 
 
 # ============================================================================ entry point
-def _report(
+def residual_report(
     y_full: np.ndarray, y1_full: np.ndarray | None, ysim_full: np.ndarray, u_full: np.ndarray,
     *, start: int, dt: float, max_lag: int, names: list[str], output_name: str, initial: str,
     initial_one_step: str | None, poles: Any, zeros: Any, predictor_stable: bool | None = None,
     test_start: int | None = None, output_unit: str = "",
 ) -> ValidationReport:
-    """The report of one record from the model's outputs over it, scored over ``t >= start``.
+    """The validation report of a model from its outputs over a record.
 
-    ``y1_full`` None: an output-error model, whose one-step prediction is its simulation
-    (a simulation that overflowed then leaves the correlation tests a zero residual).  The
-    correlation tests use the residual over ``t >= test_start`` (default ``start``).
+    What every family's :meth:`~flexid.families.Family.validate` ends with: fits, error
+    ranges, the correlation and Billings-Voon tests, spectra and the stability table, all
+    scored over ``t >= start``.
+
+    Parameters
+    ----------
+    y_full : ndarray, shape (K,)
+        The measured output.
+    y1_full : ndarray, shape (K,), or None
+        The model's one-step prediction; None for an output-error model, whose one-step
+        prediction is its simulation (a simulation that overflowed then leaves the
+        correlation tests a zero residual).
+    ysim_full : ndarray, shape (K,)
+        The model's simulated output.
+    u_full : ndarray, shape (K, n_u)
+        The inputs.
+    start : int
+        First sample scored.
+    dt : float
+        Sample time (s).
+    max_lag : int
+        Lags of the correlation tests.
+    names : list of str
+        The inputs' names.
+    output_name : str
+        The output's name.
+    initial, initial_one_step : str or None
+        The initial-condition rules of the simulation and the prediction, as the report
+        states them.
+    poles : array_like
+        The model's discrete-time poles.
+    zeros : sequence of array_like
+        Its zeros, one array per input.
+    predictor_stable : bool, optional
+        Whether its one-step predictor is stable (None: not applicable).
+    test_start : int, optional
+        First sample of the correlation tests' residual (default ``start``).
+    output_unit : str, optional
+        The output's unit.
+
+    Returns
+    -------
+    ValidationReport
     """
     n = y_full.size
     seg = slice(start, n)
