@@ -80,6 +80,9 @@ class Tagged:
     def __init__(self, inner):
         self.inner = inner
 
+    def __getattr__(self, name):  # what the jobs read of a structure: the inner one's
+        return getattr(self.__dict__["inner"], name)
+
 
 class TaggedFamily(Family):
     """Poses and validates a :class:`Tagged` structure as the polynomial family does, and
@@ -129,3 +132,57 @@ def test_a_later_registration_of_a_name_replaces_it(restore_registry):
     register_family(Other())
     assert [f.name for f in families.families()].count("tagged") == 1
     assert type(family_of(Tagged(None))) is Other
+
+
+def test_structure_names_find_their_family_and_an_unknown_name_lists_them(restore_registry):
+    from flexid.errors import UnknownNameError
+    from flexid.estimation import structure_of
+    from flexid.families import family_named, structure_names
+
+    assert set(structure_names()) == {"arx", "armax", "oe", "bj"}
+    assert family_named("OE").name == "polynomial"
+    assert structure_of("oe", 1, nb=2, nf=2) == flexid.structure("oe", nb=2, nf=2)
+
+    class Named(TaggedFamily):
+        names = ("tagged-oe",)
+
+        def structure(self, spec, n_inputs, **orders):
+            if isinstance(spec, str):
+                return Tagged(flexid.structure("oe", **{k: v for k, v in orders.items()
+                                                        if v is not None}))
+            return super().structure(spec, n_inputs, **orders)
+
+    register_family(Named())
+    made = structure_of("Tagged-OE", 1, nb=2, nf=2, nk=None)
+    assert isinstance(made, Tagged) and made.inner == flexid.structure("oe", nb=2, nf=2)
+    with pytest.raises(UnknownNameError, match=r"'narx'; known: armax, arx, bj, oe, tagged-oe"):
+        structure_of("narx", 1)
+    # a structure object goes to its family whole; orders with it are an error
+    assert structure_of(made, 1) is made
+    with pytest.raises(flexid.errors.ModelOrderError, match="not both"):
+        structure_of(made, 1, nb=3)
+
+
+def test_a_family_without_its_own_estimate_says_to_name_an_optimiser(record, restore_registry):
+    register_family(TaggedFamily())
+    oe = flexid.structure("oe", nb=2, nf=2)
+    with pytest.raises(ConfigError, match=r"tagged model family has no estimate 'pem'.*optimiser"):
+        flexid.identify(record, structure=Tagged(oe), optimiser="pem")
+    with pytest.raises(ConfigError, match=r"tagged model family has no reference"):
+        TaggedFamily().reference(record, Tagged(oe), initial="estimate", starts=None, seed=0)
+
+
+def test_identify_and_select_take_the_polynomial_family_estimates(record):
+    """The jobs' references come from the family: identify's ``pem`` and select's fit of a
+    candidate equal the family's own, called directly."""
+    oe = flexid.structure("oe", nb=2, nf=2)
+    family = family_of(oe)
+    est = record.split(2 / 3)[0]
+    model, sse, local = family.reference(est, oe, initial="estimate", starts=None, seed=0)
+    chosen = flexid.select(record, structures=[oe])
+    assert local and chosen.candidates[0].sse == sse
+    np.testing.assert_array_equal(chosen.candidates[0].model.theta, model.theta)
+    assert family.reference_hint(oe, "simulation") == "optimiser='pem'"
+    arx = ARXStructure(2, 2)
+    assert family.reference_hint(arx, "one-step") == "optimiser='ls'"
+    assert family.reference_hint(arx, "simulation") == "optimiser='oe'"
