@@ -31,6 +31,7 @@ import numpy as np
 from scipy import signal
 
 import flexid
+from flexid.config import CostSpec
 from flexid.errors import ModelOrderError
 from flexid.families import Family, ReferenceFit, register_family
 from flexid.metrics import metric_from_sse
@@ -434,10 +435,8 @@ class LaguerreFamily(Family):
         local_minimum : bool
             True: least squares is the global minimum.
         """
-        phi = structure.regressors(data.u[:, 0])
-        theta = np.linalg.lstsq(phi, data.y[:, 0], rcond=None)[0]
-        residual = data.y[:, 0] - phi @ theta
-        return structure.model(theta, dt=data.dt), float(residual @ residual), True
+        cost = LaguerreCost(data, structure, CostSpec(metric="sse"))
+        return structure.model(cost.theta_ls, dt=data.dt), cost.cost_ls, True
 
     def reference_hint(self, structure: Any, predictor: str) -> str:
         """The exact optimum a search compares with.

@@ -167,19 +167,37 @@ class Family(abc.ABC):
         ModelOrderError
             Orders the structure does not have, or that do not match the inputs.
         """
-        given = sorted(k for k, v in orders.items() if v is not None and (k, v) != ("nk", 1))
         if isinstance(spec, str):
             raise ConfigError(f"the {self.name} family builds no structure from a name")
-        if given:
-            raise ModelOrderError(
-                f"give either a structure object or orders, not both (got {', '.join(given)} "
-                f"with {spec!r})"
-            )
+        self.refuse_orders(spec, orders)
         if not self.reads_channels and getattr(spec, "n_inputs", n_inputs) != n_inputs:
             raise ModelOrderError(
                 f"the record has {n_inputs} input(s) but {spec!r} has {spec.n_inputs}"
             )
         return spec
+
+    @staticmethod
+    def refuse_orders(spec: Any, orders: dict[str, Any]) -> None:
+        """Refuse orders given with a whole structure (``nk=1``, the default, is no order).
+
+        Parameters
+        ----------
+        spec : object
+            The structure given.
+        orders : dict
+            The orders by name (None: not given).
+
+        Raises
+        ------
+        ModelOrderError
+            If any order is given.
+        """
+        given = sorted(k for k, v in orders.items() if v is not None and (k, v) != ("nk", 1))
+        if given:
+            raise ModelOrderError(
+                f"give either a structure object or orders, not both (got {', '.join(given)} "
+                f"with {spec!r})"
+            )
 
     def canonical(self, structure: Any) -> Any:
         """The structure in the form that compares equal across its spellings (default:
@@ -419,8 +437,7 @@ def family_named(name: str) -> Family:
     for family in reversed(_FAMILIES):
         if key in family.names:
             return family
-    known = tuple(n for f in _FAMILIES for n in f.names)
-    raise UnknownNameError("model structure", str(name), known)
+    raise UnknownNameError("model structure", str(name), structure_names())
 
 
 def structure_names() -> tuple[str, ...]:

@@ -67,15 +67,9 @@ class PolynomialFamily(Family):
 
     def structure(self, spec: Any, n_inputs: int, **orders: Any) -> Any:
         given = {k: v for k, v in orders.items() if v is not None}
-        if isinstance(spec, ARXStructure):
-            spec = PolynomialStructure.arx(spec.na, spec.nb, spec.nk)
+        spec = _polynomial_structure(spec)
         if isinstance(spec, PolynomialStructure):
-            extra = sorted(k for k in given if k != "nk" or given[k] != 1)
-            if extra:
-                raise ModelOrderError(
-                    f"give either a structure object or orders, not both (got "
-                    f"{', '.join(extra)} with {spec!r})"
-                )
+            self.refuse_orders(spec, orders)
             made = spec
         else:
             name = str(spec).lower()
@@ -106,9 +100,7 @@ class PolynomialFamily(Family):
     structure.__doc__ = None  # Family.structure's
 
     def canonical(self, structure: Any) -> Any:
-        if isinstance(structure, ARXStructure):
-            return PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
-        return structure
+        return _polynomial_structure(structure)
 
     canonical.__doc__ = None  # Family.canonical's
 
@@ -159,8 +151,7 @@ class PolynomialFamily(Family):
     reference.__doc__ = None  # Family.reference's
 
     def reference_hint(self, structure: Any, predictor: str) -> str:
-        arx = isinstance(structure, ARXStructure) or structure.kind == "arx"
-        if not arx:
+        if structure.kind != "arx":
             return "optimiser='pem'"
         return "optimiser='ls'" if predictor == "one-step" else "optimiser='oe'"
 
@@ -285,6 +276,13 @@ class PolynomialFamily(Family):
     validate.__doc__ = None  # Family.validate's
 
 
+def _polynomial_structure(structure: Any) -> Any:
+    """An :class:`ARXStructure` as the polynomial family's ARX structure; others as given."""
+    if isinstance(structure, ARXStructure):
+        return PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
+    return structure
+
+
 def _per_input(value: Any, n_inputs: int) -> Any:
     """A scalar order repeated for every input (``nb``, ``nf``, ``nk``)."""
     if value is None or n_inputs == 1 or not is_integer(value):
@@ -324,12 +322,10 @@ def pose_polynomial(
     # (several records: on them joined, whose junctions add a few rows to a rank test)
     check_excitation(joined(est) if several else est, structure)
     cost = replace(cost, initial=resolve_initial(cost.initial, structure))
-    if (cost.initial == "estimate" or several) and not isinstance(
-        structure, PolynomialStructure
-    ):
+    if cost.initial == "estimate" or several:
         # ARXCost has neither an estimated initial state nor several records; the polynomial
         # cost covers ARX as well
-        structure = PolynomialStructure.arx(structure.na, structure.nb, structure.nk)
+        structure = _polynomial_structure(structure)
     if isinstance(structure, PolynomialStructure):
         if structure.kind != "arx" or cost.initial == "estimate" or several:
             return _build_polynomial(est, structure, cost, search, bounds=bounds)
