@@ -123,7 +123,7 @@ def test_identify_fits_a_user_model_by_the_reference_and_by_an_optimiser(model_f
     data = _record(model_file)
     model = greybox_model(f"{model_file}:MODEL")
     ref = flexid.identify(data, structure=model)  # default: the reference ("pem")
-    se = ref.output_error.result.std_errors
+    se = ref.output_error.std_errors
     for name, value in TRUE.items():
         # noise of 1e-4 m on a ~1e-2 m response: the estimate is within a few standard errors
         assert abs(ref.model.parameter(name).value - value) <= 4 * se[name], name

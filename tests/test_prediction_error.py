@@ -476,13 +476,13 @@ def test_a_hopeless_run_is_abandoned_at_its_best_point(monkeypatch) -> None:
     # With the thresholds at their extremes (abandon at once, anything above the best run so
     # far is hopeless), every start that begins above the first run's minimum is abandoned
     # at its start; the minimum itself is unchanged, since the first run reaches it.
-    from flexid import prediction_error
+    from flexid import reference
 
     s, polys = SYSTEMS["oe"]
     u, y = _simulate(s, polys, n=800, seed=4)
     full = pem((u, y), s, initial="zero", starts=4, seed=0)
-    monkeypatch.setattr(prediction_error, "_HOPELESS", 1.0)
-    monkeypatch.setattr(prediction_error, "_ABANDON_AFTER", 0)
+    monkeypatch.setattr(reference, "HOPELESS", 1.0)
+    monkeypatch.setattr(reference, "ABANDON_AFTER", 0)
     quick = pem((u, y), s, initial="zero", starts=4, seed=0)
     abandoned = [r for r in quick.runs if r.message.startswith("abandoned")]
     assert len(abandoned) >= 3  # the four extra starts begin far above the minimum

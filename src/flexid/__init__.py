@@ -20,7 +20,8 @@ Grey-box models
     :func:`identify` and :func:`compare` take them as ``structure``
 References
     :func:`pem` and MATLAB's :func:`oe`, :func:`armax`, :func:`bj` (Levenberg-Marquardt on
-    the prediction errors, analytic gradients)
+    the prediction errors, analytic gradients); every reference, :func:`greyest` among them,
+    returns a :class:`ReferenceResult` (a :class:`scipy.optimize.OptimizeResult`)
 Identification
     :func:`identify` -> :class:`Identification`; the search box (:class:`SearchBox`,
     :func:`search_box`), search space (:class:`SearchSpec`) and cost (:class:`CostSpec`)
@@ -102,6 +103,7 @@ _LAZY = {
     "oe": "prediction_error",
     "armax": "prediction_error",
     "bj": "prediction_error",
+    "ReferenceResult": "reference",
     # identification (the function lives in a private module: no module shares its name)
     "identify": "_identify",
     "Identification": "_identification",

@@ -334,20 +334,16 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     if oe is not None:
         # the simulation cost's own optimum (least squares is not): the reference of targets
         oe_model = ctx.structure.model(oe.theta, dt=ctx.dt)
-        n_params = len(oe.theta)
         record["output_error"] = {
             "cost": float(oe.cost),
             "theta": [float(v) for v in oe.theta],
             "stable": bool(oe.stable),
-            "nfev_equivalent": int(
-                getattr(oe, "nfev_equivalent", oe.nfev + oe.njev * n_params)
-            ),
+            "nfev_equivalent": int(oe.nfev_equivalent),
             "wall_time": float(oe.wall_time),
             "validation": _validation_numbers(oe_model, ctx),
+            "local_minimum": bool(oe.local_minimum),
+            "on_cap": bool(oe.on_cap),
         }
-        if hasattr(oe, "local_minimum"):  # the prediction-error reference measures it
-            record["output_error"]["local_minimum"] = bool(oe.local_minimum)
-            record["output_error"]["on_cap"] = bool(oe.on_cap)
     record["wall_time"] = time.perf_counter() - t0
     return record
 

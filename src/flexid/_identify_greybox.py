@@ -37,7 +37,7 @@ class GreyBoxIdentification(Identification):
     As :class:`~flexid.Identification`, with ``model`` the fitted
     :class:`~flexid.models.greybox.GreyBoxModel`, ``cost_ls`` the cost at the parameters' given
     values (the start; a grey-box model has no least squares) and, for ``optimiser="pem"``,
-    ``output_error`` the :class:`~flexid.greybox_estimation.GreyBoxReference` with standard
+    ``output_error`` the :class:`~flexid.greybox_fit.GreyBoxResult` with standard
     errors and identifiability.
 
     Attributes
@@ -65,7 +65,7 @@ class GreyBoxIdentification(Identification):
             where = "a local minimum" if ref.local_minimum else "NOT a verified local minimum"
             items.append((
                 "search",
-                f"Levenberg-Marquardt, {len(ref.runs)} start(s), {ref.nfev} simulations; "
+                f"Levenberg-Marquardt, {len(ref.runs)} start(s), {ref.simulations} simulations; "
                 f"first-order optimality {ref.optimality:.2g}: {where}",
             ))
         if self.result is not None:
@@ -88,7 +88,7 @@ class GreyBoxIdentification(Identification):
     def _parameter_table(self) -> str:
         ref = self.output_error
         if ref is not None:
-            return ref.result.summary()
+            return ref.summary()
         return self.model.summary()
 
     def advice(self) -> str | None:
@@ -159,7 +159,7 @@ class GreyBoxIdentification(Identification):
         ref = self.output_error
         reference = None
         if ref is not None:
-            fit = ref.result
+            fit = ref
             reference = {
                 "std_errors": fit.std_errors,
                 "local_minimum": fit.local_minimum,

@@ -20,7 +20,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,7 +31,10 @@ from .models.greybox import GreyBoxModel
 from .optimisers import Problem
 from .parametrisation import SearchBox
 
-__all__ = ["GreyBoxEstimationProblem", "GreyBoxReference", "build_greybox_problem"]
+if TYPE_CHECKING:
+    from .greybox_fit import GreyBoxResult
+
+__all__ = ["GreyBoxEstimationProblem", "build_greybox_problem"]
 
 #: What a grey-box problem's "least squares" row is: the parameters' given values.
 START_NAME = "nominal values"
@@ -39,53 +42,6 @@ START_NAME = "nominal values"
 REFERENCE_NAME = (
     "grey-box reference (Levenberg-Marquardt on the simulation residuals, several starts)"
 )
-
-
-@dataclass
-class GreyBoxReference:
-    """The gradient reference's result, as the comparison and identification read it.
-
-    Attributes
-    ----------
-    theta : ndarray, shape (n_free,)
-        The estimated parameters' values.
-    cost : float
-        The problem's cost there (its metric, not greyest's RMSE).
-    stable : bool
-        Always True: a grey-box model has no stability constraint to violate (a model that
-        diverges costs ``+inf`` and is never a reference).
-    nfev : int
-        Parameter sets simulated, residuals and Jacobian columns together.
-    njev : int
-        0 (the Jacobians' simulations are counted in ``nfev``).
-    nfev_equivalent : int
-        Equal to ``nfev``: what an optimiser's FE count compares with.
-    wall_time : float
-        Seconds.
-    local_minimum : bool
-        Whether it ended at a verified local minimum (first-order test).
-    optimality : float
-        The first-order test's largest cosine.
-    on_cap : bool
-        False (no radius cap); here for the interface of the polynomial references.
-    runs : list
-        One entry per start (:class:`flexid.greybox_fit.GreyBoxRun`).
-    result : GreyBoxResult
-        The whole result (standard errors, identifiability, bounds).
-    """
-
-    theta: np.ndarray
-    cost: float
-    stable: bool
-    nfev: int
-    njev: int
-    nfev_equivalent: int
-    wall_time: float
-    local_minimum: bool
-    optimality: float
-    on_cap: bool
-    runs: list
-    result: Any = field(repr=False)
 
 
 @dataclass
@@ -172,7 +128,7 @@ class GreyBoxEstimationProblem:
 
     def output_error_reference(
         self, *, starts: int = GREYBOX_REFERENCE_STARTS, seed: int = 0
-    ) -> GreyBoxReference:
+    ) -> GreyBoxResult:
         """The gradient reference, :func:`flexid.greybox_fit.greyest`, from the given values.
 
         Cached for the last ``(starts, seed)``.
@@ -186,29 +142,18 @@ class GreyBoxEstimationProblem:
 
         Returns
         -------
-        GreyBoxReference
+        GreyBoxResult
+            With ``cost`` the problem's cost at ``x`` (its metric, not greyest's RMSE) and
+            ``wall_time`` including the cost's setting up.
         """
         if self._ref is None or self._ref[0] != (starts, seed):
             from .greybox_fit import greyest
 
             t0 = time.perf_counter()
-            fit = greyest((self.cost.u, self.cost.y), self.structure, starts=starts,
-                          seed=seed, dt=self.cost.dt)
-            theta = fit.model.theta
-            ref = GreyBoxReference(
-                theta=theta,
-                cost=float(self.cost(theta[None, :])[0]),
-                stable=True,
-                nfev=int(fit.nfev),
-                njev=0,
-                nfev_equivalent=int(fit.nfev),
-                wall_time=time.perf_counter() - t0,
-                local_minimum=bool(fit.local_minimum),
-                optimality=float(fit.optimality),
-                on_cap=False,
-                runs=list(fit.runs),
-                result=fit,
-            )
+            ref = greyest((self.cost.u, self.cost.y), self.structure, starts=starts,
+                          seed=seed, dt=self.cost.dt)  # fmt: skip
+            ref["cost"] = float(self.cost(ref.x[None, :])[0])
+            ref["wall_time"] = time.perf_counter() - t0
             self._ref = ((starts, seed), ref)
         return self._ref[1]
 

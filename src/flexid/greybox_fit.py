@@ -41,11 +41,10 @@ RMS), where the residual's direction is noise.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import time
 from typing import Any
 
 import numpy as np
-from scipy import optimize
 
 from ._validate import checked_keywords, integer, real
 from .config import GREYBOX_REFERENCE_STARTS
@@ -53,6 +52,7 @@ from .costs.greybox import GreyBoxCost
 from .diagnostics import fit_percent
 from .errors import ConfigError
 from .models.greybox import GreyBoxModel
+from .reference import ReferenceResult, ReferenceRun, levenberg_marquardt
 
 __all__ = ["EXACT", "OPTIMALITY", "UNIDENTIFIABLE", "GreyBoxResult", "GreyBoxRun", "greyest"]
 
@@ -70,78 +70,56 @@ _STEP = 1e-5  # central-difference step in the unit box
 _ON_BOUND = 1e-6  # distance in the unit box below which a parameter is on its bound
 
 
-@dataclass
-class GreyBoxRun:
-    """One start of :func:`greyest`.
-
-    Attributes
-    ----------
-    start : str
-        ``"nominal"``, ``"given"`` or ``"random k"``.
-    initial, final : ndarray, shape (n_free,)
-        The estimated parameters' physical values at the start and the end.
-    sse : float
-        Sum of squared (scaled) errors at the end.
-    nfev : int
-        Simulated parameter sets (residuals and Jacobians).
-    message : str
-        Why the solver stopped.
-    """
-
-    start: str
-    initial: np.ndarray
-    final: np.ndarray
-    sse: float
-    nfev: int
-    message: str
+#: One start of :func:`greyest` (the one run record of every reference).
+GreyBoxRun = ReferenceRun
 
 
-@dataclass
-class GreyBoxResult:
-    """Result of :func:`greyest`.
+class GreyBoxResult(ReferenceResult):
+    """Result of :func:`greyest`: the one reference result, with a table and a summary.
+
+    Keys besides those of :class:`~flexid.reference.ReferenceResult` (where ``x`` is the
+    estimated parameters' physical values, in ``model.free`` order, ``fun`` the SSE of the
+    scaled simulation errors and ``std`` their standard errors, ``inf`` in an undetermined
+    direction):
 
     Attributes
     ----------
     model : GreyBoxModel
         The model with the estimated values as its parameters' values.
     values : dict of str to float
-        Every parameter's value (estimated and fixed).
-    std_errors : dict of str to float
-        Standard error of each estimated parameter (``inf`` in an undetermined direction).
+        Every parameter's value (estimated and fixed), read from ``model``: a property, which
+        hides ``dict.values`` on this result.
     covariance : ndarray, shape (n_free, n_free)
-    cost : float
+    rmse : float
         RMSE of the simulation error (scaled per output when there are several).
-    sse : float
+    cost : float
+        The cost the reference served: ``rmse`` from :func:`greyest`, an estimation
+        problem's own metric from its ``output_error_reference``.
     fit : float
         Simulation fit [%] on the estimation record (first output).
-    nfev : int
-        Parameter sets simulated, over every start.
-    local_minimum : bool
-    optimality : float
-        Largest cosine of the first-order test (see the module notes).
+    simulations, nfev_equivalent : int
+        Parameter sets simulated over every start, residuals and the ``2 n_free`` of each
+        central-difference Jacobian together (what an optimiser's FE count compares with).
     on_bound : tuple of str
         Estimated parameters on a bound.
     singular_values : ndarray
         Of the relative-sensitivity Jacobian, divided by the largest.
     unidentifiable : tuple of str
         One description per undetermined combination.
-    runs : list of GreyBoxRun
+    stable, on_cap : bool
+        True and False: a grey-box model has no stability constraint (a model that
+        diverges costs ``+inf``) and no radius cap.
     """
 
-    model: GreyBoxModel
-    values: dict[str, float]
-    std_errors: dict[str, float]
-    covariance: np.ndarray
-    cost: float
-    sse: float
-    fit: float
-    nfev: int
-    local_minimum: bool
-    optimality: float
-    on_bound: tuple[str, ...]
-    singular_values: np.ndarray
-    unidentifiable: tuple[str, ...]
-    runs: list[GreyBoxRun] = field(default_factory=list)
+    @property
+    def values(self) -> dict[str, float]:  # type: ignore[override]
+        """Every parameter's value (estimated and fixed), by name."""
+        return dict(zip(self.model.names, self.model.nominal.tolist()))
+
+    @property
+    def std_errors(self) -> dict[str, float]:
+        """Standard error of each estimated parameter, by name."""
+        return dict(zip(self.free, np.asarray(self["std"]).tolist()))
 
     @property
     def free(self) -> tuple[str, ...]:
@@ -177,7 +155,8 @@ class GreyBoxResult:
         )
         lines = [
             f"grey-box model {self.model.name}: simulation fit {self.fit:.2f} % on the "
-            f"estimation record, RMSE {self.cost:.6g}, {self.nfev} simulations, {len(self.runs)} "
+            f"estimation record, RMSE {self.rmse:.6g}, {self.simulations} simulations, "
+            f"{len(self.runs)} "
             f"start(s); {status}",
         ]
         if self.on_bound:
@@ -289,6 +268,7 @@ def greyest(
     DataError
         A record without the model's channels (see :func:`flexid.costs.greybox.record_for`).
     """
+    t_begin = time.perf_counter()
     cost = GreyBoxCost(model, data, metric="rmse", dt=dt)
     n = cost.n_params
     if n == 0:
@@ -310,21 +290,16 @@ def greyest(
             )
     points = [(label, problem.unit(first))]
     points += [(f"random {k + 1}", rng.random(n)) for k in range(starts)]
-    runs = []
-    best = None
-    for name, s0 in points:
-        before = problem.nfev
-        fit = optimize.least_squares(
-            problem.fun, s0, jac=problem.jac, bounds=(0.0, 1.0), method="trf",
-            ftol=tol, xtol=tol, gtol=tol, max_nfev=budget,
+    runs = [
+        levenberg_marquardt(
+            problem.fun, problem.jac, s0, name, bounds=(0.0, 1.0), max_nfev=budget, tol=tol
         )
-        final = problem.physical(fit.x)
-        sse = float(fit.fun @ fit.fun)
-        runs.append(GreyBoxRun(name, problem.physical(s0), final, sse, problem.nfev - before,
-                               str(fit.message)))
-        if best is None or sse < best[1]:
-            best = (fit.x, sse)
-    s_best, sse = best
+        for name, s0 in points
+    ]
+    best_start = int(np.argmin([run.fun for run in runs]))
+    s_best, sse = runs[best_start].x, runs[best_start].fun
+    for run in runs:  # the runs' starts and ends in physical units
+        run.x0, run.x = problem.physical(run.x0), problem.physical(run.x)
     r = problem.fun(s_best)
     J_s = problem.jac(s_best)
     values = problem.physical(s_best)
@@ -357,19 +332,32 @@ def greyest(
     y_sim = fitted.simulate(fitted.nominal, cost.u, cost.dt)[0, :, 0]
     fit_pct = fit_percent(cost.y[:, 0], y_sim)
     exact = math.sqrt(sse / k) <= EXACT * float(np.sqrt(np.mean(cost._target**2)))
+    local = bool(optimality <= OPTIMALITY or exact)
     return GreyBoxResult(
+        x=fitted.theta,
+        fun=sse,
+        status=0 if local else 3 if runs[best_start].out_of_budget else 1,
+        success=local,
+        message=f"best of {len(runs)} start(s): {runs[best_start].kind} "
+        f"({runs[best_start].message})",
+        nfev=sum(run.nfev for run in runs),
+        njev=sum(run.njev for run in runs),
+        std=std,
+        optimality=optimality,
+        local_minimum=local,
+        runs=runs,
+        best_start=best_start,
+        wall_time=time.perf_counter() - t_begin,
         model=fitted,
-        values=dict(zip(fitted.names, fitted.nominal.tolist())),
-        std_errors=dict(zip(model.free, std.tolist())),
         covariance=covariance,
         cost=math.sqrt(sse / k),
-        sse=sse,
+        rmse=math.sqrt(sse / k),
         fit=fit_pct,
-        nfev=problem.nfev,
-        local_minimum=bool(optimality <= OPTIMALITY or exact),
-        optimality=optimality,
+        simulations=problem.nfev,
+        nfev_equivalent=problem.nfev,
         on_bound=tuple(name for name, b in zip(model.free, at_lower | at_upper) if b),
         singular_values=rel,
         unidentifiable=tuple(texts),
-        runs=runs,
+        stable=True,
+        on_cap=False,
     )

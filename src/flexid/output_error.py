@@ -6,7 +6,9 @@ equation error, which weights high frequencies and is biased under output noise.
 simulation residuals ``e(t) = y(t) - y_sim(t)``; :func:`output_error` does the same on an
 :class:`~flexid.costs.arx.ARXCost` with ``predictor="simulation"``, from several stable
 starts, and returns the best stable result.  It is the fair reference an optimiser's result
-on the simulation cost is compared with.
+on the simulation cost is compared with.  This module holds the problem (residuals,
+sensitivities, starts); the run and the result are the one reference's
+(:func:`flexid.reference.levenberg_marquardt`, :class:`~flexid.reference.ReferenceResult`).
 
 Notes
 -----
@@ -24,10 +26,9 @@ Notes
   the same as ``n_params`` simulations, in a single batched call.
 * **Stability.**  Every start is stable (an unstable one has the poles outside the unit
   circle mirrored to ``1/conj(p)`` as ``pem`` does, and ``B`` divided by the product of the
-  mirrored radii so the magnitude response is unchanged).  The residual function returns a
-  constant vector whose sum of squares is far above the start's for an unstable candidate,
-  so MINPACK's Levenberg-Marquardt rejects that step and increases its damping; the Jacobian
-  is only evaluated at accepted, hence stable, points.  The result is stable by
+  mirrored radii so the magnitude response is unchanged, :func:`flexid.stability.mirror_inside`).
+  An unstable candidate is rejected (:mod:`flexid.reference`): the Jacobian is only
+  evaluated at accepted, hence stable, points.  The result is stable by
   construction, and rejection (rather than reflecting inside the residual function) keeps
   the residual smooth where it is evaluated, so the analytic Jacobian stays exact.  An
   optimum beyond the stability boundary ends at a stable point next to it.
@@ -44,120 +45,54 @@ Notes
   (damping ``1 - |p|`` scaled log-normally, angles jittered; conjugate pairs kept) and
   uniformly drawn stable poles; for each, ``B`` is the exact optimum given ``A`` (the
   simulated output is linear in ``B``, one small least-squares solve).  ``x0`` is one more
-  start when given.  The best result by ``cost(...)`` is returned; the starts themselves are
-  candidates too, so ``cost(result.theta) <= cost(theta_ls)`` always.
+  start when given.  The run of least SSE is returned (every metric of the cost increases
+  with the SSE); the starts themselves are candidates too, so
+  ``cost(result.theta) <= cost(theta_ls)`` always.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ._validate import integer, positive_int, real
 from .config import REFERENCE_STARTS
 from .costs.arx import ARXCost
 from .errors import ConfigError, DataError
 from .kernels import ar_recursion
-from .stability import is_stable, pole_radius_batched
+from .reference import (
+    CAP_TOLERANCE,
+    OPTIMALITY_THRESHOLD,
+    ReferenceResult,
+    ReferenceRun,
+    levenberg_marquardt,
+    optimality,
+    standard_errors,
+    status_of,
+)
+from .stability import (
+    is_stable,
+    mirror_inside,
+    perturbed_poles,
+    pole_radius_batched,
+    pull_inside,
+    random_poles,
+    within_radius,
+)
 
 __all__ = ["OEResult", "OERun", "output_error", "simulation_jacobian", "simulation_residuals"]
 
-# Sum of squares of the residual vector returned for an unstable candidate: this factor
-# times (the start's SSE + the zero-prediction SSE), far above anything LM can reach from a
-# stable start, so the step is always rejected.
-_REJECT_FACTOR = 1e6
-# Largest pole radius of a mirrored start (a pole exactly on the circle is its own mirror).
-_MAX_RADIUS = 1.0 - 1e-6
 # Steiglitz-McBride iterations of that start (its iterates settle within ~20 on the plants
 # and records of the benchmarks; each is one filtering and one least-squares fit).
 _SM_ITERATIONS = 30
 
 
-# ==================================================================================== results
-@dataclass
-class OERun:
-    """One Levenberg-Marquardt run of :func:`output_error`.
-
-    Attributes
-    ----------
-    kind : str
-        ``"least-squares"``, ``"steiglitz-mcbride"``, ``"perturbed"`` (least-squares poles
-        perturbed), ``"random"`` (uniformly drawn stable poles) or ``"x0"``.
-    theta0 : ndarray, shape (n_params,)
-        The (stable) start.
-    theta : ndarray, shape (n_params,)
-        Where the run ended (stable).
-    cost0, cost : float
-        The cost's value at ``theta0`` and at ``theta``.
-    nfev, njev : int
-        Residual and Jacobian evaluations of this run.
-    message : str
-        The optimiser's stopping message.
-    """
-
-    kind: str
-    theta0: np.ndarray
-    theta: np.ndarray
-    cost0: float
-    cost: float
-    nfev: int
-    njev: int
-    message: str
-
-
-@dataclass
-class OEResult:
-    """Outcome of :func:`output_error`.
-
-    Attributes
-    ----------
-    theta : ndarray, shape (n_params,)
-        Best stable estimate ``[a_1 .. a_na, b ...]``.
-    cost : float
-        The cost's value at ``theta`` (same metric and units as ``cost(...)``).
-    cost_ls : float
-        The cost's value at the least-squares estimate (``penalty + ...`` when unstable).
-    starts : list of float
-        Final cost of each run, in the order of ``runs``.
-    nfev : int
-        Residual evaluations (one simulation each) over all runs.
-    njev : int
-        Analytic Jacobian evaluations over all runs (including the ``B`` refits of the
-        random starts).
-    nfev_equivalent : int
-        ``nfev + njev * n_params``: a Jacobian is ``n_params`` sensitivity simulations, the
-        work of ``n_params`` forward differences (run as one batched call).
-    wall_time : float
-        Seconds, start to finish.
-    stable : bool
-        Every pole of ``theta`` strictly inside the unit circle (True by construction).
-    message : str
-        Which start won and why its run stopped.
-    best_start : int
-        Index into ``runs`` (and ``starts``) of the winner.
-    ls_stable : bool
-        Whether the least-squares estimate itself was stable.
-    runs : list of OERun
-        Details of every run.
-    """
-
-    theta: np.ndarray
-    cost: float
-    cost_ls: float
-    starts: list[float]
-    nfev: int
-    njev: int
-    nfev_equivalent: int
-    wall_time: float
-    stable: bool
-    message: str
-    best_start: int
-    ls_stable: bool
-    runs: list[OERun] = field(default_factory=list, repr=False)
+#: The result of :func:`output_error` (the one reference result type; its keys there).
+OEResult = ReferenceResult
+#: One run of :func:`output_error`.
+OERun = ReferenceRun
 
 
 # ==================================================================================== problem
@@ -319,82 +254,6 @@ def simulation_jacobian(cost: ARXCost, theta: Any) -> tuple[np.ndarray, np.ndarr
 
 
 # ==================================================================================== starts
-def _poles_to_a(poles: np.ndarray) -> np.ndarray:
-    return np.real(np.poly(poles))[1:] if poles.size else np.zeros(0)
-
-
-def _mirror(theta: np.ndarray, na: int) -> np.ndarray:
-    """``theta`` with poles outside the circle mirrored to ``1/conj(p)`` (as ``pem`` does).
-
-    ``B`` is divided by the product of the mirrored radii: ``|e^jw - 1/conj(p)| =
-    |e^jw - p| / |p|``, so the magnitude response is unchanged (only the phase moves).
-    """
-    if na == 0 or is_stable(theta[:na])[0]:
-        return theta.copy()
-    poles = np.roots(np.concatenate([[1.0], theta[:na]]))
-    r = np.abs(poles)
-    out = poles.copy()
-    outside = r >= 1.0
-    out[outside] = 1.0 / np.conj(poles[outside])
-    gain = float(np.prod(r[outside]))
-    r_new = np.abs(out)
-    too_big = r_new > _MAX_RADIUS  # on (or rounding onto) the circle: pull just inside
-    out[too_big] *= _MAX_RADIUS / r_new[too_big]
-    new = theta.copy()
-    new[:na] = _poles_to_a(out)
-    new[na:] /= gain
-    shrink = _MAX_RADIUS
-    while not is_stable(new[:na])[0]:  # np.poly rounding on a pole at the edge
-        shrink *= _MAX_RADIUS
-        new[:na] = _poles_to_a(out * shrink)
-    return new
-
-
-def _pairs(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Real poles and the upper-half-plane member of each conjugate pair."""
-    tol = 1e-9 * max(1.0, float(np.abs(poles).max(initial=0.0)))
-    real = np.real(poles[np.abs(poles.imag) <= tol])
-    upper = poles[poles.imag > tol]
-    # np.roots gives complex poles in conjugate pairs; an unpaired count would mean a pole
-    # classified as complex whose partner fell under tol, so rebuild from what we have.
-    n_missing = poles.size - real.size - 2 * upper.size
-    if n_missing:
-        real = np.concatenate([real, np.zeros(n_missing)])
-    return real, upper
-
-
-def _admissible(a: np.ndarray, r_max: float) -> bool:
-    """Whether the denominator ``a`` (na,) is stable with every pole radius <= ``r_max``."""
-    if not is_stable(a)[0]:
-        return False
-    return r_max >= 1.0 or a.size == 0 or float(pole_radius_batched(a[None, :])[0]) <= r_max
-
-
-def _capped(a: np.ndarray, r_max: float) -> np.ndarray:
-    """``a`` with every pole of radius above ``r_max`` pulled in radially to ``r_max``."""
-    poles = np.roots(np.concatenate([[1.0], a]))
-    r = np.abs(poles)
-    shrink = r_max
-    while True:
-        out = np.where(r > shrink, poles * (shrink / np.maximum(r, 1e-300)), poles)
-        new = _poles_to_a(out)
-        if _admissible(new, r_max):
-            return new
-        shrink *= 1.0 - 1e-9  # np.poly rounding put a pole back just above the cap
-
-
-def _perturbed_a(a_ls: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Least-squares poles (stable) with damping and angle perturbed; conjugacy kept."""
-    real, upper = _pairs(np.roots(np.concatenate([[1.0], a_ls])))
-    # damping 1 - |p| scaled log-normally keeps the pole inside the circle whatever the draw
-    real_r = 1.0 - (1.0 - np.abs(real)) * np.exp(rng.normal(0.0, 0.5, real.size))
-    real_new = np.sign(real + (real == 0)) * np.minimum(real_r, _MAX_RADIUS)
-    rad = 1.0 - (1.0 - np.abs(upper)) * np.exp(rng.normal(0.0, 0.5, upper.size))
-    ang = np.clip(np.angle(upper) * np.exp(rng.normal(0.0, 0.1, upper.size)), 1e-3, np.pi - 1e-3)
-    up_new = np.minimum(rad, _MAX_RADIUS) * np.exp(1j * ang)
-    return _poles_to_a(np.concatenate([real_new, up_new, np.conj(up_new)]))
-
-
 def _steiglitz_mcbride(cost: ARXCost, iterations: int = _SM_ITERATIONS) -> np.ndarray | None:
     """A start from the Steiglitz-McBride iteration (stable; ``None`` if it breaks down).
 
@@ -408,7 +267,7 @@ def _steiglitz_mcbride(cost: ARXCost, iterations: int = _SM_ITERATIONS) -> np.nd
     from scipy import signal
 
     na = cost.structure.na
-    theta = _mirror(np.asarray(cost.theta_ls, dtype=float), na)
+    theta = mirror_inside(np.asarray(cost.theta_ls, dtype=float), na)
     for _ in range(iterations):
         den = np.concatenate([[1.0], theta[:na]])
         try:
@@ -417,87 +276,40 @@ def _steiglitz_mcbride(cost: ARXCost, iterations: int = _SM_ITERATIONS) -> np.nd
             )
         except DataError:  # filtered regressors rank deficient
             return None
-        new = _mirror(np.asarray(fitted.theta, dtype=float), na)
+        new = mirror_inside(np.asarray(fitted.theta, dtype=float), na)
         if not np.isfinite(new).all():
             return None
         theta = new
     return theta
 
 
-def _random_a(na: int, rng: np.random.Generator) -> np.ndarray:
-    """Stable poles drawn uniformly over the disc of radius 0.95 (pairs) plus one real."""
-    n_pairs = na // 2
-    rad = 0.95 * np.sqrt(rng.uniform(0.0, 1.0, n_pairs))
-    up = rad * np.exp(1j * rng.uniform(0.0, np.pi, n_pairs))
-    real = rng.uniform(-0.95, 0.95, na % 2)
-    return _poles_to_a(np.concatenate([real, up, np.conj(up)]))
-
-
 # ==================================================================================== solver
 def _run_lm(
-    prob: _Problem,
-    theta0: np.ndarray,
-    kind: str,
-    max_nfev: int | None,
-    tol: float,
+    prob: _Problem, theta0: np.ndarray, kind: str, max_nfev: int | None, tol: float,
     r_max: float,
-) -> OERun:
-    """Levenberg-Marquardt (MINPACK) from an admissible start, rejecting other steps."""
+) -> ReferenceRun:
+    """Levenberg-Marquardt from a stable start within the cap ``r_max``, counted on ``prob``."""
     na = prob.na
-    nfev0, njev0 = prob.nfev, prob.njev
     cache: dict[str, Any] = {"x": None, "y": None}
-    r0 = prob.residuals(theta0[None, :])[0]
-    prob.nfev += 1
-    sse0 = float(r0 @ r0)
-    bad_sse = _REJECT_FACTOR * (sse0 + float(prob.target @ prob.target)) + 1.0
-    bad = np.full(prob.target.size, np.sqrt(bad_sse / prob.target.size))
 
-    def fun(x: np.ndarray) -> np.ndarray:
-        prob.nfev += 1
-        if not (np.isfinite(x).all() and _admissible(x[:na], r_max)):
-            return bad
+    def residuals(x: np.ndarray) -> np.ndarray:
         y = prob.simulate(x[None, :])[0]
         cache["x"], cache["y"] = x.copy(), y  # the Jacobian at x reuses this simulation
         return prob.target - y[prob.offset :]
 
-    def jac(x: np.ndarray) -> np.ndarray:
-        prob.njev += 1
+    def jacobian(x: np.ndarray) -> np.ndarray:
         if cache["x"] is None or not np.array_equal(cache["x"], x):
-            if not is_stable(x[:na])[0]:  # never happens: LM only differentiates accepted x
-                return np.zeros((prob.target.size, prob.n))
             prob.nfev += 1
             cache["x"], cache["y"] = x.copy(), prob.simulate(x[None, :])[0]
         return prob.jacobian(x, cache["y"])
 
-    sol = least_squares(
-        fun,
-        theta0,
-        jac=jac,
-        method="lm",
-        x_scale="jac",
-        ftol=tol,
-        xtol=tol,
-        gtol=tol,
-        max_nfev=max_nfev,
+    run = levenberg_marquardt(
+        residuals, jacobian, theta0, kind, admissible=lambda x: within_radius(x[:na], r_max),
+        energy=float(prob.target @ prob.target), max_nfev=max_nfev, tol=tol,
     )
-    theta = np.asarray(sol.x, dtype=float)
-    # one row per call, as a user calls cost(theta): the compiled kernel's rounding may
-    # depend on a row's position in a batch, and the guarantees are about cost(theta)
-    cost0, cost1 = float(prob.cost(theta0)[0]), float(prob.cost(theta)[0])
-    if not (_admissible(theta[:na], r_max) and cost1 <= cost0):
-        # defensive: MINPACK returns its best accepted (stable) point, so this only guards
-        # against rounding differences between its SSE and the cost's
-        theta, cost1 = theta0.copy(), cost0
-    return OERun(
-        kind=kind,
-        theta0=theta0,
-        theta=theta,
-        cost0=cost0,
-        cost=cost1,
-        nfev=prob.nfev - nfev0,
-        njev=prob.njev - njev0,
-        message=str(sol.message),
-    )
+    prob.nfev += run.nfev
+    prob.njev += run.njev
+    return run
 
 
 def output_error(
@@ -541,8 +353,21 @@ def output_error(
 
     Returns
     -------
-    OEResult
-        ``theta`` stable with ``cost(theta) <= cost(theta_ls)``.
+    ReferenceResult
+        ``x`` (also ``theta``) stable with ``cost(x) <= cost(theta_ls)``; ``fun`` its SSE,
+        ``status``, ``std`` (from the simulation residuals' Jacobian) and the other keys of
+        :class:`~flexid.reference.ReferenceResult`, and:
+
+        ``cost``, ``cost_ls`` : float
+            The cost's value at ``x`` and at the least-squares estimate (``penalty + ...``
+            when unstable).
+        ``stable``, ``ls_stable`` : bool
+            Every pole of ``x`` strictly inside the circle (True by construction); whether
+            the least-squares estimate itself was.
+        ``on_cap`` : bool
+            A pole within 1e-6 of ``r_max`` (``local_minimum`` is then False).
+        ``max_radius`` : float
+            The largest pole radius of ``x``.
 
     Raises
     ------
@@ -563,7 +388,7 @@ def output_error(
 
     theta_ls = np.asarray(cost.theta_ls, dtype=float)
     ls_stable = bool(is_stable(theta_ls[:na])[0])
-    start_list: list[tuple[str, np.ndarray]] = [("least-squares", _mirror(theta_ls, na))]
+    start_list: list[tuple[str, np.ndarray]] = [("least-squares", mirror_inside(theta_ls, na))]
     a_ls = start_list[0][1][:na]
     if na:
         sm = _steiglitz_mcbride(cost)
@@ -572,34 +397,50 @@ def output_error(
     for i in range(1, int(starts)):
         if na == 0:  # no poles to vary: B given A is the least-squares start again
             break
-        a = _perturbed_a(a_ls, rng) if i % 2 == 1 else _random_a(na, rng)
+        a = perturbed_poles(a_ls, rng) if i % 2 == 1 else random_poles(na, rng)
         start_list.append(("perturbed" if i % 2 == 1 else "random", prob.refit_b(a)))
     if x0 is not None:
-        start_list.append(("x0", _mirror(_as_theta(x0, prob.n, "x0"), na)))
+        start_list.append(("x0", mirror_inside(_as_theta(x0, prob.n, "x0"), na)))
     for i, (kind, th) in enumerate(start_list):
-        if not _admissible(th[:na], r_max):
-            start_list[i] = (kind, prob.refit_b(_capped(th[:na], r_max)))
+        if not within_radius(th[:na], r_max):
+            start_list[i] = (kind, prob.refit_b(pull_inside(th[:na], r_max)))
 
     runs = [_run_lm(prob, th, kind, max_nfev, tol, r_max) for kind, th in start_list]
-    best = int(np.argmin([r.cost for r in runs]))
+    best = int(np.argmin([r.fun for r in runs]))
     win = runs[best]
-    theta = win.theta.copy()
-    final_cost = float(cost(theta)[0])
+    theta = win.x.copy()
     message = f"best of {len(runs)} start(s): {win.kind} ({win.message})"
     if not ls_stable:
         message += "; least squares was unstable, its start was mirrored to stable"
-    return OEResult(
-        theta=theta,
-        cost=final_cost,
-        cost_ls=float(cost.cost_ls),
-        starts=[r.cost for r in runs],
+    # the end's diagnostics are not part of the search: not counted in nfev, njev
+    ysim = prob.simulate(theta[None, :])[0]
+    e = prob.target - ysim[prob.offset :]
+    jac = prob.jacobian(theta, ysim)
+    _, std = standard_errors(e, jac, e.size, prob.n)
+    reached = optimality(e, jac)
+    max_radius = float(pole_radius_batched(theta[None, :na])[0]) if na else 0.0
+    on_cap = bool(na) and max_radius >= r_max - CAP_TOLERANCE
+    local = bool(reached < OPTIMALITY_THRESHOLD and not on_cap)
+    status = status_of(local, on_cap, win.out_of_budget)
+    return ReferenceResult(
+        x=theta,
+        fun=float(e @ e),
+        status=status,
+        success=status == 0,
+        message=message,
         nfev=prob.nfev,
         njev=prob.njev,
         nfev_equivalent=prob.nfev + prob.njev * prob.n,
-        wall_time=time.perf_counter() - t_begin,
-        stable=bool(is_stable(theta[:na])[0]),
-        message=message,
-        best_start=best,
-        ls_stable=ls_stable,
+        std=std,
+        optimality=reached,
+        local_minimum=local,
         runs=runs,
+        best_start=best,
+        wall_time=time.perf_counter() - t_begin,
+        cost=float(cost(theta)[0]),
+        cost_ls=float(cost.cost_ls),
+        stable=bool(is_stable(theta[:na])[0]),
+        ls_stable=ls_stable,
+        on_cap=on_cap,
+        max_radius=max_radius,
     )

@@ -46,8 +46,8 @@ Notes
   outside are mirrored to ``1/conj(r)`` as ``pem`` does (``B`` divided by the product of the
   mirrored radii of ``A`` or ``F_j`` so the magnitude response is unchanged), and a
   Levenberg-Marquardt step that leaves that set is rejected by returning a residual far
-  worse than the start's, exactly as in :mod:`flexid.output_error` (so LM raises its damping;
-  the Jacobian is only evaluated at accepted points).
+  worse than the start's (:func:`flexid.reference.levenberg_marquardt`, the one run of every
+  reference: LM raises its damping, and the Jacobian is only evaluated at accepted points).
 * **Starts.**  Least squares ARX of orders ``(na, nb, nk)`` (or ``(max nf, nb, nk)`` for
   ``F``, one denominator per input refitted on the partial residual when the ``nf_j``
   differ); 30 Steiglitz-McBride iterations for ``F`` (per input, each on its partial
@@ -69,17 +69,17 @@ Notes
   ``1e-6`` of ``r_max < 1``, LM continues from it with the cap lifted to
   ``1 - (1 - r_max)/100`` and then to the unit circle itself (roots strictly inside), and the
   better stable point is kept.  The result reports whether its final point still sits on
-  the cap in force (:attr:`PEMResult.on_cap`) and whether it is a first-order local minimum
-  (:attr:`PEMResult.local_minimum`).
+  the cap in force (``on_cap`` of the result) and whether it is a first-order local minimum
+  (``local_minimum``).
 * **Convergence.**  On a large-residual (misspecified) fit Gauss-Newton converges only
   linearly, and MINPACK's ``ftol`` test may stop it with the relative gradient still above
   :data:`OPTIMALITY_THRESHOLD` although the SSE has settled to ~1e-11; an interior final
   point that fails the gradient test gets one more run with the tolerances ``tol * 1e-5``
-  (``"polish"`` in :attr:`PEMResult.runs`).
+  (``"polish"`` in the result's ``runs``).
 * **Budget.**  By default each run has MINPACK's ``100 * n_params`` residual evaluations.
   A run they stop within ``1.1`` times the best SSE of all the starts continues from where it
   stopped, a budget at a time while its SSE still falls (by more than ``1e-9`` relative), up
-  to ten budgets in all (``"<kind>, continued"`` in :attr:`PEMResult.runs`).  Slow valleys
+  to ten budgets in all (``"<kind>, continued"`` in the result's ``runs``).  Slow valleys
   are common in over-parametrised structures (a pole pair nearly cancelled by a zero pair
   moves along an almost flat direction): on the simulated twin rotor's pitch, OE(5,5,1) from
   least squares needs about 3,000 evaluations to reach its minimum, and a budget of 1,000
@@ -104,12 +104,10 @@ Notes
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy import linalg, signal
-from scipy.optimize import least_squares
 
 from ._validate import checked_keywords, integer, real
 from .config import REFERENCE_STARTS
@@ -118,16 +116,27 @@ from .errors import ConfigError, DataError
 from .models.arx import _io_arrays
 from .models.polynomial import PolynomialModel, PolynomialStructure, _check_initial, _poly_mul
 from .models.polynomial import structure as _named_structure
-from .output_error import (
-    _REJECT_FACTOR,
-    _SM_ITERATIONS,
-    _admissible,
-    _capped,
-    _mirror,
-    _perturbed_a,
-    _random_a,
+from .output_error import _SM_ITERATIONS
+from .reference import (
+    CAP_TOLERANCE,
+    CHUNKS,
+    OPTIMALITY_THRESHOLD,
+    PROMISING,
+    ReferenceResult,
+    ReferenceRun,
+    levenberg_marquardt,
+    optimality,
+    standard_errors,
+    status_of,
 )
-from .stability import pole_radius_batched
+from .stability import (
+    mirror_inside,
+    perturbed_poles,
+    pole_radius_batched,
+    pull_inside,
+    random_poles,
+    within_radius,
+)
 
 __all__ = [
     "OPTIMALITY_THRESHOLD",
@@ -141,26 +150,10 @@ __all__ = [
     "prediction_jacobian",
 ]
 
-#: Threshold of :attr:`PEMResult.optimality` for :attr:`PEMResult.local_minimum`: at a
-#: MINPACK stop with ``tol = 1e-10`` on the test systems it is below 2e-8, and a point
-#: stopped on the cap or by the budget is orders of magnitude above it.
-OPTIMALITY_THRESHOLD = 1e-6
-# A root counts as on the cap within this radius distance.
-_CAP_TOLERANCE = 1e-6
-# a run its evaluation budget stopped within _PROMISING times the best SSE of the starts
-# continues while its SSE falls by more than _STILL_FALLING (relative), up to _CHUNKS
-# budgets in all
-_CHUNKS = 10
-_PROMISING = 1.1
 # the random and perturbed starts, which explore: a run of theirs that crawls too slowly to
 # reach the best of the others is abandoned (the structured starts keep whole budgets: a slow
 # valley can speed up, as on the twin rotor's OE(5,5,1) below)
 _EXTRA_KINDS = ("perturbed", "random")
-_STILL_FALLING = 1e-9
-# a run still above _HOPELESS times the best SSE of the runs before it after _ABANDON_AFTER
-# evaluations per parameter is abandoned at its best point
-_HOPELESS = 100.0
-_ABANDON_AFTER = 10
 # The continuation run of a final point that fails the gradient test uses tol times this
 # factor, not below the floor (MINPACK refuses tolerances under machine epsilon).
 _POLISH_FACTOR = 1e-5
@@ -170,124 +163,10 @@ _POLISH_FLOOR = 1e-15
 _RANK_TOLERANCE = 1e-12
 
 
-class _Abandoned(Exception):
-    """Raised from inside MINPACK's loop to end a hopeless run."""
-
-
-# =================================================================================== results
-@dataclass
-class PEMRun:
-    """One Levenberg-Marquardt run of :func:`pem`.
-
-    Attributes
-    ----------
-    kind : str
-        Where it started: ``"least-squares"``, ``"steiglitz-mcbride"``,
-        ``"hannan-rissanen"``, ``"output-error"``, ``"perturbed"``, ``"random"``, ``"x0"``;
-        ``"<kind>, continued"``, a run its evaluation budget stopped while it still descended
-        (module docstring, "Budget"); or a continuation of the best point: ``"cap
-        r_max=<value>"`` (the cap lifted) or ``"polish"`` (tighter tolerances, when the
-        gradient test failed at an interior point).
-    theta0 : ndarray, shape (n_params,)
-        The (admissible) start.
-    theta : ndarray, shape (n_params,)
-        Where the run ended (admissible).
-    sse0, sse : float
-        Sum of squared prediction errors at ``theta0`` and ``theta`` (output units squared).
-    nfev, njev : int
-        Residual and Jacobian evaluations of this run.
-    message : str
-        The optimiser's stopping message.
-    out_of_budget : bool
-        Whether the evaluation budget stopped it (rather than a tolerance).
-    """
-
-    kind: str
-    theta0: np.ndarray
-    theta: np.ndarray
-    sse0: float
-    sse: float
-    nfev: int
-    njev: int
-    message: str
-    out_of_budget: bool = False
-
-
-@dataclass
-class PEMResult:
-    """Outcome of :func:`pem`.
-
-    Attributes
-    ----------
-    model : PolynomialModel
-        The estimate, with ``param_std`` from ``sigma^2 (J'J)^-1`` (``J`` the Jacobian of the
-        prediction errors with respect to ``theta`` at the estimate) and ``noise_variance =
-        sigma^2 = sse / (K - n_params)``.
-    theta : ndarray, shape (n_params,)
-        ``model.theta`` (``structure.param_names`` order).
-    sse : float
-        Sum of squared one-step prediction errors over ``t >= structure.start`` under
-        ``initial`` (output units squared).
-    K : int
-        Number of error samples, ``N - structure.start``.
-    initial : str
-        The initial-condition rule of the cost.
-    optimality : float
-        First-order optimality ``||J' e|| / (||J||_F ||e||)`` at ``theta`` (0 when ``e = 0``).
-    local_minimum : bool
-        ``optimality < OPTIMALITY_THRESHOLD`` (1e-6) and not :attr:`on_cap`.
-    on_cap : bool
-        A root of ``A``, an ``F_j``, ``D`` or ``C`` within 1e-6 of :attr:`r_cap`.
-    r_cap : float
-        The root-radius cap in force at the end: ``r_max``, or a lifted one (up to 1, the
-        unit circle, roots strictly inside) when the best point sat on ``r_max``.
-    max_radius : float
-        Largest root radius of ``A``, the ``F_j``, ``D`` and ``C``.
-    runs : list of PEMRun
-        Every run, starts first, then any continuation with a lifted cap.
-    best_start : int
-        Index into ``runs`` of the run that produced ``theta``.
-    nfev, njev : int
-        Residual and Jacobian evaluations over all runs, and over the output-error fit that
-        gives a Box-Jenkins structure its ``"output-error"`` start.
-    wall_time : float
-        Seconds, start to finish.
-    message : str
-        Which start won, why its run stopped, and any cap lifting.
-    stable : bool
-        ``model.is_stable``: every root of ``A`` and the ``F_j`` strictly inside the circle.
-    predictor_stable : bool
-        ``model.predictor_stable``: ``C`` and the ``F_j`` strictly inside the circle.
-    cost : float
-        The value of an optimiser's cost at ``theta`` when the reference was run for one
-        (:meth:`flexid.estimation.PolynomialEstimationProblem.output_error_reference`);
-        NaN otherwise.
-    """
-
-    model: PolynomialModel
-    theta: np.ndarray
-    sse: float
-    K: int
-    initial: str
-    optimality: float
-    local_minimum: bool
-    on_cap: bool
-    r_cap: float
-    max_radius: float
-    runs: list[PEMRun] = field(repr=False)
-    best_start: int
-    nfev: int
-    njev: int
-    wall_time: float
-    message: str
-    stable: bool
-    predictor_stable: bool
-    cost: float = float("nan")
-
-    @property
-    def nfev_equivalent(self) -> int:
-        """``nfev + njev * n_params``: a Jacobian is ``n_params`` sensitivity filters."""
-        return int(self.nfev + self.njev * self.theta.size)
+#: The result of :func:`pem` (the one reference result type; its keys below).
+PEMResult = ReferenceResult
+#: One run of :func:`pem`.
+PEMRun = ReferenceRun
 
 
 # =================================================================================== helpers
@@ -374,7 +253,7 @@ class _Problem:
 
     def admissible(self, theta: np.ndarray, r_max: float) -> bool:
         """Every constrained polynomial strictly stable with root radii ``<= r_max``."""
-        return all(_admissible(theta[sl], r_max) for sl, _ in self.rooted)
+        return all(within_radius(theta[sl], r_max) for sl, _ in self.rooted)
 
     def max_radius(self, theta: np.ndarray) -> float:
         radii = [float(pole_radius_batched(theta[sl][None, :])[0]) for sl, _ in self.rooted]
@@ -383,7 +262,7 @@ class _Problem:
     def predictor_ok(self, theta: np.ndarray) -> bool:
         """``C`` and every ``F_j`` strictly stable: the predictor filters by ``1/(C F)``."""
         parts = [self.sl["c"], *self.sl["f"]]
-        return all(_admissible(theta[sl], 1.0) for sl in parts)
+        return all(within_radius(theta[sl], 1.0) for sl in parts)
 
     # ------------------------------------------------------------------ errors
     def errors(self, theta: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
@@ -588,7 +467,7 @@ def _mirror_all(prob: _Problem, theta: np.ndarray) -> np.ndarray:
     na = prob.s.na
     if na:
         b_all = np.concatenate([out[s] for s in sl["b"]])
-        new = _mirror(np.concatenate([out[sl["a"]], b_all]), na)
+        new = mirror_inside(np.concatenate([out[sl["a"]], b_all]), na)
         out[sl["a"]] = new[:na]
         i = na
         for s in sl["b"]:
@@ -597,21 +476,21 @@ def _mirror_all(prob: _Problem, theta: np.ndarray) -> np.ndarray:
             i += k
     for s_f, s_b, nf in zip(sl["f"], sl["b"], prob.s.nf):
         if nf:
-            new = _mirror(np.concatenate([out[s_f], out[s_b]]), nf)
+            new = mirror_inside(np.concatenate([out[s_f], out[s_b]]), nf)
             out[s_f], out[s_b] = new[:nf], new[nf:]
     for key in ("c", "d"):
         if out[sl[key]].size:
-            out[sl[key]] = _mirror(out[sl[key]], out[sl[key]].size)
+            out[sl[key]] = mirror_inside(out[sl[key]], out[sl[key]].size)
     return out
 
 
-def _make_admissible(prob: _Problem, theta: np.ndarray, r_max: float) -> np.ndarray:
+def _makewithin_radius(prob: _Problem, theta: np.ndarray, r_max: float) -> np.ndarray:
     """Mirror, then pull roots above ``r_max`` in to it (``B`` refitted if any moved)."""
     out = _mirror_all(prob, theta)
     moved = False
     for sl, _ in prob.rooted:
-        if not _admissible(out[sl], r_max):
-            out[sl] = _capped(out[sl], r_max)
+        if not within_radius(out[sl], r_max):
+            out[sl] = pull_inside(out[sl], r_max)
             moved = True
     return prob.refit_b(out) if moved else out
 
@@ -652,8 +531,8 @@ def _hannan_rissanen(v: np.ndarray, nc: int, nd: int) -> tuple[np.ndarray, np.nd
     par = _lstsq(phi[k0:], v[k0:])
     if par is None:
         return np.zeros(nc), np.zeros(nd)
-    d = _mirror(par[:nd], nd) if nd else np.zeros(0)
-    c = _mirror(par[nd:], nc) if nc else np.zeros(0)
+    d = mirror_inside(par[:nd], nd) if nd else np.zeros(0)
+    c = mirror_inside(par[nd:], nc) if nc else np.zeros(0)
     return c, d
 
 
@@ -661,12 +540,12 @@ def _with_noise_model(prob: _Problem, theta: np.ndarray, r_max: float) -> np.nda
     """``theta`` (admissible) with ``C``, ``D`` from Hannan-Rissanen on its plant residual
     and ``B`` refitted given them."""
     s = prob.s
-    theta = _make_admissible(prob, theta, r_max)
+    theta = _makewithin_radius(prob, theta, r_max)
     if s.nc or s.nd:
         c, d = _hannan_rissanen(prob.plant_residual(theta), s.nc, s.nd)
         theta = theta.copy()
         theta[prob.sl["c"]], theta[prob.sl["d"]] = c, d
-    return _make_admissible(prob, prob.refit_b(theta), r_max)
+    return _makewithin_radius(prob, prob.refit_b(theta), r_max)
 
 
 def _steiglitz_mcbride(prob: _Problem, theta: np.ndarray, iterations: int) -> np.ndarray | None:
@@ -693,7 +572,7 @@ def _steiglitz_mcbride(prob: _Problem, theta: np.ndarray, iterations: int) -> np
             )
             if fit is None:
                 return None
-            new = _mirror(np.concatenate([fit[0], fit[1][0]]), s.nf[j])
+            new = mirror_inside(np.concatenate([fit[0], fit[1][0]]), s.nf[j])
             if not np.isfinite(new).all():
                 return None
             f[j] = np.concatenate([[1.0], new[: s.nf[j]]])
@@ -754,7 +633,7 @@ def _plant_starts(prob: _Problem) -> list[tuple[str, np.ndarray]]:
         top = max(s.nf)
         fit = _arx_fit(prob, prob.y, prob.u, top, s.nb, s.nk)
         if fit is not None:
-            a = _mirror(fit[0], top) if top else fit[0]
+            a = mirror_inside(fit[0], top) if top else fit[0]
             for j, nf in enumerate(s.nf):
                 theta[prob.sl["b"][j]] = fit[1][j]
                 theta[prob.sl["f"][j]] = a[:nf] if nf == top else 0.0
@@ -764,7 +643,7 @@ def _plant_starts(prob: _Problem) -> list[tuple[str, np.ndarray]]:
                 one_pass = _steiglitz_mcbride(prob, _mirror_all(prob, theta), 1)
                 theta = one_pass if one_pass is not None else theta
             out.append(("least-squares", theta))
-            sm = _steiglitz_mcbride(prob, _make_admissible(prob, theta, 1.0), _SM_ITERATIONS)
+            sm = _steiglitz_mcbride(prob, _makewithin_radius(prob, theta, 1.0), _SM_ITERATIONS)
             if sm is not None:
                 out.append(("steiglitz-mcbride", sm))
     if s.na and s.nc and not s.nd and not any(s.nf):
@@ -800,13 +679,13 @@ def _extra_start(
     noise = (prob.sl["c"], prob.sl["d"])
     for sl, order in prob.rooted:
         if perturbed:
-            theta[sl] = _perturbed_a(theta[sl], rng)
+            theta[sl] = perturbed_poles(theta[sl], rng)
         elif sl not in noise:
-            theta[sl] = _random_a(order, rng)
+            theta[sl] = random_poles(order, rng)
         else:
             theta[sl] = 0.0
     if perturbed:
-        return _make_admissible(prob, prob.refit_b(theta), r_max)
+        return _makewithin_radius(prob, prob.refit_b(theta), r_max)
     return _with_noise_model(prob, prob.refit_b(theta), r_max)
 
 
@@ -821,119 +700,27 @@ def _run_lm(
     chunks: int = 1,
     target: float = np.inf,
     crawl: bool = False,
-) -> PEMRun:
-    """Levenberg-Marquardt (MINPACK) from an admissible start, rejecting other steps.
+) -> ReferenceRun:
+    """Levenberg-Marquardt from an admissible start within the cap ``r_max``, counted on ``prob``.
 
-    ``target`` is the best SSE of the other runs.  ``chunks > 1``: when the budget stops
-    the run while its SSE still falls, it goes on from there, up to ``chunks`` budgets in
-    all.  The run is abandoned at its best point when, after ``_ABANDON_AFTER * n_params``
-    evaluations, its best SSE is above ``_HOPELESS * target``; with ``crawl``, also when the
-    fall of its last ``_ABANDON_AFTER * n_params`` evaluations, repeated over the rest of
-    its budget, would not bring it down to ``_PROMISING * target`` (where it would be
-    continued: a run that close may be in the best run's valley or a better one).
+    ``target``, ``chunks`` and ``crawl`` as in :func:`flexid.reference.levenberg_marquardt`.
     """
-    nfev0, njev0 = prob.nfev, prob.njev
-    r0 = prob.errors(theta0, False)[0]
-    prob.nfev += 1
-    sse0 = float(r0 @ r0)
-    bad_sse = _REJECT_FACTOR * (sse0 + prob.energy) + 1.0
-    bad = np.full(prob.K, np.sqrt(bad_sse / prob.K))
-
-    best = [sse0, theta0]
-    window = _ABANDON_AFTER * prob.n
-    budget = chunks * (max_nfev or 100 * prob.n)
-    checkpoint = [sse0]  # the best SSE at the last multiple of window
-
-    def fun(x: np.ndarray) -> np.ndarray:
-        prob.nfev += 1
-        used = prob.nfev - nfev0
-        if used > window and best[0] > _HOPELESS * target:
-            raise _Abandoned
-        if crawl and used % window == 0:
-            windows_left = (budget - used) / window
-            if (checkpoint[0] - best[0]) * windows_left < best[0] - _PROMISING * target:
-                raise _Abandoned
-            checkpoint[0] = best[0]
-        if not (np.isfinite(x).all() and prob.admissible(x, r_max)):
-            return bad
-        r = prob.errors(x, False)[0]
-        if not np.isfinite(r).all():
-            return bad
-        sse = float(r @ r)
-        if sse < best[0]:
-            best[:] = [sse, np.array(x, dtype=float)]
-        return r
-
-    def jac(x: np.ndarray) -> np.ndarray:
-        prob.njev += 1
-        if not prob.admissible(x, r_max):  # never happens: LM differentiates accepted points
-            return np.zeros((prob.K, prob.n))
-        return prob.errors(x, True)[1]
-
-    x, done, last = theta0, 0, sse0
-    while True:
-        try:
-            sol = least_squares(
-                fun,
-                x,
-                jac=jac,
-                method="lm",
-                x_scale="jac",
-                ftol=tol,
-                xtol=tol,
-                gtol=tol,
-                max_nfev=max_nfev or 100 * prob.n,
-            )
-        except _Abandoned:
-            sol = None
-            break
-        done += 1
-        x = sol.x
-        now = float(sol.fun @ sol.fun)
-        if (
-            sol.status != 0  # 0: the evaluation budget ran out
-            or done >= chunks
-            or not now < last * (1.0 - _STILL_FALLING)
-        ):
-            break
-        last = now
-    if sol is None:
-        theta = best[1]
-        why = (
-            f"more than {_HOPELESS:g} times"
-            if best[0] > _HOPELESS * target
-            else "falling too slowly to reach"
-        )
-        message = (
-            f"abandoned after {prob.nfev - nfev0} evaluations: SSE {best[0]:.6g}, {why} "
-            "the best of the other runs"
-        )
-    else:
-        theta = np.asarray(sol.x, dtype=float)
-        message = str(sol.message) + (f" ({done} budgets)" if done > 1 else "")
-    sse = np.inf
-    if prob.admissible(theta, r_max):
-        r = prob.errors(theta, False)[0]
-        sse = float(r @ r)
-    if not sse <= sse0:  # defensive: MINPACK returns its best accepted (admissible) point
-        theta, sse = theta0.copy(), sse0
-    return PEMRun(
-        kind=kind,
-        theta0=theta0,
-        theta=theta,
-        sse0=sse0,
-        sse=sse,
-        nfev=prob.nfev - nfev0,
-        njev=prob.njev - njev0,
-        message=message,
-        out_of_budget=sol is not None and sol.status == 0,
+    run = levenberg_marquardt(
+        lambda x: prob.errors(x, False)[0],
+        lambda x: prob.errors(x, True)[1],
+        theta0,
+        kind,
+        admissible=lambda x: prob.admissible(x, r_max),
+        energy=prob.energy,
+        max_nfev=max_nfev,
+        tol=tol,
+        chunks=chunks,
+        target=target,
+        crawl=crawl,
     )
-
-
-def _optimality(e: np.ndarray, jac: np.ndarray) -> float:
-    """``||J' e|| / (||J||_F ||e||)``, 0 when ``e`` or ``J`` vanishes."""
-    norm = float(np.linalg.norm(jac) * np.linalg.norm(e))
-    return float(np.linalg.norm(jac.T @ e) / norm) if norm > 0 else 0.0
+    prob.nfev += run.nfev
+    prob.njev += run.njev
+    return run
 
 
 def _lifted_caps(r_max: float) -> list[float]:
@@ -1143,7 +930,35 @@ def pem(
 
     Returns
     -------
-    PEMResult
+    ReferenceResult
+        ``x`` (the coefficients, ``structure.param_names`` order; also ``theta``), ``fun``
+        (the SSE over ``t >= structure.start`` under ``initial``; also ``sse``), ``status``,
+        ``std`` and the other keys of :class:`~flexid.reference.ReferenceResult`, and:
+
+        ``model`` : PolynomialModel
+            The estimate, with ``param_std = std`` and ``noise_variance = sigma^2 =
+            SSE / (K - n_params)``.
+        ``K`` : int
+            Number of error samples, ``N - structure.start``.
+        ``initial`` : str
+            The initial-condition rule of the errors.
+        ``on_cap`` : bool
+            A root of ``A``, an ``F_j``, ``D`` or ``C`` within 1e-6 of ``r_cap``.
+        ``r_cap`` : float
+            The root-radius cap in force at the end: ``r_max``, or a lifted one (up to 1)
+            when the best point sat on ``r_max``.
+        ``max_radius`` : float
+            Largest root radius of ``A``, the ``F_j``, ``D`` and ``C``.
+        ``stable``, ``predictor_stable`` : bool
+            ``model.is_stable`` and ``model.predictor_stable``.
+        ``cost`` : float
+            An optimiser's cost at ``x`` when the reference ran for one
+            (:meth:`flexid.estimation.PolynomialEstimationProblem.output_error_reference`),
+            NaN otherwise.
+
+        ``local_minimum`` is ``optimality < OPTIMALITY_THRESHOLD`` (1e-6) and not
+        ``on_cap``; ``nfev`` and ``njev`` include the output-error fit that gives a
+        Box-Jenkins structure its ``"output-error"`` start.
 
     Raises
     ------
@@ -1179,7 +994,7 @@ def pem(
                          starts, rng, r_max, x0)  # fmt: skip
     if first is not prob:
         prob.nfev, prob.njev = first.nfev, first.njev
-    runs: list[PEMRun] = []
+    runs: list[ReferenceRun] = []
     for kind, th in start_list:
         floor = min((r.sse for r in runs), default=np.inf)
         extra = kind in _EXTRA_KINDS
@@ -1188,12 +1003,12 @@ def pem(
         floor = min(r.sse for r in runs)
         # the most promising first, so that each later one must catch up with it
         for run in sorted(runs, key=lambda r: r.sse):
-            if run.out_of_budget and run.sse <= _PROMISING * floor:
+            if run.out_of_budget and run.sse <= PROMISING * floor:
                 target = min(r.sse for r in runs if r is not run)
                 kind = f"{run.kind}, continued"
                 runs.append(
                     _run_lm(
-                        prob, run.theta, kind, None, tol, r_max, _CHUNKS - 1, target=target,
+                        prob, run.theta, kind, None, tol, r_max, CHUNKS - 1, target=target,
                         crawl=run.kind in _EXTRA_KINDS,
                     )
                 )
@@ -1206,30 +1021,37 @@ def pem(
     theta = runs[best].theta.copy()
     sse = float(e @ e)
     k = prob.K
-    sigma2, param_std = _noise_and_std(e, jac, k, prob.n)
-    optimality = _optimality(e, jac)
+    sigma2, param_std = standard_errors(e, jac, k, prob.n)
+    reached = optimality(e, jac)
     max_radius = prob.max_radius(theta)
-    on_cap = bool(prob.rooted) and max_radius >= cap - _CAP_TOLERANCE
+    on_cap = bool(prob.rooted) and max_radius >= cap - CAP_TOLERANCE
+    local = bool(reached < OPTIMALITY_THRESHOLD and not on_cap)
+    status = status_of(local, on_cap, runs[best].out_of_budget)
     model = PolynomialModel(s, theta, dt=dt, param_std=param_std, noise_variance=sigma2)
-    return PEMResult(
+    return ReferenceResult(
+        x=theta,
+        fun=sse,
+        status=status,
+        success=status == 0,
+        message=message,
+        nfev=prob.nfev,
+        njev=prob.njev,
+        nfev_equivalent=prob.nfev + prob.njev * prob.n,
+        std=param_std,
+        optimality=reached,
+        local_minimum=local,
+        runs=runs,
+        best_start=best,
+        wall_time=time.perf_counter() - t_begin,
         model=model,
-        theta=theta,
-        sse=sse,
         K=k,
         initial=initial,
-        optimality=optimality,
-        local_minimum=bool(optimality < OPTIMALITY_THRESHOLD and not on_cap),
         on_cap=on_cap,
         r_cap=cap,
         max_radius=max_radius,
-        runs=runs,
-        best_start=best,
-        nfev=prob.nfev,
-        njev=prob.njev,
-        wall_time=time.perf_counter() - t_begin,
-        message=message,
         stable=model.is_stable,
         predictor_stable=model.predictor_stable,
+        cost=float("nan"),
     )
 
 
@@ -1243,9 +1065,9 @@ def _starts(
     if any(s.nf) and (s.nc or s.nd) and not s.na:
         # the output-error model itself (C = D = 1), which the noise model then refines
         oe_plant = _output_error_plant(prob, s, data, initial, tol)
-        start_list.append(("output-error", _make_admissible(prob, oe_plant, r_max)))
+        start_list.append(("output-error", _makewithin_radius(prob, oe_plant, r_max)))
     if not start_list:  # every linear fit broke down (rank-deficient data): start from B only
-        start_list = [("least-squares", _make_admissible(prob, np.zeros(prob.n), r_max))]
+        start_list = [("least-squares", _makewithin_radius(prob, np.zeros(prob.n), r_max))]
     if s.kind != "arx" and prob.rooted:
         base = start_list[0][1]
         for i in range(starts):
@@ -1257,12 +1079,12 @@ def _starts(
                 )
             )
     if x0 is not None:
-        start_list.append(("x0", _make_admissible(prob, x0, r_max)))
+        start_list.append(("x0", _makewithin_radius(prob, x0, r_max)))
     return start_list
 
 
 def _off_the_cap(
-    prob: _Problem, runs: list[PEMRun], best: int, r_max: float, max_nfev: int | None,
+    prob: _Problem, runs: list[ReferenceRun], best: int, r_max: float, max_nfev: int | None,
     tol: float,
 ) -> tuple[int, float, str]:
     """Continue the best run with lifted pole-radius caps while it ends on the cap.
@@ -1273,7 +1095,7 @@ def _off_the_cap(
     message = ""
     cap = r_max
     for lifted in _lifted_caps(r_max):
-        if prob.max_radius(runs[best].theta) < cap - _CAP_TOLERANCE:
+        if prob.max_radius(runs[best].theta) < cap - CAP_TOLERANCE:
             break
         run = _run_lm(prob, runs[best].theta, f"cap r_max={lifted:g}", max_nfev, tol, lifted)
         runs.append(run)
@@ -1286,7 +1108,7 @@ def _off_the_cap(
 
 
 def _polish(
-    prob: _Problem, runs: list[PEMRun], best: int, cap: float, max_nfev: int | None,
+    prob: _Problem, runs: list[ReferenceRun], best: int, cap: float, max_nfev: int | None,
     tol: float, e: np.ndarray, jac: np.ndarray,
 ) -> tuple[int, str, np.ndarray, np.ndarray]:
     """One more run with tighter tolerances when the best one stopped short of first-order
@@ -1296,8 +1118,8 @@ def _polish(
     index, the note for the message, and its errors and Jacobian.
     """
     if (
-        _optimality(e, jac) < OPTIMALITY_THRESHOLD
-        or prob.max_radius(runs[best].theta) >= cap - _CAP_TOLERANCE
+        optimality(e, jac) < OPTIMALITY_THRESHOLD
+        or prob.max_radius(runs[best].theta) >= cap - CAP_TOLERANCE
     ):
         return best, "", e, jac
     # Gauss-Newton converges only linearly on a large-residual (misspecified) fit, and
@@ -1309,19 +1131,6 @@ def _polish(
         e, jac = prob.errors(run.theta.copy(), True)
         return len(runs) - 1, f"; polished with tol {polish_tol:g}", e, jac
     return best, "", e, jac
-
-
-def _noise_and_std(
-    e: np.ndarray, jac: np.ndarray, k: int, d: int
-) -> tuple[float, np.ndarray]:
-    """The noise variance ``SSE / (K - d)`` and the parameters' standard errors from the
-    Jacobian's SVD (directions with singular values below 1e-14 of the largest get none)."""
-    sigma2 = float(e @ e) / (k - d)
-    _, sv, vt = linalg.svd(jac, full_matrices=False)
-    inv_sq = np.zeros_like(sv)
-    ok = sv > sv[0] * 1e-14 if sv.size else sv.astype(bool)
-    inv_sq[ok] = 1.0 / sv[ok] ** 2
-    return sigma2, np.sqrt(sigma2 * np.sum(vt.T**2 * inv_sq, axis=1))
 
 
 def _pem_options() -> set[str]:

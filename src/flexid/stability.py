@@ -15,13 +15,21 @@ from . import kernels
 from ._validate import checked_keywords
 from .errors import DataError
 
+# Largest pole radius of a mirrored start (a pole exactly on the circle is its own mirror).
+_MAX_RADIUS = 1.0 - 1e-6
+
 __all__ = [
     "is_stable",
     "is_stable_reference",
     "max_pole_radius",
+    "mirror_inside",
+    "perturbed_poles",
     "pole_radius_batched",
     "poles_batched",
+    "pull_inside",
+    "random_poles",
     "reflection_coefficients",
+    "within_radius",
 ]
 
 
@@ -188,3 +196,156 @@ def pole_radius_batched(a) -> np.ndarray:
     """
     poles = poles_batched(a)
     return np.abs(poles).max(axis=1, initial=0.0)
+
+
+# ================================================ moving roots inside (references' starts)
+def _poles_to_a(poles: np.ndarray) -> np.ndarray:
+    return np.real(np.poly(poles))[1:] if poles.size else np.zeros(0)
+
+
+def mirror_inside(theta: np.ndarray, na: int) -> np.ndarray:
+    """``theta`` with poles outside the circle mirrored to ``1/conj(p)``, as MATLAB's ``pem`` does.
+
+    ``B`` is divided by the product of the mirrored radii: ``|e^jw - 1/conj(p)| =
+    |e^jw - p| / |p|``, so the magnitude response is unchanged (only the phase moves).
+
+    Parameters
+    ----------
+    theta : ndarray, shape (na + n_b,)
+        Denominator coefficients ``a_1 .. a_na`` first, then the numerator's.
+    na : int
+        Number of denominator coefficients.
+
+    Returns
+    -------
+    ndarray, shape (na + n_b,)
+        A copy with every pole of radius at most ``1 - 1e-6`` (stable to the Schur-Cohn
+        test); ``theta`` itself when it is already stable.
+    """
+    if na == 0 or is_stable(theta[:na])[0]:
+        return theta.copy()
+    poles = np.roots(np.concatenate([[1.0], theta[:na]]))
+    r = np.abs(poles)
+    out = poles.copy()
+    outside = r >= 1.0
+    out[outside] = 1.0 / np.conj(poles[outside])
+    gain = float(np.prod(r[outside]))
+    r_new = np.abs(out)
+    too_big = r_new > _MAX_RADIUS  # on (or rounding onto) the circle: pull just inside
+    out[too_big] *= _MAX_RADIUS / r_new[too_big]
+    new = theta.copy()
+    new[:na] = _poles_to_a(out)
+    new[na:] /= gain
+    shrink = _MAX_RADIUS
+    while not is_stable(new[:na])[0]:  # np.poly rounding on a pole at the edge
+        shrink *= _MAX_RADIUS
+        new[:na] = _poles_to_a(out * shrink)
+    return new
+
+
+def _pairs(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Real poles and the upper-half-plane member of each conjugate pair."""
+    tol = 1e-9 * max(1.0, float(np.abs(poles).max(initial=0.0)))
+    real = np.real(poles[np.abs(poles.imag) <= tol])
+    upper = poles[poles.imag > tol]
+    # np.roots gives complex poles in conjugate pairs; an unpaired count would mean a pole
+    # classified as complex whose partner fell under tol, so rebuild from what we have.
+    n_missing = poles.size - real.size - 2 * upper.size
+    if n_missing:
+        real = np.concatenate([real, np.zeros(n_missing)])
+    return real, upper
+
+
+def within_radius(a: np.ndarray, r_max: float) -> bool:
+    """Whether a denominator is stable with every pole radius at most ``r_max``.
+
+    Parameters
+    ----------
+    a : ndarray, shape (na,)
+        Coefficients ``a_1 .. a_na`` of the monic denominator.
+    r_max : float
+        The cap, in (0, 1]; 1 tests stability alone.
+
+    Returns
+    -------
+    bool
+    """
+    if not is_stable(a)[0]:
+        return False
+    return r_max >= 1.0 or a.size == 0 or float(pole_radius_batched(a[None, :])[0]) <= r_max
+
+
+def pull_inside(a: np.ndarray, r_max: float) -> np.ndarray:
+    """A denominator with every pole of radius above ``r_max`` pulled in radially to it.
+
+    Parameters
+    ----------
+    a : ndarray, shape (na,)
+        Coefficients ``a_1 .. a_na`` of the monic denominator.
+    r_max : float
+        The cap, in (0, 1].
+
+    Returns
+    -------
+    ndarray, shape (na,)
+        Coefficients whose poles pass :func:`within_radius` (angles kept; the radius a hair
+        below ``r_max`` where the coefficients' rounding needs it).
+    """
+    poles = np.roots(np.concatenate([[1.0], a]))
+    r = np.abs(poles)
+    shrink = r_max
+    while True:
+        out = np.where(r > shrink, poles * (shrink / np.maximum(r, 1e-300)), poles)
+        new = _poles_to_a(out)
+        if within_radius(new, r_max):
+            return new
+        shrink *= 1.0 - 1e-9  # np.poly rounding put a pole back just above the cap
+
+
+def perturbed_poles(a_ls: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A stable denominator's poles with their damping and angles perturbed at random.
+
+    The damping ``1 - |p|`` is scaled log-normally (sigma 0.5), which keeps every pole inside
+    the circle whatever the draw, and each angle log-normally (sigma 0.1); conjugate pairs
+    stay pairs.
+
+    Parameters
+    ----------
+    a_ls : ndarray, shape (na,)
+        Coefficients of a stable monic denominator (a least-squares start, say).
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (na,)
+        Coefficients of a stable denominator.
+    """
+    real, upper = _pairs(np.roots(np.concatenate([[1.0], a_ls])))
+    # damping 1 - |p| scaled log-normally keeps the pole inside the circle whatever the draw
+    real_r = 1.0 - (1.0 - np.abs(real)) * np.exp(rng.normal(0.0, 0.5, real.size))
+    real_new = np.sign(real + (real == 0)) * np.minimum(real_r, _MAX_RADIUS)
+    rad = 1.0 - (1.0 - np.abs(upper)) * np.exp(rng.normal(0.0, 0.5, upper.size))
+    ang = np.clip(np.angle(upper) * np.exp(rng.normal(0.0, 0.1, upper.size)), 1e-3, np.pi - 1e-3)
+    up_new = np.minimum(rad, _MAX_RADIUS) * np.exp(1j * ang)
+    return _poles_to_a(np.concatenate([real_new, up_new, np.conj(up_new)]))
+
+
+def random_poles(na: int, rng: np.random.Generator) -> np.ndarray:
+    """A stable denominator with poles drawn uniformly over the disc of radius 0.95.
+
+    Parameters
+    ----------
+    na : int
+        Its order: ``na // 2`` conjugate pairs plus one real pole when ``na`` is odd.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (na,)
+        Coefficients ``a_1 .. a_na``.
+    """
+    n_pairs = na // 2
+    rad = 0.95 * np.sqrt(rng.uniform(0.0, 1.0, n_pairs))
+    up = rad * np.exp(1j * rng.uniform(0.0, np.pi, n_pairs))
+    real = rng.uniform(-0.95, 0.95, na % 2)
+    return _poles_to_a(np.concatenate([real, up, np.conj(up)]))

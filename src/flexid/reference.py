@@ -1,0 +1,390 @@
+"""The gradient reference: one Levenberg-Marquardt run, its record and one result type.
+
+Every gradient reference of flexid (:func:`flexid.prediction_error.pem` and its MATLAB-named
+forms, :func:`flexid.output_error.output_error` for a simulation-predictor ARX cost,
+:func:`flexid.greybox_fit.greyest` for a grey-box model) runs :func:`levenberg_marquardt`
+from several starts and returns a :class:`ReferenceResult`, shaped like the
+:class:`scipy.optimize.OptimizeResult` flexid's optimisers return: ``x``, ``fun``,
+``status``, ``success``, ``message``, ``nfev``, ``njev``, plus the standard errors ``std``,
+the first-order ``optimality`` it reached and every run in ``runs``.
+
+Notes
+-----
+**Rejected steps.**  A problem may admit only part of the parameter space (a stable model, a
+minimum-phase noise model, every root within a cap).  The residual function returns, for a
+point outside it, a constant vector whose sum of squares is ``1e6`` times (the start's SSE
+plus the target's energy): MINPACK's Levenberg-Marquardt rejects that step and raises its
+damping, and the Jacobian is only evaluated at accepted, hence admissible, points.
+
+**Budget.**  ``chunks > 1`` continues a run its evaluation budget stopped while its SSE still
+falls (by more than ``1e-9`` relative), a budget at a time; a run still above ``100`` times
+``target`` (the best SSE of the other runs) after ``10 n`` evaluations is abandoned at its
+best point, and with ``crawl`` also one whose fall over its last ``10 n`` evaluations,
+repeated over the rest of its budget, would not bring it to ``1.1`` times ``target``.  The
+reasons and the measurements behind these numbers are in :mod:`flexid.prediction_error`.
+
+**Optimality.**  ``||J' e|| / (||J||_F ||e||)``: the cosine between the residual and the
+span of the Jacobian's columns, scale-free; at a MINPACK stop with ``tol = 1e-10`` on the
+test systems it is below 2e-8, so :data:`OPTIMALITY_THRESHOLD` (1e-6) separates minima from
+points a budget or a constraint stopped, by orders of magnitude.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import linalg
+from scipy.optimize import OptimizeResult, least_squares
+
+__all__ = [
+    "OPTIMALITY_THRESHOLD",
+    "STATUS",
+    "ReferenceResult",
+    "ReferenceRun",
+    "levenberg_marquardt",
+    "optimality",
+    "standard_errors",
+    "status_of",
+]
+
+#: Threshold of :attr:`ReferenceResult.optimality` below which a polynomial reference's end
+#: is a first-order local minimum (module notes).
+OPTIMALITY_THRESHOLD = 1e-6
+
+#: What :attr:`ReferenceResult.status` means, by value.
+STATUS = {
+    0: "first-order local minimum",
+    1: "stopped short of the first-order test",
+    2: "ended on the pole-radius cap",
+    3: "the evaluation budget ran out",
+}
+
+#: A root counts as on the pole-radius cap within this radius distance.
+CAP_TOLERANCE = 1e-6
+
+# Sum of squares of the residual vector returned for an inadmissible point: this factor
+# times (the start's SSE + the target's energy), far above anything LM reaches from an
+# admissible start, so the step is always rejected.
+REJECT_FACTOR = 1e6
+# Continuation and abandonment of runs (module notes; measured in flexid.prediction_error).
+CHUNKS = 10
+PROMISING = 1.1
+STILL_FALLING = 1e-9
+HOPELESS = 100.0
+ABANDON_AFTER = 10
+
+
+class _Abandoned(Exception):
+    """Raised inside the residual function to stop a run that cannot win."""
+
+
+@dataclass
+class ReferenceRun:
+    """One Levenberg-Marquardt run from one start.
+
+    Attributes
+    ----------
+    kind : str
+        Where it started: ``"least-squares"``, ``"steiglitz-mcbride"``,
+        ``"hannan-rissanen"``, ``"output-error"``, ``"perturbed"``, ``"random"``, ``"x0"``,
+        ``"nominal"``, ``"given"``, ``"random k"``; ``"<kind>, continued"`` (a run its budget
+        stopped while it still descended), ``"cap r_max=<value>"`` or ``"polish"`` (a
+        continuation of the best point).
+    x0 : ndarray, shape (n_params,)
+        The (admissible) start, in the reference's parameters.
+    x : ndarray, shape (n_params,)
+        Where the run ended (admissible).
+    fun0, fun : float
+        Sum of squared residuals at ``x0`` and at ``x`` (output units squared).
+    nfev, njev : int
+        Residual and Jacobian evaluations of this run.
+    message : str
+        Why it stopped.
+    out_of_budget : bool
+        Whether the evaluation budget stopped it (rather than a tolerance).
+    """
+
+    kind: str
+    x0: np.ndarray
+    x: np.ndarray
+    fun0: float
+    fun: float
+    nfev: int
+    njev: int
+    message: str
+    out_of_budget: bool = False
+
+    @property
+    def theta0(self) -> np.ndarray:
+        """``x0``, under the polynomial references' name."""
+        return self.x0
+
+    @property
+    def theta(self) -> np.ndarray:
+        """``x``, under the polynomial references' name."""
+        return self.x
+
+    @property
+    def sse0(self) -> float:
+        """``fun0``: the sum of squared residuals at the start."""
+        return self.fun0
+
+    @property
+    def sse(self) -> float:
+        """``fun``: the sum of squared residuals at the end."""
+        return self.fun
+
+
+class ReferenceResult(OptimizeResult):
+    """Outcome of a gradient reference, a :class:`scipy.optimize.OptimizeResult`.
+
+    Every reference sets the keys below; each adds its own (listed in its docstring), and
+    :meth:`keys` shows them all, as with scipy's solvers.
+
+    Attributes
+    ----------
+    x : ndarray, shape (n_params,)
+        The best admissible estimate.
+    fun : float
+        Its sum of squared residuals (output units squared).
+    status : int
+        A key of :data:`STATUS`: 0 a first-order local minimum, 1 stopped short of it by a
+        tolerance, 2 on the pole-radius cap, 3 the evaluation budget ran out.
+    success : bool
+        ``status == 0``.
+    message : str
+        Which start won, why its run stopped, and any continuation.
+    nfev, njev : int
+        Residual and Jacobian evaluations over every run.
+    nfev_equivalent : int
+        The work in simulations of the model, what an optimiser's FE count compares with:
+        ``nfev + njev * n_params`` for an analytic Jacobian (``n_params`` sensitivity
+        simulations).
+    std : ndarray, shape (n_params,)
+        Standard errors of ``x`` from ``sigma^2 (J'J)^-1`` at the estimate (0 in a direction
+        the record does not determine for the polynomial references, ``inf`` for grey-box).
+    optimality : float
+        First-order optimality reached (module notes).
+    local_minimum : bool
+        Whether ``x`` passed the first-order test.
+    runs : list of ReferenceRun
+        Every run, starts first, then continuations.
+    best_start : int
+        Index into ``runs`` of the run that produced ``x``.
+    wall_time : float
+        Seconds, start to finish.
+    """
+
+    @property
+    def theta(self) -> np.ndarray:
+        """``x``, under the polynomial references' name."""
+        return self["x"]
+
+    @property
+    def sse(self) -> float:
+        """``fun``: the sum of squared residuals at ``x``."""
+        return self["fun"]
+
+    def __repr__(self) -> str:
+        # scipy's repr prints every key; the runs and the model would fill a screen
+        shown = ("message", "success", "status", "fun", "x", "std", "optimality", "nfev",
+                 "njev")  # fmt: skip
+        width = max(map(len, shown)) + 1
+        lines = [f"{k.rjust(width)}: {self[k]!r}" for k in shown if k in self]
+        lines.append(f"{'runs'.rjust(width)}: {len(self.get('runs', []))} run(s)")
+        return "\n".join(lines)
+
+
+def status_of(local_minimum: bool, on_cap: bool, out_of_budget: bool) -> int:
+    """The :data:`STATUS` code of a reference's end.
+
+    Parameters
+    ----------
+    local_minimum : bool
+    on_cap : bool
+    out_of_budget : bool
+        Whether the budget stopped the winning run.
+
+    Returns
+    -------
+    int
+    """
+    if local_minimum:
+        return 0
+    if on_cap:
+        return 2
+    return 3 if out_of_budget else 1
+
+
+def optimality(e: np.ndarray, jac: np.ndarray) -> float:
+    """First-order optimality ``||J' e|| / (||J||_F ||e||)``, 0 when ``e`` or ``J`` vanishes.
+
+    Parameters
+    ----------
+    e : ndarray, shape (K,)
+        Residuals.
+    jac : ndarray, shape (K, n)
+        Their Jacobian.
+
+    Returns
+    -------
+    float
+    """
+    norm = float(np.linalg.norm(jac) * np.linalg.norm(e))
+    return float(np.linalg.norm(jac.T @ e) / norm) if norm > 0 else 0.0
+
+
+def standard_errors(e: np.ndarray, jac: np.ndarray, k: int, d: int) -> tuple[float, np.ndarray]:
+    """The noise variance and the parameters' standard errors at a least-squares estimate.
+
+    Parameters
+    ----------
+    e : ndarray, shape (K,)
+        Residuals at the estimate.
+    jac : ndarray, shape (K, d)
+        Their Jacobian.
+    k, d : int
+        Number of residuals and of parameters.
+
+    Returns
+    -------
+    sigma2 : float
+        ``SSE / (k - d)``.
+    std : ndarray, shape (d,)
+        ``sqrt(diag(sigma2 (J'J)^-1))`` from the SVD of ``J``; a direction whose singular
+        value is below 1e-14 of the largest (undetermined to rounding) contributes nothing.
+    """
+    sigma2 = float(e @ e) / (k - d)
+    _, sv, vt = linalg.svd(jac, full_matrices=False)
+    inv_sq = np.zeros_like(sv)
+    ok = sv > sv[0] * 1e-14 if sv.size else sv.astype(bool)
+    inv_sq[ok] = 1.0 / sv[ok] ** 2
+    return sigma2, np.sqrt(sigma2 * np.sum(vt.T**2 * inv_sq, axis=1))
+
+
+def levenberg_marquardt(
+    residuals: Callable[[np.ndarray], np.ndarray],
+    jacobian: Callable[[np.ndarray], np.ndarray],
+    x0: np.ndarray,
+    kind: str,
+    *,
+    admissible: Callable[[np.ndarray], bool] | None = None,
+    energy: float = 0.0,
+    bounds: tuple[float, float] | None = None,
+    max_nfev: int | None = None,
+    tol: float = 1e-10,
+    chunks: int = 1,
+    target: float = np.inf,
+    crawl: bool = False,
+) -> ReferenceRun:
+    """One run of MINPACK's Levenberg-Marquardt from an admissible start, rejecting other steps.
+
+    Parameters
+    ----------
+    residuals : callable
+        ``residuals(x) -> e``, shape (K,), at an admissible ``x``.
+    jacobian : callable
+        ``jacobian(x) -> J``, shape (K, n), at an admissible ``x`` the solver accepted.
+    x0 : ndarray, shape (n,)
+        Admissible start.
+    kind : str
+        The run's name (:attr:`ReferenceRun.kind`).
+    admissible : callable, optional
+        ``admissible(x) -> bool``; default every finite ``x``.
+    energy : float
+        The target's sum of squares (sets the rejected step's residual, module notes).
+    bounds : (float, float), optional
+        Box bounds on every parameter: the bounded trust-region variant
+        (``method="trf"``) instead of MINPACK's.
+    max_nfev : int, optional
+        Residual-evaluation budget of one chunk (default ``100 n``).
+    tol : float
+        ``ftol``, ``xtol`` and ``gtol``.
+    chunks : int
+        Budgets the run may continue for while its SSE still falls (module notes).
+    target : float
+        The best SSE of the other runs, for abandonment.
+    crawl : bool
+        Also abandon a run too slow to reach ``1.1 * target``.
+
+    Returns
+    -------
+    ReferenceRun
+        ``fun <= fun0`` always (the start is returned if nothing better was accepted).
+    """
+    n = x0.size
+    r0 = residuals(x0)
+    count = {"nfev": 1, "njev": 0}
+    sse0 = float(r0 @ r0)
+    bad = np.full(r0.size, np.sqrt((REJECT_FACTOR * (sse0 + energy) + 1.0) / r0.size))
+    best = [sse0, x0]
+    window = ABANDON_AFTER * n
+    budget = chunks * (max_nfev or 100 * n)
+    checkpoint = [sse0]  # the best SSE at the last multiple of window
+
+    def ok(x: np.ndarray) -> bool:
+        return bool(np.isfinite(x).all()) and (admissible is None or admissible(x))
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        count["nfev"] += 1
+        used = count["nfev"]
+        if used > window and best[0] > HOPELESS * target:
+            raise _Abandoned
+        if crawl and used % window == 0:
+            windows_left = (budget - used) / window
+            if (checkpoint[0] - best[0]) * windows_left < best[0] - PROMISING * target:
+                raise _Abandoned
+            checkpoint[0] = best[0]
+        if not ok(x):
+            return bad
+        r = residuals(x)
+        if not np.isfinite(r).all():
+            return bad
+        sse = float(r @ r)
+        if sse < best[0]:
+            best[:] = [sse, np.array(x, dtype=float)]
+        return r
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        count["njev"] += 1
+        if not ok(x):  # never happens: LM differentiates accepted points only
+            return np.zeros((r0.size, n))
+        return jacobian(x)
+
+    if bounds is None:
+        options: dict[str, Any] = {"method": "lm", "x_scale": "jac"}
+    else:
+        options = {"method": "trf", "bounds": bounds}
+    x, done, last = x0, 0, sse0
+    while True:
+        try:
+            sol = least_squares(fun, x, jac=jac, ftol=tol, xtol=tol, gtol=tol,
+                                max_nfev=max_nfev or 100 * n, **options)  # fmt: skip
+        except _Abandoned:
+            sol = None
+            break
+        done += 1
+        x = sol.x
+        now = float(sol.fun @ sol.fun)
+        if sol.status != 0 or done >= chunks or not now < last * (1.0 - STILL_FALLING):
+            break  # status 0: the evaluation budget ran out
+        last = now
+    if sol is None:
+        x, sse = best[1], best[0]
+        why = (f"more than {HOPELESS:g} times" if best[0] > HOPELESS * target
+               else "falling too slowly to reach")  # fmt: skip
+        message = (f"abandoned after {count['nfev']} evaluations: SSE {best[0]:.6g}, {why} "
+                   "the best of the other runs")  # fmt: skip
+    else:
+        # MINPACK's and the trust region's fun is the residual of their (accepted) x
+        x, sse = np.asarray(sol.x, dtype=float), float(sol.fun @ sol.fun)
+        message = str(sol.message) + (f" ({done} budgets)" if done > 1 else "")
+    if not (ok(x) and sse <= sse0):  # defensive: both solvers return an accepted point
+        x, sse = x0.copy(), sse0
+    return ReferenceRun(
+        kind=kind, x0=x0, x=x, fun0=sse0, fun=sse, nfev=count["nfev"], njev=count["njev"],
+        message=message, out_of_budget=sol is not None and sol.status == 0,
+    )
