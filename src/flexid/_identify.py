@@ -20,6 +20,7 @@ from ._identification import Identification, data_info, timings
 from ._identify_greybox import identify_greybox
 from ._validate import checked_keywords, integer
 from .config import (
+    CORRELATION_LAGS,
     IDENTIFY_BUDGET,
     PREDICTION_ERROR,
     REFERENCES,
@@ -64,7 +65,7 @@ def identify(
     validation: IOData | str | os.PathLike | None = None,
     output: str | int | None = None,
     detrend: bool | str = False,
-    max_lag: int = 25,
+    max_lag: int = CORRELATION_LAGS,
     weight: float | None = None,
     penalty: float | None = None,
     initial: str | None = None,

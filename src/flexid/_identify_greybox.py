@@ -18,7 +18,7 @@ from typing import Any
 from ._identification import Identification, _indent, data_info, timings
 from ._json import jsonable
 from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
-from .data import IOData, detrend_kind, detrend_pair, load
+from .data import ESTIMATION_SHARE, IOData, detrend_kind, detrend_pair, load
 from .diagnostics import format_fit
 from .errors import ConfigError, DataError
 from .estimation import build_problem
@@ -283,7 +283,7 @@ def identify_greybox(
         )
     record = _record(data, model, load_options)
     if split is None:
-        split = 2 / 3
+        split = ESTIMATION_SHARE
     if validation is not None:
         est, val_record, val_split = record, _record(validation, model, load_options), None
     else:

@@ -114,6 +114,14 @@ STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
 #: The structure name of a grey-box model (:mod:`flexid.models.greybox`), beside the
 #: polynomial ones.
 GREYBOX = "greybox"
+#: Lags of the residual correlation tests (auto- and cross-correlation, Billings-Voon), as
+#: MATLAB's ``resid`` and Ljung (System Identification, 2nd ed., sec. 16.6) use.
+CORRELATION_LAGS = 25
+#: Largest pole radius of the ``"poles"`` search space, and of every reference fitted to
+#: compare with it: a pole closer to the circle than 1e-4 is not a model a user wants.
+POLE_RADIUS_CAP = 0.9999
+#: Bound of every reflection coefficient ``|k|`` of the ``"reflection"`` search space.
+REFLECTION_CAP = 0.9999
 
 
 def auto_initial(structure: str) -> str:
@@ -466,9 +474,9 @@ class SearchSpec:
     parametrisation: str = "poles"
     penalty: str = "graded"
     init: str = "stable"
-    r_max: float = 0.9999
+    r_max: float = POLE_RADIUS_CAP
     real_pairs: int = 0
-    k_max: float = 0.9999
+    k_max: float = REFLECTION_CAP
     numerator: str = "fit"
 
 
@@ -583,7 +591,7 @@ class ComparisonSpec:
     budget: int | str = COMPARE_BUDGET
     schedule_cap: int = 2_000_000
     targets: tuple[float, ...] = (0.1, 0.01, 0.001)
-    max_lag: int = 25
+    max_lag: int = CORRELATION_LAGS
     validate_initial: str = "estimate"
     run_timeout: float | None = None
 

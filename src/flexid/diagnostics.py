@@ -87,6 +87,7 @@ from scipy import fft as sfft
 from scipy import signal, stats
 
 from ._validate import integer, positive_int, positive_real
+from .config import CORRELATION_LAGS
 from .errors import DataError, check_finite
 
 __all__ = [
@@ -518,7 +519,7 @@ def _input_names(names: Sequence[str] | None, n_u: int) -> list[str]:
 
 
 def residual_tests(
-    e: Any, u: Any, max_lag: int = 25, input_names: Sequence[str] | None = None
+    e: Any, u: Any, max_lag: int = CORRELATION_LAGS, input_names: Sequence[str] | None = None
 ) -> list[CorrelationTest]:
     """Whiteness and independence tests of a residual (MATLAB ``resid``, with correct bands).
 
@@ -565,7 +566,7 @@ def residual_tests(
 
 
 def billings_voon_tests(
-    e: Any, u: Any, max_lag: int = 25, input_names: Sequence[str] | None = None
+    e: Any, u: Any, max_lag: int = CORRELATION_LAGS, input_names: Sequence[str] | None = None
 ) -> list[CorrelationTest]:
     """Higher-order correlation tests for un-modelled nonlinear terms (Billings & Voon 1986).
 

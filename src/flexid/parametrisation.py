@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from ._validate import integer, real
+from .config import REFLECTION_CAP
 from .errors import ConfigError, DataError, UnknownNameError
 from .models.arx import ARXStructure
 from .stability import is_stable, poles_batched, reflection_coefficients
@@ -636,7 +637,8 @@ class ReflectionParametrisation(Parametrisation):
     name = "reflection"
 
     def __init__(
-        self, structure: ARXStructure, *, b_lower: Any, b_upper: Any, k_max: float = 0.9999
+        self, structure: ARXStructure, *, b_lower: Any, b_upper: Any,
+        k_max: float = REFLECTION_CAP,
     ) -> None:
         self.k_max = _open_unit(k_max, "k_max")
         super().__init__(structure, b_lower=b_lower, b_upper=b_upper)
@@ -699,7 +701,7 @@ def make_parametrisation(
     a_upper: Any = None,
     r_max: float = 0.999,
     real_pairs: int = 0,
-    k_max: float = 0.9999,
+    k_max: float = REFLECTION_CAP,
 ) -> Parametrisation:
     """Build a parametrisation by name.
 

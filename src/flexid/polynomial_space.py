@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .config import REFLECTION_CAP
 from .errors import ConfigError
 from .models.arx import ARXStructure
 from .models.polynomial import PolynomialStructure
@@ -59,7 +60,7 @@ class PolynomialSpace:
         b_upper: Any = None,
         r_max: float = 0.999,
         real_pairs: int = 0,
-        k_max: float = 0.9999,
+        k_max: float = REFLECTION_CAP,
     ) -> None:
         self.structure = structure
         self.name = parametrisation

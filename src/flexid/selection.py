@@ -80,6 +80,7 @@ from scipy import linalg
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, integer, real
+from .config import CORRELATION_LAGS
 from .diagnostics import format_fit
 from .errors import (
     ConfigError,
@@ -357,7 +358,7 @@ class Selection:
     criterion: str
     note: str
     initial: str = "estimate"
-    max_lag: int = 25
+    max_lag: int = CORRELATION_LAGS
     n_estimation: int = 0
     n_validation: int = 0
     dt: float = 1.0
@@ -883,7 +884,7 @@ def select(
     validation: IOData | tuple | str | os.PathLike | None = None,
     initial: str = "estimate",
     criterion: str = "simulation",
-    max_lag: int = 25,
+    max_lag: int = CORRELATION_LAGS,
     starts: int | None = None,
     seed: int = 0,
     parsimony: float = 0.01,

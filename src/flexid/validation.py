@@ -29,6 +29,7 @@ import numpy as np
 
 from ._json import jsonable
 from ._validate import checked_keywords, positive_real
+from .config import CORRELATION_LAGS
 from .diagnostics import (
     CorrelationTest,
     _peak,
@@ -627,7 +628,7 @@ def validate(
     model: Any,
     data: Any,
     *,
-    max_lag: int = 25,
+    max_lag: int = CORRELATION_LAGS,
     initial: str = "estimate",
     split: float | int | None = None,
     dt: float | None = None,
