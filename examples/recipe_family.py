@@ -24,6 +24,8 @@ ones, the metaheuristic's cost against the exact optimum.
 from __future__ import annotations
 
 import math
+import os
+import tempfile
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,11 +33,12 @@ import numpy as np
 from scipy import signal
 
 import flexid
-from flexid.config import CostSpec
+from flexid.config import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec
 from flexid.errors import ModelOrderError
 from flexid.families import Family, ReferenceFit, register_family
 from flexid.metrics import metric_from_sse
 from flexid.optimisers import Problem
+from flexid.suite import Suite, SuiteProblem, run_suite
 from flexid.validation import ValidationReport, residual_report
 
 
@@ -333,6 +336,20 @@ class LaguerreProblem:
         """The exact optimum's cost."""
         return self.cost.cost_ls
 
+    @property
+    def theta_ls(self) -> np.ndarray:
+        """The exact optimum: a comparison's start row."""
+        return self.cost.theta_ls
+
+    def output_error_reference(self) -> None:
+        """No gradient reference: least squares is already the exact optimum.
+
+        Returns
+        -------
+        None
+        """
+        return None
+
     def theta(self, z: Any) -> np.ndarray:
         """Coefficients of search points (the search space is the coefficients).
 
@@ -369,8 +386,39 @@ class LaguerreFamily(Family):
     """Laguerre models in flexid's one model interface."""
 
     name = "laguerre"
+    names = ("laguerre",)  # structure="laguerre" in identify, and in a comparison's [model]
     structures = (LaguerreStructure,)
     models = (LaguerreModel,)
+
+    def structure(self, spec: Any, n_inputs: int, **orders: Any) -> LaguerreStructure:
+        """A Laguerre structure from its name and orders ``n``, ``pole`` and ``nk``.
+
+        Parameters
+        ----------
+        spec : str or LaguerreStructure
+        n_inputs : int
+            Must be 1.
+        **orders
+            ``n`` and ``pole`` (required), ``nk`` (default 1).
+
+        Returns
+        -------
+        LaguerreStructure
+
+        Raises
+        ------
+        ModelOrderError
+            Missing or unknown orders, or a record with several inputs.
+        """
+        if not isinstance(spec, str):
+            return super().structure(spec, n_inputs, **orders)
+        given = {k: v for k, v in orders.items() if v is not None}
+        unknown = sorted(set(given) - {"n", "pole", "nk"})
+        if unknown or not {"n", "pole"} <= set(given):
+            raise ModelOrderError(f"a Laguerre structure takes n, pole and nk; got {given}")
+        if n_inputs != 1:
+            raise ModelOrderError(f"a Laguerre model has one input; the record has {n_inputs}")
+        return LaguerreStructure(int(given["n"]), float(given["pole"]), int(given.get("nk", 1)))
 
     def pose(self, data: Any, structure: Any, cost: Any, search: Any, *,
              bounds: Any) -> LaguerreProblem:
@@ -541,6 +589,28 @@ def main() -> None:
     )
     print(f"select ranks Laguerre and OE candidates together, best {chosen.best.label}: "
           f"{chosen.best.structure == structure}")
+
+    # a comparison names the structure in its [model] table; the record is a file
+    with tempfile.TemporaryDirectory() as folder:
+        record = os.path.join(folder, "laguerre.csv")
+        flexid.save(data, record)
+        spec = ComparisonSpec(
+            name="laguerre", data=DataSpec(file=record),
+            model=ModelSpec(structure="laguerre", options={"n": 4, "pole": 0.9}),
+            optimisers=(OptimiserSpec("de"), OptimiserSpec("pso")), runs=2, budget=2000,
+        )
+        result = flexid.compare(spec, store=os.path.join(folder, "runs.db"))
+        best = {label: min(r["cost"] for r in result.records[label]) for label in ("de", "pso")}
+        exact = result.reference_cost
+        print(f"compare runs DE and PSO on it, each best within 1 % of the exact optimum "
+              f"{exact:.6g} and none below it: "
+              f"{all(exact * (1 - 1e-9) <= c <= 1.01 * exact for c in best.values())}")
+        suite = Suite("laguerre", (SuiteProblem("record/laguerre/simulation/0", "record",
+                                                "laguerre", "simulation", "0", spec),),
+                      budget_per_dim=200, runs=2)  # fmt: skip
+        ran = run_suite(suite, ["de"], store=os.path.join(folder, "suite.db"))
+        names = [p.name for p in suite.problems]
+        print(f"the suite runs it as one of its problems: {list(ran.results) == names}")
 
 
 if __name__ == "__main__":

@@ -34,9 +34,13 @@ def record():
 
 @pytest.fixture
 def restore_registry():
-    before = list(families._FAMILIES)
+    from flexid import config
+
+    before, names = list(families._FAMILIES), set(config._REGISTERED_NAMES)
     yield
     families._FAMILIES[:] = before
+    config._REGISTERED_NAMES.clear()
+    config._REGISTERED_NAMES.update(names)
 
 
 def builtin_objects():
@@ -186,3 +190,88 @@ def test_identify_and_select_take_the_polynomial_family_estimates(record):
     arx = ARXStructure(2, 2)
     assert family.reference_hint(arx, "one-step") == "optimiser='ls'"
     assert family.reference_hint(arx, "simulation") == "optimiser='oe'"
+
+
+class TaggedOE(Tagged):
+    """A tagged structure whose models are tagged too, as a family's own would be."""
+
+    def model(self, theta, dt=1.0):
+        return Tagged(self.inner.model(theta, dt=dt))
+
+
+class TaggedOEFamily(TaggedFamily):
+    """Builds ``"tagged-oe"`` structures from orders, for a comparison's ``[model]`` table."""
+
+    name = "tagged-oe"
+    names = ("tagged-oe",)
+    structures = (TaggedOE,)
+    models = (Tagged,)
+
+    def structure(self, spec, n_inputs, **orders):
+        if isinstance(spec, str):
+            return TaggedOE(flexid.structure("oe", **{k: v for k, v in orders.items()
+                                                      if v is not None}))  # fmt: skip
+        return super().structure(spec, n_inputs, **orders)
+
+
+def test_a_comparison_runs_a_registered_family_as_the_built_in_one(record, tmp_path,
+                                                                   restore_registry):
+    # the family poses and validates through the polynomial family's modules, so every run
+    # of a comparison of "tagged-oe" must equal the same run of the plain OE comparison
+    from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
+
+    path = tmp_path / "record.csv"
+    flexid.save(record, path)
+    family = register_family(TaggedOEFamily())
+
+    def spec(model):
+        return ComparisonSpec(name="tagged", data=DataSpec(file=str(path)), model=model,
+                              optimisers=(OptimiserSpec("de"),), runs=2, budget=300)  # fmt: skip
+
+    tagged = flexid.compare(spec(ModelSpec(structure="tagged-oe", options={"nb": 2, "nf": 2})),
+                            store=tmp_path / "tagged.db")  # fmt: skip
+    plain = flexid.compare(spec(ModelSpec(structure="oe", nb=2, nf=2)),
+                           store=tmp_path / "plain.db")  # fmt: skip
+    assert "pose" in family.calls and "validate" in family.calls
+    assert tagged.key != plain.key  # different structures, different stores' keys
+    for a, b in zip(tagged.records["de"], plain.records["de"], strict=True):
+        assert a["cost"] == b["cost"] and a["theta"] == b["theta"]
+        assert a["validation"]["fit_simulation"] == b["validation"]["fit_simulation"]
+    assert tagged.reference_cost == plain.reference_cost
+    assert "tagged-oe(nb=2, nf=2)" in tagged.summary()
+
+
+def test_a_model_spec_names_registered_structures_and_takes_their_orders_as_options(
+    restore_registry,
+):
+    from flexid.config import ModelSpec
+    from flexid.errors import UnknownNameError
+
+    with pytest.raises(UnknownNameError, match="'tagged-oe'; known: armax, arx, bj, greybox, oe$"):
+        ModelSpec(structure="tagged-oe")
+    register_family(TaggedOEFamily())
+    spec = ModelSpec(structure="tagged-oe", options={"nb": 2, "nf": 2}, nk=2)
+    assert spec.orders() == {"nb": 2, "nf": 2, "nk": 2}
+    assert spec.key_material() == {"structure": "tagged-oe", "nb": 2, "nf": 2, "nk": 2}
+    with pytest.raises(ConfigError, match="takes its orders in options"):
+        ModelSpec(structure="tagged-oe", nb=2)
+    with pytest.raises(ConfigError, match="options belong to a registered family"):
+        ModelSpec(structure="oe", nb=2, nf=2, options={"nb": 2})
+
+
+def test_the_built_in_specs_keep_their_keys_and_the_suite_its_versions():
+    # the keys and versions stores hold: a change here orphans every stored run
+    from dataclasses import replace
+
+    from flexid.config import ModelSpec, default_spec
+    from flexid.suite import get_suite
+
+    m, t = default_spec(plant="manipulator"), default_spec(plant="twin-rotor")
+    keys = [m.key, t.key, replace(m, model=ModelSpec(na=4, nb=4)).key,
+            replace(m, model=ModelSpec(structure="bj", nb=2, nc=1, nd=1, nf=2)).key]  # fmt: skip
+    assert keys == ["f8178f888a3b7e98", "2a2717b2b28643b8", "e8346078ef457799",
+                    "7a9592d27fd12c34"]  # fmt: skip
+    assert "options" not in m.to_dict()["model"]
+    assert (get_suite("small").version, get_suite("full").version) == (
+        "71052f16fc78", "aa24f126d1e2"
+    )

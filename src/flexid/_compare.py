@@ -46,9 +46,9 @@ from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _chec
 from .data import IOData, prepare_data, split_parts
 from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
+from .families import family_of
 from .optimisers import Budget, get, minimize
 from .store import ResultStore
-from .validation import validate
 
 __all__ = ["ComparisonResult", "build_data", "check_spec", "compare", "load_result", "run_seed"]
 
@@ -144,15 +144,16 @@ class _Context:
         self.records = est if isinstance(est, tuple) else (est,)
         self.dt = self.records[0].dt
         m = spec.model
-        self.greybox = m.structure == GREYBOX
         try:
-            if self.greybox:
+            if m.structure == GREYBOX:  # the spec names a model, not orders
                 self.structure = m.greybox_model()
             else:
                 self.structure = structure_of(m.structure, self.records[0].n_inputs,
                                               **m.orders())  # fmt: skip
         except ModelOrderError as exc:
             raise ConfigError(f"[model]: {exc}") from None
+        #: the structure's family, which every model-specific step of a run asks
+        self.family = family_of(self.structure)
         for record in (*self.records, val):
             self.structure.check_samples(record.n_samples)
         self.estimation = build_problem(
@@ -160,12 +161,12 @@ class _Context:
         )
         if len(self.records) > 1:
             self.structure = self.estimation.structure  # ARX: the polynomial family's there
-        if self.greybox:
-            return  # its start is the parameters' given values, always finite
-        if not np.isfinite(self.theta_ls).all():  # the least-squares row every comparison has
+        if not np.isfinite(self.theta_ls).all():  # the start row every comparison has
             raise ConfigError(
-                f"[model]: {self.structure!r} has no least-squares start (its F polynomials "
-                "differ in order): give every input the same nf"
+                f"[model]: {self.structure!r} has no finite start "
+                f"({self.family.start_name(self.structure)}): "
+                + ("give every input the same nf (its F polynomials differ in order)"
+                   if m.structure in ("oe", "bj") else "give it other orders")
             )
 
     @property
@@ -259,13 +260,8 @@ def _store_history(result) -> dict[str, list]:
 
 
 def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
-    if ctx.greybox:  # run on from the record's start into the held-out part, first output
-        report = validate(model, ctx.val, max_lag=ctx.spec.max_lag, split=ctx.est.n_samples,
-                          output=model.outputs[0])
-    else:
-        report = validate(
-            model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.validate_initial
-        )
+    report = ctx.family.held_out(model, ctx.records[0], ctx.val, max_lag=ctx.spec.max_lag,
+                                 initial=ctx.spec.validate_initial)  # fmt: skip
     err = report.error_range_one_step
     return {
         "fit_one_step": float(report.fit_one_step),
@@ -278,36 +274,7 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
 
 
 def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
-    if ctx.greybox:
-        return _greybox_numbers(model, ctx)
-    est_err = np.concatenate([model.residuals(r.u, r.y[:, 0])[ctx.structure.start :]
-                              for r in ctx.records])  # fmt: skip
-    return {
-        "theta": [float(v) for v in model.theta],
-        "stable": bool(model.is_stable),
-        "max_pole_radius": float(model.max_pole_radius),
-        "estimation_error_min": float(est_err.min()),
-        "estimation_error_max": float(est_err.max()),
-    }
-
-
-def _greybox_numbers(model, ctx: _Context) -> dict[str, Any]:
-    """:func:`_model_numbers` of a grey-box model: its simulation errors, its linearisation."""
-    from .greybox_family import _linearised_poles
-
-    cost = ctx.estimation.cost
-    with np.errstate(all="ignore"):
-        y_sim = model.simulate(model.nominal, cost.u, cost.dt)[0, :, 0]
-        err = cost.y[:, 0] - y_sim
-    finite = bool(np.isfinite(err).all())
-    radius = float(np.max(np.abs(_linearised_poles(model, cost.dt)), initial=0.0))
-    return {
-        "theta": [float(v) for v in model.theta],
-        "stable": bool(finite and radius < 1.0),
-        "max_pole_radius": radius,
-        "estimation_error_min": float(err.min()) if finite else -math.inf,
-        "estimation_error_max": float(err.max()) if finite else math.inf,
-    }
+    return ctx.family.model_numbers(model, ctx.estimation, ctx.records)
 
 
 def _least_squares_record(ctx: _Context) -> dict[str, Any]:
@@ -325,7 +292,10 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
         "cost": cost,
         "nfev": 0,
         "nit": 0,
-        "stop": "given values" if ctx.greybox else "closed form",
+        "stop": ctx.family.start_stop,
+        # what a result of a family without built-in words says of the start and the search
+        "start_name": ctx.family.start_name(ctx.structure),
+        "search_text": ctx.estimation.describe(),
         "history": {"fe": [0], "best": [cost]},
     }
     record.update(_model_numbers(model, ctx))

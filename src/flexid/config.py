@@ -62,14 +62,17 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 __all__ = [
     "COMPARE_BUDGET",
     "COMPARE_RUNS",
+    "CORRELATION_LAGS",
     "DEFAULT_OPTIMISERS",
     "GREYBOX",
     "IDENTIFY_BUDGET",
     "LEAST_SQUARES",
     "OUTPUT_ERROR",
     "PAPER_SEARCH",
+    "POLE_RADIUS_CAP",
     "PREDICTION_ERROR",
     "REFERENCES",
+    "REFLECTION_CAP",
     "SCHEDULE",
     "STRUCTURE_NAMES",
     "ComparisonSpec",
@@ -78,6 +81,7 @@ __all__ = [
     "ModelSpec",
     "OptimiserSpec",
     "SearchSpec",
+    "add_structure_names",
     "auto_initial",
     "command_specs",
     "default_spec",
@@ -114,6 +118,20 @@ STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
 #: The structure name of a grey-box model (:mod:`flexid.models.greybox`), beside the
 #: polynomial ones.
 GREYBOX = "greybox"
+# Structure names of the model families registered beyond the built-in ones
+# (flexid.families.register_family adds theirs): a ModelSpec may name them.
+_REGISTERED_NAMES: set[str] = set()
+
+
+def add_structure_names(names: Sequence[str]) -> None:
+    """Let a :class:`ModelSpec` name these structures (a registered family builds them).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Lower-case structure names.
+    """
+    _REGISTERED_NAMES.update(str(n).lower() for n in names)
 #: Lags of the residual correlation tests (auto- and cross-correlation, Billings-Voon), as
 #: MATLAB's ``resid`` and Ljung (System Identification, 2nd ed., sec. 16.6) use.
 CORRELATION_LAGS = 25
@@ -299,6 +317,10 @@ class ModelSpec:
     parameters : dict
         With ``structure = "greybox"``: parameter changes, ``name -> value`` (a new value)
         or ``name -> {"value": ..., "fixed": ..., "lower": ..., "upper": ...}``.
+    options : dict
+        With the structure of a registered family (:func:`flexid.families.register_family`):
+        its orders by name, as its ``structure`` method takes them (``{"n": 6, "pole":
+        0.8}``); ``nk`` is passed on when it is not 1.
     """
 
     na: int | None = None
@@ -310,13 +332,29 @@ class ModelSpec:
     nf: Any = None
     greybox: str | None = None
     parameters: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.structure not in (*STRUCTURE_NAMES, GREYBOX):
+        known = (*STRUCTURE_NAMES, GREYBOX, *sorted(_REGISTERED_NAMES - set(STRUCTURE_NAMES)))
+        if self.structure not in known:
             from .errors import UnknownNameError
 
-            raise UnknownNameError(
-                "[model] structure", str(self.structure), (*STRUCTURE_NAMES, GREYBOX)
+            raise UnknownNameError("[model] structure", str(self.structure), known)
+        if not isinstance(self.options, Mapping):
+            raise ConfigError("[model] options must be a table: name = value")
+        object.__setattr__(self, "options", dict(self.options))
+        if self.structure not in (*STRUCTURE_NAMES, GREYBOX):
+            given = [k for k in ("na", "nb", "nc", "nd", "nf", "greybox") if getattr(self, k)]
+            if given or self.parameters:
+                raise ConfigError(
+                    f"[model] structure {self.structure!r} takes its orders in options = "
+                    f"{{...}}, not {', '.join(given or ['parameters'])}"
+                )
+            return
+        if self.options:
+            raise ConfigError(
+                f"[model] options belong to a registered family's structure, not "
+                f"{self.structure!r}: give its orders as na, nb, nc, nd, nf, nk"
             )
         if self.structure == GREYBOX:
             if not isinstance(self.greybox, str) or not self.greybox:
@@ -367,6 +405,8 @@ class ModelSpec:
         -------
         dict
         """
+        if self.structure not in (*STRUCTURE_NAMES, GREYBOX):
+            return {**self.options, **({"nk": self.nk} if self.nk != 1 else {})}
         names = ("na", "nb", "nc", "nd", "nf", "nk")
         return {k: getattr(self, k) for k in names if getattr(self, k) is not None}
 
@@ -391,7 +431,9 @@ class ModelSpec:
                 "definition": definition_digest(self.greybox),
                 "model": model.to_dict(),
             }
-        for k in ("greybox", "parameters"):  # keys of polynomial specs as before
+        if self.structure not in STRUCTURE_NAMES:  # a registered family's
+            return {"structure": self.structure, **self.orders()}
+        for k in ("greybox", "parameters", "options"):  # keys of polynomial specs as before
             del d[k]
         return d
 
@@ -409,6 +451,8 @@ class ModelSpec:
             changed = f", {len(self.parameters)} parameter(s) changed" if self.parameters else ""
             return f"grey-box model {self.greybox}{changed}"
         text = ", ".join(f"{k}={v}" for k, v in self.orders().items())
+        if self.structure not in STRUCTURE_NAMES:  # a registered family's name, as written
+            return f"{self.structure}({text})"
         return f"{self.structure.upper()}({text})"
 
 
@@ -677,11 +721,15 @@ class ComparisonSpec:
         Returns
         -------
         dict
-            Every field, the nested specs as dicts (``data`` without an unset ``digest``),
-            ``optimisers`` as a list of dicts and ``targets`` as a list.
+            Every field, the nested specs as dicts (``data`` without an unset ``digest``,
+            ``model`` without empty ``options``: the dicts, and the versions and keys hashed
+            from them, are those of specs written before the field existed), ``optimisers``
+            as a list of dicts and ``targets`` as a list.
         """
         out = asdict(self)
         out["data"] = _data_dict(self.data)
+        if not self.model.options:
+            del out["model"]["options"]
         out["optimisers"] = [asdict(o) for o in self.optimisers]
         out["targets"] = list(self.targets)
         return out

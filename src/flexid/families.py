@@ -38,7 +38,7 @@ import importlib
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from .config import CostSpec, SearchSpec
+from .config import CostSpec, SearchSpec, add_structure_names
 from .errors import ConfigError, ModelOrderError, UnknownNameError
 
 __all__ = [
@@ -95,6 +95,9 @@ class Family(abc.ABC):
     reads_channels : bool
         Whether its models read a record's channels by their own names (a grey-box model),
         rather than take the record's inputs in order.
+    start_stop : str
+        How a comparison's start row (the posed problem's ``theta_ls``) was reached, as its
+        ``stop`` field says: ``"closed form"`` for least squares.
     """
 
     name: ClassVar[str]
@@ -102,6 +105,7 @@ class Family(abc.ABC):
     models: ClassVar[tuple[type, ...]] = ()
     names: ClassVar[tuple[str, ...]] = ()
     reads_channels: ClassVar[bool] = False
+    start_stop: ClassVar[str] = "closed form"
 
     def owns(self, obj: Any) -> bool:
         """Whether ``obj`` is a structure or model of this family.
@@ -359,6 +363,69 @@ class Family(abc.ABC):
         """
 
 
+    def held_out(
+        self, model: Any, estimation: Any, validation: Any, *, max_lag: int, initial: str
+    ) -> Any:  # a ValidationReport
+        """The held-out report a comparison records of each run's model.
+
+        Parameters
+        ----------
+        model : object
+            A model of this family.
+        estimation : IOData
+            The estimation record (or the first of several).
+        validation : IOData
+            The validation record.
+        max_lag : int
+            Lags of the correlation tests.
+        initial : str
+            The comparison's initial-condition rule of validation, checked.
+
+        Returns
+        -------
+        ValidationReport
+            By default :meth:`validate` on ``validation``.
+        """
+        return self.validate(model, validation, max_lag=max_lag, initial=initial, split=None,
+                             dt=None, output=None)  # fmt: skip
+
+    def model_numbers(self, model: Any, estimation: Any, records: Any) -> dict[str, Any]:
+        """What a comparison stores of each run's model, beside its held-out report.
+
+        Parameters
+        ----------
+        model : object
+            A model of this family.
+        estimation : EstimationProblem
+            The posed problem the model was searched in.
+        records : tuple of IOData
+            The estimation records.
+
+        Returns
+        -------
+        dict
+            ``theta`` (list of float), ``stable`` (bool), ``max_pole_radius`` (float) and
+            the range of the one-step errors on the estimation records,
+            ``estimation_error_min`` and ``estimation_error_max``.  By default the errors are
+            those of :meth:`validate` under ``initial="zero"``, the poles ``model.poles()``.
+        """
+        import numpy as np
+
+        reports = [
+            self.validate(model, r, max_lag=1, initial="zero", split=None, dt=None, output=None)
+            for r in records
+        ]
+        ranges = [report.error_range_one_step for report in reports]
+        poles = np.asarray(model.poles()) if hasattr(model, "poles") else np.zeros(0)
+        return {
+            "theta": [float(v) for v in model.theta],
+            "stable": bool(getattr(model, "is_stable", np.all(np.abs(poles) < 1.0))),
+            "max_pole_radius": float(np.max(np.abs(poles), initial=0.0)),
+            "estimation_error_min": float(min(lo for lo, _ in ranges)),
+            "estimation_error_max": float(max(hi for _, hi in ranges)),
+        }
+
+
 _FAMILIES: list[Family] = []
 
 #: The built-in families: module and class, registered on the first lookup (a name kept as
@@ -401,6 +468,7 @@ def register_family(family: Family) -> Family:
     _load_builtins()
     _FAMILIES[:] = [f for f in _FAMILIES if f.name != family.name]
     _FAMILIES.append(family)
+    add_structure_names(family.names)  # a comparison's [model] may name them now
     return family
 
 

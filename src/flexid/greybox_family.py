@@ -39,6 +39,7 @@ class GreyBoxFamily(Family):
     structures = (GreyBoxModel,)
     models = (GreyBoxModel,)
     reads_channels = True
+    start_stop = "given values"
 
     def reference(self, data: Any, structure: Any, *, initial: str, starts: int | None,
                   seed: int) -> tuple[Any, float, bool]:
@@ -72,6 +73,35 @@ class GreyBoxFamily(Family):
         return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt, output=output)
 
     validate.__doc__ = None  # Family.validate's
+
+    def held_out(
+        self, model: Any, estimation: Any, validation: Any, *, max_lag: int, initial: str
+    ) -> ValidationReport:
+        # run on from the record's start into the held-out part; the first output
+        return self.validate(
+            model, validation, max_lag=max_lag, initial=initial, split=estimation.n_samples,
+            dt=None, output=model.outputs[0],
+        )
+
+    held_out.__doc__ = None  # Family.held_out's
+
+    def model_numbers(self, model: Any, estimation: Any, records: Any) -> dict[str, Any]:
+        # its simulation errors and the poles of its linearisation at the initial state
+        cost = estimation.cost
+        with np.errstate(all="ignore"):
+            y_sim = model.simulate(model.nominal, cost.u, cost.dt)[0, :, 0]
+            err = cost.y[:, 0] - y_sim
+        finite = bool(np.isfinite(err).all())
+        radius = float(np.max(np.abs(_linearised_poles(model, cost.dt)), initial=0.0))
+        return {
+            "theta": [float(v) for v in model.theta],
+            "stable": bool(finite and radius < 1.0),
+            "max_pole_radius": radius,
+            "estimation_error_min": float(err.min()) if finite else -np.inf,
+            "estimation_error_max": float(err.max()) if finite else np.inf,
+        }
+
+    model_numbers.__doc__ = None  # Family.model_numbers's
 
 
 def _linearised_poles(model: Any, dt: float) -> np.ndarray:

@@ -185,6 +185,19 @@ class PolynomialFamily(Family):
 
     pose.__doc__ = None  # Family.pose's
 
+    def model_numbers(self, model: Any, estimation: Any, records: Any) -> dict[str, Any]:
+        start = estimation.structure.start
+        est_err = np.concatenate([model.residuals(r.u, r.y[:, 0])[start:] for r in records])
+        return {
+            "theta": [float(v) for v in model.theta],
+            "stable": bool(model.is_stable),
+            "max_pole_radius": float(model.max_pole_radius),
+            "estimation_error_min": float(est_err.min()),
+            "estimation_error_max": float(est_err.max()),
+        }
+
+    model_numbers.__doc__ = None  # Family.model_numbers's
+
     def validate(
         self, model: Any, data: Any, *, max_lag: int, initial: str,
         split: float | int | None, dt: float | None, output: str | None,
