@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import textwrap
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
@@ -22,10 +23,12 @@ from ._validate import checked_keywords, integer
 from .config import (
     CORRELATION_LAGS,
     IDENTIFY_BUDGET,
+    KEYWORDS,
     PREDICTION_ERROR,
     REFERENCES,
     CostSpec,
     SearchSpec,
+    specs_from_keywords,
 )
 from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
@@ -101,7 +104,12 @@ def identify(
         grey-box model (:class:`~flexid.models.greybox.GreyBoxModel`, or ``"greybox"`` with
         ``greybox``): its estimated parameters are fitted on the simulation cost, by
         ``optimiser`` or the reference :func:`flexid.greybox_fit.greyest` (``"pem"``), and it
-        is validated by running it on from the record's start into the held-out part.
+        is validated by running it on from the record's start into the held-out part.  For
+        a grey-box model ``initial="estimate"`` estimates the initial value of every state
+        that is an output, searched over the estimation record's range of that output
+        widened by its span on each side
+        (:meth:`~flexid.models.greybox.GreyBoxModel.with_initial_states`); the default is the
+        model's own initial state.
     greybox : str or GreyBoxModel, optional
         The grey-box model of ``structure="greybox"``: a name of
         :func:`flexid.models.greybox_library.greybox_model` (``"twin-rotor-pitch"``, a registered or
@@ -124,9 +132,9 @@ def identify(
         The optimiser's hyper-parameters.
     cost : str or CostSpec, optional
         ``"paper"`` (eq. 5-6: ``1e3 sqrt(sum e^2) / K``, plus 1e9 for an unstable model),
-        ``"rmse"``, ``"nrmse"``, ``"sse"`` or ``"mse"``.
-    predictor : str, optional
-        ``"one-step"`` (equation error, as in the paper) or ``"simulation"`` (output error).
+        ``"rmse"``, ``"nrmse"``, ``"sse"`` or ``"mse"``; or a whole
+        :class:`~flexid.config.CostSpec`, as a program builds it (then none of the cost
+        keywords below).
     bounds : see :func:`~flexid.estimation.search_box`
         The search box; recorded in the result.
     budget : int, Budget or mapping
@@ -146,32 +154,10 @@ def identify(
         estimation record's operating point).
     max_lag : int
         Lags of the correlation tests.
-    weight, penalty : float, optional
-        Gain ``w`` and stability penalty of the paper cost.
-    initial : str, optional
-        Initial-condition rule of the cost: ``"estimate"``, ``"zero"``, ``"measured"`` or
-        ``"auto"`` (the default: ``"measured"`` for ARX, ``"estimate"`` otherwise; see
-        :func:`flexid.estimation.resolve_initial`).  For a grey-box model, ``"estimate"``
-        estimates the initial value of every state that is an output, searched over the
-        estimation record's range of that output widened by its span on each side
-        (:meth:`~flexid.models.greybox.GreyBoxModel.with_initial_states`); the default is the
-        model's own initial state.
-
-        ``predictor``, ``weight``, ``penalty`` and ``initial`` override the fields of ``cost``
-        (a metric name or a whole :class:`~flexid.config.CostSpec`); what is not given is
-        :class:`~flexid.config.CostSpec`'s default, the one definition of a cost's settings.
-    parametrisation : {"poles", "reflection", "coefficients"}, optional
-        The search space (default ``"poles"``; ``"coefficients"`` is the paper's box).
-    penalty_kind : {"graded", "flat"}, optional
-        Stability penalty in the coefficient space (default ``"graded"``; ``"flat"`` is the
-        paper's constant ``penalty``).
-    init : {"stable", "uniform"}, optional
-        Initial population in the coefficient space (default ``"stable"``).
-    numerator : {"search", "fit"}, optional
-        ``"fit"``: the optimiser searches the denominator only and each candidate's ``b`` is
-        the least-squares optimum of the cost for it (see :class:`~flexid.config.SearchSpec`).
+{keywords}
     search : SearchSpec, optional
-        All search settings at once (the four above override its fields).
+        All search settings at once, as a program builds them (then none of the search
+        keywords above).
     callback : callable, optional
         Called after each optimiser iteration (progress bars).
     load_options : mapping, optional
@@ -241,27 +227,15 @@ def identify(
     structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
     for record in (*records, val):
         structure.check_samples(record.n_samples)
-    given = {
-        "parametrisation": parametrisation,
-        "penalty": penalty_kind,
-        "init": init,
-        "numerator": numerator,
-    }
-    overrides = {k: v for k, v in given.items() if v is not None}
-    search = replace(search or SearchSpec(), **overrides)
+    cost_spec, search = specs_from_keywords(
+        cost, search, predictor=predictor, weight=weight, penalty=penalty, initial=initial,
+        parametrisation=parametrisation, penalty_kind=penalty_kind, init=init,
+        numerator=numerator,
+    )
     if optimiser in REFERENCES and structure.kind == "arx" and structure.na == 0:
         # an FIR model (na = 0) has no denominator to search, so the default numerator="fit"
         # space does not exist; a reference searches nothing: the space is only recorded
         search = replace(search, numerator="search")
-    cost_given = {
-        "metric": None if isinstance(cost, CostSpec) else cost,
-        "predictor": predictor,
-        "weight": weight,
-        "penalty": penalty,
-        "initial": initial,
-    }
-    base = cost if isinstance(cost, CostSpec) else CostSpec()
-    cost_spec = replace(base, **{k: v for k, v in cost_given.items() if v is not None})
     estimation = build_problem(est, structure, cost_spec, search, bounds=bounds)
     if len(records) > 1:
         structure = estimation.structure  # ARX is fitted as the polynomial family's there
@@ -378,3 +352,22 @@ def _budget(budget: Budget | int | Mapping[str, Any]) -> Budget:
             raise BudgetError(f"budget: {exc}") from None
     max_fe = integer(budget, "budget (function evaluations)", error=BudgetError, minimum=1)
     return Budget.coerce(max_fe)
+
+
+def _keyword_entries() -> str:
+    """The docstring entries of the cost and search keywords, from the one table."""
+    specs = {"cost": "CostSpec", "search": "SearchSpec"}
+    lines = []
+    for k in KEYWORDS:
+        kind = "float" if k.field in ("weight", "penalty") and k.spec == "cost" else "str"
+        lines.append(f"    {k.name} : {kind}, optional")
+        text = (f"{k.help[0].upper()}{k.help[1:]}; the field ``{k.field}`` of "
+                f":class:`~flexid.config.{specs[k.spec]}`.")  # fmt: skip
+        lines += textwrap.wrap(text, 88, initial_indent=" " * 8, subsequent_indent=" " * 8)
+    return "\n".join(lines)
+
+
+# the checked wrapper and the function it wraps say the same
+identify.__doc__ = identify.__wrapped__.__doc__ = (identify.__doc__ or "").replace(
+    "{keywords}", _keyword_entries()
+)

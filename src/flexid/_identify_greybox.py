@@ -17,7 +17,7 @@ from typing import Any
 
 from ._identification import Identification, _indent, data_info, timings
 from ._json import jsonable
-from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
+from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec, specs_from_keywords
 from .data import ESTIMATION_SHARE, IOData, detrend_kind, detrend_pair, load
 from .diagnostics import format_fit
 from .errors import ConfigError, DataError
@@ -302,13 +302,9 @@ def identify_greybox(
     if initial == "estimate":
         model = _estimated_initial_state(model, est)
     model.check_samples(est.n_samples)
-    base = cost if isinstance(cost, CostSpec) else CostSpec()
-    given = {
-        "metric": None if isinstance(cost, CostSpec) else cost,
-        "predictor": predictor or "simulation",
-        "weight": weight,
-    }
-    cost_spec = replace(base, **{k: v for k, v in given.items() if v is not None})
+    cost_spec, _ = specs_from_keywords(cost, predictor=predictor, weight=weight)
+    if predictor is None:  # a grey-box model's prediction is its simulation
+        cost_spec = replace(cost_spec, predictor="simulation")
     estimation = build_problem(est, model, cost_spec, SearchSpec())
     objective = estimation.cost
     cost_ls = estimation.cost_ls

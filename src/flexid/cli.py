@@ -31,6 +31,7 @@ from .config import (
     PREDICTION_ERROR,
     REFERENCES,
     STRUCTURE_NAMES,
+    keyword,
 )
 from .errors import ConfigError, FlexidError, FlexidWarning
 from .metrics import METRICS
@@ -402,22 +403,13 @@ def _search_overrides(args: argparse.Namespace) -> dict[str, str]:
 
 
 def _add_search_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--parametrisation",
-        help="search space: poles (default) | reflection | coefficients (the paper's box)",
-    )
-    p.add_argument(
-        "--penalty", help="stability penalty in the coefficient space: graded (default) | flat"
-    )
-    p.add_argument(
-        "--init",
-        help="initial population in the coefficient space: stable (default) | uniform",
-    )
-    p.add_argument(
-        "--numerator",
-        help="fit (default: b fitted by least squares for each candidate denominator) | "
-        "search (the optimiser searches b too)",
-    )
+    for option in ("--parametrisation", "--penalty", "--init", "--numerator"):
+        _add_keyword_option(p, option)
+
+
+def _add_keyword_option(p: argparse.ArgumentParser, option: str) -> None:
+    """An option of a cost or search setting, its help from the one keyword table."""
+    p.add_argument(option, help=keyword(option).help)
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
@@ -1037,10 +1029,7 @@ def build_parser() -> argparse.ArgumentParser:
         f"squares) or {PREDICTION_ERROR!r}, the default: the structure's gradient reference "
         f"(least squares for the one-step ARX cost; {OUTPUT_ERROR!r} for ARX simulation)",
     )
-    i.add_argument(
-        "--initial",
-        help="initial state of the cost's predictor: auto (default) | estimate | zero | measured",
-    )
+    _add_keyword_option(i, "--initial")
     i.add_argument(
         "--validate-initial",
         default="estimate",
@@ -1052,7 +1041,7 @@ def build_parser() -> argparse.ArgumentParser:
         "optimisers --long)",
     )
     i.add_argument("--cost", help=_COST_HELP)
-    i.add_argument("--predictor", help="one-step (default) | simulation")
+    _add_keyword_option(i, "--predictor")
     i.add_argument("--bounds", default="auto", help="auto, a half-width S, or LOW,HIGH")
     _add_search_options(i)
     i.add_argument(
@@ -1117,7 +1106,7 @@ def build_parser() -> argparse.ArgumentParser:
         scope="built-in comparison",
     )
     c.add_argument("--cost", help=_COST_HELP)
-    c.add_argument("--predictor", help="one-step (default) | simulation")
+    _add_keyword_option(c, "--predictor")
     _add_search_options(c)
     c.add_argument("--store", help=f"SQLite result store (default {DEFAULT_OUT}/results.sqlite)")
     c.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")

@@ -66,6 +66,7 @@ __all__ = [
     "DEFAULT_OPTIMISERS",
     "GREYBOX",
     "IDENTIFY_BUDGET",
+    "KEYWORDS",
     "LEAST_SQUARES",
     "OUTPUT_ERROR",
     "PAPER_SEARCH",
@@ -78,6 +79,7 @@ __all__ = [
     "ComparisonSpec",
     "CostSpec",
     "DataSpec",
+    "Keyword",
     "ModelSpec",
     "OptimiserSpec",
     "SearchSpec",
@@ -85,8 +87,10 @@ __all__ = [
     "auto_initial",
     "command_specs",
     "default_spec",
+    "keyword",
     "load_config",
     "spec_from_mapping",
+    "specs_from_keywords",
     "with_optimiser_params",
 ]
 
@@ -527,6 +531,135 @@ class SearchSpec:
 PAPER_SEARCH = SearchSpec(
     parametrisation="coefficients", penalty="flat", init="uniform", numerator="search"
 )
+
+
+@dataclass(frozen=True)
+class Keyword:
+    """One setting of a cost or a search as a user types it.
+
+    Attributes
+    ----------
+    name : str
+        The keyword of :func:`flexid.identify`.
+    spec : {"cost", "search"}
+        The spec it sets a field of: :class:`CostSpec` or :class:`SearchSpec`.
+    field : str
+        That field.
+    option : str or None
+        The command line's option for it (``flexid identify`` and ``flexid compare``), if it
+        has one.
+    help : str
+        What it means, with its values and default: the text of the option's help and of
+        the keyword's entry in :func:`flexid.identify`'s docstring.
+    """
+
+    name: str
+    spec: str
+    field: str
+    option: str | None
+    help: str
+
+
+#: The keywords of :func:`flexid.identify` that set a field of its cost or search spec, and
+#: the command line's options for them: the one table keywords, specs, help and errors
+#: derive from.  A program that builds a :class:`CostSpec` or :class:`SearchSpec` passes it
+#: whole (``cost=``, ``search=``) and none of its keywords.
+KEYWORDS = (
+    Keyword("predictor", "cost", "predictor", "--predictor",
+            "one-step (default; equation error, as in the paper) | simulation (output error)"),
+    Keyword("weight", "cost", "weight", None,
+            "gain w of the paper cost w sqrt(SSE) / K (default 1e3)"),
+    Keyword("penalty", "cost", "penalty", None,
+            "cost added to an unstable candidate (default 1e9)"),
+    Keyword("initial", "cost", "initial", "--initial",
+            "initial state of the cost's predictor: auto (default; measured for ARX, estimate "
+            "otherwise) | estimate | zero | measured"),
+    Keyword("parametrisation", "search", "parametrisation", "--parametrisation",
+            "search space: poles (default) | reflection | coefficients (the paper's box)"),
+    Keyword("penalty_kind", "search", "penalty", "--penalty",
+            "stability penalty in the coefficient space: graded (default) | flat (the "
+            "paper's constant penalty)"),
+    Keyword("init", "search", "init", "--init",
+            "initial population in the coefficient space: stable (default) | uniform"),
+    Keyword("numerator", "search", "numerator", "--numerator",
+            "fit (default: b fitted by least squares for each candidate denominator) | "
+            "search (the optimiser searches b too)"),
+)  # fmt: skip
+
+
+def keyword(name: str) -> Keyword:
+    """The entry of :data:`KEYWORDS` of an identify keyword or a command-line option.
+
+    Parameters
+    ----------
+    name : str
+        ``"predictor"`` or ``"--predictor"``.
+
+    Returns
+    -------
+    Keyword
+
+    Raises
+    ------
+    UnknownNameError
+        For a name that is neither.
+    """
+    for k in KEYWORDS:
+        if name in (k.name, k.option):
+            return k
+    from .errors import UnknownNameError
+
+    raise UnknownNameError("keyword", name, [k.name for k in KEYWORDS])
+
+
+def specs_from_keywords(
+    cost: str | CostSpec | None = None, search: SearchSpec | None = None, **given: Any
+) -> tuple[CostSpec, SearchSpec]:
+    """The cost and search specs of keywords a user typed, or of the specs a program built.
+
+    Parameters
+    ----------
+    cost : str or CostSpec, optional
+        A metric name (then the cost keywords set the other fields) or a whole spec.
+    search : SearchSpec, optional
+        A whole spec (then no search keyword).
+    **given
+        Keywords of :data:`KEYWORDS`; None is not given.
+
+    Returns
+    -------
+    cost : CostSpec
+    search : SearchSpec
+        The defaults of :class:`CostSpec` and :class:`SearchSpec` where nothing was given.
+
+    Raises
+    ------
+    ConfigError
+        A keyword given with the whole spec that holds its field (one way for each fact),
+        or a name that is not a keyword.
+    """
+    by_name = {k.name: k for k in KEYWORDS}
+    unknown = sorted(set(given) - set(by_name))
+    if unknown:
+        raise ConfigError(f"not a cost or search keyword: {', '.join(unknown)}")
+    fields: dict[str, dict[str, Any]] = {"cost": {}, "search": {}}
+    for name, value in given.items():
+        if value is not None:
+            fields[by_name[name].spec][by_name[name].field] = value
+    whole = {"cost": cost if isinstance(cost, CostSpec) else None, "search": search}
+    for spec, spec_fields in fields.items():
+        if whole[spec] is not None and spec_fields:
+            names = [k.name for k in KEYWORDS if k.spec == spec and given.get(k.name) is not None]
+            raise ConfigError(
+                f"{', '.join(names)} given both as keyword(s) and in {spec}="
+                f"{type(whole[spec]).__name__}(...): give each setting one way"
+            )
+    if cost is not None and not isinstance(cost, CostSpec):
+        fields["cost"]["metric"] = cost
+    return (
+        whole["cost"] if whole["cost"] is not None else CostSpec(**fields["cost"]),
+        search if search is not None else SearchSpec(**fields["search"]),
+    )
 
 
 @dataclass(frozen=True)
