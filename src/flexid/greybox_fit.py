@@ -333,31 +333,14 @@ def greyest(
     fit_pct = fit_percent(cost.y[:, 0], y_sim)
     exact = math.sqrt(sse / k) <= EXACT * float(np.sqrt(np.mean(cost._target**2)))
     local = bool(optimality <= OPTIMALITY or exact)
-    return GreyBoxResult(
-        x=fitted.theta,
-        fun=sse,
-        status=0 if local else 3 if runs[best_start].out_of_budget else 1,
-        success=local,
+    return GreyBoxResult.assemble(
+        runs, best_start, x=fitted.theta, fun=sse, std=std, optimality=optimality,
+        local_minimum=local, on_cap=False, nfev=sum(run.nfev for run in runs),
+        njev=sum(run.njev for run in runs), nfev_equivalent=problem.nfev,
         message=f"best of {len(runs)} start(s): {runs[best_start].kind} "
         f"({runs[best_start].message})",
-        nfev=sum(run.nfev for run in runs),
-        njev=sum(run.njev for run in runs),
-        std=std,
-        optimality=optimality,
-        local_minimum=local,
-        runs=runs,
-        best_start=best_start,
-        wall_time=time.perf_counter() - t_begin,
-        model=fitted,
-        covariance=covariance,
-        cost=math.sqrt(sse / k),
-        rmse=math.sqrt(sse / k),
-        fit=fit_pct,
-        simulations=problem.nfev,
-        nfev_equivalent=problem.nfev,
+        t_begin=t_begin, model=fitted, covariance=covariance, cost=math.sqrt(sse / k),
+        rmse=math.sqrt(sse / k), fit=fit_pct, simulations=problem.nfev,
         on_bound=tuple(name for name, b in zip(model.free, at_lower | at_upper) if b),
-        singular_values=rel,
-        unidentifiable=tuple(texts),
-        stable=True,
-        on_cap=False,
+        singular_values=rel, unidentifiable=tuple(texts), stable=True,
     )

@@ -64,13 +64,9 @@ from .errors import ConfigError, DataError
 from .kernels import ar_recursion
 from .reference import (
     CAP_TOLERANCE,
-    OPTIMALITY_THRESHOLD,
     ReferenceResult,
     ReferenceRun,
     levenberg_marquardt,
-    optimality,
-    standard_errors,
-    status_of,
 )
 from .stability import (
     is_stable,
@@ -416,31 +412,10 @@ def output_error(
     ysim = prob.simulate(theta[None, :])[0]
     e = prob.target - ysim[prob.offset :]
     jac = prob.jacobian(theta, ysim)
-    _, std = standard_errors(e, jac, e.size, prob.n)
-    reached = optimality(e, jac)
     max_radius = float(pole_radius_batched(theta[None, :na])[0]) if na else 0.0
     on_cap = bool(na) and max_radius >= r_max - CAP_TOLERANCE
-    local = bool(reached < OPTIMALITY_THRESHOLD and not on_cap)
-    status = status_of(local, on_cap, win.out_of_budget)
-    return ReferenceResult(
-        x=theta,
-        fun=float(e @ e),
-        status=status,
-        success=status == 0,
-        message=message,
-        nfev=prob.nfev,
-        njev=prob.njev,
-        nfev_equivalent=prob.nfev + prob.njev * prob.n,
-        std=std,
-        optimality=reached,
-        local_minimum=local,
-        runs=runs,
-        best_start=best,
-        wall_time=time.perf_counter() - t_begin,
-        cost=float(cost(theta)[0]),
-        cost_ls=float(cost.cost_ls),
-        stable=bool(is_stable(theta[:na])[0]),
-        ls_stable=ls_stable,
-        on_cap=on_cap,
-        max_radius=max_radius,
+    return ReferenceResult.at(
+        runs, best, e, jac, on_cap=on_cap, nfev=prob.nfev, njev=prob.njev, message=message,
+        t_begin=t_begin, cost=float(cost(theta)[0]), cost_ls=float(cost.cost_ls),
+        stable=bool(is_stable(theta[:na])[0]), ls_stable=ls_stable, max_radius=max_radius,
     )

@@ -126,8 +126,6 @@ from .reference import (
     ReferenceRun,
     levenberg_marquardt,
     optimality,
-    standard_errors,
-    status_of,
 )
 from .stability import (
     mirror_inside,
@@ -1018,41 +1016,18 @@ def pem(
     e, jac = prob.errors(runs[best].theta, True)
     best, note_polish, e, jac = _polish(prob, runs, best, cap, max_nfev, tol, e, jac)
     message += note + note_polish
-    theta = runs[best].theta.copy()
-    sse = float(e @ e)
-    k = prob.K
-    sigma2, param_std = standard_errors(e, jac, k, prob.n)
-    reached = optimality(e, jac)
+    theta = runs[best].theta
     max_radius = prob.max_radius(theta)
     on_cap = bool(prob.rooted) and max_radius >= cap - CAP_TOLERANCE
-    local = bool(reached < OPTIMALITY_THRESHOLD and not on_cap)
-    status = status_of(local, on_cap, runs[best].out_of_budget)
-    model = PolynomialModel(s, theta, dt=dt, param_std=param_std, noise_variance=sigma2)
-    return ReferenceResult(
-        x=theta,
-        fun=sse,
-        status=status,
-        success=status == 0,
-        message=message,
-        nfev=prob.nfev,
-        njev=prob.njev,
-        nfev_equivalent=prob.nfev + prob.njev * prob.n,
-        std=param_std,
-        optimality=reached,
-        local_minimum=local,
-        runs=runs,
-        best_start=best,
-        wall_time=time.perf_counter() - t_begin,
-        model=model,
-        K=k,
-        initial=initial,
-        on_cap=on_cap,
-        r_cap=cap,
-        max_radius=max_radius,
-        stable=model.is_stable,
-        predictor_stable=model.predictor_stable,
+    result = ReferenceResult.at(
+        runs, best, e, jac, on_cap=on_cap, nfev=prob.nfev, njev=prob.njev, message=message,
+        t_begin=t_begin, K=prob.K, initial=initial, r_cap=cap, max_radius=max_radius,
         cost=float("nan"),
     )
+    model = PolynomialModel(s, result.x, dt=dt, param_std=result.std,
+                            noise_variance=result.fun / (prob.K - prob.n))  # fmt: skip
+    result.update(model=model, stable=model.is_stable, predictor_stable=model.predictor_stable)
+    return result
 
 
 def _starts(

@@ -31,6 +31,7 @@ points a budget or a constraint stopped, by orders of magnitude.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -187,6 +188,79 @@ class ReferenceResult(OptimizeResult):
     def sse(self) -> float:
         """``fun``: the sum of squared residuals at ``x``."""
         return self["fun"]
+
+    @classmethod
+    def assemble(
+        cls, runs: list[ReferenceRun], best: int, *, x: np.ndarray, fun: float,
+        std: np.ndarray, optimality: float, local_minimum: bool, on_cap: bool, nfev: int,
+        njev: int, nfev_equivalent: int, message: str, t_begin: float, **keys: Any,
+    ) -> ReferenceResult:
+        """The result of a reference whose end has been judged; the status follows.
+
+        Parameters
+        ----------
+        runs : list of ReferenceRun
+        best : int
+            Index of the winning run.
+        x, fun, std, optimality, local_minimum, on_cap, nfev, njev, nfev_equivalent, message
+            As the keys of the same names.
+        t_begin : float
+            ``time.perf_counter()`` at the reference's start.
+        **keys
+            The reference's own keys.
+
+        Returns
+        -------
+        ReferenceResult
+        """
+        status = status_of(local_minimum, on_cap, runs[best].out_of_budget)
+        return cls(
+            x=x, fun=fun, status=status, success=status == 0, message=message, nfev=nfev,
+            njev=njev, nfev_equivalent=nfev_equivalent, std=std, optimality=optimality,
+            local_minimum=local_minimum, runs=runs, best_start=best,
+            wall_time=time.perf_counter() - t_begin, on_cap=on_cap, **keys,
+        )
+
+    @classmethod
+    def at(
+        cls, runs: list[ReferenceRun], best: int, e: np.ndarray, jac: np.ndarray, *,
+        on_cap: bool, nfev: int, njev: int, message: str, t_begin: float, **keys: Any,
+    ) -> ReferenceResult:
+        """The result at the winning run's end from its residuals and analytic Jacobian.
+
+        ``std`` and ``optimality`` from ``e`` and ``jac``; a local minimum when the
+        optimality is below :data:`OPTIMALITY_THRESHOLD` off the cap; ``nfev_equivalent``
+        counts a Jacobian as ``n_params`` simulations.
+
+        Parameters
+        ----------
+        runs : list of ReferenceRun
+        best : int
+            Index of the winning run, whose ``x`` is the result's.
+        e : ndarray, shape (K,)
+            Residuals at its end.
+        jac : ndarray, shape (K, n_params)
+            Their Jacobian.
+        on_cap, nfev, njev, message
+            As the keys of the same names.
+        t_begin : float
+            ``time.perf_counter()`` at the reference's start.
+        **keys
+            The reference's own keys.
+
+        Returns
+        -------
+        ReferenceResult
+        """
+        x = runs[best].x.copy()
+        _, std = standard_errors(e, jac, e.size, x.size)
+        reached = optimality(e, jac)
+        return cls.assemble(
+            runs, best, x=x, fun=float(e @ e), std=std, optimality=reached,
+            local_minimum=bool(reached < OPTIMALITY_THRESHOLD and not on_cap), on_cap=on_cap,
+            nfev=nfev, njev=njev, nfev_equivalent=nfev + njev * x.size, message=message,
+            t_begin=t_begin, **keys,
+        )
 
     def __repr__(self) -> str:
         # scipy's repr prints every key; the runs and the model would fill a screen
