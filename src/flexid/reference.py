@@ -241,12 +241,8 @@ class ReferenceResult(OptimizeResult):
             Residuals at its end.
         jac : ndarray, shape (K, n_params)
             Their Jacobian.
-        on_cap, nfev, njev, message
-            As the keys of the same names.
-        t_begin : float
-            ``time.perf_counter()`` at the reference's start.
-        **keys
-            The reference's own keys.
+        on_cap, nfev, njev, message, t_begin, **keys
+            As :meth:`assemble` takes them.
 
         Returns
         -------

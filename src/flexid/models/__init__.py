@@ -11,6 +11,11 @@
 :mod:`flexid.models.greybox_library`
     The named grey-box models: built in (the twin rotor's), registered, in a file or in an
     installed package.
+:mod:`flexid.models.statespace`
+    Discrete-time state-space models with several inputs and outputs (``A, B, C, D, K,
+    x0``): simulation, the one-step predictor, frequency responses, exports, modes.
+:mod:`flexid.models.modes`
+    The modes of any model's poles: natural frequency (Hz) and damping ratio.
 
 Their batched costs are in :mod:`flexid.costs`; the front door :mod:`flexid` exports the
 classes.
@@ -33,6 +38,8 @@ _LAZY = {
     "GreyParameter": "greybox",
     "greybox_model": "greybox_library",
     "register_greybox_model": "greybox_library",
+    "StateSpaceModel": "statespace",
+    "Mode": "modes",
 }
 
 __all__ = sorted(_LAZY)
