@@ -21,7 +21,9 @@ Grey-box models
 References
     :func:`pem` and MATLAB's :func:`oe`, :func:`armax`, :func:`bj` (Levenberg-Marquardt on
     the prediction errors, analytic gradients); every reference, :func:`greyest` among them,
-    returns a :class:`ReferenceResult` (a :class:`scipy.optimize.OptimizeResult`)
+    returns a :class:`ReferenceResult` (a :class:`scipy.optimize.OptimizeResult`); subspace
+    identification of a :class:`StateSpaceModel` with several inputs and outputs,
+    :func:`n4sid`
 Identification
     :func:`identify` -> :class:`Identification`; the search box (:class:`SearchBox`,
     :func:`search_box`), search space (:class:`SearchSpec`) and cost (:class:`CostSpec`)
@@ -104,6 +106,8 @@ _LAZY = {
     "armax": "prediction_error",
     "bj": "prediction_error",
     "ReferenceResult": "reference",
+    "n4sid": "subspace",
+    "StateSpaceModel": "models.statespace",
     # identification (the function lives in a private module: no module shares its name)
     "identify": "_identify",
     "Identification": "_identification",

@@ -37,6 +37,7 @@ __all__ = [
     "plot_ecdf",
     "plot_fe_to_target",
     "plot_pole_zero",
+    "plot_singular_values",
     "plot_spectra",
     "plot_time_response",
     "reference_name",
@@ -365,6 +366,46 @@ def plot_pole_zero(
     ax.set_ylabel("Im z [-]")
     ax.set_title(title)
     _outside_legend(ax)
+    return fig
+
+
+def plot_singular_values(result: Any, *, ax: Axes | None = None) -> Figure:
+    """The singular values subspace identification reads the order from, the order marked.
+
+    Parameters
+    ----------
+    result : SubspaceResult
+        From :func:`flexid.subspace.n4sid`.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Logarithmic singular values relative to the largest against their index (the
+        candidate order), the model's order a filled marker and a vertical line.
+    """
+    fig, ax = _axes(ax, figsize=(6.4, 3.8))
+    sv = np.asarray(result.singular_values, dtype=float)
+    rel = sv / sv[0] if sv.size and sv[0] > 0 else sv
+    index = np.arange(1, rel.size + 1)
+    floor = np.finfo(float).eps
+    ax.semilogy(index, np.maximum(rel, floor), "o-", color="0.35", markerfacecolor="white",
+                label="singular values")  # fmt: skip
+    n = int(result.order)
+    how = "read from the largest drop" if result.order_chosen else "given"
+    ax.semilogy([n], [max(rel[n - 1], floor)], "o", color="#D55E00", markersize=9,
+                label=f"order {n} ({how})")  # fmt: skip
+    ax.axvline(n + 0.5, color="#D55E00", linestyle="--", linewidth=1)
+    ax.set_xlabel("index (candidate order)")
+    ax.set_ylabel("singular value / largest")
+    ax.set_xlim(0.5, rel.size + 0.5)
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # orders are whole numbers
+    ax.set_title(f"Subspace singular values ({result.block_rows} block rows)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="upper right")
     return fig
 
 
