@@ -85,7 +85,7 @@ def test_optimality_and_standard_errors_against_plain_linear_algebra() -> None:
     e = y - jac @ x
     assert optimality(e, jac) < 1e-13  # rounding of lstsq (cond(J) ~ 2)
     assert optimality(y, jac) > 0.5  # at x = 0 the residual is nearly in J's span
-    sigma2, std = standard_errors(e, jac, 50, 3)
+    sigma2, std = standard_errors(e, jac)
     assert sigma2 == pytest.approx(float(e @ e) / 47, rel=1e-14)
     np.testing.assert_allclose(std, np.sqrt(np.diag(sigma2 * np.linalg.inv(jac.T @ jac))),
                                rtol=1e-10)  # fmt: skip

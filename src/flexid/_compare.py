@@ -273,10 +273,6 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
     }
 
 
-def _model_numbers(model, ctx: _Context) -> dict[str, Any]:
-    return ctx.family.model_numbers(model, ctx.estimation, ctx.records)
-
-
 def _least_squares_record(ctx: _Context) -> dict[str, Any]:
     t0 = time.perf_counter()
     model = ctx.structure.model(ctx.theta_ls, dt=ctx.dt)
@@ -298,7 +294,7 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
         "search_text": ctx.estimation.describe(),
         "history": {"fe": [0], "best": [cost]},
     }
-    record.update(_model_numbers(model, ctx))
+    record.update(ctx.family.model_numbers(model, ctx.estimation, ctx.records))
     record["validation"] = _validation_numbers(model, ctx)
     oe = ctx.estimation.output_error_reference()
     if oe is not None:
@@ -370,7 +366,7 @@ def _run(ctx: _Context, opt: OptimiserSpec, run: int, seed: int) -> dict[str, An
             history=_store_history(result),
             x=[float(v) for v in result.x],
         )
-        record.update(_model_numbers(model, ctx))
+        record.update(ctx.family.model_numbers(model, ctx.estimation, ctx.records))
         record["validation"] = _validation_numbers(model, ctx)
     except KeyboardInterrupt:  # the user's Ctrl-C (or the command's SIGTERM) ends everything
         raise

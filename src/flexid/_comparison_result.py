@@ -15,7 +15,7 @@ from typing import Any
 
 from ._json import jsonable
 from ._table import text_table
-from .config import GREYBOX, LEAST_SQUARES, STRUCTURE_NAMES, ComparisonSpec
+from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec
 from .diagnostics import format_fit as _fit
 from .errors import StoreError
 from .estimation import choose_reference
@@ -30,10 +30,6 @@ _REFERENCE_ROW = "reference (LM)"
 
 
 
-def _built_in(spec: ComparisonSpec) -> bool:
-    """Whether the spec's structure is a built-in one, which the tables describe in their
-    own words (a registered family's result reads its words from the stored start row)."""
-    return spec.model.structure in (*STRUCTURE_NAMES, GREYBOX)
 
 @dataclass
 class ComparisonResult:
@@ -143,7 +139,7 @@ class ComparisonResult:
             self.reference_cost = choice[0]
             if self.spec.model.structure == GREYBOX:
                 self.reference_note = "the parameters' given values (below the reference)"
-            elif not _built_in(self.spec):
+            elif self.spec.model.registered:
                 self.reference_note = str(ref.get("start_name", "least squares"))
             elif self.spec.model.structure != "arx":
                 self.reference_note = "the ARX least-squares estimate read as the structure"
@@ -318,7 +314,7 @@ class ComparisonResult:
                 "search",
                 "the estimated physical parameters in their bounds (log10 where they span "
                 "decades)" if m.structure == GREYBOX
-                else _search_text(s.search) if _built_in(s)
+                else _search_text(s.search) if not m.registered
                 else self.reference.get("search_text", "the family's own"),
             ),
             ("budget", f"{s.budget_label()} per run, {s.runs} runs per optimiser, seed {s.seed}"),

@@ -338,6 +338,12 @@ class ModelSpec:
     parameters: dict = field(default_factory=dict)
     options: dict = field(default_factory=dict)
 
+    @property
+    def registered(self) -> bool:
+        """Whether the structure is a registered family's, not a built-in one (polynomial or
+        grey-box): its orders are in :attr:`options`."""
+        return self.structure not in (*STRUCTURE_NAMES, GREYBOX)
+
     def __post_init__(self) -> None:
         known = (*STRUCTURE_NAMES, GREYBOX, *sorted(_REGISTERED_NAMES - set(STRUCTURE_NAMES)))
         if self.structure not in known:
@@ -347,7 +353,7 @@ class ModelSpec:
         if not isinstance(self.options, Mapping):
             raise ConfigError("[model] options must be a table: name = value")
         object.__setattr__(self, "options", dict(self.options))
-        if self.structure not in (*STRUCTURE_NAMES, GREYBOX):
+        if self.registered:
             given = [k for k in ("na", "nb", "nc", "nd", "nf", "greybox") if getattr(self, k)]
             if given or self.parameters:
                 raise ConfigError(
@@ -409,7 +415,7 @@ class ModelSpec:
         -------
         dict
         """
-        if self.structure not in (*STRUCTURE_NAMES, GREYBOX):
+        if self.registered:
             return {**self.options, **({"nk": self.nk} if self.nk != 1 else {})}
         names = ("na", "nb", "nc", "nd", "nf", "nk")
         return {k: getattr(self, k) for k in names if getattr(self, k) is not None}
@@ -435,7 +441,7 @@ class ModelSpec:
                 "definition": definition_digest(self.greybox),
                 "model": model.to_dict(),
             }
-        if self.structure not in STRUCTURE_NAMES:  # a registered family's
+        if self.registered:
             return {"structure": self.structure, **self.orders()}
         for k in ("greybox", "parameters", "options"):  # keys of polynomial specs as before
             del d[k]
@@ -455,7 +461,7 @@ class ModelSpec:
             changed = f", {len(self.parameters)} parameter(s) changed" if self.parameters else ""
             return f"grey-box model {self.greybox}{changed}"
         text = ", ".join(f"{k}={v}" for k, v in self.orders().items())
-        if self.structure not in STRUCTURE_NAMES:  # a registered family's name, as written
+        if self.registered:  # its name as written
             return f"{self.structure}({text})"
         return f"{self.structure.upper()}({text})"
 

@@ -156,9 +156,6 @@ _EXTRA_KINDS = ("perturbed", "random")
 # factor, not below the floor (MINPACK refuses tolerances under machine epsilon).
 _POLISH_FACTOR = 1e-5
 _POLISH_FLOOR = 1e-15
-# Singular values of the initial-state basis below this fraction of the largest are rank
-# deficiency (a predictor denominator whose trailing coefficient is ~0), not a direction.
-_RANK_TOLERANCE = 1e-12
 
 
 #: The result of :func:`pem` (the one reference result type; its keys below).
@@ -1025,7 +1022,7 @@ def pem(
         cost=float("nan"),
     )
     model = PolynomialModel(s, result.x, dt=dt, param_std=result.std,
-                            noise_variance=result.fun / (prob.K - prob.n))  # fmt: skip
+                            noise_variance=result.noise_variance)  # fmt: skip
     result.update(model=model, stable=model.is_stable, predictor_stable=model.predictor_stable)
     return result
 

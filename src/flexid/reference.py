@@ -228,7 +228,8 @@ class ReferenceResult(OptimizeResult):
     ) -> ReferenceResult:
         """The result at the winning run's end from its residuals and analytic Jacobian.
 
-        ``std`` and ``optimality`` from ``e`` and ``jac``; a local minimum when the
+        ``std``, ``optimality`` and the key ``noise_variance`` (``SSE / (K - n_params)``)
+        from ``e`` and ``jac``; a local minimum when the
         optimality is below :data:`OPTIMALITY_THRESHOLD` off the cap; ``nfev_equivalent``
         counts a Jacobian as ``n_params`` simulations.
 
@@ -249,13 +250,13 @@ class ReferenceResult(OptimizeResult):
         ReferenceResult
         """
         x = runs[best].x.copy()
-        _, std = standard_errors(e, jac, e.size, x.size)
+        sigma2, std = standard_errors(e, jac)
         reached = optimality(e, jac)
         return cls.assemble(
             runs, best, x=x, fun=float(e @ e), std=std, optimality=reached,
             local_minimum=bool(reached < OPTIMALITY_THRESHOLD and not on_cap), on_cap=on_cap,
             nfev=nfev, njev=njev, nfev_equivalent=nfev + njev * x.size, message=message,
-            t_begin=t_begin, **keys,
+            t_begin=t_begin, noise_variance=sigma2, **keys,
         )
 
     def __repr__(self) -> str:
@@ -307,7 +308,7 @@ def optimality(e: np.ndarray, jac: np.ndarray) -> float:
     return float(np.linalg.norm(jac.T @ e) / norm) if norm > 0 else 0.0
 
 
-def standard_errors(e: np.ndarray, jac: np.ndarray, k: int, d: int) -> tuple[float, np.ndarray]:
+def standard_errors(e: np.ndarray, jac: np.ndarray) -> tuple[float, np.ndarray]:
     """The noise variance and the parameters' standard errors at a least-squares estimate.
 
     Parameters
@@ -316,18 +317,16 @@ def standard_errors(e: np.ndarray, jac: np.ndarray, k: int, d: int) -> tuple[flo
         Residuals at the estimate.
     jac : ndarray, shape (K, d)
         Their Jacobian.
-    k, d : int
-        Number of residuals and of parameters.
 
     Returns
     -------
     sigma2 : float
-        ``SSE / (k - d)``.
+        ``SSE / (K - d)``.
     std : ndarray, shape (d,)
         ``sqrt(diag(sigma2 (J'J)^-1))`` from the SVD of ``J``; a direction whose singular
         value is below 1e-14 of the largest (undetermined to rounding) contributes nothing.
     """
-    sigma2 = float(e @ e) / (k - d)
+    sigma2 = float(e @ e) / (jac.shape[0] - jac.shape[1])
     _, sv, vt = linalg.svd(jac, full_matrices=False)
     inv_sq = np.zeros_like(sv)
     ok = sv > sv[0] * 1e-14 if sv.size else sv.astype(bool)

@@ -40,7 +40,7 @@ from scipy import linalg
 
 from ._validate import checked_keywords, integer
 from .errors import ConfigError, DataError, ModelOrderError
-from .models.statespace import StateSpaceModel
+from .models.statespace import StateSpaceModel, state_sequence
 
 __all__ = ["SubspaceResult", "n4sid"]
 
@@ -92,18 +92,21 @@ def _order_from_gap(sv: np.ndarray, cap: int) -> int:
 def _input_output_terms(
     A: np.ndarray, C: np.ndarray, u: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Regressors of ``x0`` (N, ny, n) and of ``B`` (N, ny, n nu) for the simulated output."""
+    """Regressors of ``x0`` (N, ny, n) and of ``B`` (N, ny, n nu) for the simulated output.
+
+    One state recursion carries ``[W_1 .. W_nu, A^t]`` side by side: ``W_j(t+1) = A W_j(t)
+    + u_j(t) I`` from zero and ``A^t`` from ``I``; ``C`` times them gives both.
+    """
     n, N, nu = A.shape[0], u.shape[0], u.shape[1]
-    free = np.empty((N, C.shape[0], n))
-    forced = np.empty((N, C.shape[0], n * nu))
-    power = np.eye(n)
-    W = np.zeros((nu, n, n))  # W_j(t), one n x n state per input
-    for t in range(N):  # the recursion is sequential; each step is a few small products
-        free[t] = C @ power
-        forced[t] = np.einsum("on,jnk->ojk", C, W).transpose(0, 2, 1).reshape(C.shape[0], -1)
-        power = A @ power
-        W = A[None] @ W + u[t][:, None, None] * np.eye(n)[None]
-    return free, forced
+    eye = np.eye(n)
+    forced = np.zeros((N, n, n * (nu + 1)))
+    for j in range(nu):  # one block per input, every sample at once
+        forced[:, :, j * n : (j + 1) * n] = u[:, j, None, None] * eye
+    start = np.hstack([np.zeros((n, n * nu)), eye])
+    out = C @ state_sequence(A, forced, start)  # (N, ny, n (nu + 1))
+    # B's regressors in B.reshape(-1)'s order (row i, input j -> i nu + j)
+    by_input = out[:, :, : n * nu].reshape(N, -1, nu, n).transpose(0, 1, 3, 2)
+    return out[:, :, n * nu :], by_input.reshape(N, -1, n * nu)
 
 
 @checked_keywords

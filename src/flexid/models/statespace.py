@@ -13,8 +13,9 @@ python-control (``StateSpace`` with ``dt``) and :class:`scipy.signal.dlti`.
 
 Notes
 -----
-**Simulation.**  The state recursion runs over time, one matrix-vector step per sample, for
-every column of the input at once; a simulation is checked against
+**Simulation.**  The state recursion (:func:`state_sequence`) runs over time, one
+matrix-vector step per sample, its input terms formed beforehand for every sample at once;
+a simulation is checked against
 :func:`scipy.signal.dlsim` in the tests.  What a search evaluates for a whole population is
 a batched cost of its own (the modal space), not this method.
 """
@@ -30,7 +31,31 @@ import numpy as np
 from ..errors import DataError, ModelOrderError
 from .modes import Mode, modes
 
-__all__ = ["StateSpaceModel"]
+__all__ = ["StateSpaceModel", "state_sequence"]
+
+
+def state_sequence(F: np.ndarray, forced: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    """The states of ``x(t+1) = F x(t) + forced[t]`` from ``x(0) = x0``, for ``t < N``.
+
+    Parameters
+    ----------
+    F : ndarray, shape (n, n)
+    forced : ndarray, shape (N, n) or (N, n, m)
+        Every sample's input term, computed beforehand as one array operation.
+    x0 : ndarray, shape (n,) or (n, m)
+        The initial state; ``m`` columns run side by side (one recursion for all).
+
+    Returns
+    -------
+    ndarray, shape of ``forced``
+        ``x(0) .. x(N-1)``.
+    """
+    out = np.empty(forced.shape)
+    state = np.array(x0, dtype=float)
+    for t in range(forced.shape[0]):  # the recursion itself is sequential
+        out[t] = state
+        state = F @ state + forced[t]
+    return out
 
 
 def _matrix(value: Any, name: str, shape: tuple[int, int]) -> np.ndarray:
@@ -176,13 +201,7 @@ class StateSpaceModel:
     def _run(self, F: np.ndarray, G: np.ndarray, H: np.ndarray, J: np.ndarray,
              w: np.ndarray, x0: np.ndarray) -> np.ndarray:  # fmt: skip
         """``x(t+1) = F x + G w``, ``out = H x + J w`` over the rows of ``w``."""
-        forced = w @ G.T  # (N, n): every sample's input term at once
-        x = np.empty((w.shape[0], self.order))
-        state = x0.astype(float)
-        for t in range(w.shape[0]):  # the state recursion itself is sequential
-            x[t] = state
-            state = F @ state + forced[t]
-        return x @ H.T + w @ J.T
+        return state_sequence(F, w @ G.T, x0) @ H.T + w @ J.T
 
     def simulate(self, u: Any, x0: Any = None) -> np.ndarray:
         """The output of the model run free (``e = 0``) from ``x0``.
