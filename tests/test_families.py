@@ -143,7 +143,7 @@ def test_structure_names_find_their_family_and_an_unknown_name_lists_them(restor
     from flexid.estimation import structure_of
     from flexid.families import family_named, structure_names
 
-    assert set(structure_names()) == {"arx", "armax", "oe", "bj"}
+    assert set(structure_names()) == {"arx", "armax", "oe", "bj", "ss"}
     assert family_named("OE").name == "polynomial"
     assert structure_of("oe", 1, nb=2, nf=2) == flexid.structure("oe", nb=2, nf=2)
 
@@ -159,7 +159,7 @@ def test_structure_names_find_their_family_and_an_unknown_name_lists_them(restor
     register_family(Named())
     made = structure_of("Tagged-OE", 1, nb=2, nf=2, nk=None)
     assert isinstance(made, Tagged) and made.inner == flexid.structure("oe", nb=2, nf=2)
-    with pytest.raises(UnknownNameError, match=r"'narx'; known: armax, arx, bj, oe, tagged-oe"):
+    with pytest.raises(UnknownNameError, match=r"'narx'; known: armax, arx, bj, oe, ss, tagged-oe"):
         structure_of("narx", 1)
     # a structure object goes to its family whole; orders with it are an error
     assert structure_of(made, 1) is made

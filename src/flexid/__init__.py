@@ -23,7 +23,8 @@ References
     the prediction errors, analytic gradients); every reference, :func:`greyest` among them,
     returns a :class:`ReferenceResult` (a :class:`scipy.optimize.OptimizeResult`); subspace
     identification of a :class:`StateSpaceModel` with several inputs and outputs,
-    :func:`n4sid`
+    :func:`n4sid`, and its prediction-error refinement over the modes, :func:`ssest`
+    (:class:`StateSpaceStructure`: ``identify(structure="ss", order=...)``)
 Identification
     :func:`identify` -> :class:`Identification`; the search box (:class:`SearchBox`,
     :func:`search_box`), search space (:class:`SearchSpec`) and cost (:class:`CostSpec`)
@@ -107,7 +108,9 @@ _LAZY = {
     "bj": "prediction_error",
     "ReferenceResult": "reference",
     "n4sid": "subspace",
+    "ssest": "statespace_fit",
     "StateSpaceModel": "models.statespace",
+    "StateSpaceStructure": "models.statespace",
     # identification (the function lives in a private module: no module shares its name)
     "identify": "_identify",
     "Identification": "_identification",

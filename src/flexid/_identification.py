@@ -71,6 +71,10 @@ class Identification:
     estimation_records : tuple of ValidationReport
         With several estimation records, the validation on each (``estimation`` is the
         first); empty with one.
+    outputs : tuple of (ValidationReport, ValidationReport)
+        With several outputs (a state-space model), each output's estimation and held-out
+        reports, in the record's order (``estimation`` and ``validation`` are the first
+        output's); empty with one.
     """
 
     model: ARX
@@ -90,6 +94,12 @@ class Identification:
     output_error: Any = None
     cost_search: float | None = None
     estimation_records: tuple = ()
+    outputs: tuple = ()
+
+    @property
+    def held_out(self) -> tuple[ValidationReport, ...]:
+        """The held-out report of every output (one with one output)."""
+        return tuple(v for _, v in self.outputs) or (self.validation,)
 
     @property
     def history(self) -> History | None:
@@ -197,13 +207,15 @@ class Identification:
             if math.isfinite(radius) and radius >= r_max * (1.0 - 1e-9):
                 problems.append(f"a pole sits on the radius cap {r_max:g}")
                 tries.append(f"{reference} (the reference) or a larger budget")
-        if not self.validation.linear_passed:
-            problems.append("the held-out correlation tests fail")
-            tries.append("another structure or higher orders (flexid select)")
-        if self.validation.fit_simulation < 0:
-            problems.append(
-                f"the held-out simulation fit is {format_fit(self.validation.fit_simulation)} %"
-            )
+        several = len(self.held_out) > 1
+        for report in self.held_out:
+            which = f" of output {report.output_name!r}" if several else ""
+            if not report.linear_passed:
+                problems.append(f"the held-out correlation tests{which} fail")
+                tries.append("another structure or higher orders (flexid select)")
+            if report.fit_simulation < 0:
+                problems.append(f"the held-out simulation fit{which} is "
+                                f"{format_fit(report.fit_simulation)} %")  # fmt: skip
         if not problems:
             return None
         unique = list(dict.fromkeys(tries))
@@ -231,8 +243,18 @@ class Identification:
             several = f" {i + 1} of {len(estimation)}" if len(estimation) > 1 else ""
             lines.append(f"Estimation record{several}")
             lines.append(_indent(report.summary()))
-        lines.append("Validation record (held out)")
-        lines.append(_indent(self.validation.summary()))
+        if self.outputs:
+            lines.append(f"{'output':<24} {'fit sim. est. %':>16} {'fit sim. held-out %':>20} "
+                         f"{'correlation tests':>18}")  # fmt: skip
+            for est, val in self.outputs:
+                lines.append(f"{val.output_name:<24} {format_fit(est.fit_simulation):>16} "
+                             f"{format_fit(val.fit_simulation):>20} "
+                             f"{'PASS' if val.passed else 'FAIL':>18}")  # fmt: skip
+            lines.append("")
+        for report in self.held_out:
+            which = f", output {report.output_name!r}" if self.outputs else ""
+            lines.append(f"Validation record (held out){which}")
+            lines.append(_indent(report.summary()))
         advice = self.advice()
         if advice:
             lines.append(advice)
@@ -295,6 +317,9 @@ class Identification:
                 **({"estimation_records": [r.to_dict() for r in self.estimation_records]}
                    if self.estimation_records else {}),
                 "validation": self.validation.to_dict(),
+                **({"outputs": [{"output": v.output_name, "estimation": e.to_dict(),
+                                 "validation": v.to_dict()} for e, v in self.outputs]}
+                   if self.outputs else {}),
                 "timings": {k: round(v, 6) for k, v in self.timings.items()},
                 "data": self.data_info,
             }

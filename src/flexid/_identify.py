@@ -32,11 +32,12 @@ from .config import (
 )
 from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
-from .errors import BudgetError, ConfigError
+from .errors import BudgetError, ConfigError, UnknownNameError
 from .estimation import build_problem, structure_of
-from .families import family_of
+from .families import family_named, family_of
 from .greybox_family import greybox_of
 from .models.greybox import GreyBoxModel
+from .models.statespace import StateSpaceStructure
 from .models.polynomial import PolynomialStructure, _check_initial
 from .optimisers import Budget, minimize
 from .validation import validate
@@ -52,11 +53,13 @@ def identify(
     nb: int | Sequence[int] | None = None,
     nk: int | Sequence[int] | str | None = None,
     *,
-    structure: str | PolynomialStructure | GreyBoxModel | None = None,
+    structure: str | PolynomialStructure | GreyBoxModel | StateSpaceStructure | None = None,
     greybox: str | GreyBoxModel | None = None,
     nc: int | None = None,
     nd: int | None = None,
     nf: int | Sequence[int] | None = None,
+    order: int | None = None,
+    modes: int | None = None,
     optimiser: str = PREDICTION_ERROR,
     params: Mapping[str, Any] | None = None,
     cost: str | CostSpec | None = None,
@@ -97,7 +100,7 @@ def identify(
         one ``nb``/``nk`` per input for several inputs).  ``nk="auto"``: the delays
         estimated from the estimation record as MATLAB ``delayest`` does
         (:func:`flexid.delay.estimate_delay`), said in the summary.
-    structure : {"arx", "armax", "oe", "bj", "greybox"}, PolynomialStructure or GreyBoxModel
+    structure : {"arx", "armax", "oe", "bj", "greybox", "ss"} or a structure object
         The model structure (:mod:`flexid.models.polynomial`): a name, whose orders are given as
         ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (only those the structure has, e.g.
         ``structure="oe", nb=16, nf=16``), or a whole structure (then no orders); or a
@@ -116,6 +119,14 @@ def identify(
         installed model, or ``"path/to/file.py:NAME"``).
     nc, nd, nf : int, optional
         Orders of ``C``, ``D`` and ``F`` (``nf`` one per input) for ``structure``.
+    order, modes : int, optional
+        For ``structure="ss"``: the state-space model's number of poles and how many of them
+        are lightly damped modes (default ``order // 2``;
+        :class:`~flexid.models.statespace.StateSpaceStructure`).  It models every output of the
+        record (or those ``output`` names) at once, and the summary gives each one's fits.
+        Its optimisers search the modal space (frequency and damping of each mode);
+        ``"n4sid"`` is subspace identification (:func:`flexid.n4sid`) and ``"pem"`` its
+        prediction-error refinement (:func:`flexid.statespace_fit.ssest`).
     optimiser : str
         A registered optimiser name (``flexid list optimisers``), ``"ls"`` for least
         squares (the exact optimum of the one-step ARX cost; for other structures the ARX
@@ -145,8 +156,9 @@ def identify(
         Estimation share (default 2/3) or split index.
     validation : IOData or path, optional
         A separate validation record.
-    output : str or int, optional
-        Output channel of a multi-output record.
+    output : str, int or sequence, optional
+        Output channel of a multi-output record; for ``structure="ss"`` the outputs (a
+        sequence or names joined by commas; default every output).
     detrend : {False, True, "constant", "linear"}
         Remove the estimation record's means (``"constant"`` or True) or its least-squares
         line (``"linear"``) first (:func:`flexid.data.prepare_data`); for a grey-box model,
@@ -207,6 +219,7 @@ def identify(
             validation=validation, max_lag=max_lag, callback=callback,
             load_options=load_options, initial=initial, detrend=detrend,
         )
+    family = _family(structure)
     est, val = prepare_data(
         data,
         output=output,
@@ -214,6 +227,7 @@ def identify(
         validation=validation,
         detrend=detrend,
         load_options=load_options,
+        several=family.several_outputs,
     )
     records = est if isinstance(est, tuple) else (est,)
     first = records[0]
@@ -224,7 +238,11 @@ def identify(
         found = estimate_delay(first if len(records) == 1 else joined(records))
         nk = list(found.nk) if first.n_inputs > 1 else found.nk[0]
         delay_text = found.describe()
-    structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk)
+    extra = {k: v for k, v in (("order", order), ("modes", modes)) if v is not None}
+    if family.several_outputs:
+        extra["n_outputs"] = first.n_outputs
+    structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk,
+                             **extra)  # fmt: skip
     for record in (*records, val):
         structure.check_samples(record.n_samples)
     cost_spec, search = specs_from_keywords(
@@ -232,6 +250,8 @@ def identify(
         parametrisation=parametrisation, penalty_kind=penalty_kind, init=init,
         numerator=numerator,
     )
+    if predictor is None and not isinstance(cost, CostSpec) and "one-step" not in family.predictors:
+        cost_spec = replace(cost_spec, predictor=family.predictors[0])
     if optimiser in REFERENCES and structure.kind == "arx" and structure.na == 0:
         # an FIR model (na = 0) has no denominator to search, so the default numerator="fit"
         # space does not exist; a reference searches nothing: the space is only recorded
@@ -247,16 +267,27 @@ def identify(
     model, result, used_params, used_seed, cost_value, oe = _search(
         estimation, structure, first, optimiser, budget, seed, params, callback
     )
-    model = model.named(first.input_names, first.output_names[0])
+    outputs = list(first.output_names) if family.several_outputs else [first.output_names[0]]
+    model = model.named(first.input_names, outputs if len(outputs) > 1 else outputs[0])
     cost_value, cost_search = rescored(objective, model, cost_value)
     t_val = time.perf_counter()
+    per_output = len(outputs) > 1
     reports = tuple(
-        validate(model, r, max_lag=max_lag, initial=validate_initial) for r in records
-    )
-    report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
+        validate(model, r, max_lag=max_lag, initial=validate_initial,
+                 output=outputs[0] if per_output else None) for r in records
+    )  # fmt: skip
+    report_val = validate(model, val, max_lag=max_lag, initial=validate_initial,
+                          output=outputs[0] if per_output else None)  # fmt: skip
+    by_output = ()
+    if per_output:  # every output's held-out and estimation reports
+        by_output = tuple(
+            (validate(model, first, max_lag=max_lag, initial=validate_initial, output=o),
+             validate(model, val, max_lag=max_lag, initial=validate_initial, output=o))
+            for o in outputs
+        )  # fmt: skip
     t_end = time.perf_counter()
     info = data_info(
-        records, val.n_samples, list(first.input_names), [first.output_names[0]],
+        records, val.n_samples, list(first.input_names), outputs,
         first.output_units[0], first.metadata,
     )
     if delay_text is not None:
@@ -279,7 +310,20 @@ def identify(
         output_error=oe,
         timings=timings(t_start, t_opt, t_val, t_end),
         data_info=info,
+        outputs=by_output,
     )
+
+
+def _family(structure: Any) -> Any:
+    """The family a structure name or object belongs to (the polynomial one for ``None``)."""
+    if structure is None:
+        return family_named("arx")
+    if isinstance(structure, str):
+        try:
+            return family_named(structure)
+        except UnknownNameError:
+            return family_named("arx")  # structure_of names the unknown name as given
+    return family_of(structure)
 
 
 #: Relative disagreement between a final model's cost as the search computed it (the fast

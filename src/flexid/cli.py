@@ -30,6 +30,7 @@ from .config import (
     OUTPUT_ERROR,
     PREDICTION_ERROR,
     REFERENCES,
+    SUBSPACE,
     STRUCTURE_NAMES,
     keyword,
 )
@@ -336,10 +337,12 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         seed=args.seed,
         split=split,
         validation=args.validation,
-        output=_columns(args.output)[0] if args.output is not None else None,
+        output=_one_or_more(_columns(args.output)) if args.output is not None else None,
         detrend=args.detrend,
         max_lag=args.max_lag,
         load_options=load_options,
+        order=args.order,
+        modes=args.modes,
         parametrisation=args.parametrisation,
         penalty_kind=args.penalty,
         init=args.init,
@@ -849,6 +852,11 @@ def _write_suite_report(result: Any, out: Path, *, figures: bool, by: str) -> No
         raise
 
 
+def _one_or_more(names: list) -> Any:
+    """One channel as itself, several as the list."""
+    return names[0] if len(names) == 1 else names
+
+
 def _cmd_list(args: argparse.Namespace) -> int:
     _LISTS[args.what](args)
     return 0
@@ -1021,13 +1029,19 @@ def build_parser() -> argparse.ArgumentParser:
         "fitted together, each with its own initial state (then --validation FILE is needed)",
     )
     _structure_options(i, "default arx")
+    i.add_argument("--order", type=int,
+                   help="number of poles of --structure ss, a state-space model of every "
+                   "output (or those --output names) with the modes searched (no default)")
+    i.add_argument("--modes", type=int,
+                   help="lightly damped modes among them (--structure ss; default order // 2)")
     _channels_option(i)
     i.add_argument(
         "--optimiser",
         default=PREDICTION_ERROR,
         help=f"registered optimiser (e.g. hbcsd, the paper's), {LEAST_SQUARES!r} (least "
         f"squares) or {PREDICTION_ERROR!r}, the default: the structure's gradient reference "
-        f"(least squares for the one-step ARX cost; {OUTPUT_ERROR!r} for ARX simulation)",
+        f"(least squares for the one-step ARX cost; {OUTPUT_ERROR!r} for ARX simulation); "
+        f"{SUBSPACE!r} for --structure ss: subspace identification",
     )
     _add_keyword_option(i, "--initial")
     i.add_argument(

@@ -73,6 +73,7 @@ __all__ = [
     "POLE_RADIUS_CAP",
     "PREDICTION_ERROR",
     "REFERENCES",
+    "SUBSPACE",
     "REFLECTION_CAP",
     "SCHEDULE",
     "STRUCTURE_NAMES",
@@ -109,8 +110,11 @@ OUTPUT_ERROR = "oe"
 #: The gradient reference of any structure's cost (Levenberg-Marquardt with analytic
 #: gradients, :func:`flexid.prediction_error.pem`): an ``optimiser`` name of ``identify``.
 PREDICTION_ERROR = "pem"
+#: Subspace identification of a state-space model (:func:`flexid.n4sid`): an ``optimiser``
+#: name of ``identify`` for ``structure="ss"``.
+SUBSPACE = "n4sid"
 #: The ``optimiser`` names of the references, which take no FE budget.
-REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR)
+REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR, SUBSPACE)
 #: Levenberg-Marquardt starts of the polynomial references beside the deterministic ones
 #: (least squares, Steiglitz-McBride, Hannan-Rissanen), in identify, compare and select alike,
 #: so one structure gives one model whichever job fits it.

@@ -1040,11 +1040,12 @@ def save(data: IOData, path: str | os.PathLike) -> Path:
 def prepare_data(
     data: IOData | str | os.PathLike,
     *,
-    output: str | int | None = None,
+    output: str | int | Sequence[str | int] | None = None,
     split: float | int | None = None,
     validation: IOData | str | os.PathLike | None = None,
     detrend: bool | str | None = False,
     load_options: Mapping[str, Any] | None = None,
+    several: bool = False,
 ) -> tuple[IOData, IOData]:
     """Estimation and validation records from a record (or file) and a split rule.
 
@@ -1053,8 +1054,9 @@ def prepare_data(
     data : IOData, path, or list of them
         The record; a path is read with :func:`flexid.data.load`.  A list (or tuple) of
         records: several estimation records (see Notes).
-    output : str or int, optional
-        The output channel to model when the record has several.
+    output : str, int or sequence of them, optional
+        The output channel to model when the record has several; with ``several``, the
+        outputs to model (a sequence, or names joined by commas; default all).
     split : float, int, str or pair of ranges, optional
         A fraction in (0, 1) (default 2/3, the paper's rule), a sample index, or the two
         parts as sample ranges (:func:`split_parts`); with ``validation``, a range of
@@ -1072,13 +1074,16 @@ def prepare_data(
         dwarfs its variation (:data:`OFFSET_RATIO`).
     load_options : mapping, optional
         Options of :func:`load` for a path (``inputs``, ``outputs``, ``dt``, ...).
+    several : bool, optional
+        Keep several outputs (for a model family with several, a state-space model).
 
     Returns
     -------
     est : IOData or tuple of IOData
-        The estimation record, one output; a tuple of them when ``data`` is several records.
+        The estimation record, one output (``several``: the chosen outputs); a tuple of them
+        when ``data`` is several records.
     val : IOData
-        The validation record, one output.
+        The validation record, with the same outputs.
 
     Raises
     ------
@@ -1100,17 +1105,18 @@ def prepare_data(
         return _prepare_records(data, output, split, validation, detrend, options)
     if not isinstance(data, IOData):
         data = load(data, **options)
-    if output is not None:
-        data = data.select(outputs=[output])
-    if data.n_outputs != 1:
+    chosen = _outputs_chosen(output, several)
+    if chosen is not None:
+        data = data.select(outputs=chosen)
+    if data.n_outputs != 1 and not several:
         raise DataError(
             f"the record has {data.n_outputs} outputs {list(data.output_names)}; the models here "
             "have one output: choose it (output=... or --output NAME)"
         )
     if validation is not None:
         val = validation if isinstance(validation, IOData) else load(validation, **options)
-        if output is not None:
-            val = val.select(outputs=[output])
+        if chosen is not None:
+            val = val.select(outputs=chosen)
         est = data
         if split is not None:  # a range of the estimation record
             est = split_parts(data, split, validation=False)[0]
@@ -1125,6 +1131,26 @@ def prepare_data(
     else:
         _warn_offsets(est)
     return est, val
+
+
+def _outputs_chosen(output: Any, several: bool) -> list | None:
+    """The outputs ``output`` names: one, or with ``several`` a sequence or comma list."""
+    if output is None:
+        return None
+    if not several:
+        if isinstance(output, (list, tuple)):
+            if len(output) != 1:
+                raise DataError(
+                    f"output={list(output)}: the models here have one output; choose one "
+                    "(several outputs are modelled together by structure='ss')"
+                )
+            return list(output)
+        return [output]
+    if isinstance(output, str):
+        return [name.strip() for name in output.split(",") if name.strip()]
+    if isinstance(output, (list, tuple)):
+        return list(output)
+    return [output]
 
 
 def is_records(data: Any) -> bool:

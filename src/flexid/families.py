@@ -98,6 +98,12 @@ class Family(abc.ABC):
     start_stop : str
         How a comparison's start row (the posed problem's ``theta_ls``) was reached, as its
         ``stop`` field says: ``"closed form"`` for least squares.
+    several_outputs : bool
+        Whether its models take every output of a record at once (a state-space model);
+        the others are fitted to one output.
+    predictors : tuple of str
+        The predictors its costs have (``("simulation",)`` for an output-error family: a
+        job that names none uses it).
     """
 
     name: ClassVar[str]
@@ -106,6 +112,8 @@ class Family(abc.ABC):
     names: ClassVar[tuple[str, ...]] = ()
     reads_channels: ClassVar[bool] = False
     start_stop: ClassVar[str] = "closed form"
+    several_outputs: ClassVar[bool] = False
+    predictors: ClassVar[tuple[str, ...]] = ("one-step", "simulation")
 
     def owns(self, obj: Any) -> bool:
         """Whether ``obj`` is a structure or model of this family.
@@ -433,6 +441,7 @@ _FAMILIES: list[Family] = []
 _BUILTINS = (
     ("flexid.polynomial_family", "PolynomialFamily"),
     ("flexid.greybox_family", "GreyBoxFamily"),
+    ("flexid.statespace_family", "StateSpaceFamily"),
 )
 _loaded = False
 

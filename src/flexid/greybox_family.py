@@ -40,6 +40,7 @@ class GreyBoxFamily(Family):
     models = (GreyBoxModel,)
     reads_channels = True
     start_stop = "given values"
+    predictors = ("simulation",)
 
     def reference(self, data: Any, structure: Any, *, initial: str, starts: int | None,
                   seed: int) -> tuple[Any, float, bool]:

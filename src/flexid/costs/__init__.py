@@ -12,6 +12,9 @@
     records at once, each with its own initial state.
 :mod:`flexid.costs.greybox`
     :class:`~flexid.costs.greybox.GreyBoxCost`: a grey-box model's simulation cost.
+:mod:`flexid.costs.modal`
+    :class:`~flexid.costs.modal.ModalCost`: the modal state-space structure's simulation
+    cost over every output, gains and initial state fitted for each candidate.
 
 The metrics a cost reports are :mod:`flexid.metrics`.
 """
@@ -28,6 +31,7 @@ _LAZY = {
     "PolynomialCost": "polynomial",
     "GreyBoxCost": "greybox",
     "MultiExperimentCost": "experiments",
+    "ModalCost": "modal",
 }
 
 __all__ = sorted(_LAZY)

@@ -13,7 +13,8 @@
     installed package.
 :mod:`flexid.models.statespace`
     Discrete-time state-space models with several inputs and outputs (``A, B, C, D, K,
-    x0``): simulation, the one-step predictor, frequency responses, exports, modes.
+    x0``): simulation, the one-step predictor, frequency responses, exports, modes; the
+    modal structure the searches fit (``structure="ss"``).
 :mod:`flexid.models.modes`
     The modes of any model's poles: natural frequency (Hz) and damping ratio.
 
@@ -39,6 +40,7 @@ _LAZY = {
     "greybox_model": "greybox_library",
     "register_greybox_model": "greybox_library",
     "StateSpaceModel": "statespace",
+    "StateSpaceStructure": "statespace",
     "Mode": "modes",
 }
 

@@ -18,20 +18,45 @@ matrix-vector step per sample, its input terms formed beforehand for every sampl
 a simulation is checked against
 :func:`scipy.signal.dlsim` in the tests.  What a search evaluates for a whole population is
 a batched cost of its own (the modal space), not this method.
+
+**The modal structure.**  A flexible structure's response is a sum of modes, each a natural
+frequency ``f`` (Hz) and a damping ratio ``zeta``, seen by every sensor with its own gain.  :class:`StateSpaceStructure`
+writes a discrete state-space model of order ``n`` as ``m`` such modes and ``n - 2 m`` real
+poles (each a corner frequency ``f_c``), every one stable for every ``f > 0``,
+``0 < zeta <= 1``, ``f_c > 0``:
+
+- mode: continuous poles ``s = 2 pi f (-zeta +- j sqrt(1 - zeta^2))``, discrete
+  ``z = exp(s dt)``, denominator ``1 + a1 q^-1 + a2 q^-2`` with ``a1 = -2 Re z``,
+  ``a2 = |z|^2``;
+- real pole: ``p = exp(-2 pi f_c dt)``.
+
+Its realisation has one block per pole group and input (``nu (2 m + r)`` states): the
+companion block ``[[-a1, -a2], [1, 0]]`` of a mode driven by input ``j`` alone (``B`` a one
+in its first state), or ``p`` for a real pole; ``C`` (every sensor's gains), ``D`` and
+``x0`` are free.  For one input this realisation is minimal; for several each mode appears
+once per input (each input-output pair then has its own residue, which a minimal model
+would tie to rank one).  It is what a search over shared modes needs: for fixed modes the
+output is linear in ``C``, ``D`` and ``x0`` (see :class:`flexid.costs.modal.ModalCost`).
+
+The parameter vector ``theta`` is ``[f_1, zeta_1, .., f_m, zeta_m, f_c1, .., f_cr]``
+followed by ``C`` (``ny`` rows of ``nu (2 m + r)``), ``D`` (``ny`` rows of ``nu``, with
+feedthrough) and ``x0``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, ModelOrderError
+from .._validate import integer
+from ..errors import ConfigError, DataError, ModelOrderError
 from .modes import Mode, modes
 
-__all__ = ["StateSpaceModel", "state_sequence"]
+__all__ = ["DAMPING_FLOOR", "StateSpaceModel", "StateSpaceStructure", "state_sequence"]
 
 
 def state_sequence(F: np.ndarray, forced: np.ndarray, x0: np.ndarray) -> np.ndarray:
@@ -87,6 +112,12 @@ class StateSpaceModel:
         Sample time in seconds (default 1).
     input_names, output_names : sequence of str, optional
         Channel names (default ``u1 ..``, ``y1 ..``).
+    structure : StateSpaceStructure, optional
+        The structure the model was realised from (default: a structure of its order and
+        channels).
+    theta : array_like, optional
+        Its parameter vector in that structure (default: ``A, B, C, D, x0`` row by row, for
+        a model not realised from one).
 
     Raises
     ------
@@ -107,6 +138,8 @@ class StateSpaceModel:
         dt: float = 1.0,
         input_names: Sequence[str] | None = None,
         output_names: Sequence[str] | None = None,
+        structure: Any = None,
+        theta: Any = None,
     ) -> None:
         A = np.atleast_2d(np.array(A, dtype=float))
         n = A.shape[0]
@@ -127,6 +160,37 @@ class StateSpaceModel:
         self.dt = dt
         self.input_names = self._names(input_names, nu, "u", "input_names")
         self.output_names = self._names(output_names, ny, "y", "output_names")
+        if structure is None:
+            pairs = int(np.sum(np.linalg.eigvals(self.A).imag > 0)) if n else 0
+            structure = StateSpaceStructure(max(n, 1), nu, ny, n_modes=pairs,
+                                            feedthrough=D is not None)  # fmt: skip
+        self.structure = structure
+        self._theta = None if theta is None else np.array(theta, dtype=float).reshape(-1)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The parameter vector (see the ``theta`` parameter)."""
+        if self._theta is not None:
+            return self._theta
+        return np.concatenate([m.reshape(-1) for m in (self.A, self.B, self.C, self.D,
+                                                       self.x0)])  # fmt: skip
+
+    def named(self, inputs: Sequence[str], outputs: Sequence[str] | str) -> StateSpaceModel:
+        """The same model with the record's channel names.
+
+        Parameters
+        ----------
+        inputs : sequence of str
+        outputs : sequence of str, or str for one output
+
+        Returns
+        -------
+        StateSpaceModel
+        """
+        outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+        return StateSpaceModel(self.A, self.B, self.C, self.D, self.K, self.x0, dt=self.dt,
+                               input_names=inputs, output_names=outputs,
+                               structure=self.structure, theta=self._theta)  # fmt: skip
 
     @staticmethod
     def _names(names: Sequence[str] | None, count: int, stem: str, what: str) -> tuple:
@@ -330,3 +394,258 @@ class StateSpaceModel:
     def __repr__(self) -> str:
         return (f"StateSpaceModel(order={self.order}, inputs={self.n_inputs}, "
                 f"outputs={self.n_outputs}, dt={self.dt:g})")  # fmt: skip
+
+
+#: Lowest damping ratio the default search box reaches: its damping is searched on a log
+#: scale, which needs a positive floor; structural modes are rarely below 1e-3.
+DAMPING_FLOOR = 1e-4
+
+
+def _interval(value: Any, name: str) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a pair (low, high), got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        raise ConfigError(f"{name} must be a pair 0 < low < high, got {value!r}")
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class StateSpaceStructure:
+    """A state-space model of order ``n`` as ``m`` modes and ``n - 2 m`` real poles.
+
+    Parameters
+    ----------
+    order : int
+        The number of poles ``n`` (each mode is two), >= 1.
+    n_inputs, n_outputs : int, optional
+        ``nu`` and ``ny`` (default 1 each).
+    n_modes : int, optional
+        Lightly damped modes ``m`` (default ``order // 2``); the other ``order - 2 m`` poles
+        are real.
+    feedthrough : bool, optional
+        Estimate ``D`` (default False: ``D = 0``, MATLAB ``ssest``'s default).
+    frequency : (float, float), optional
+        Bounds in Hz of the modes' natural frequencies and the real poles' corner
+        frequencies, within (0, Nyquist]; default from the record's frequency resolution
+        ``1 / (N dt)`` to Nyquist (checked when posed on a record).
+    damping : (float, float), optional
+        Bounds of the damping ratios, within (0, 1]; default ``(1e-4, 1)``.
+
+    Raises
+    ------
+    ModelOrderError
+        A bad order or channel count, or more modes than the order allows.
+    ConfigError
+        Bounds that are not pairs ``0 < low < high``, or damping above 1.
+    """
+
+    order: int
+    n_inputs: int = 1
+    n_outputs: int = 1
+    n_modes: int | None = None
+    feedthrough: bool = False
+    frequency: tuple[float, float] | None = None
+    damping: tuple[float, float] | None = None
+
+    kind = "ss"
+    start = 0  # the model runs from its estimated state: every sample is scored
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__  # frozen: normalise once here
+        order = integer(self.order, "order", error=ModelOrderError, minimum=1)
+        set_(self, "order", order)
+        for name in ("n_inputs", "n_outputs"):
+            set_(self, name, integer(getattr(self, name), name, error=ModelOrderError,
+                                     minimum=1))  # fmt: skip
+        m = order // 2 if self.n_modes is None else integer(
+            self.n_modes, "modes", error=ModelOrderError, minimum=0)  # fmt: skip
+        if 2 * m > order:
+            raise ModelOrderError(
+                f"{m} modes need order >= {2 * m} (two poles each); order {order} allows at "
+                f"most {order // 2}"
+            )
+        set_(self, "n_modes", m)
+        set_(self, "feedthrough", bool(self.feedthrough))
+        set_(self, "frequency", _interval(self.frequency, "frequency bounds (Hz)"))
+        damping = _interval(self.damping, "damping bounds")
+        if damping is not None and damping[1] > 1.0:
+            raise ConfigError(f"damping bounds must lie in (0, 1], got {self.damping!r}")
+        set_(self, "damping", damping)
+
+    def __repr__(self) -> str:
+        io = f", inputs={self.n_inputs}, outputs={self.n_outputs}"
+        fd = ", feedthrough" if self.feedthrough else ""
+        return f"SS(order={self.order}, modes={self.n_modes}{io}{fd})"
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_real(self) -> int:
+        """Real poles, ``order - 2 m``."""
+        return self.order - 2 * self.n_modes
+
+    @property
+    def n_search(self) -> int:
+        """The modal parameters searched: ``2 m + r``."""
+        return 2 * self.n_modes + self.n_real
+
+    @property
+    def n_states(self) -> int:
+        """States of the realisation: ``nu (2 m + r)``."""
+        return self.n_inputs * self.order
+
+    @property
+    def n_params(self) -> int:
+        """Length of ``theta``: the modal parameters, ``C``, ``D`` and ``x0``."""
+        ny, nu, ns = self.n_outputs, self.n_inputs, self.n_states
+        return self.n_search + ny * ns + (ny * nu if self.feedthrough else 0) + ns
+
+    @property
+    def orders(self) -> dict[str, Any]:
+        """The orders by name: ``order`` and ``modes``."""
+        return {"order": self.order, "modes": self.n_modes}
+
+    def check_samples(self, n_samples: int) -> None:
+        """Refuse a record too short for the linear parameters.
+
+        Parameters
+        ----------
+        n_samples : int
+
+        Raises
+        ------
+        ModelOrderError
+            Fewer than twice the linear parameters of one output.
+        """
+        need = 2 * (self.n_states + self.n_search + (self.n_inputs if self.feedthrough else 0))
+        if n_samples < need:
+            raise ModelOrderError(
+                f"{self!r} needs at least {need} samples (twice its gains and initial state "
+                f"per output), the record has {n_samples}: give a lower order"
+            )
+
+    # ------------------------------------------------------------------ bounds
+    def bounds(self, dt: float, n_samples: int) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The frequency (Hz) and damping bounds on a record of ``n_samples`` at ``dt``.
+
+        Parameters
+        ----------
+        dt : float
+            Sample time (s).
+        n_samples : int
+            Length of the estimation record.
+
+        Returns
+        -------
+        frequency, damping : (float, float)
+
+        Raises
+        ------
+        ConfigError
+            Frequency bounds above Nyquist.
+        """
+        nyquist = 0.5 / dt
+        if self.frequency is None:
+            frequency = (min(1.0 / (n_samples * dt), 0.5 * nyquist), nyquist)
+        else:
+            frequency = self.frequency
+            if frequency[1] > nyquist * (1 + 1e-12):
+                raise ConfigError(
+                    f"frequency bounds {frequency} Hz reach above Nyquist ({nyquist:g} Hz at "
+                    f"dt = {dt:g} s): give bounds within (0, {nyquist:g}]"
+                )
+        return frequency, (DAMPING_FLOOR, 1.0) if self.damping is None else self.damping
+
+    # ------------------------------------------------------------------ poles and model
+    def denominators(
+        self, modal: np.ndarray, dt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The modes' second-order and the real poles' first-order denominators.
+
+        Parameters
+        ----------
+        modal : ndarray, shape (P, 2 m + r)
+            ``[f_1, zeta_1, .., f_m, zeta_m, f_c1, ..]`` of each candidate.
+        dt : float
+            Sample time (s).
+
+        Returns
+        -------
+        a : ndarray, shape (P, m, 2)
+            ``a1, a2`` of each mode.
+        p : ndarray, shape (P, r)
+            Each real pole.
+        """
+        modal = np.atleast_2d(np.asarray(modal, dtype=float))
+        m = self.n_modes
+        f, zeta = modal[:, 0 : 2 * m : 2], np.clip(modal[:, 1 : 2 * m : 2], 0.0, 1.0)
+        w = 2 * np.pi * f * dt
+        radius = np.exp(-zeta * w)
+        a = np.stack([-2 * radius * np.cos(w * np.sqrt(1 - zeta * zeta)), radius * radius],
+                     axis=-1)  # fmt: skip
+        p = np.exp(-2 * np.pi * modal[:, 2 * m :] * dt)
+        return a, p
+
+    def model(self, theta: Any, dt: float = 1.0) -> StateSpaceModel:
+        """The realisation of ``theta``.
+
+        Parameters
+        ----------
+        theta : array_like, shape (n_params,)
+        dt : float, optional
+            Sample time (s).
+
+        Returns
+        -------
+        StateSpaceModel
+            Block-diagonal ``A`` (companion blocks of the modes, then the real poles, each
+            once per input), with this structure and ``theta``.
+
+        Raises
+        ------
+        ModelOrderError
+            ``theta`` of the wrong length.
+        """
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        if theta.size != self.n_params:
+            raise ModelOrderError(f"{self!r} has {self.n_params} parameters, got {theta.size}")
+        m, r, nu, ny, ns = self.n_modes, self.n_real, self.n_inputs, self.n_outputs, self.n_states
+        a, p = self.denominators(theta[None, : self.n_search], dt)
+        A, B = np.zeros((ns, ns)), np.zeros((ns, nu))
+        i = 0
+        for k in range(m):
+            for j in range(nu):
+                A[i, i : i + 2] = -a[0, k]
+                A[i + 1, i] = 1.0
+                B[i, j] = 1.0
+                i += 2
+        for k in range(r):
+            for j in range(nu):
+                A[i, i], B[i, j] = p[0, k], 1.0
+                i += 1
+        rest = theta[self.n_search :]
+        C = rest[: ny * ns].reshape(ny, ns)
+        rest = rest[ny * ns :]
+        D = rest[: ny * nu].reshape(ny, nu) if self.feedthrough else None
+        x0 = rest[ny * nu :] if self.feedthrough else rest
+        return StateSpaceModel(A, B, C, D, x0=x0, dt=dt, structure=self, theta=theta)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The structure as a result stores it.
+
+        Returns
+        -------
+        dict
+            ``structure``, ``order``, ``modes``, ``n_inputs``, ``n_outputs``,
+            ``feedthrough`` and the bounds that were given.
+        """
+        out = {"structure": self.kind, "order": self.order, "modes": self.n_modes,
+               "n_inputs": self.n_inputs, "n_outputs": self.n_outputs,
+               "feedthrough": self.feedthrough}  # fmt: skip
+        for name in ("frequency", "damping"):
+            if getattr(self, name) is not None:
+                out[name] = list(getattr(self, name))
+        return out

@@ -1,0 +1,331 @@
+"""The batched simulation cost of the modal state-space structure, by variable projection.
+
+:class:`ModalCost` scores a population of modal parameter vectors (natural frequencies,
+damping ratios, corner frequencies; see :class:`flexid.models.statespace.StateSpaceStructure`)
+on a record with any number of inputs and outputs.  For fixed poles the simulated output
+is linear in every sensor's gains ``C``, in ``D`` and in the initial state, so each
+candidate's are fitted by linear least squares (variable projection: Golub & Pereyra 1973;
+Ljung, *System Identification*, 2nd ed., sec. 7.3 "separable least squares"), and every
+candidate is stable.
+
+Notes
+-----
+For each candidate the regressors are each input filtered through each mode's
+``1 / (1 + a1 q^-1 + a2 q^-2)`` and each real pole's ``1 / (1 - p q^-1)`` (the compiled
+batched recursion of :func:`flexid.kernels.ar_recursion`, one row per candidate, pole group
+and input), delayed by one and two samples: the states of the structure's realisation.
+Under ``initial="estimate"``:
+
+1. the gains are fitted together with each output's own free response (two columns per
+   mode and one per real pole, shared by the outputs), so that a transient at the record's
+   start does not bias them;
+2. the realisation's initial state ``x0`` is then fitted to what remains, jointly over the
+   outputs (each output's free response is ``C A^t x0``: its modes' shapes are shared).
+
+With one output step 2 reaches the same fit as step 1 (the free responses span the same
+functions).  The cost is the metric of the residual of the realised model: a
+:func:`scipy.signal.dlsim` of :meth:`ModalCost.model` of a candidate gives the same errors
+to rounding.  With several outputs each output's errors are divided by its standard
+deviation before they are summed (its fit's denominator), so that the outputs count alike
+whatever their units.
+
+Each least-squares problem is solved by its normal equations, scaled to a unit diagonal
+with a ridge of ``1e-10`` (:data:`RIDGE`): a damping ratio of 1 makes a mode's two columns
+nearly collinear, and the fit then takes the well-determined part.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .. import kernels
+from ..data import IOData
+from ..errors import DataError, ModelOrderError
+from ..metrics import metric_from_sse
+from ..models.statespace import StateSpaceStructure
+from ..models.statespace import StateSpaceModel
+
+__all__ = ["ModalCost"]
+
+#: Ridge added to the unit diagonal of the scaled normal equations: it bounds their
+#: condition number by about ``1 / RIDGE`` where columns are collinear (repeated or critically
+#: damped poles, a mode at the record's lowest frequency) and changes a well-posed fit by a
+#: relative ``RIDGE``, far below the noise of any record.
+RIDGE = 1e-10
+
+
+def _solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Normal equations of every candidate: ``gram`` (P, k, k), ``rhs`` (P, k, q) -> (P, k, q).
+
+    Scaled to a unit diagonal, with a ridge of :data:`RIDGE`: it keeps the solve defined
+    where columns are (nearly) collinear, taking the well-determined part of the fit there,
+    as a truncated pseudo-inverse would.
+    """
+    norms = np.sqrt(np.abs(np.einsum("pkk->pk", gram)))
+    norms[norms == 0.0] = 1.0
+    scaled = gram / (norms[:, :, None] * norms[:, None, :])
+    scaled[:, np.arange(gram.shape[1]), np.arange(gram.shape[1])] += RIDGE
+    return np.linalg.solve(scaled, rhs / norms[:, :, None]) / norms[:, :, None]
+
+
+class ModalCost:
+    """The batched simulation cost of a :class:`StateSpaceStructure` on a record.
+
+    Parameters
+    ----------
+    data : IOData
+        The estimation record: ``structure.n_inputs`` inputs and ``structure.n_outputs``
+        outputs.
+    structure : StateSpaceStructure
+    metric : str, optional
+        A metric of :mod:`flexid.metrics` (default ``"rmse"``).
+    weight : float, optional
+        ``w`` of the paper's metric.
+    initial : {"estimate", "zero"}, optional
+        Fit the initial state (default) or start from rest.
+
+    Attributes
+    ----------
+    predictor : str
+        ``"simulation"``: a modal model is an output-error model (``K = 0``).
+    scale : ndarray, shape (ny,)
+        What each output's errors are divided by (ones for one output).
+
+    Raises
+    ------
+    ModelOrderError
+        A record whose channels do not match the structure, or too short for it.
+    DataError
+        An initial-condition rule other than ``"estimate"`` or ``"zero"``.
+    """
+
+    predictor = "simulation"
+
+    def __init__(
+        self, data: IOData, structure: StateSpaceStructure, metric: str = "rmse",
+        weight: float = 0.0, initial: str = "estimate",
+    ) -> None:  # fmt: skip
+        if (data.n_inputs, data.n_outputs) != (structure.n_inputs, structure.n_outputs):
+            raise ModelOrderError(
+                f"{structure!r} has {structure.n_inputs} input(s) and {structure.n_outputs} "
+                f"output(s); the record has {data.n_inputs} and {data.n_outputs}"
+            )
+        structure.check_samples(data.n_samples)
+        if initial not in ("estimate", "zero"):
+            raise DataError(
+                f"a state-space model's initial state is estimated or zero, not {initial!r}"
+            )
+        self.structure, self.metric, self.weight, self.initial = structure, metric, weight, initial
+        self.u = np.ascontiguousarray(data.u, dtype=float)
+        self.y = np.asarray(data.y, dtype=float)
+        self.dt = float(data.dt)
+        ny = self.y.shape[1]
+        std = np.std(self.y, axis=0)
+        self.scale = np.where(std > 0, std, 1.0) if ny > 1 else np.ones(1)
+        self._target = self.y / self.scale
+        self._std = float(np.std(self._target)) if ny == 1 else 1.0
+
+    # ------------------------------------------------------------------ regressors
+    def _filtered(self, a: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The realisation's states from rest for every candidate: (P, N, n_states)."""
+        s = self.structure
+        P, N, nu = a.shape[0], self.u.shape[0], s.n_inputs
+        blocks = []
+        for den, width in ((a.reshape(P, -1, 2), 2), (-p[:, :, None], 1)):
+            groups = den.shape[1]
+            if groups == 0:
+                continue
+            rows = np.repeat(den.reshape(P * groups, width), nu, axis=0)  # (P g nu, width)
+            forced = np.broadcast_to(self.u.T[None], (P * groups, nu, N)).reshape(-1, N)
+            x = kernels.ar_recursion(rows, forced, np.zeros(width))[0]  # x(t), t < N
+            x = x.reshape(P, groups * nu, N)
+            for lag in range(1, width + 1):  # the states x(t - 1), x(t - 2)
+                shifted = np.zeros_like(x)
+                shifted[:, :, lag:] = x[:, :, : N - lag]
+                blocks.append(shifted)
+        # states in the realisation's order: per group and input, x(t-1) then x(t-2)
+        out = []
+        i = 0
+        if s.n_modes:
+            g = s.n_modes * nu
+            out.append(np.stack([blocks[0], blocks[1]], axis=2).reshape(P, 2 * g, N))
+            i = 2
+        if s.n_real:
+            out.append(blocks[i])
+        return np.swapaxes(np.concatenate(out, axis=1), 1, 2)
+
+    def _free(self, a: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """A basis of each pole group's free responses: (P, N, 2 m + r).
+
+        A mode's two columns are ``x(t - 1)`` of its recursion started from
+        ``[x(-1), x(-2)] = e_1`` and from ``e_2``; a real pole's column is ``p^t``.
+        """
+        s = self.structure
+        P, N, m = a.shape[0], self.u.shape[0], s.n_modes
+        out = np.empty((P, N, s.n_search))
+        if m:
+            rows = np.repeat(a.reshape(P * m, 2), 2, axis=0)  # started at e1, e2
+            state = np.tile(np.eye(2), (P * m, 1))
+            x = kernels.ar_recursion(rows, np.zeros((P * m * 2, N)), state)[0]
+            out[:, 0, : 2 * m] = state[:, 0].reshape(P, 2 * m)  # x(-1)
+            out[:, 1:, : 2 * m] = np.swapaxes(x[:, : N - 1].reshape(P, 2 * m, N - 1), 1, 2)
+        if s.n_real:
+            out[:, :, 2 * m :] = p[:, None, :] ** np.arange(N)[None, :, None]
+        return out
+
+    def _free_map(self, a: np.ndarray, C: np.ndarray) -> np.ndarray:
+        """The free response of every output from each state, in the basis of :meth:`_free`.
+
+        ``L[p, o, :, i]``: the coefficients of output ``o``'s response from ``x0 = e_i``.  A
+        mode's block state is ``[x(t - 1), x(t - 2)]``; from ``s0`` its first component is
+        the basis times ``s0`` and its second the basis times ``S s0``, ``S = [[0, 1],
+        [-1/a2, -a1/a2]]`` (the recursion run one step back), so an output of gains
+        ``(c1, c2)`` sees ``(c1 I + c2 S) s0``.
+
+        Parameters
+        ----------
+        a : ndarray, shape (P, m, 2)
+        C : ndarray, shape (P, ns, ny)
+            The gains (scaled outputs).
+
+        Returns
+        -------
+        ndarray, shape (P, ny, 2 m + r, ns)
+        """
+        s = self.structure
+        P, ns, ny = C.shape
+        L = np.zeros((P, ny, s.n_search, ns))
+        i = 0
+        for k in range(s.n_modes):
+            a1, a2 = a[:, k, 0], a[:, k, 1]
+            S = np.zeros((P, 2, 2))
+            S[:, 0, 1] = 1.0
+            S[:, 1, 0], S[:, 1, 1] = -1.0 / a2, -a1 / a2
+            for _ in range(s.n_inputs):
+                c1, c2 = C[:, i, :], C[:, i + 1, :]  # (P, ny)
+                block = c2[:, :, None, None] * S[:, None]
+                block[:, :, 0, 0] += c1
+                block[:, :, 1, 1] += c1
+                L[:, :, 2 * k : 2 * k + 2, i : i + 2] = block
+                i += 2
+        for k in range(s.n_real):
+            for _ in range(s.n_inputs):
+                L[:, :, 2 * s.n_modes + k, i] = C[:, i, :]
+                i += 1
+        return L
+
+    # ------------------------------------------------------------------ the fit
+    def fit(self, modal: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The fitted gains and initial state of every candidate, and its sum of squares.
+
+        Parameters
+        ----------
+        modal : array_like, shape (P, 2 m + r)
+            Physical modal parameters ``[f_1, zeta_1, .., f_c1, ..]`` (Hz, ratio, Hz).
+
+        Returns
+        -------
+        theta : ndarray, shape (P, n_params)
+            The whole parameter vector of each candidate (its model:
+            ``structure.model(theta[i], dt)``).
+        sse : ndarray, shape (P,)
+            Sum over outputs of the squared simulation errors, each output divided by
+            :attr:`scale`.
+        """
+        theta, residual = self.residuals(modal)
+        return theta, np.einsum("pnq,pnq->p", residual, residual)
+
+    def residuals(self, modal: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The fitted parameters of every candidate and its simulation errors.
+
+        Parameters
+        ----------
+        modal : array_like, shape (P, 2 m + r)
+            Physical modal parameters.
+
+        Returns
+        -------
+        theta : ndarray, shape (P, n_params)
+        residual : ndarray, shape (P, N, ny)
+            ``y - y_sim`` of each output, divided by :attr:`scale`.
+        """
+        s = self.structure
+        modal = np.atleast_2d(np.asarray(modal, dtype=float))
+        P, N = modal.shape[0], self.u.shape[0]
+        nu, ns = s.n_inputs, s.n_states
+        a, p = s.denominators(modal, self.dt)
+        cols = [self._filtered(a, p)]
+        if s.feedthrough:
+            cols.append(np.broadcast_to(self.u[None], (P, N, nu)))
+        k_in = ns + (nu if s.feedthrough else 0)
+        free = self._free(a, p) if self.initial == "estimate" else None
+        if free is not None:
+            cols.append(free)  # each output's own free response (step 1)
+        phi = np.concatenate(cols, axis=2)
+        gram = np.swapaxes(phi, 1, 2) @ phi
+        coef = _solve(gram, np.swapaxes(phi, 1, 2) @ self._target)  # (P, k, ny)
+        residual = self._target - phi[:, :, :k_in] @ coef[:, :k_in, :]
+        x0 = np.zeros((P, ns))
+        if free is not None:
+            # step 2: the residual of step 1 is orthogonal to the free basis, so the x0 that
+            # best matches the outputs' free responses minimises the weighted distance of
+            # its coefficients L x0 to step 1's beta in the basis's Gram matrix M
+            L = self._free_map(a, coef[:, :ns, :])  # (P, ny, F, ns)
+            M = gram[:, k_in:, k_in:]
+            beta = np.moveaxis(coef[:, k_in:, :], 2, 1)[..., None]  # (P, ny, F, 1)
+            ML = M[:, None] @ L
+            normal = np.einsum("pofi,pofj->pij", L, ML)
+            rhs = np.einsum("pofi,pofc->pic", ML, beta)
+            x0 = _solve(normal, rhs)[:, :, 0]
+            residual -= free @ np.moveaxis((L @ x0[:, None, :, None])[..., 0], 1, 2)
+        gains = coef[:, :k_in, :] * self.scale  # back to output units
+        parts = [modal, np.swapaxes(gains[:, :ns, :], 1, 2).reshape(P, -1)]
+        if s.feedthrough:
+            parts.append(np.swapaxes(gains[:, ns:, :], 1, 2).reshape(P, -1))
+        parts.append(x0)
+        return np.concatenate(parts, axis=1), residual
+
+    # ------------------------------------------------------------------ the cost
+    def __call__(self, modal: Any) -> np.ndarray:
+        """The metric of every candidate's simulation errors.
+
+        Parameters
+        ----------
+        modal : array_like, shape (P, 2 m + r)
+            Physical modal parameters.
+
+        Returns
+        -------
+        ndarray, shape (P,)
+        """
+        sse = self.fit(modal)[1]
+        return metric_from_sse(self.metric, sse, self.y.size, self.weight, self._std)
+
+    def model(self, modal: Any) -> StateSpaceModel:
+        """The fitted model of one candidate.
+
+        Parameters
+        ----------
+        modal : array_like, shape (2 m + r,)
+
+        Returns
+        -------
+        StateSpaceModel
+        """
+        theta = self.fit(np.reshape(modal, (1, -1)))[0][0]
+        return self.structure.model(theta, self.dt)
+
+    def describe(self) -> str:
+        """One line: the metric, the predictor and what is fitted.
+
+        Returns
+        -------
+        str
+        """
+        outs = self.structure.n_outputs
+        per = " (each output over its standard deviation)" if outs > 1 else ""
+        return (f"{self.metric} of the simulation error{per}; gains"
+                f"{' and initial state' if self.initial == 'estimate' else ''} fitted by "
+                "least squares for each candidate's modes")  # fmt: skip
