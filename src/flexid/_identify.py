@@ -37,8 +37,8 @@ from .estimation import build_problem, structure_of
 from .families import family_named, family_of
 from .greybox_family import greybox_of
 from .models.greybox import GreyBoxModel
-from .models.statespace import StateSpaceStructure
 from .models.polynomial import PolynomialStructure, _check_initial
+from .models.statespace import StateSpaceStructure
 from .optimisers import Budget, minimize
 from .validation import validate
 

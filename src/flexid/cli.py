@@ -30,8 +30,8 @@ from .config import (
     OUTPUT_ERROR,
     PREDICTION_ERROR,
     REFERENCES,
-    SUBSPACE,
     STRUCTURE_NAMES,
+    SUBSPACE,
     keyword,
 )
 from .errors import ConfigError, FlexidError, FlexidWarning

@@ -29,8 +29,7 @@ from .costs.modal import ModalCost
 from .data import IOData
 from .errors import ConfigError, DataError, ModelOrderError
 from .families import Family, ReferenceFit
-from .models.statespace import StateSpaceStructure
-from .models.statespace import StateSpaceModel, state_sequence
+from .models.statespace import StateSpaceModel, StateSpaceStructure, state_sequence
 from .optimisers import Problem
 from .parametrisation import SearchBox
 from .statespace_fit import SSEST_STARTS, ModalBox, StateSpaceResult, modal_start, refine
@@ -153,10 +152,7 @@ class StateSpaceEstimationProblem:
             t0 = time.perf_counter()
             rng = np.random.default_rng(seed)
             box = self.modal_box
-            points = [("subspace", self.start)]
-            points += [(f"random {i + 1}", box.physical(box.lower + rng.random(box.lower.size)
-                                                        * (box.upper - box.lower)))  # fmt: skip
-                       for i in range(starts)]
+            points = [("subspace", self.start), *box.random(rng, starts)]
             ref = refine(self.cost, box, points, t_begin=t0, subspace=self.subspace)
             ref["cost"] = float(self.cost(ref.x[None])[0])
             self._ref = ((starts, seed), ref)

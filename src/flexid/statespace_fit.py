@@ -30,8 +30,8 @@ from ._validate import checked_keywords, integer
 from .costs.modal import ModalCost
 from .data import IOData
 from .errors import ConfigError
-from .models.statespace import StateSpaceStructure
 from .models.modes import modes
+from .models.statespace import StateSpaceStructure
 from .reference import ReferenceResult, levenberg_marquardt
 from .subspace import _record, n4sid
 
@@ -105,6 +105,23 @@ class ModalBox:
         ndarray, same shape
         """
         return 10.0 ** np.clip(np.asarray(z, dtype=float), self.lower, self.upper)
+
+    def random(self, rng: np.random.Generator, count: int) -> list[tuple[str, np.ndarray]]:
+        """``count`` named starts drawn uniformly in the box, in physical units.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        count : int
+
+        Returns
+        -------
+        list of (str, ndarray)
+            ``("random 1", modal), ...``.
+        """
+        width = self.upper - self.lower
+        return [(f"random {i + 1}", self.physical(self.lower + rng.random(width.size) * width))
+                for i in range(count)]  # fmt: skip
 
     def coordinates(self, modal: Any) -> np.ndarray:
         """Search vectors of modal parameters, clipped to the box.
@@ -239,12 +256,12 @@ def refine(
         e = cost.residuals(physical(points))[1].reshape(2 * k, -1)
         return ((e[:k] - e[k:]) / (up + down)[:, None]).T
 
-    runs = [
-        levenberg_marquardt(residual, jacobian, np.clip((box.coordinates(x) - box.lower) / width,
-                                                        0.0, 1.0), name,  # fmt: skip
-                            bounds=(0.0, 1.0), max_nfev=max_nfev or 100 * k, tol=tol)
-        for name, x in starts
-    ]
+    budget = max_nfev or 100 * k
+    runs = []
+    for name, x in starts:
+        v0 = np.clip((box.coordinates(x) - box.lower) / width, 0.0, 1.0)
+        runs.append(levenberg_marquardt(residual, jacobian, v0, name, bounds=(0.0, 1.0),
+                                        max_nfev=budget, tol=tol))  # fmt: skip
     best = int(np.argmin([run.fun for run in runs]))
     v = runs[best].x
     e, J = residual(v), jacobian(v)
@@ -343,10 +360,7 @@ def ssest(
     cost = ModalCost(record, structure, initial=initial)
     box = ModalBox.on(structure, dt, record.n_samples)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    points = [("subspace", modal_start(sub.model.poles(), box, dt))]
-    points += [(f"random {i + 1}", box.physical(box.lower + rng.random(box.lower.size)
-                                                * (box.upper - box.lower)))  # fmt: skip
-               for i in range(starts)]
+    points = [("subspace", modal_start(sub.model.poles(), box, dt)), *box.random(rng, starts)]
     out = refine(cost, box, points, max_nfev=max_nfev, t_begin=t_begin, subspace=sub)
     out["model"] = out["model"].named(record.input_names, record.output_names)
     return out

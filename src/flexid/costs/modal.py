@@ -44,8 +44,7 @@ from .. import kernels
 from ..data import IOData
 from ..errors import DataError, ModelOrderError
 from ..metrics import metric_from_sse
-from ..models.statespace import StateSpaceStructure
-from ..models.statespace import StateSpaceModel
+from ..models.statespace import StateSpaceModel, StateSpaceStructure
 
 __all__ = ["ModalCost"]
 

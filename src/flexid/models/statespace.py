@@ -20,10 +20,10 @@ a simulation is checked against
 a batched cost of its own (the modal space), not this method.
 
 **The modal structure.**  A flexible structure's response is a sum of modes, each a natural
-frequency ``f`` (Hz) and a damping ratio ``zeta``, seen by every sensor with its own gain.  :class:`StateSpaceStructure`
-writes a discrete state-space model of order ``n`` as ``m`` such modes and ``n - 2 m`` real
-poles (each a corner frequency ``f_c``), every one stable for every ``f > 0``,
-``0 < zeta <= 1``, ``f_c > 0``:
+frequency ``f`` (Hz) and a damping ratio ``zeta``, seen by every sensor with its own gain.
+:class:`StateSpaceStructure` writes a discrete state-space model of order ``n`` as ``m``
+such modes and ``n - 2 m`` real poles (each a corner frequency ``f_c``), every one stable
+for every ``f > 0``, ``0 < zeta <= 1``, ``f_c > 0``:
 
 - mode: continuous poles ``s = 2 pi f (-zeta +- j sqrt(1 - zeta^2))``, discrete
   ``z = exp(s dt)``, denominator ``1 + a1 q^-1 + a2 q^-2`` with ``a1 = -2 Re z``,

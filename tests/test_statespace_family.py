@@ -1,0 +1,228 @@
+"""The state-space family: the modal structure, its batched cost, ssest and identify's route."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+import flexid
+from flexid.costs.modal import ModalCost
+from flexid.data import IOData
+from flexid.errors import ConfigError, DataError, ModelOrderError
+from flexid.models.statespace import StateSpaceStructure
+from flexid.statespace_fit import ModalBox, modal_start, ssest
+
+DT = 0.01
+
+
+def _modal(structure, rng):
+    """A random modal vector: modes 1-40 Hz, damping 0.01-0.9, corners 0.5-30 Hz."""
+    out = []
+    for _ in range(structure.n_modes):
+        out += [rng.uniform(1.0, 40.0), rng.uniform(0.01, 0.9)]
+    out += list(rng.uniform(0.5, 30.0, structure.n_real))
+    return np.array(out)
+
+
+def _true_model(rng, *, n_outputs=2):
+    """Two modes (3 Hz at 2 %, 11 Hz at 5 %), one input, its gains and initial state drawn."""
+    s = StateSpaceStructure(4, 1, n_outputs)
+    theta = np.r_[3.0, 0.02, 11.0, 0.05, rng.standard_normal(4 * n_outputs),
+                  0.3 * rng.standard_normal(4)]  # fmt: skip
+    return s.model(theta, DT)
+
+
+@pytest.fixture(scope="module")
+def two_sensor_record():
+    rng = np.random.default_rng(1)
+    true = _true_model(rng)
+    u = rng.standard_normal((1500, 1))
+    y = true.simulate(u)
+    y += 0.02 * np.std(y, axis=0) * rng.standard_normal(y.shape)  # 2 % noise per sensor
+    return true, IOData(u, y, dt=DT, output_names=["hub", "tip"])
+
+
+@pytest.mark.parametrize(
+    "nu, ny, order, feedthrough, initial",
+    [(1, 1, 4, False, "estimate"), (1, 2, 5, True, "estimate"), (2, 2, 4, False, "estimate"),
+     (2, 3, 3, True, "zero")],
+)  # fmt: skip
+def test_the_modal_cost_is_a_dlsim_of_its_own_model(nu, ny, order, feedthrough, initial):
+    # the cost's errors and scipy's simulation of the realised model: the same numbers, by
+    # two routes (batched second-order recursions and least squares; a state recursion),
+    # equal to rounding: each output's sum of squares to 1e-10 relative over 800 samples
+    rng = np.random.default_rng(order + 10 * ny)
+    s = StateSpaceStructure(order, nu, ny, feedthrough=feedthrough)
+    record = IOData(rng.standard_normal((800, nu)), rng.standard_normal((800, ny)), dt=DT)
+    cost = ModalCost(record, s, metric="sse", initial=initial)
+    modal = np.vstack([_modal(s, rng) for _ in range(3)])
+    theta, sse = cost.fit(modal)
+    for i in range(3):
+        m = s.model(theta[i], DT)
+        _, y_sim, _ = signal.dlsim((m.A, m.B, m.C, m.D, DT), record.u, x0=m.x0)
+        e = (record.y - y_sim.reshape(800, ny)) / cost.scale
+        assert sse[i] == pytest.approx(np.sum(e * e), rel=1e-10)
+        assert m.is_stable
+    np.testing.assert_allclose(cost(modal), sse, rtol=1e-12)  # metric "sse"
+    if initial == "zero":
+        assert np.all(theta[:, -s.n_states :] == 0.0)
+
+
+def test_with_one_output_the_shared_initial_state_reaches_the_joint_fit():
+    # with one output the realisation's x0 spans the free responses, so step 2 loses
+    # nothing: the same sum of squares as one least-squares fit of gains and free response
+    rng = np.random.default_rng(3)
+    s = StateSpaceStructure(5, 1, 1)
+    record = IOData(rng.standard_normal((600, 1)), rng.standard_normal((600, 1)), dt=DT)
+    cost = ModalCost(record, s, metric="sse")
+    modal = _modal(s, rng)[None]
+    a, p = s.denominators(modal, DT)
+    phi = np.concatenate([cost._filtered(a, p), cost._free(a, p)], axis=2)[0]
+    joint = np.linalg.lstsq(phi, record.y[:, 0], rcond=None)[1][0]
+    assert cost.fit(modal)[1][0] == pytest.approx(joint, rel=1e-8)
+
+
+def test_the_structure_refuses_what_it_cannot_hold():
+    with pytest.raises(ModelOrderError, match="3 modes need order >= 6"):
+        StateSpaceStructure(4, n_modes=3)
+    with pytest.raises(ConfigError, match=r"damping bounds must lie in \(0, 1\]"):
+        StateSpaceStructure(4, damping=(0.01, 2.0))
+    with pytest.raises(ConfigError, match="0 < low < high"):
+        StateSpaceStructure(4, frequency=(0.0, 10.0))
+    with pytest.raises(ConfigError, match="above Nyquist"):
+        StateSpaceStructure(4, frequency=(1.0, 80.0)).bounds(DT, 1000)
+    with pytest.raises(ModelOrderError, match="needs at least"):
+        StateSpaceStructure(40).check_samples(100)
+
+
+def test_a_start_is_read_from_any_poles_in_the_structure_s_counts():
+    s = StateSpaceStructure(4, 1, 1)  # two modes
+    box = ModalBox.on(s, DT, 1000)
+    z = np.exp(2 * np.pi * 5.0 * DT * (-0.05 + 1j * np.sqrt(1 - 0.05**2)))
+    # one pair and two real poles (1.68 and 3.55 Hz): the reals become one critically damped
+    # mode at their geometric mean, below the pair in frequency
+    start = modal_start([z, np.conj(z), 0.9, 0.8], box, DT)
+    corner = -np.log([0.9, 0.8]) / (2 * np.pi * DT)
+    np.testing.assert_allclose(start, [np.sqrt(np.prod(corner)), 1.0, 5.0, 0.05], rtol=1e-9)
+    # a negative real pole has no stable equivalent: read at Nyquist, clipped to the box
+    s1 = StateSpaceStructure(1, 1, 1)
+    assert modal_start([-0.5], ModalBox.on(s1, DT, 1000), DT)[0] == pytest.approx(50.0)
+
+
+def test_ssest_recovers_a_known_two_sensor_system_within_its_standard_errors(
+    two_sensor_record,
+):
+    _, record = two_sensor_record
+    res = ssest(record, 4)
+    assert res.success and res.optimality < 1e-6
+    truth = np.array([3.0, 0.02, 11.0, 0.05])
+    # each modal parameter within 4 standard errors of the truth (the noise is 2 %)
+    assert np.all(np.abs(res.x - truth) < 4 * res.std), (res.x, res.std)
+    assert res.model.output_names == ("hub", "tip")
+    # every random start ends at the same minimum as the subspace start (a benign problem)
+    assert max(r.fun for r in res.runs) == pytest.approx(res.fun, rel=1e-6)
+
+
+def test_a_two_input_two_output_system_from_scipy_is_recovered_by_ssest():
+    # a 2x2 system with two shared modes, made with scipy.signal, noise free: the modal
+    # realisation (each mode once per input) holds it exactly, so its frequency response
+    # matches to the fit's tolerance, far inside 1e-4 of the peak gain
+    rng = np.random.default_rng(7)
+    poles = []
+    for f, zeta in ((2.0, 0.03), (9.0, 0.1)):
+        w = 2 * np.pi * f
+        poles += [complex(-zeta * w, w * np.sqrt(1 - zeta * zeta))]
+    A = np.zeros((4, 4))
+    for k, s in enumerate(poles):
+        A[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[s.real, -s.imag], [s.imag, s.real]]
+    sys_c = signal.StateSpace(A, rng.standard_normal((4, 2)), rng.standard_normal((2, 4)),
+                              np.zeros((2, 2)))  # fmt: skip
+    sys_d = sys_c.to_discrete(DT)
+    u = rng.standard_normal((1200, 2))
+    _, y, _ = signal.dlsim(sys_d, u)
+    res = ssest(IOData(u, y, dt=DT), 4, starts=1)
+    f = np.linspace(0.2, 40.0, 200)
+    z = np.exp(2j * np.pi * f * DT)
+    eye = np.eye(4)
+    G_true = np.array([sys_d.C @ np.linalg.solve(zi * eye - sys_d.A, sys_d.B) for zi in z])
+    G = res.model.frequency_response(f)
+    assert np.max(np.abs(G - G_true)) < 1e-4 * np.max(np.abs(G_true))
+
+
+def test_identify_ss_by_n4sid_pem_and_an_optimiser_reports_every_output(two_sensor_record):
+    _, record = two_sensor_record
+    for optimiser, floor in (("n4sid", 97.0), ("pem", 97.0)):
+        ident = flexid.identify(record, structure="ss", order=4, optimiser=optimiser)
+        fits = {r.output_name: r.fit_simulation for r in ident.held_out}
+        assert set(fits) == {"hub", "tip"} and min(fits.values()) > floor, fits
+        text = ident.summary()
+        assert "Validation record (held out), output 'tip'" in text
+        assert ident.to_dict()["outputs"][1]["output"] == "tip"
+    ident = flexid.identify(record, structure="ss", order=4, optimiser="de", budget=300, seed=2)
+    assert ident.nfev == 300 and ident.model.is_stable
+    one = flexid.identify(record, structure="ss", order=4, output="tip")
+    assert one.model.output_names == ("tip",) and not one.outputs
+
+
+def test_identify_ss_bad_input_is_a_typed_error():
+    rng = np.random.default_rng(0)
+    record = IOData(rng.standard_normal((300, 1)), rng.standard_normal((300, 2)), dt=DT,
+                    output_names=["a", "b"])  # fmt: skip
+    with pytest.raises(ModelOrderError, match="needs its order"):
+        flexid.identify(record, structure="ss")
+    with pytest.raises(ModelOrderError, match="takes order and modes, not na"):
+        flexid.identify(record, 2, structure="ss", order=2)
+    with pytest.raises(DataError, match="no output channel 'c'"):
+        flexid.identify(record, structure="ss", order=2, output="a,c")
+    with pytest.raises(ConfigError, match="output-error model"):
+        flexid.identify(record, structure="ss", order=2, predictor="one-step")
+    with pytest.raises(ConfigError, match="no estimate 'n4sid'"):
+        flexid.identify(record, structure="oe", nb=2, nf=2, output="a", optimiser="n4sid")
+    model = StateSpaceStructure(2, 1, 2).model(np.r_[3.0, 0.1, np.ones(6)], DT)
+    with pytest.raises(DataError, match="give the one to validate"):
+        flexid.validate(model, record)
+
+
+def test_the_command_line_route_prints_every_output_and_refuses_in_one_line(
+    two_sensor_record, tmp_path, capsys
+):
+    from flexid.cli import main
+
+    _, record = two_sensor_record
+    path = tmp_path / "two.csv"
+    record.save(path)
+    assert main(["identify", str(path), "--structure", "ss", "--order", "4",
+                 "--optimiser", "n4sid"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "identified by n4sid" in out and "output 'tip'" in out
+    assert main(["identify", str(path), "--structure", "ss", "--order", "4",
+                 "--modes", "3"]) == 2  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "3 modes need order >= 6" in err[0]
+
+
+@pytest.fixture(scope="module")
+def small_problem():
+    rng = np.random.default_rng(4)
+    true = _true_model(rng)
+    u = rng.standard_normal((400, 1))
+    record = IOData(u, true.simulate(u), dt=DT)
+    return flexid.estimation.build_problem(
+        record, StateSpaceStructure(4, 1, 2), flexid.CostSpec(predictor="simulation"),
+        flexid.SearchSpec(),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(flexid.optimisers.available()))
+def test_every_registered_optimiser_searches_the_modal_space(name, small_problem):
+    # every optimiser and adapter of the registry (nevergrad's, pycma's, pymoo's when they
+    # are installed) runs its exact budget in the modal space, and every candidate it can
+    # propose is a stable model
+    pytest.importorskip({"ng": "nevergrad", "cma": "cma", "pymoo": "pymoo"}.get(
+        name.split(":")[0], "numpy"))  # fmt: skip
+    res = flexid.minimize(name, small_problem.problem, 60, seed=1)
+    assert res.nfev == 60 and np.isfinite(res.fun)
+    model = small_problem.structure.model(small_problem.theta(res.x), DT)
+    assert model.is_stable
+    assert float(small_problem.cost(small_problem.modal_box.physical(res.x[None]))[0]) == res.fun
