@@ -83,13 +83,17 @@ class ModalBox:
         -------
         ModalBox
         """
-        (f_lo, f_hi), (z_lo, z_hi) = structure.bounds(dt, n_samples)
+        (f_lo, f_hi), (z_lo, z_hi), (c_lo, c_hi) = structure.bounds(dt, n_samples)
         m, r = structure.n_modes, structure.n_real
-        lower = np.array([math.log10(f_lo), math.log10(z_lo)] * m + [math.log10(f_lo)] * r)
-        upper = np.array([math.log10(f_hi), math.log10(z_hi)] * m + [math.log10(f_hi)] * r)
-        rule = (f"frequencies {f_lo:.4g}-{f_hi:.4g} Hz"
-                + (f", damping ratios {z_lo:g}-{z_hi:g}" if m else "")
-                + ", log scale")  # fmt: skip
+        lower = np.log10([f_lo, z_lo] * m + [c_lo] * r)
+        upper = np.log10([f_hi, z_hi] * m + [c_hi] * r)
+        parts = []
+        if m:
+            parts.append(f"mode frequencies {f_lo:.4g}-{f_hi:.4g} Hz, damping ratios "
+                         f"{z_lo:g}-{z_hi:g}")  # fmt: skip
+        if r:
+            parts.append(f"corner frequencies {c_lo:.4g}-{c_hi:.4g} Hz")
+        rule = ", ".join(parts) + ", log scale"
         return cls(structure, lower, upper, rule)
 
     def physical(self, z: Any) -> np.ndarray:
@@ -146,7 +150,7 @@ def modal_start(poles: Any, box: ModalBox, dt: float) -> np.ndarray:
     poles at its frequency, and two real poles (neighbours in frequency) one critically
     damped mode at their geometric mean, until the counts match.  A pole with no continuous
     equivalent (negative real, at the origin) is read at the Nyquist frequency, an
-    integrator at the box's lowest; everything is clipped to the box.
+    integrator at the box's lowest corner; everything is clipped to the box.
 
     Parameters
     ----------
@@ -163,13 +167,12 @@ def modal_start(poles: Any, box: ModalBox, dt: float) -> np.ndarray:
     """
     s = box.structure
     nyquist = 0.5 / dt
-    f_lo, f_hi = 10.0 ** box.lower[0], 10.0 ** box.upper[0]
     pairs, reals = [], []
     for mode in modes(poles, dt):
         if mode.kind == "pair" and 0 < mode.damping < 1:
             pairs.append((mode.damping, mode.frequency))
         elif mode.kind == "integrator":
-            reals.append(f_lo)
+            reals.append(0.0)  # the box's lowest corner
         elif mode.kind == "real" and mode.damping > 0:
             reals.append(mode.frequency)
         else:  # negative real, delay, unstable: no stable continuous equivalent
@@ -184,8 +187,8 @@ def modal_start(poles: Any, box: ModalBox, dt: float) -> np.ndarray:
         pairs.append((1.0, math.sqrt(f1 * f2)))
     modal = []
     for zeta, f in sorted(pairs, key=lambda p: p[1]):
-        modal += [min(max(f, f_lo), f_hi), zeta]
-    modal += [min(max(f, f_lo), f_hi) for f in reals[: s.n_real]]
+        modal += [f, zeta]
+    modal += reals[: s.n_real]
     return box.physical(box.coordinates(np.array(modal)))
 
 

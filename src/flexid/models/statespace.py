@@ -56,7 +56,7 @@ from .._validate import integer
 from ..errors import ConfigError, DataError, ModelOrderError
 from .modes import Mode, modes
 
-__all__ = ["DAMPING_FLOOR", "StateSpaceModel", "StateSpaceStructure", "state_sequence"]
+__all__ = ["DAMPING_FLOOR", "INTEGRATOR_SHARE", "StateSpaceModel", "StateSpaceStructure", "state_sequence"]
 
 
 def state_sequence(F: np.ndarray, forced: np.ndarray, x0: np.ndarray) -> np.ndarray:
@@ -396,6 +396,11 @@ class StateSpaceModel:
                 f"outputs={self.n_outputs}, dt={self.dt:g})")  # fmt: skip
 
 
+#: The default lowest corner frequency of a real pole, as a share of the record's frequency
+#: resolution ``1 / (N dt)``: such a pole decays by 0.6 % over the record, an integrator as
+#: far as the record can tell (a hub angle's rigid-body mode, driven by torque).
+INTEGRATOR_SHARE = 1e-3
+
 #: Lowest damping ratio the default search box reaches: its damping is searched on a log
 #: scale, which needs a positive floor; structural modes are rarely below 1e-3.
 DAMPING_FLOOR = 1e-4
@@ -431,7 +436,9 @@ class StateSpaceStructure:
     frequency : (float, float), optional
         Bounds in Hz of the modes' natural frequencies and the real poles' corner
         frequencies, within (0, Nyquist]; default from the record's frequency resolution
-        ``1 / (N dt)`` to Nyquist (checked when posed on a record).
+        ``1 / (N dt)`` to Nyquist for the modes, and from ``1e-3 / (N dt)`` for the real
+        poles, which then reach integrators (:data:`INTEGRATOR_SHARE`); checked when posed
+        on a record.
     damping : (float, float), optional
         Bounds of the damping ratios, within (0, 1]; default ``(1e-4, 1)``.
 
@@ -528,8 +535,8 @@ class StateSpaceStructure:
             )
 
     # ------------------------------------------------------------------ bounds
-    def bounds(self, dt: float, n_samples: int) -> tuple[tuple[float, float], tuple[float, float]]:
-        """The frequency (Hz) and damping bounds on a record of ``n_samples`` at ``dt``.
+    def bounds(self, dt: float, n_samples: int) -> tuple[tuple[float, float], ...]:
+        """The frequency (Hz), damping and corner-frequency (Hz) bounds on a record.
 
         Parameters
         ----------
@@ -540,7 +547,9 @@ class StateSpaceStructure:
 
         Returns
         -------
-        frequency, damping : (float, float)
+        frequency, damping, corner : (float, float)
+            The modes' natural frequencies, their damping ratios and the real poles' corner
+            frequencies.
 
         Raises
         ------
@@ -549,7 +558,9 @@ class StateSpaceStructure:
         """
         nyquist = 0.5 / dt
         if self.frequency is None:
-            frequency = (min(1.0 / (n_samples * dt), 0.5 * nyquist), nyquist)
+            lowest = min(1.0 / (n_samples * dt), 0.5 * nyquist)
+            frequency = (lowest, nyquist)
+            corner = (INTEGRATOR_SHARE * lowest, nyquist)
         else:
             frequency = self.frequency
             if frequency[1] > nyquist * (1 + 1e-12):
@@ -557,7 +568,9 @@ class StateSpaceStructure:
                     f"frequency bounds {frequency} Hz reach above Nyquist ({nyquist:g} Hz at "
                     f"dt = {dt:g} s): give bounds within (0, {nyquist:g}]"
                 )
-        return frequency, (DAMPING_FLOOR, 1.0) if self.damping is None else self.damping
+            corner = frequency
+        damping = (DAMPING_FLOOR, 1.0) if self.damping is None else self.damping
+        return frequency, damping, corner
 
     # ------------------------------------------------------------------ poles and model
     def denominators(
