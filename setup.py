@@ -11,8 +11,10 @@ import os
 
 from setuptools import Extension, setup
 
-_SOURCES = ["module", "pool", "polynomial", "recursion", "numerator", "initial_state", "twin_rotor"]
-_HEADERS = ["simd", "pool", "polynomial", "recursion", "numerator", "initial_state", "twin_rotor"]
+_SOURCES = ["module", "pool", "polynomial", "recursion", "numerator", "initial_state",
+            "twin_rotor", "modal"]  # fmt: skip
+_HEADERS = ["simd", "pool", "polynomial", "recursion", "numerator", "initial_state",
+            "twin_rotor", "modal"]  # fmt: skip
 
 setup(
     ext_modules=[

@@ -11,9 +11,9 @@ candidate is stable.
 Notes
 -----
 For each candidate the regressors are each input filtered through each mode's
-``1 / (1 + a1 q^-1 + a2 q^-2)`` and each real pole's ``1 / (1 - p q^-1)`` (the compiled
-batched recursion of :func:`flexid.kernels.ar_recursion`, one row per candidate, pole group
-and input), delayed by one and two samples: the states of the structure's realisation.
+``1 / (1 + a1 q^-1 + a2 q^-2)`` and each real pole's ``1 / (1 - p q^-1)``, delayed by one
+and two samples: the states of the structure's realisation
+(:func:`flexid.kernels.modal_regressors`, compiled where the polynomial costs are).
 Under ``initial="estimate"``:
 
 1. the gains are fitted together with each output's own free response (two columns per
@@ -53,6 +53,11 @@ __all__ = ["ModalCost"]
 #: damped poles, a mode at the record's lowest frequency) and changes a well-posed fit by a
 #: relative ``RIDGE``, far below the noise of any record.
 RIDGE = 1e-10
+
+#: Candidates whose regressors are formed at once: a block of ``(BLOCK, N, k)`` doubles
+#: (1.5 MB for N = 1,500 and k = 16) stays in a core's cache through the products that
+#: read it; a whole population's would not (measured in ``benchmarks/bench_modal.py``).
+BLOCK = 16
 
 
 def _solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -126,56 +131,10 @@ class ModalCost:
         self._target = self.y / self.scale
         self._std = float(np.std(self._target)) if ny == 1 else 1.0
 
-    # ------------------------------------------------------------------ regressors
-    def _filtered(self, a: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """The realisation's states from rest for every candidate: (P, N, n_states)."""
-        s = self.structure
-        P, N, nu = a.shape[0], self.u.shape[0], s.n_inputs
-        blocks = []
-        for den, width in ((a.reshape(P, -1, 2), 2), (-p[:, :, None], 1)):
-            groups = den.shape[1]
-            if groups == 0:
-                continue
-            rows = np.repeat(den.reshape(P * groups, width), nu, axis=0)  # (P g nu, width)
-            forced = np.broadcast_to(self.u.T[None], (P * groups, nu, N)).reshape(-1, N)
-            x = kernels.ar_recursion(rows, forced, np.zeros(width))[0]  # x(t), t < N
-            x = x.reshape(P, groups * nu, N)
-            for lag in range(1, width + 1):  # the states x(t - 1), x(t - 2)
-                shifted = np.zeros_like(x)
-                shifted[:, :, lag:] = x[:, :, : N - lag]
-                blocks.append(shifted)
-        # states in the realisation's order: per group and input, x(t-1) then x(t-2)
-        out = []
-        i = 0
-        if s.n_modes:
-            g = s.n_modes * nu
-            out.append(np.stack([blocks[0], blocks[1]], axis=2).reshape(P, 2 * g, N))
-            i = 2
-        if s.n_real:
-            out.append(blocks[i])
-        return np.swapaxes(np.concatenate(out, axis=1), 1, 2)
-
-    def _free(self, a: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """A basis of each pole group's free responses: (P, N, 2 m + r).
-
-        A mode's two columns are ``x(t - 1)`` of its recursion started from
-        ``[x(-1), x(-2)] = e_1`` and from ``e_2``; a real pole's column is ``p^t``.
-        """
-        s = self.structure
-        P, N, m = a.shape[0], self.u.shape[0], s.n_modes
-        out = np.empty((P, N, s.n_search))
-        if m:
-            rows = np.repeat(a.reshape(P * m, 2), 2, axis=0)  # started at e1, e2
-            state = np.tile(np.eye(2), (P * m, 1))
-            x = kernels.ar_recursion(rows, np.zeros((P * m * 2, N)), state)[0]
-            out[:, 0, : 2 * m] = state[:, 0].reshape(P, 2 * m)  # x(-1)
-            out[:, 1:, : 2 * m] = np.swapaxes(x[:, : N - 1].reshape(P, 2 * m, N - 1), 1, 2)
-        if s.n_real:
-            out[:, :, 2 * m :] = p[:, None, :] ** np.arange(N)[None, :, None]
-        return out
-
+    # ------------------------------------------------------------------ the fit
     def _free_map(self, a: np.ndarray, C: np.ndarray) -> np.ndarray:
-        """The free response of every output from each state, in the basis of :meth:`_free`.
+        """The free response of every output from each state, in the free-response basis of
+        :func:`flexid.kernels.modal_regressors`.
 
         ``L[p, o, :, i]``: the coefficients of output ``o``'s response from ``x0 = e_i``.  A
         mode's block state is ``[x(t - 1), x(t - 2)]``; from ``s0`` its first component is
@@ -233,8 +192,13 @@ class ModalCost:
             Sum over outputs of the squared simulation errors, each output divided by
             :attr:`scale`.
         """
-        theta, residual = self.residuals(modal)
-        return theta, np.einsum("pnq,pnq->p", residual, residual)
+        modal = np.atleast_2d(np.asarray(modal, dtype=float))
+        theta = np.empty((modal.shape[0], self.structure.n_params))
+        sse = np.empty(modal.shape[0])
+        for lo in range(0, modal.shape[0], BLOCK):  # a block's regressors stay in cache
+            theta[lo : lo + BLOCK], residual = self.residuals(modal[lo : lo + BLOCK])
+            sse[lo : lo + BLOCK] = np.einsum("pnq,pnq->p", residual, residual)
+        return theta, sse
 
     def residuals(self, modal: Any) -> tuple[np.ndarray, np.ndarray]:
         """The fitted parameters of every candidate and its simulation errors.
@@ -252,21 +216,19 @@ class ModalCost:
         """
         s = self.structure
         modal = np.atleast_2d(np.asarray(modal, dtype=float))
-        P, N = modal.shape[0], self.u.shape[0]
+        P = modal.shape[0]
         nu, ns = s.n_inputs, s.n_states
         a, p = s.denominators(modal, self.dt)
-        cols = [self._filtered(a, p)]
-        if s.feedthrough:
-            cols.append(np.broadcast_to(self.u[None], (P, N, nu)))
+        estimate = self.initial == "estimate"
+        # the states from rest, the inputs (feedthrough), each output's own free response
+        phi = kernels.modal_regressors(np.concatenate([a.reshape(P, -1), p], axis=1), self.u,
+                                       s.n_modes, s.feedthrough, estimate)  # fmt: skip
         k_in = ns + (nu if s.feedthrough else 0)
-        free = self._free(a, p) if self.initial == "estimate" else None
-        if free is not None:
-            cols.append(free)  # each output's own free response (step 1)
-        phi = np.concatenate(cols, axis=2)
+        free = phi[:, :, k_in:] if estimate else None
         gram = np.swapaxes(phi, 1, 2) @ phi
         coef = _solve(gram, np.swapaxes(phi, 1, 2) @ self._target)  # (P, k, ny)
-        residual = self._target - phi[:, :, :k_in] @ coef[:, :k_in, :]
         x0 = np.zeros((P, ns))
+        used = coef[:, :k_in, :]  # the gains, and no free response of each output's own
         if free is not None:
             # step 2: the residual of step 1 is orthogonal to the free basis, so the x0 that
             # best matches the outputs' free responses minimises the weighted distance of
@@ -278,7 +240,9 @@ class ModalCost:
             normal = np.einsum("pofi,pofj->pij", L, ML)
             rhs = np.einsum("pofi,pofc->pic", ML, beta)
             x0 = _solve(normal, rhs)[:, :, 0]
-            residual -= free @ np.moveaxis((L @ x0[:, None, :, None])[..., 0], 1, 2)
+            shared = np.moveaxis((L @ x0[:, None, :, None])[..., 0], 1, 2)  # (P, F, ny)
+            used = np.concatenate([used, shared], axis=1)
+        residual = self._target - phi @ used
         gains = coef[:, :k_in, :] * self.scale  # back to output units
         parts = [modal, np.swapaxes(gains[:, :ns, :], 1, 2).reshape(P, -1)]
         if s.feedthrough:

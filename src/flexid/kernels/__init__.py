@@ -54,6 +54,8 @@ __all__ = [
     "free_fit_compiled",
     "initial_state_fit",
     "initial_state_fit_reference",
+    "modal_regressors",
+    "modal_regressors_reference",
     "poly_mul_compiled",
     "schur_cohn_compiled",
     "set_threads",
@@ -296,6 +298,91 @@ def ar_recursion(
         e = np.asarray(target, dtype=float) - y
         sse = np.einsum("ij,ij->i", e, e)
     return (y if want_output else None), sse
+
+
+def modal_regressors_reference(
+    poles: np.ndarray, u: np.ndarray, m: int, feedthrough: bool, free_response: bool
+) -> np.ndarray:
+    """Reference path of :func:`modal_regressors`: one ``scipy.signal.lfilter`` per candidate,
+    pole group and input.
+
+    Parameters and result as :func:`modal_regressors`.
+    """
+    P, width = poles.shape
+    r = width - 2 * m
+    N, nu = u.shape
+    k = nu * (2 * m + r) + (nu if feedthrough else 0) + (2 * m + r if free_response else 0)
+    phi = np.zeros((P, N, k))
+    zeros = np.zeros(N)
+    for q in range(P):
+        col = 0
+        for g in range(m):
+            den = [1.0, poles[q, 2 * g], poles[q, 2 * g + 1]]
+            for j in range(nu):
+                x = signal.lfilter([1.0], den, u[:, j])
+                phi[q, 1:, col], phi[q, 2:, col + 1] = x[:-1], x[:-2]
+                col += 2
+        for g in range(r):
+            for j in range(nu):
+                phi[q, 1:, col] = signal.lfilter([1.0], [1.0, -poles[q, 2 * m + g]], u[:, j])[:-1]
+                col += 1
+        if feedthrough:
+            phi[q, :, col : col + nu] = u
+            col += nu
+        if not free_response:
+            continue
+        for g in range(m):
+            den = [1.0, poles[q, 2 * g], poles[q, 2 * g + 1]]
+            for past in ([1.0, 0.0], [0.0, 1.0]):  # [x(-1), x(-2)]
+                zi = signal.lfiltic([1.0], den, past)
+                phi[q, 0, col] = past[0]
+                phi[q, 1:, col] = signal.lfilter([1.0], den, zeros, zi=zi)[0][:-1]
+                col += 1
+        for g in range(r):
+            phi[q, :, col] = poles[q, 2 * m + g] ** np.arange(N)
+            col += 1
+    return phi
+
+
+def modal_regressors(
+    poles: np.ndarray, u: np.ndarray, m: int, feedthrough: bool, free_response: bool
+) -> np.ndarray:
+    """The regressors of the modal state-space cost for every candidate of a population.
+
+    Parameters
+    ----------
+    poles : ndarray, shape (P, 2 m + r)
+        Each candidate's ``a1, a2`` of its ``m`` modes, then its ``r`` real poles.
+    u : ndarray, shape (N, nu)
+        The inputs.
+    m : int
+        Modes.
+    feedthrough : bool
+        Add the inputs themselves as columns.
+    free_response : bool
+        Add a basis of each pole group's free response.
+
+    Returns
+    -------
+    ndarray, shape (P, N, k)
+        Per candidate: each mode's and input's ``x(t - 1), x(t - 2)`` of ``x(t) = u_j(t) - a1
+        x(t - 1) - a2 x(t - 2)`` from rest, each real pole's and input's ``x(t - 1)`` of
+        ``x(t) = u_j(t) + p x(t - 1)``; then the inputs (``feedthrough``); then (with
+        ``free_response``) each mode's ``x(t - 1)`` of the input-free recursion from
+        ``[x(-1), x(-2)] = e1`` and ``e2``, and each real pole's ``p^t``.  ``k = nu (2 m + r)
+        + nu + (2 m + r)`` with both options.
+    """
+    poles = np.ascontiguousarray(poles, dtype=float)
+    u = np.ascontiguousarray(u, dtype=float)
+    if BACKEND != "c":
+        return modal_regressors_reference(poles, u, m, feedthrough, free_response)
+    P, width = poles.shape
+    N, nu = u.shape
+    k = nu * width + (nu if feedthrough else 0) + (width if free_response else 0)
+    phi = np.empty((P, N, k))
+    _c.modal_regressors(poles, u, phi, m, bool(feedthrough), bool(free_response),
+                        _threads_for(P * N * k))  # fmt: skip
+    return phi
 
 
 def _rows(x: np.ndarray) -> np.ndarray:

@@ -18,6 +18,8 @@
  *                   [, threads[, free_state[, d, targets]]])              numerator.c
  *   free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out,
  *            coef_out[, threads[, first, noise]])                         initial_state.c
+ *   modal_regressors(poles, u, phi, m, feedthrough, free_response[, threads])
+ *                                                                         modal.c
  *
  * and simd([name]), defined here: the instruction set the kernels run (simd.h), (in use,
  * best) as names, and with a name ("generic", "avx2", "avx512") that one from then on.
@@ -34,6 +36,7 @@
  */
 #include "simd.h"
 #include "initial_state.h"
+#include "modal.h"
 #include "numerator.h"
 #include "polynomial.h"
 #include "pool.h"
@@ -383,6 +386,31 @@ static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
     return finish(v, N, rc);
 }
 
+static PyObject *py_modal_regressors(PyObject *self, PyObject *args)
+{
+    enum { POLES, U, PHI, N };
+    static const arg_spec spec[N] = {IN("poles"), IN("u"), OUT("phi")};
+    PyObject *o[N] = {NULL};
+    arg v[N] = {0};
+    Py_ssize_t m;
+    int feedthrough, free_response, n_threads = 1;
+    if (!PyArg_ParseTuple(args, "OOOnpp|i", &o[POLES], &o[U], &o[PHI], &m, &feedthrough,
+                          &free_response, &n_threads))
+        return NULL;
+    int rc = get_args("modal_regressors", spec, N, o, v);
+    const Py_ssize_t P = dim(&v[POLES], 0), width = dim(&v[POLES], 1), T = dim(&v[U], 0),
+                     nu = dim(&v[U], 1), r = width - 2 * m;
+    const Py_ssize_t k = nu * (2 * m + r) + (feedthrough ? nu : 0) + (free_response ? 2 * m + r : 0);
+    if (rc == 0 && (m < 0 || r < 0 || P < 0 || nu < 1 || T < 1 ||
+                    !SHAPE(&v[POLES], P, width) || !SHAPE(&v[PHI], P, T, k)))
+        rc = invalid("modal_regressors: poles (P, 2 m + r), u (N, nu), phi (P, N, k) with "
+                     "k = nu (2 m + r) + nu feedthrough + (2 m + r) free_response");
+    const modal_job job = {DATA(&v[POLES]), DATA(&v[U]), DATA(&v[PHI]), P, m, r, T, nu, k,
+                           feedthrough, free_response};
+    if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_modal_regressors(&job, n_threads));
+    return finish(v, N, rc);
+}
+
 #if defined(__GNUC__)
 static PyObject *py_arx_fit(PyObject *self, PyObject *args)
 {
@@ -515,6 +543,9 @@ static PyMethodDef methods[] = {
      "arx_run(a, b, reg, state, target, y_out, sse_out[, threads[, first]]): batched ARX "
      "recursion, the input part computed from the regressor rows reg, sse over t >= first "
      "(see recursion.c)."},
+    {"modal_regressors", py_modal_regressors, METH_VARARGS,
+     "modal_regressors(poles, u, phi, m, feedthrough, free_response[, threads]): the modal "
+     "state-space cost's regressors of every candidate (see modal.c)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
      "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads]): twin rotor "
      "RK4; params (22,) shared or (B, 22) per rotor (see twin_rotor.c)."},

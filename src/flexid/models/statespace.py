@@ -56,7 +56,13 @@ from .._validate import integer
 from ..errors import ConfigError, DataError, ModelOrderError
 from .modes import Mode, modes
 
-__all__ = ["DAMPING_FLOOR", "INTEGRATOR_SHARE", "StateSpaceModel", "StateSpaceStructure", "state_sequence"]
+__all__ = [
+    "DAMPING_FLOOR",
+    "INTEGRATOR_SHARE",
+    "StateSpaceModel",
+    "StateSpaceStructure",
+    "state_sequence",
+]
 
 
 def state_sequence(F: np.ndarray, forced: np.ndarray, x0: np.ndarray) -> np.ndarray:
