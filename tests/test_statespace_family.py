@@ -128,6 +128,13 @@ def test_a_start_is_read_from_any_poles_in_the_structure_s_counts():
     # a negative real pole has no stable equivalent: read at Nyquist, clipped to the box
     s1 = StateSpaceStructure(1, 1, 1)
     assert modal_start([-0.5], ModalBox.on(s1, DT, 1000), DT)[0] == pytest.approx(50.0)
+    # an unstable pair keeps its frequency and both its poles (the counts still match)
+    s3 = StateSpaceStructure(3, 1, 1)
+    box3 = ModalBox.on(s3, DT, 1000)
+    grow = 1.01 * np.exp(2j * np.pi * 5.0 * DT)
+    start = modal_start([grow, np.conj(grow), 1.2], box3, DT)
+    assert start.shape == (3,) and start[0] == pytest.approx(5.0, rel=1e-3)
+    np.testing.assert_allclose(start[1:], 10.0 ** box3.lower[1:])
 
 
 def test_ssest_recovers_a_known_two_sensor_system_within_its_standard_errors(

@@ -196,14 +196,18 @@ def free_response_fit(model: StateSpaceModel, u: np.ndarray, y: np.ndarray) -> n
     Returns
     -------
     ndarray, shape (n,)
-        ``x0`` minimising ``sum (y - y_u - C A^t x0)^2`` by least squares, ``y_u`` the
-        response from rest.
+        ``x0`` minimising ``sum_o sum_t ((y_o - y_u,o - (C A^t x0)_o) / s_o)^2`` by least
+        squares, ``y_u`` the response from rest and ``s_o`` output ``o``'s standard
+        deviation (with several outputs, as the modal cost weighs them: an output in small
+        units is not left to the others).
     """
     n = model.order
     forced = model.simulate(u, x0=np.zeros(n))
     free = model.C @ state_sequence(model.A, np.zeros((u.shape[0], n, n)), np.eye(n))
-    design = free.reshape(-1, n)  # (N ny, n): output o at t from each unit state
-    return np.linalg.lstsq(design, (y - forced).reshape(-1), rcond=None)[0]
+    std = np.std(y, axis=0)
+    scale = np.where(std > 0, std, 1.0) if y.shape[1] > 1 else np.ones(1)
+    design = (free / scale[None, :, None]).reshape(-1, n)  # (N ny, n)
+    return np.linalg.lstsq(design, ((y - forced) / scale).reshape(-1), rcond=None)[0]
 
 
 class StateSpaceFamily(Family):
@@ -294,7 +298,7 @@ class StateSpaceFamily(Family):
         if method == "n4sid":
             model = estimation.subspace.model
             sse = float(np.sum(((data.y - model.simulate(data.u)) / estimation.cost.scale) ** 2))
-            cost = _metric(estimation.cost, sse)
+            cost = float(estimation.cost.score(sse))
             return ReferenceFit(model, cost, {"order": estimation.subspace.order,
                                               "block_rows": estimation.subspace.block_rows})
         if method == "pem":
@@ -390,13 +394,6 @@ class StateSpaceFamily(Family):
         }
 
     model_numbers.__doc__ = None  # Family.model_numbers's
-
-
-def _metric(cost: ModalCost, sse: float) -> float:
-    from .metrics import metric_from_sse
-
-    return float(metric_from_sse(cost.metric, np.array([sse]), cost.y.size, cost.weight,
-                                 cost._std)[0])  # fmt: skip
 
 
 def _zeros(model: StateSpaceModel, output: int, input_: int) -> np.ndarray:

@@ -150,7 +150,8 @@ def modal_start(poles: Any, box: ModalBox, dt: float) -> np.ndarray:
     poles at its frequency, and two real poles (neighbours in frequency) one critically
     damped mode at their geometric mean, until the counts match.  A pole with no continuous
     equivalent (negative real, at the origin) is read at the Nyquist frequency, an
-    integrator at the box's lowest corner; everything is clipped to the box.
+    integrator or an unstable real pole at the box's lowest corner, an unstable pair at its
+    frequency with the least damping; everything is clipped to the box.
 
     Parameters
     ----------
@@ -169,13 +170,13 @@ def modal_start(poles: Any, box: ModalBox, dt: float) -> np.ndarray:
     nyquist = 0.5 / dt
     pairs, reals = [], []
     for mode in modes(poles, dt):
-        if mode.kind == "pair" and 0 < mode.damping < 1:
-            pairs.append((mode.damping, mode.frequency))
-        elif mode.kind == "integrator":
-            reals.append(0.0)  # the box's lowest corner
-        elif mode.kind == "real" and mode.damping > 0:
+        if mode.kind == "pair":  # an unstable pair at its frequency, least damped
+            pairs.append((min(max(mode.damping, 0.0), 1.0), mode.frequency))
+        elif mode.kind in ("integrator", "real") and not mode.damping > 0:
+            reals.append(0.0)  # an integrator or unstable: the box's lowest corner
+        elif mode.kind == "real":
             reals.append(mode.frequency)
-        else:  # negative real, delay, unstable: no stable continuous equivalent
+        else:  # negative real or at the origin: no continuous equivalent
             reals.append(nyquist)
     pairs.sort()  # least damped first
     while len(pairs) > s.n_modes:

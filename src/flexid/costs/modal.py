@@ -263,8 +263,23 @@ class ModalCost:
         -------
         ndarray, shape (P,)
         """
-        sse = self.fit(modal)[1]
-        return metric_from_sse(self.metric, sse, self.y.size, self.weight, self._std)
+        return self.score(self.fit(modal)[1])
+
+    def score(self, sse: Any) -> np.ndarray:
+        """The metric of sums of squared (scaled) simulation errors.
+
+        Parameters
+        ----------
+        sse : float or ndarray
+            Sums over every output and sample of the errors divided by :attr:`scale`.
+
+        Returns
+        -------
+        ndarray
+            Like ``sse``.
+        """
+        return metric_from_sse(self.metric, np.asarray(sse, dtype=float), self.y.size,
+                               self.weight, self._std)  # fmt: skip
 
     def model(self, modal: Any) -> StateSpaceModel:
         """The fitted model of one candidate.
