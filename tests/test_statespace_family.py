@@ -11,6 +11,7 @@ from flexid import kernels
 from flexid.costs.modal import ModalCost
 from flexid.data import IOData
 from flexid.errors import ConfigError, DataError, ModelOrderError
+from flexid.estimation import build_problem
 from flexid.models.statespace import StateSpaceStructure
 from flexid.statespace_fit import ModalBox, modal_start, ssest
 
@@ -235,7 +236,7 @@ def small_problem():
     true = _true_model(rng)
     u = rng.standard_normal((400, 1))
     record = IOData(u, true.simulate(u), dt=DT)
-    return flexid.estimation.build_problem(
+    return build_problem(
         record, StateSpaceStructure(4, 1, 2), flexid.CostSpec(predictor="simulation"),
         flexid.SearchSpec(),
     )  # fmt: skip
