@@ -35,9 +35,12 @@ Each finished run is appended at once to ``--out`` (JSON lines, default
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only cost
+
 import argparse
 import json
-import os
 import platform
 import subprocess
 import time

@@ -13,7 +13,9 @@ Notes
 For each candidate the regressors are each input filtered through each mode's
 ``1 / (1 + a1 q^-1 + a2 q^-2)`` and each real pole's ``1 / (1 - p q^-1)``, delayed by one
 and two samples: the states of the structure's realisation
-(:func:`flexid.kernels.modal_regressors`, compiled where the polynomial costs are).
+(:func:`flexid.kernels.modal_regressors`; their normal equations and errors,
+:func:`~flexid.kernels.modal_normal` and :func:`~flexid.kernels.modal_residual`, are
+compiled where the polynomial costs are).
 Under ``initial="estimate"``:
 
 1. the gains are fitted together with each output's own free response (two columns per
@@ -28,6 +30,10 @@ functions).  The cost is the metric of the residual of the realised model: a
 to rounding.  With several outputs each output's errors are divided by its standard
 deviation before they are summed (its fit's denominator), so that the outputs count alike
 whatever their units.
+
+The compiled route never stores the regressors: each candidate's rows are made, summed into
+its normal equations and dropped, and made again for its errors; no BLAS call is left to
+thread small products (which OpenBLAS would, at a large cost, on a busy machine).
 
 Each least-squares problem is solved by its normal equations, scaled to a unit diagonal
 with a ridge of ``1e-10`` (:data:`RIDGE`): a damping ratio of 1 makes a mode's two columns
@@ -53,11 +59,6 @@ __all__ = ["ModalCost"]
 #: damped poles, a mode at the record's lowest frequency) and changes a well-posed fit by a
 #: relative ``RIDGE``, far below the noise of any record.
 RIDGE = 1e-10
-
-#: Candidates whose regressors are formed at once: a block of ``(BLOCK, N, k)`` doubles
-#: (1.5 MB for N = 1,500 and k = 16) stays in a core's cache through the products that
-#: read it; a whole population's would not (measured in ``benchmarks/bench_modal.py``).
-BLOCK = 16
 
 
 def _solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -192,12 +193,7 @@ class ModalCost:
             Sum over outputs of the squared simulation errors, each output divided by
             :attr:`scale`.
         """
-        modal = np.atleast_2d(np.asarray(modal, dtype=float))
-        theta = np.empty((modal.shape[0], self.structure.n_params))
-        sse = np.empty(modal.shape[0])
-        for lo in range(0, modal.shape[0], BLOCK):  # a block's regressors stay in cache
-            theta[lo : lo + BLOCK], residual = self.residuals(modal[lo : lo + BLOCK])
-            sse[lo : lo + BLOCK] = np.einsum("pnq,pnq->p", residual, residual)
+        theta, _, sse = self._fit(modal, want_residual=False)
         return theta, sse
 
     def residuals(self, modal: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -214,22 +210,27 @@ class ModalCost:
         residual : ndarray, shape (P, N, ny)
             ``y - y_sim`` of each output, divided by :attr:`scale`.
         """
+        theta, residual, _ = self._fit(modal, want_residual=True)
+        return theta, residual
+
+    def _fit(self, modal: Any, *, want_residual: bool) -> tuple:
+        """``(theta, residual or None, sse)`` of every candidate (see :meth:`residuals`)."""
         s = self.structure
         modal = np.atleast_2d(np.asarray(modal, dtype=float))
         P = modal.shape[0]
         nu, ns = s.n_inputs, s.n_states
         a, p = s.denominators(modal, self.dt)
         estimate = self.initial == "estimate"
-        # the states from rest, the inputs (feedthrough), each output's own free response
-        phi = kernels.modal_regressors(np.concatenate([a.reshape(P, -1), p], axis=1), self.u,
-                                       s.n_modes, s.feedthrough, estimate)  # fmt: skip
+        # regressors: the states from rest, the inputs (feedthrough), each output's own free
+        # response (compiled: made row by row, never stored)
+        job = (np.concatenate([a.reshape(P, -1), p], axis=1), self.u, self._target)
+        options = (s.n_modes, s.feedthrough, estimate)
+        gram, rhs = kernels.modal_normal(*job, *options)
+        coef = _solve(gram, rhs)  # (P, k, ny)
         k_in = ns + (nu if s.feedthrough else 0)
-        free = phi[:, :, k_in:] if estimate else None
-        gram = np.swapaxes(phi, 1, 2) @ phi
-        coef = _solve(gram, np.swapaxes(phi, 1, 2) @ self._target)  # (P, k, ny)
         x0 = np.zeros((P, ns))
         used = coef[:, :k_in, :]  # the gains, and no free response of each output's own
-        if free is not None:
+        if estimate:
             # step 2: the residual of step 1 is orthogonal to the free basis, so the x0 that
             # best matches the outputs' free responses minimises the weighted distance of
             # its coefficients L x0 to step 1's beta in the basis's Gram matrix M
@@ -242,13 +243,13 @@ class ModalCost:
             x0 = _solve(normal, rhs)[:, :, 0]
             shared = np.moveaxis((L @ x0[:, None, :, None])[..., 0], 1, 2)  # (P, F, ny)
             used = np.concatenate([used, shared], axis=1)
-        residual = self._target - phi @ used
+        residual, sse = kernels.modal_residual(*job, used, *options, want_residual=want_residual)
         gains = coef[:, :k_in, :] * self.scale  # back to output units
         parts = [modal, np.swapaxes(gains[:, :ns, :], 1, 2).reshape(P, -1)]
         if s.feedthrough:
             parts.append(np.swapaxes(gains[:, ns:, :], 1, 2).reshape(P, -1))
         parts.append(x0)
-        return np.concatenate(parts, axis=1), residual
+        return np.concatenate(parts, axis=1), residual, sse
 
     # ------------------------------------------------------------------ the cost
     def __call__(self, modal: Any) -> np.ndarray:

@@ -54,8 +54,10 @@ __all__ = [
     "free_fit_compiled",
     "initial_state_fit",
     "initial_state_fit_reference",
+    "modal_normal",
     "modal_regressors",
     "modal_regressors_reference",
+    "modal_residual",
     "poly_mul_compiled",
     "schur_cohn_compiled",
     "set_threads",
@@ -383,6 +385,78 @@ def modal_regressors(
     _c.modal_regressors(poles, u, phi, m, bool(feedthrough), bool(free_response),
                         _threads_for(P * N * k))  # fmt: skip
     return phi
+
+
+def modal_normal(
+    poles: np.ndarray, u: np.ndarray, target: np.ndarray, m: int, feedthrough: bool,
+    free_response: bool,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The normal equations of every candidate's regressors (:func:`modal_regressors`).
+
+    Parameters
+    ----------
+    poles, u, m, feedthrough, free_response
+        As :func:`modal_regressors`.
+    target : ndarray, shape (N, ny)
+
+    Returns
+    -------
+    gram : ndarray, shape (P, k, k)
+        ``phi' phi`` of each candidate.
+    rhs : ndarray, shape (P, k, ny)
+        ``phi' target``.
+    """
+    poles = np.ascontiguousarray(poles, dtype=float)
+    u = np.ascontiguousarray(u, dtype=float)
+    target = np.ascontiguousarray(target, dtype=float)
+    if BACKEND != "c":
+        phi = modal_regressors_reference(poles, u, m, feedthrough, free_response)
+        return np.swapaxes(phi, 1, 2) @ phi, np.swapaxes(phi, 1, 2) @ target
+    P, width = poles.shape
+    N, nu = u.shape
+    k = nu * width + (nu if feedthrough else 0) + (width if free_response else 0)
+    gram, rhs = np.empty((P, k, k)), np.empty((P, k, target.shape[1]))
+    _c.modal_normal(poles, u, target, gram, rhs, m, bool(feedthrough), bool(free_response),
+                    _threads_for(P * N * k * k))  # fmt: skip
+    return gram, rhs
+
+
+def modal_residual(
+    poles: np.ndarray, u: np.ndarray, target: np.ndarray, coef: np.ndarray, m: int,
+    feedthrough: bool, free_response: bool, *, want_residual: bool = True,
+) -> tuple[np.ndarray | None, np.ndarray]:  # fmt: skip
+    """Every candidate's errors ``target - phi coef`` and their sums of squares.
+
+    Parameters
+    ----------
+    poles, u, m, feedthrough, free_response
+        As :func:`modal_regressors`.
+    target : ndarray, shape (N, ny)
+    coef : ndarray, shape (P, k, ny)
+    want_residual : bool, optional
+        Return the errors (False: their sums of squares only, without the ``(P, N, ny)``
+        array).
+
+    Returns
+    -------
+    residual : ndarray, shape (P, N, ny), or None
+    sse : ndarray, shape (P,)
+    """
+    poles = np.ascontiguousarray(poles, dtype=float)
+    u = np.ascontiguousarray(u, dtype=float)
+    target = np.ascontiguousarray(target, dtype=float)
+    coef = np.ascontiguousarray(coef, dtype=float)
+    if BACKEND != "c":
+        phi = modal_regressors_reference(poles, u, m, feedthrough, free_response)
+        e = target - phi @ coef
+        return (e if want_residual else None), np.einsum("pnq,pnq->p", e, e)
+    P = poles.shape[0]
+    N, ny = target.shape
+    residual = np.empty((P, N, ny)) if want_residual else None
+    sse = np.empty(P)
+    _c.modal_residual(poles, u, target, coef, residual, sse, m, bool(feedthrough),
+                      bool(free_response), _threads_for(P * N * coef.shape[1] * ny))  # fmt: skip
+    return residual, sse
 
 
 def _rows(x: np.ndarray) -> np.ndarray:

@@ -1,22 +1,30 @@
 /*
- * modal.h: the regressors of the modal state-space cost (modal.c).
+ * modal.h: the regressors, normal equations and residuals of the modal state-space cost
+ * (modal.c).
  */
 #ifndef FLEXID_MODAL_H
 #define FLEXID_MODAL_H
 
 #include "simd.h"
 
-/* One job: the population's poles, the record's inputs and the regressors to write. */
+/* One job: the population's poles, the record, and what to compute. */
 typedef struct {
-    const double *poles; /* (P, 2 m + r): a1, a2 of each mode, then each real pole */
-    const double *u;     /* (N, nu) */
-    double *phi;         /* (P, N, k) */
-    Py_ssize_t P, m, r, N, nu, k;
-    int feedthrough;     /* nu columns of u after the filtered ones */
-    int free_response;   /* 2 m + r free-response columns last */
+    const double *poles;  /* (P, 2 m + r): a1, a2 of each mode, then each real pole */
+    const double *u;      /* (N, nu) */
+    const double *target; /* (N, ny), for normal and residual */
+    const double *coef;   /* (P, k, ny), for residual */
+    double *phi;          /* (P, N, k): the regressors, or NULL */
+    double *gram;         /* (P, k, k): phi' phi, or NULL */
+    double *rhs;          /* (P, k, ny): phi' target, or NULL */
+    double *residual;     /* (P, N, ny): target - phi coef, or NULL */
+    double *sse;          /* (P,): its sum of squares, or NULL */
+    Py_ssize_t P, m, r, N, nu, ny, k;
+    int feedthrough;   /* nu columns of u after the filtered ones */
+    int free_response; /* 2 m + r free-response columns last */
 } modal_job;
 
-/* modal_regressors: the whole job on up to n_threads threads; 0, or -1 out of memory. */
-int flexid_modal_regressors(const modal_job *J, int n_threads);
+/* modal_regressors, modal_normal, modal_residual: the job (what its non-NULL outputs ask
+ * for) on up to n_threads threads; 0, or -1 out of memory. */
+int flexid_modal_run(const modal_job *J, int n_threads);
 
 #endif /* FLEXID_MODAL_H */

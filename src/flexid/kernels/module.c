@@ -19,7 +19,9 @@
  *   free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out,
  *            coef_out[, threads[, first, noise]])                         initial_state.c
  *   modal_regressors(poles, u, phi, m, feedthrough, free_response[, threads])
- *                                                                         modal.c
+ *   modal_normal(poles, u, target, gram, rhs, m, feedthrough, free_response[, threads])
+ *   modal_residual(poles, u, target, coef, residual, sse, m, feedthrough, free_response
+ *                  [, threads])                                            modal.c
  *
  * and simd([name]), defined here: the instruction set the kernels run (simd.h), (in use,
  * best) as names, and with a name ("generic", "avx2", "avx512") that one from then on.
@@ -386,6 +388,29 @@ static PyObject *py_twin_rotor_run(PyObject *self, PyObject *args)
     return finish(v, N, rc);
 }
 
+/* The sizes of a modal job from poles (P, 2 m + r) and u (N, nu), into J; 0 or RAISED. */
+static int modal_sizes(const char *fn, arg *poles, arg *u, Py_ssize_t m, int feedthrough,
+                       int free_response, modal_job *J)
+{
+    const Py_ssize_t P = dim(poles, 0), width = dim(poles, 1), N = dim(u, 0), nu = dim(u, 1);
+    if (!SHAPE(poles, P, width) || !SHAPE(u, N, nu) || m < 0 || width - 2 * m < 0 || nu < 1 ||
+        N < 1) {
+        PyErr_Format(PyExc_ValueError, "%s: poles (P, 2 m + r) and u (N, nu)", fn);
+        return RAISED;
+    }
+    J->poles = DATA(poles);
+    J->u = DATA(u);
+    J->P = P;
+    J->m = m;
+    J->r = width - 2 * m;
+    J->N = N;
+    J->nu = nu;
+    J->k = nu * width + (feedthrough ? nu : 0) + (free_response ? width : 0);
+    J->feedthrough = feedthrough;
+    J->free_response = free_response;
+    return 0;
+}
+
 static PyObject *py_modal_regressors(PyObject *self, PyObject *args)
 {
     enum { POLES, U, PHI, N };
@@ -398,16 +423,70 @@ static PyObject *py_modal_regressors(PyObject *self, PyObject *args)
                           &free_response, &n_threads))
         return NULL;
     int rc = get_args("modal_regressors", spec, N, o, v);
-    const Py_ssize_t P = dim(&v[POLES], 0), width = dim(&v[POLES], 1), T = dim(&v[U], 0),
-                     nu = dim(&v[U], 1), r = width - 2 * m;
-    const Py_ssize_t k = nu * (2 * m + r) + (feedthrough ? nu : 0) + (free_response ? 2 * m + r : 0);
-    if (rc == 0 && (m < 0 || r < 0 || P < 0 || nu < 1 || T < 1 ||
-                    !SHAPE(&v[POLES], P, width) || !SHAPE(&v[PHI], P, T, k)))
-        rc = invalid("modal_regressors: poles (P, 2 m + r), u (N, nu), phi (P, N, k) with "
-                     "k = nu (2 m + r) + nu feedthrough + (2 m + r) free_response");
-    const modal_job job = {DATA(&v[POLES]), DATA(&v[U]), DATA(&v[PHI]), P, m, r, T, nu, k,
-                           feedthrough, free_response};
-    if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_modal_regressors(&job, n_threads));
+    modal_job J = {0};
+    if (rc == 0)
+        rc = modal_sizes("modal_regressors", &v[POLES], &v[U], m, feedthrough, free_response, &J);
+    if (rc == 0 && !SHAPE(&v[PHI], J.P, J.N, J.k))
+        rc = invalid("modal_regressors: phi must be (P, N, k)");
+    J.phi = DATA(&v[PHI]);
+    if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_modal_run(&J, n_threads));
+    return finish(v, N, rc);
+}
+
+static PyObject *py_modal_normal(PyObject *self, PyObject *args)
+{
+    enum { POLES, U, TARGET, GRAM, RHS, N };
+    static const arg_spec spec[N] = {IN("poles"), IN("u"), IN("target"), OUT("gram"),
+                                     OUT("rhs")};
+    PyObject *o[N] = {NULL};
+    arg v[N] = {0};
+    Py_ssize_t m;
+    int feedthrough, free_response, n_threads = 1;
+    if (!PyArg_ParseTuple(args, "OOOOOnpp|i", &o[POLES], &o[U], &o[TARGET], &o[GRAM], &o[RHS],
+                          &m, &feedthrough, &free_response, &n_threads))
+        return NULL;
+    int rc = get_args("modal_normal", spec, N, o, v);
+    modal_job J = {0};
+    if (rc == 0)
+        rc = modal_sizes("modal_normal", &v[POLES], &v[U], m, feedthrough, free_response, &J);
+    J.ny = dim(&v[TARGET], 1);
+    if (rc == 0 && (J.ny < 1 || !SHAPE(&v[TARGET], J.N, J.ny) ||
+                    !SHAPE(&v[GRAM], J.P, J.k, J.k) || !SHAPE(&v[RHS], J.P, J.k, J.ny)))
+        rc = invalid("modal_normal: target (N, ny), gram (P, k, k), rhs (P, k, ny)");
+    J.target = DATA(&v[TARGET]);
+    J.gram = DATA(&v[GRAM]);
+    J.rhs = DATA(&v[RHS]);
+    if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_modal_run(&J, n_threads));
+    return finish(v, N, rc);
+}
+
+static PyObject *py_modal_residual(PyObject *self, PyObject *args)
+{
+    enum { POLES, U, TARGET, COEF, RESIDUAL, SSE, N };
+    static const arg_spec spec[N] = {IN("poles"), IN("u"), IN("target"), IN("coef"),
+                                     OUT_OPT("residual"), OUT("sse")};
+    PyObject *o[N] = {NULL};
+    arg v[N] = {0};
+    Py_ssize_t m;
+    int feedthrough, free_response, n_threads = 1;
+    if (!PyArg_ParseTuple(args, "OOOOOOnpp|i", &o[POLES], &o[U], &o[TARGET], &o[COEF],
+                          &o[RESIDUAL], &o[SSE], &m, &feedthrough, &free_response, &n_threads))
+        return NULL;
+    int rc = get_args("modal_residual", spec, N, o, v);
+    modal_job J = {0};
+    if (rc == 0)
+        rc = modal_sizes("modal_residual", &v[POLES], &v[U], m, feedthrough, free_response, &J);
+    J.ny = dim(&v[TARGET], 1);
+    if (rc == 0 && (J.ny < 1 || !SHAPE(&v[TARGET], J.N, J.ny) ||
+                    !SHAPE(&v[COEF], J.P, J.k, J.ny) ||
+                    !OPT_SHAPE(&v[RESIDUAL], J.P, J.N, J.ny) || !SHAPE(&v[SSE], J.P)))
+        rc = invalid("modal_residual: target (N, ny), coef (P, k, ny), residual (P, N, ny) "
+                     "or None, sse (P,)");
+    J.target = DATA(&v[TARGET]);
+    J.coef = DATA(&v[COEF]);
+    J.residual = DATA(&v[RESIDUAL]);
+    J.sse = DATA(&v[SSE]);
+    if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_modal_run(&J, n_threads));
     return finish(v, N, rc);
 }
 
@@ -546,6 +625,12 @@ static PyMethodDef methods[] = {
     {"modal_regressors", py_modal_regressors, METH_VARARGS,
      "modal_regressors(poles, u, phi, m, feedthrough, free_response[, threads]): the modal "
      "state-space cost's regressors of every candidate (see modal.c)."},
+    {"modal_normal", py_modal_normal, METH_VARARGS,
+     "modal_normal(poles, u, target, gram, rhs, m, feedthrough, free_response[, threads]): "
+     "their normal equations (see modal.c)."},
+    {"modal_residual", py_modal_residual, METH_VARARGS,
+     "modal_residual(poles, u, target, coef, residual, sse, m, feedthrough, free_response"
+     "[, threads]): their fit's errors and sums of squares (see modal.c)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
      "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads]): twin rotor "
      "RK4; params (22,) shared or (B, 22) per rotor (see twin_rotor.c)."},
