@@ -102,6 +102,20 @@ def test_the_compiled_regressors_equal_the_reference_path(feedthrough, free):
     want = kernels.modal_regressors_reference(poles, u, 3, feedthrough, free)
     assert got.shape == want.shape == (6, 500, 14 + 2 * feedthrough + 7 * free)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.max(np.abs(want)))
+    # the normal equations and errors, made row by row and never stored: against the
+    # products of the reference regressors (sums of 500 terms: 1e-12 of the largest entry)
+    y = rng.standard_normal((500, 2))
+    gram, rhs = kernels.modal_normal(poles, u, y, 3, feedthrough, free)
+    G, R = np.swapaxes(want, 1, 2) @ want, np.swapaxes(want, 1, 2) @ y
+    np.testing.assert_allclose(gram, G, rtol=0, atol=1e-12 * np.max(np.abs(G)))
+    np.testing.assert_allclose(rhs, R, rtol=0, atol=1e-12 * np.max(np.abs(R)))
+    coef = rng.standard_normal((6, got.shape[2], 2)) / np.max(np.abs(want))
+    residual, sse = kernels.modal_residual(poles, u, y, coef, 3, feedthrough, free)
+    e = y - want @ coef
+    np.testing.assert_allclose(residual, e, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(sse, np.einsum("pnq,pnq->p", e, e), rtol=1e-10)
+    assert kernels.modal_residual(poles, u, y, coef, 3, feedthrough, free,
+                                  want_residual=False)[0] is None  # fmt: skip
 
 
 def test_the_structure_refuses_what_it_cannot_hold():
