@@ -213,7 +213,7 @@ def test_identify_ss_bad_input_is_a_typed_error():
                     output_names=["a", "b"])  # fmt: skip
     with pytest.raises(ModelOrderError, match="needs its order"):
         flexid.identify(record, structure="ss")
-    with pytest.raises(ModelOrderError, match="takes order and modes, not na"):
+    with pytest.raises(ModelOrderError, match="takes order, modes, frequency and damping, not na"):
         flexid.identify(record, 2, structure="ss", order=2)
     with pytest.raises(DataError, match="no output channel 'c'"):
         flexid.identify(record, structure="ss", order=2, output="a,c")
@@ -242,6 +242,21 @@ def test_the_command_line_route_prints_every_output_and_refuses_in_one_line(
                  "--modes", "3"]) == 2  # fmt: skip
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "3 modes need order >= 6" in err[0]
+    for option, value, words in (("--damping", "0.01,2", "must lie in (0, 1]"),
+                                 ("--frequency", "1,80", "above Nyquist"),
+                                 ("--frequency", "5", "two numbers"),
+                                 ("--output", "hub,nope", "no output channel 'nope'")):  # fmt: skip
+        assert main(["identify", str(path), "--structure", "ss", "--order", "4",
+                     option, value]) == 2  # fmt: skip
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], err
+    assert not list(tmp_path.glob("*.json"))  # nothing half-made
+    # the bounds reach the search: every mode inside them
+    ident = flexid.identify(record, structure="ss", order=4, frequency=(2.0, 20.0),
+                            damping=(0.01, 0.2), optimiser="pso", budget=200)  # fmt: skip
+    for mode in ident.model.modes():
+        assert 2.0 - 1e-9 <= mode.frequency <= 20.0 + 1e-9
+        assert 0.01 - 1e-12 <= mode.damping <= 0.2 + 1e-12
 
 
 @pytest.fixture(scope="module")

@@ -60,6 +60,8 @@ def identify(
     nf: int | Sequence[int] | None = None,
     order: int | None = None,
     modes: int | None = None,
+    frequency: tuple[float, float] | None = None,
+    damping: tuple[float, float] | None = None,
     optimiser: str = PREDICTION_ERROR,
     params: Mapping[str, Any] | None = None,
     cost: str | CostSpec | None = None,
@@ -127,6 +129,9 @@ def identify(
         Its optimisers search the modal space (frequency and damping of each mode);
         ``"n4sid"`` is subspace identification (:func:`flexid.n4sid`) and ``"pem"`` its
         prediction-error refinement (:func:`flexid.statespace_fit.ssest`).
+    frequency, damping : (float, float), optional
+        For ``structure="ss"``: the bounds of the modes' natural frequencies (Hz, within
+        Nyquist) and damping ratios (within (0, 1]) that the search keeps to.
     optimiser : str
         A registered optimiser name (``flexid list optimisers``), ``"ls"`` for least
         squares (the exact optimum of the one-step ARX cost; for other structures the ARX
@@ -238,7 +243,8 @@ def identify(
         found = estimate_delay(first if len(records) == 1 else joined(records))
         nk = list(found.nk) if first.n_inputs > 1 else found.nk[0]
         delay_text = found.describe()
-    extra = {k: v for k, v in (("order", order), ("modes", modes)) if v is not None}
+    extra = {k: v for k, v in (("order", order), ("modes", modes), ("frequency", frequency),
+                               ("damping", damping)) if v is not None}  # fmt: skip
     if family.several_outputs:
         extra["n_outputs"] = first.n_outputs
     structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk,

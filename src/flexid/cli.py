@@ -343,6 +343,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         load_options=load_options,
         order=args.order,
         modes=args.modes,
+        frequency=_pair(args.frequency, "--frequency"),
+        damping=_pair(args.damping, "--damping"),
         parametrisation=args.parametrisation,
         penalty_kind=args.penalty,
         init=args.init,
@@ -852,6 +854,19 @@ def _write_suite_report(result: Any, out: Path, *, figures: bool, by: str) -> No
         raise
 
 
+def _pair(text: str | None, option: str) -> tuple[float, float] | None:
+    """``"lo,hi"`` as two numbers, or None."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        return float(parts[0]), float(parts[1])
+    except ValueError:
+        raise ConfigError(f"{option} takes two numbers LO,HI, got {text!r}") from None
+
+
 def _one_or_more(names: list) -> Any:
     """One channel as itself, several as the list."""
     return names[0] if len(names) == 1 else names
@@ -1034,6 +1049,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "output (or those --output names) with the modes searched (no default)")
     i.add_argument("--modes", type=int,
                    help="lightly damped modes among them (--structure ss; default order // 2)")
+    i.add_argument("--frequency", metavar="LO,HI",
+                   help="bounds of the modes' frequencies in Hz (--structure ss; default: the "
+                   "record's resolution 1/(N dt) to Nyquist)")
+    i.add_argument("--damping", metavar="LO,HI",
+                   help="bounds of the modes' damping ratios (--structure ss; default 1e-4,1)")
     _channels_option(i)
     i.add_argument(
         "--optimiser",

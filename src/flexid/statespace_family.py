@@ -232,14 +232,16 @@ class StateSpaceFamily(Family):
                 )
             return spec
         order, modes = orders.pop("order", None), orders.pop("modes", None)
+        bounds = {k: orders.pop(k) for k in ("frequency", "damping") if k in orders}
         other = sorted(k for k, v in orders.items() if v is not None and (k, v) != ("nk", 1))
         if other:
             raise ModelOrderError(
-                f"structure 'ss' takes order and modes, not {', '.join(other)}"
+                f"structure 'ss' takes order, modes, frequency and damping, not "
+                f"{', '.join(other)}"
             )
         if order is None:
             raise ModelOrderError("structure 'ss' needs its order (order=4, or --order 4)")
-        return StateSpaceStructure(order, n_inputs, n_outputs, n_modes=modes)
+        return StateSpaceStructure(order, n_inputs, n_outputs, n_modes=modes, **bounds)
 
     structure.__doc__ = Family.structure.__doc__
 
