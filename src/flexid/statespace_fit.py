@@ -197,7 +197,8 @@ class StateSpaceResult(ReferenceResult):
     """Outcome of :func:`ssest`, a :class:`~flexid.reference.ReferenceResult`.
 
     Keys besides the reference's (where ``x`` is the modal parameters ``[f_1, zeta_1, ..,
-    f_c1, ..]`` and ``std`` their standard errors):
+    f_c1, ..]``, the modes and the real poles each by increasing frequency, and ``std`` their
+    standard errors):
 
     model : StateSpaceModel
         The estimate, its gains and initial state fitted for ``x``.
@@ -282,8 +283,10 @@ def refine(
     scale = modal * math.log(10.0) * width  # d modal / d v
     cov = sigma2 * np.linalg.pinv(J.T @ J)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * np.abs(scale)
+    order = _by_frequency(cost.structure.n_modes, modal)  # the same model, modes in order
+    modal, std = modal[order], std[order]
+    on_bound = sorted(int(i) for i in np.flatnonzero(held[order]))
     theta = cost.fit(modal[None])[0][0]
-    on_bound = [i for i in range(k) if held[i]]
     where = f"; held by a bound in coordinate(s) {on_bound}" if on_bound else ""
     return StateSpaceResult.assemble(
         runs, best, x=modal, fun=sse, std=std, optimality=reached,
@@ -294,6 +297,14 @@ def refine(
         t_begin=t_begin, theta=theta, model=cost.structure.model(theta, cost.dt),
         noise_variance=sigma2, **keys,
     )
+
+
+def _by_frequency(m: int, modal: np.ndarray) -> np.ndarray:
+    """The permutation of a modal vector that puts its modes, then its real poles, in order
+    of frequency (the cost does not depend on their order)."""
+    modes = np.argsort(modal[0 : 2 * m : 2], kind="stable")
+    reals = 2 * m + np.argsort(modal[2 * m :], kind="stable")
+    return np.concatenate([np.column_stack([2 * modes, 2 * modes + 1]).reshape(-1), reals])
 
 
 @checked_keywords
