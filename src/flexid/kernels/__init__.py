@@ -308,7 +308,17 @@ def modal_regressors_reference(
     """Reference path of :func:`modal_regressors`: one ``scipy.signal.lfilter`` per candidate,
     pole group and input.
 
-    Parameters and result as :func:`modal_regressors`.
+    Parameters
+    ----------
+    poles : ndarray, shape (P, 2 m + r)
+    u : ndarray, shape (N, nu)
+    m : int
+    feedthrough, free_response : bool
+        As :func:`modal_regressors`.
+
+    Returns
+    -------
+    ndarray, shape (P, N, k)
     """
     P, width = poles.shape
     r = width - 2 * m
