@@ -46,7 +46,7 @@ from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _chec
 from .data import IOData, prepare_data, split_parts
 from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
-from .families import family_of
+from .families import family_named, family_of
 from .optimisers import Budget, get, minimize
 from .store import ResultStore
 
@@ -148,8 +148,11 @@ class _Context:
             if m.structure == GREYBOX:  # the spec names a model, not orders
                 self.structure = m.greybox_model()
             else:
+                orders = m.orders()
+                if family_named(m.structure).several_outputs:
+                    orders["n_outputs"] = self.records[0].n_outputs
                 self.structure = structure_of(m.structure, self.records[0].n_inputs,
-                                              **m.orders())  # fmt: skip
+                                              **orders)  # fmt: skip
         except ModelOrderError as exc:
             raise ConfigError(f"[model]: {exc}") from None
         #: the structure's family, which every model-specific step of a run asks
@@ -206,8 +209,9 @@ class _Context:
                     "an index): its validation runs on from the record's start"
                 )
             return cls(spec, split_parts(record, d.split)[0], record)
+        several = family_named(spec.model.structure).several_outputs
         est, val = prepare_data(record, output=d.output, split=d.split, detrend=d.detrend,
-                                validation=validation)  # fmt: skip
+                                validation=validation, several=several)  # fmt: skip
         return cls(spec, est, val)
 
     def respecified(self, **changes: Any) -> _Context:
@@ -259,9 +263,7 @@ def _store_history(result) -> dict[str, list]:
     return {"fe": fe, "best": best}
 
 
-def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
-    report = ctx.family.held_out(model, ctx.records[0], ctx.val, max_lag=ctx.spec.max_lag,
-                                 initial=ctx.spec.validate_initial)  # fmt: skip
+def _report_numbers(report: Any) -> dict[str, Any]:
     err = report.error_range_one_step
     return {
         "fit_one_step": float(report.fit_one_step),
@@ -271,6 +273,25 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
         "error_max": float(err[1]),
         "correlation_passed": bool(report.passed),
     }
+
+
+def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
+    """The held-out numbers of a run's model; with several outputs, the first output's and
+    each output's under ``outputs``."""
+    report = ctx.family.held_out(model, ctx.records[0], ctx.val, max_lag=ctx.spec.max_lag,
+                                 initial=ctx.spec.validate_initial)  # fmt: skip
+    numbers = _report_numbers(report)
+    names = list(getattr(model, "output_names", ()))
+    if len(names) > 1:  # the record's names for the model's outputs, in order
+        names = list(ctx.val.output_names)
+        model = model.named(list(ctx.val.input_names), names)
+        numbers["outputs"] = {
+            o: _report_numbers(ctx.family.validate(
+                model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.validate_initial,
+                split=None, dt=None, output=o))
+            for o in names
+        }  # fmt: skip
+    return numbers
 
 
 def _least_squares_record(ctx: _Context) -> dict[str, Any]:
@@ -310,6 +331,8 @@ def _least_squares_record(ctx: _Context) -> dict[str, Any]:
             "local_minimum": bool(oe.local_minimum),
             "on_cap": bool(oe.on_cap),
         }
+        if getattr(ctx.estimation, "reference_name", None):  # a family's own words
+            record["output_error"]["name"] = ctx.estimation.reference_name
     record["wall_time"] = time.perf_counter() - t0
     return record
 

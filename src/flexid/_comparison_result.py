@@ -13,6 +13,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from ._json import jsonable
 from ._table import text_table
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec
@@ -157,6 +159,8 @@ class ComparisonResult:
                     "grey-box reference (Levenberg-Marquardt on the simulation residuals), "
                     f"from the given values and random starts; given values {_f(ref['cost'])}"
                 )
+            elif self.spec.model.registered and oe.get("name"):  # a family's own words
+                self.reference_note = f"{oe['name']}; {self.start_label} {_f(ref['cost'])}"
             else:
                 if self.spec.model.structure != "arx":
                     name = "prediction-error reference (Levenberg-Marquardt, analytic gradients)"
@@ -180,7 +184,11 @@ class ComparisonResult:
     def start_label(self) -> str:
         """What the first row of the tables is: least squares, or a grey-box model's given
         parameter values."""
-        return "nominal values" if self.spec.model.structure == GREYBOX else "least squares"
+        if self.spec.model.structure == GREYBOX:
+            return "nominal values"
+        if self.spec.model.registered:  # a family's own start (state space: n4sid)
+            return str(self.reference.get("start_name", "least squares"))
+        return "least squares"
 
     # ------------------------------------------------------------------ tables
     def cost_table(self) -> str:
@@ -340,7 +348,40 @@ class ComparisonResult:
             _VALIDATION_CAPTION,
             self.validation_table(),
         ]
+        outputs = self._output_rows()
+        if outputs:
+            lines += ["", _OUTPUTS_CAPTION, text_table(outputs)]
         return "\n".join(lines + self._notes())
+
+    def _output_rows(self) -> list[list[str]]:
+        """With several outputs: each row's held-out simulation fit and correlation-test pass
+        rate per output (medians and shares over its runs); empty with one output."""
+        names = list(self.reference["validation"].get("outputs", {}))
+        if not names:
+            return []
+        head = ["optimiser"] + [f"{h} {o}" for o in names for h in ("fit sim %", "pass")]
+        rows = [head]
+
+        def row(label: str, validations: list[dict]) -> list[str]:
+            cells = [label]
+            for o in names:
+                each = [v["outputs"][o] for v in validations if o in v.get("outputs", {})]
+                if not each:
+                    cells += ["-", "-"]
+                    continue
+                cells.append(_fit(float(np.median([e["fit_simulation"] for e in each]))))
+                share = np.mean([e["correlation_passed"] for e in each])
+                cells.append(f"{share * 100:.0f}%")
+            return cells
+
+        rows.append(row(self.start_label, [self.reference["validation"]]))
+        oe = self.reference.get("output_error")
+        if oe and "validation" in oe:
+            rows.append(row(_REFERENCE_ROW, [oe["validation"]]))
+        for label, rs in self.records.items():
+            rows.append(row(label, [r["validation"] for r in rs
+                                    if r["status"] == "ok" and "validation" in r]))  # fmt: skip
+        return rows
 
     def _notes(self) -> list[str]:
         """The lines after the tables: failed runs and the rank-sum conclusion."""
@@ -418,6 +459,7 @@ class ComparisonResult:
 
 
 _VALIDATION_CAPTION = "Validation on the held-out record (medians over runs)"
+_OUTPUTS_CAPTION = "Each output on the held-out record (medians and shares over runs)"
 
 
 def _search_text(search) -> str:

@@ -75,6 +75,7 @@ __all__ = [
     "REFERENCES",
     "REFLECTION_CAP",
     "SCHEDULE",
+    "STATE_SPACE",
     "STRUCTURE_NAMES",
     "SUBSPACE",
     "ComparisonSpec",
@@ -126,6 +127,9 @@ STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
 #: The structure name of a grey-box model (:mod:`flexid.models.greybox`), beside the
 #: polynomial ones.
 GREYBOX = "greybox"
+#: The structure name of a state-space model of every output (:mod:`flexid.models.statespace`;
+#: its orders, ``order`` and ``modes``, in a :class:`ModelSpec`'s ``options``).
+STATE_SPACE = "ss"
 # Structure names of the model families registered beyond the built-in ones
 # (flexid.families.register_family adds theirs): a ModelSpec may name them.
 _REGISTERED_NAMES: set[str] = set()
@@ -349,7 +353,8 @@ class ModelSpec:
         return self.structure not in (*STRUCTURE_NAMES, GREYBOX)
 
     def __post_init__(self) -> None:
-        known = (*STRUCTURE_NAMES, GREYBOX, *sorted(_REGISTERED_NAMES - set(STRUCTURE_NAMES)))
+        known = (*STRUCTURE_NAMES, GREYBOX, STATE_SPACE,
+                 *sorted(_REGISTERED_NAMES - {*STRUCTURE_NAMES, STATE_SPACE}))  # fmt: skip
         if self.structure not in known:
             from .errors import UnknownNameError
 

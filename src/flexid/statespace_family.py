@@ -19,7 +19,7 @@ import math
 import time
 import warnings
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import signal
@@ -42,8 +42,8 @@ __all__ = ["StateSpaceEstimationProblem", "StateSpaceFamily", "free_response_fit
 START_NAME = "subspace estimate (n4sid)"
 #: Its reference, in words.
 REFERENCE_NAME = (
-    "state-space reference (Levenberg-Marquardt on the modal parameters from the subspace "
-    "estimate and random starts)"
+    "state-space reference (Levenberg-Marquardt on the modal parameters, from the subspace "
+    f"estimate and {SSEST_STARTS} random starts)"
 )
 
 
@@ -77,6 +77,8 @@ class StateSpaceEstimationProblem:
     modal_box: ModalBox
     subspace: SubspaceResult
     _ref: Any = field(default=None, repr=False)
+    #: The reference in words, as a comparison's header names it.
+    reference_name: ClassVar[str] = REFERENCE_NAME
 
     @property
     def start(self) -> np.ndarray:

@@ -204,6 +204,8 @@ class StateSpaceResult(ReferenceResult):
         The estimate, its gains and initial state fitted for ``x``.
     theta : ndarray
         Its whole parameter vector (:class:`~flexid.models.statespace.StateSpaceStructure`).
+    stable : bool
+        Whether the model is stable (every model of the modal space is).
     subspace : SubspaceResult or None
         The :func:`flexid.n4sid` estimate the first start came from.
     """
@@ -287,6 +289,7 @@ def refine(
     modal, std = modal[order], std[order]
     on_bound = sorted(int(i) for i in np.flatnonzero(held[order]))
     theta = cost.fit(modal[None])[0][0]
+    model = cost.structure.model(theta, cost.dt)
     where = f"; held by a bound in coordinate(s) {on_bound}" if on_bound else ""
     return StateSpaceResult.assemble(
         runs, best, x=modal, fun=sse, std=std, optimality=reached,
@@ -294,7 +297,7 @@ def refine(
         nfev=sum(r.nfev for r in runs), njev=sum(r.njev for r in runs),
         nfev_equivalent=count["points"],
         message=f"best of {len(runs)} start(s): {runs[best].kind} ({runs[best].message}){where}",
-        t_begin=t_begin, theta=theta, model=cost.structure.model(theta, cost.dt),
+        t_begin=t_begin, theta=theta, model=model, stable=bool(model.is_stable),
         noise_variance=sigma2, **keys,
     )
 
