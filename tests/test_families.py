@@ -247,7 +247,8 @@ def test_a_model_spec_names_registered_structures_and_takes_their_orders_as_opti
     from flexid.config import ModelSpec
     from flexid.errors import UnknownNameError
 
-    with pytest.raises(UnknownNameError, match=r"'tagged-oe'; known: armax, arx, bj, greybox, oe, ss$"):
+    known = r"'tagged-oe'; known: armax, arx, bj, greybox, oe, ss$"
+    with pytest.raises(UnknownNameError, match=known):
         ModelSpec(structure="tagged-oe")
     register_family(TaggedOEFamily())
     spec = ModelSpec(structure="tagged-oe", options={"nb": 2, "nf": 2}, nk=2)

@@ -201,6 +201,7 @@ def test_identify_ss_by_n4sid_pem_and_an_optimiser_reports_every_output(two_sens
         text = ident.summary()
         assert "Validation record (held out), output 'tip'" in text
         assert ident.to_dict()["outputs"][1]["output"] == "tip"
+        assert "residuals between outputs" in text and len(ident.output_tests) == 1
     ident = flexid.identify(record, structure="ss", order=4, optimiser="de", budget=300, seed=2)
     assert ident.nfev == 300 and ident.model.is_stable
     one = flexid.identify(record, structure="ss", order=4, output="tip")
@@ -331,3 +332,25 @@ def test_a_comparison_of_a_state_space_model_reports_every_output(two_sensor_rec
     # read back from the store, the same tables
     (again,) = flexid.load_result(store, result.key)
     assert again.summary() == text
+
+
+def test_the_residuals_of_several_outputs_are_tested_against_each_other():
+    from flexid.diagnostics import output_cross_tests
+
+    rng = np.random.default_rng(11)
+    n = 2000
+    a, b, c = rng.standard_normal((3, n))
+    # independent residuals pass; a shared component at lag 0 alone (correlated sensor noise)
+    # is not counted; one output's residual in another's two samples later fails
+    assert all(t.passed for t in output_cross_tests(np.column_stack([a, b, c]), 20))
+    (same,) = output_cross_tests(np.column_stack([a, a + 0.3 * b]), 20, ["p", "q"])
+    assert same.passed and same.name == "cross p-q"
+    late = np.concatenate([np.zeros(2), a[:-2]]) + 0.5 * b
+    (test,) = output_cross_tests(np.column_stack([a, late]), 20)
+    assert not test.passed
+    # the coefficient at lag -2 (corr(e1(t), e2(t + 2))) against numpy's on the overlap: the
+    # biased estimator scales by the whole records' norms, so they differ by about 2 / N
+    r = np.corrcoef(a[:-2], late[2:])[0, 1]
+    assert test.values[list(test.lags).index(-2)] == pytest.approx(r, abs=2e-3)
+    with pytest.raises(DataError, match="ny >= 2"):
+        output_cross_tests(a[:, None], 20)

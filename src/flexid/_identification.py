@@ -75,6 +75,9 @@ class Identification:
         With several outputs (a state-space model), each output's estimation and held-out
         reports, in the record's order (``estimation`` and ``validation`` are the first
         output's); empty with one.
+    output_tests : tuple of CorrelationTest
+        With several outputs, the held-out residuals' cross-correlation between every pair
+        of outputs at nonzero lags (:func:`flexid.diagnostics.output_cross_tests`).
     """
 
     model: ARX
@@ -95,6 +98,7 @@ class Identification:
     cost_search: float | None = None
     estimation_records: tuple = ()
     outputs: tuple = ()
+    output_tests: tuple = ()
 
     @property
     def held_out(self) -> tuple[ValidationReport, ...]:
@@ -250,6 +254,10 @@ class Identification:
                 lines.append(f"{val.output_name:<24} {format_fit(est.fit_simulation):>16} "
                              f"{format_fit(val.fit_simulation):>20} "
                              f"{'PASS' if val.passed else 'FAIL':>18}")  # fmt: skip
+            if self.output_tests:
+                lines.append("residuals between outputs (held out, every lag but 0)")
+                width = max(len(t.name) for t in self.output_tests)
+                lines += [f"  {t.name:{width}}  {t.verdict()}" for t in self.output_tests]
             lines.append("")
         for report in self.held_out:
             which = f", output {report.output_name!r}" if self.outputs else ""
@@ -318,7 +326,8 @@ class Identification:
                    if self.estimation_records else {}),
                 "validation": self.validation.to_dict(),
                 **({"outputs": [{"output": v.output_name, "estimation": e.to_dict(),
-                                 "validation": v.to_dict()} for e, v in self.outputs]}
+                                 "validation": v.to_dict()} for e, v in self.outputs],
+                    "output_tests": [t.to_dict() for t in self.output_tests]}
                    if self.outputs else {}),
                 "timings": {k: round(v, 6) for k, v in self.timings.items()},
                 "data": self.data_info,

@@ -17,6 +17,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
 from ._identification import Identification, data_info, timings
 from ._identify_greybox import identify_greybox
 from ._validate import checked_keywords, integer
@@ -32,6 +34,7 @@ from .config import (
 )
 from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
+from .diagnostics import output_cross_tests
 from .errors import BudgetError, ConfigError, UnknownNameError
 from .estimation import build_problem, structure_of
 from .families import family_named, family_of
@@ -284,13 +287,15 @@ def identify(
     )  # fmt: skip
     report_val = validate(model, val, max_lag=max_lag, initial=validate_initial,
                           output=outputs[0] if per_output else None)  # fmt: skip
-    by_output = ()
+    by_output, between = (), ()
     if per_output:  # every output's held-out and estimation reports
         by_output = tuple(
             (validate(model, first, max_lag=max_lag, initial=validate_initial, output=o),
              validate(model, val, max_lag=max_lag, initial=validate_initial, output=o))
             for o in outputs
         )  # fmt: skip
+        residuals = np.column_stack([v.y - v.y_one_step for _, v in by_output])
+        between = tuple(output_cross_tests(residuals, max_lag, outputs))
     t_end = time.perf_counter()
     info = data_info(
         records, val.n_samples, list(first.input_names), outputs,
@@ -317,6 +322,7 @@ def identify(
         timings=timings(t_start, t_opt, t_val, t_end),
         data_info=info,
         outputs=by_output,
+        output_tests=between,
     )
 
 

@@ -101,6 +101,7 @@ __all__ = [
     "fit_percent",
     "format_fit",
     "max_outside_allowed",
+    "output_cross_tests",
     "psd",
     "residual_tests",
     "rmse",
@@ -562,6 +563,55 @@ def residual_tests(
                 description=f"phi_ue(tau) = corr(e(t), {name}(t-tau))",
             )
         )
+    return tests
+
+
+def output_cross_tests(
+    e: Any, max_lag: int = CORRELATION_LAGS, output_names: Sequence[str] | None = None
+) -> list[CorrelationTest]:
+    """Independence of the residuals of several outputs from each other (MATLAB ``resid`` of
+    a multi-output model).
+
+    A model that describes every output leaves residuals that do not predict each other:
+    ``corr(e_i(t), e_j(t - tau))`` within the band at every lag but 0, where sensors whose
+    noise is correlated (one acquisition card, one vibration) give a nonzero value that no
+    model of the inputs can remove.
+
+    Parameters
+    ----------
+    e : array_like, shape (N, ny)
+        The residual of each output over the same samples, ``ny >= 2``.
+    max_lag : int
+        Largest lag ``L``; needs ``N >= 2 L + 2``.
+    output_names : sequence of str, optional
+        Names used in the test names (default ``y1, y2, ...``).
+
+    Returns
+    -------
+    list of CorrelationTest
+        One ``cross <i>-<j>`` per pair ``i < j`` (lags ``-L..L`` stored, every lag but 0
+        counted), by the pass rule of :func:`correlation_test`.
+
+    Raises
+    ------
+    DataError
+        Fewer than two outputs, non-finite values or a record too short for ``max_lag``.
+    """
+    e = np.asarray(e, dtype=float)
+    if e.ndim != 2 or e.shape[1] < 2:
+        raise DataError(f"output_cross_tests needs residuals of shape (N, ny >= 2), got {e.shape}")
+    n, ny = e.shape
+    max_lag = _check_max_lag(max_lag, n, "residual")
+    names = list(output_names) if output_names is not None else [f"y{i + 1}" for i in range(ny)]
+    if len(names) != ny:
+        raise DataError(f"{len(names)} output names for {ny} outputs")
+    tests = []
+    for i in range(ny):
+        for j in range(i + 1, ny):
+            lags, r = xcorr(_vector(e[:, i], names[i]), _vector(e[:, j], names[j]), max_lag)
+            tests.append(correlation_test(
+                f"cross {names[i]}-{names[j]}", lags, r, n, counted=lags != 0,
+                description=f"corr(e_{names[i]}(t), e_{names[j]}(t-tau)), tau != 0"))  # fmt: skip
     return tests
 
 
