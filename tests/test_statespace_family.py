@@ -354,3 +354,29 @@ def test_the_residuals_of_several_outputs_are_tested_against_each_other():
     assert test.values[list(test.lags).index(-2)] == pytest.approx(r, abs=2e-3)
     with pytest.raises(DataError, match="ny >= 2"):
         output_cross_tests(a[:, None], 20)
+
+
+def test_the_figures_of_a_state_space_identification_show_every_output(two_sensor_record,
+                                                                         tmp_path):  # fmt: skip
+    pytest.importorskip("matplotlib")
+    from flexid.plots import identification_figures
+
+    _, record = two_sensor_record
+    ident = flexid.identify(record, structure="ss", order=4, optimiser="n4sid")
+    names = {p.name for p in identification_figures(ident, tmp_path)}
+    for output in ("hub", "tip"):
+        assert {f"validation_simulation_{output}.png", f"spectra_{output}.png",
+                f"correlations_{output}.png"} <= names  # fmt: skip
+    assert "pole_zero.png" in names
+    # the zeros it draws, from the input to the first output, against an independent route:
+    # the finite generalised eigenvalues of the Rosenbrock pencil [[A, B], [C, D]] - z diag(I, 0)
+    # (polynomial roots and a pencil agree to about 1e-8 on a model of order 4)
+    from scipy import linalg
+
+    m = ident.model
+    n = m.order
+    pencil = np.block([[m.A, m.B], [m.C[:1], m.D[:1]]])
+    mass = np.block([[np.eye(n), np.zeros((n, 1))], [np.zeros((1, n + 1))]])
+    want = linalg.eigvals(pencil, mass)
+    want = want[np.isfinite(want)]
+    np.testing.assert_allclose(np.sort_complex(m.zeros()), np.sort_complex(want), rtol=1e-6)

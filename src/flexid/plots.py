@@ -470,9 +470,10 @@ def identification_figures(
     -------
     list of pathlib.Path
         The files written: ``convergence.png`` (when an optimiser ran), then
-        ``{estimation,validation}_{simulation,one_step}.png``, ``spectra.png``
-        (validation record), ``pole_zero.png`` (zeros of the first input) and
-        ``correlations.png`` (validation record), each with ``prefix``.
+        ``{estimation,validation}_{simulation,one_step}.png``, ``spectra.png`` and
+        ``correlations.png`` (validation record), and ``pole_zero.png`` (zeros of the first
+        input, to the first output), each with ``prefix``; with several outputs each output's
+        figures carry its name (``validation_simulation_<output>.png``).
     """
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
@@ -489,40 +490,47 @@ def identification_figures(
             cost=cost_label(ident.cost.metric, _cost_unit(ident.cost, unit)),
         )
         paths.append(_save(fig, outdir / f"{p}convergence.png"))
-    for part, report in (("estimation", ident.estimation), ("validation", ident.validation)):
-        arrays = report.arrays()
-        fig = plot_time_response(
-            arrays["time"],
-            arrays["y"],
-            arrays["y_simulation"],
-            title=f"{part}: simulation (free run), fit {report.fit_simulation:.1f} %",
-            output=output,
+    if ident.outputs:  # several outputs: each one's figures, its name in the file name
+        per = [(v.output_name, v.output_unit, e, v, f"_{v.output_name}")
+               for e, v in ident.outputs]  # fmt: skip
+    else:
+        per = [(output, unit, ident.estimation, ident.validation, "")]
+    for name, unit, est_report, val_report, tail in per:
+        for part, report in (("estimation", est_report), ("validation", val_report)):
+            arrays = report.arrays()
+            fig = plot_time_response(
+                arrays["time"],
+                arrays["y"],
+                arrays["y_simulation"],
+                title=f"{part}: simulation (free run), fit {report.fit_simulation:.1f} %",
+                output=name,
+                unit=unit,
+            )
+            paths.append(_save(fig, outdir / f"{p}{part}_simulation{tail}.png"))
+            fig = plot_time_response(
+                arrays["time"],
+                arrays["y"],
+                arrays["y_one_step"],
+                title=f"{part}: one-step prediction, fit {report.fit_one_step:.1f} %",
+                output=name,
+                unit=unit,
+            )
+            paths.append(_save(fig, outdir / f"{p}{part}_one_step{tail}.png"))
+        arrays = val_report.arrays()
+        fig = plot_spectra(
+            arrays["psd_frequency"],
+            {"measured": arrays["psd_measured"], "model (simulation)": arrays["psd_model"]},
+            title=f"Power spectral density of {name} (validation)",
             unit=unit,
         )
-        paths.append(_save(fig, outdir / f"{p}{part}_simulation.png"))
-        fig = plot_time_response(
-            arrays["time"],
-            arrays["y"],
-            arrays["y_one_step"],
-            title=f"{part}: one-step prediction, fit {report.fit_one_step:.1f} %",
-            output=output,
-            unit=unit,
+        paths.append(_save(fig, outdir / f"{p}spectra{tail}.png"))
+        fig = plot_correlations(
+            val_report.correlation_panels(),
+            title=f"Residual correlation tests (validation){f', {name}' if tail else ''}",
         )
-        paths.append(_save(fig, outdir / f"{p}{part}_one_step.png"))
-    arrays = ident.validation.arrays()
-    fig = plot_spectra(
-        arrays["psd_frequency"],
-        {"measured": arrays["psd_measured"], "model (simulation)": arrays["psd_model"]},
-        title=f"Power spectral density of {output} (validation)",
-        unit=unit,
-    )
-    paths.append(_save(fig, outdir / f"{p}spectra.png"))
+        paths.append(_save(fig, outdir / f"{p}correlations{tail}.png"))
     fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())
     paths.append(_save(fig, outdir / f"{p}pole_zero.png"))
-    fig = plot_correlations(
-        ident.validation.correlation_panels(), title="Residual correlation tests (validation)"
-    )
-    paths.append(_save(fig, outdir / f"{p}correlations.png"))
     return paths
 
 

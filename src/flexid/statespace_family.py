@@ -17,12 +17,10 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy import signal
 
 from .config import CostSpec, SearchSpec
 from .costs.modal import ModalCost
@@ -362,7 +360,7 @@ class StateSpaceFamily(Family):
         with np.errstate(all="ignore"):
             ysim = model.simulate(u, x0=x0)
             y1 = None if not np.any(model.K) else model.predict(u, y, x0=x0)
-        zeros = [_zeros(model, k, j) for j in range(model.n_inputs)]
+        zeros = [model.zeros(input=j, output=k) for j in range(model.n_inputs)]
         return residual_report(
             y[:, k], None if y1 is None else y1[:, k], ysim[:, k], u, start=0, dt=record.dt,
             max_lag=max_lag, names=list(record.input_names), output_name=names[k],
@@ -398,14 +396,3 @@ class StateSpaceFamily(Family):
         }
 
     model_numbers.__doc__ = None  # Family.model_numbers's
-
-
-def _zeros(model: StateSpaceModel, output: int, input_: int) -> np.ndarray:
-    """The finite zeros from one input to one output."""
-    if not model.order:
-        return np.zeros(0)
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", signal.BadCoefficients)  # leading zero numerators
-        z, _, _ = signal.ss2zpk(model.A, model.B, model.C[output : output + 1],
-                                model.D[output : output + 1], input=input_)  # fmt: skip
-    return np.asarray(z)[np.isfinite(z)]

@@ -244,6 +244,31 @@ class StateSpaceModel:
             return True
         return bool(np.all(np.abs(np.linalg.eigvals(self.A - self.K @ self.C)) < 1.0))
 
+    def zeros(self, input: int = 0, output: int = 0) -> np.ndarray:
+        """The finite transmission zeros from one input to one output.
+
+        Parameters
+        ----------
+        input, output : int, optional
+            0-based channels (default the first of each).
+
+        Returns
+        -------
+        ndarray of complex
+            The zeros of ``C_o (z I - A)^-1 B_j + D_oj``.
+        """
+        import warnings
+
+        from scipy import signal
+
+        if not self.order:
+            return np.zeros(0, complex)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", signal.BadCoefficients)  # leading zero numerators
+            z, _, _ = signal.ss2zpk(self.A, self.B, self.C[output : output + 1],
+                                    self.D[output : output + 1], input=input)  # fmt: skip
+        return np.asarray(z, dtype=complex)[np.isfinite(z)]
+
     def modes(self) -> list[Mode]:
         """The modes of ``A``: natural frequency (Hz) and damping ratio of each pole or pair.
 
