@@ -63,7 +63,10 @@ class StateSpaceEstimationProblem:
     box_rule : str
     modal_box : ModalBox
     subspace : SubspaceResult
-        The subspace estimate on the estimation record, the start.
+        The subspace estimate on the estimation record.
+    start : ndarray, shape (2 m + r,)
+        Its poles read in the structure (:func:`~flexid.statespace_fit.modal_start`): the
+        modal parameters every search and the reference start from.
     """
 
     structure: StateSpaceStructure
@@ -74,14 +77,10 @@ class StateSpaceEstimationProblem:
     box_rule: str
     modal_box: ModalBox
     subspace: SubspaceResult
+    start: np.ndarray
     _ref: Any = field(default=None, repr=False)
     #: The reference in words, as a comparison's header names it.
     reference_name: ClassVar[str] = REFERENCE_NAME
-
-    @property
-    def start(self) -> np.ndarray:
-        """The subspace estimate's modal parameters, shape (2 m + r,)."""
-        return modal_start(self.subspace.model.poles(), self.modal_box, self.cost.dt)
 
     @property
     def theta_ls(self) -> np.ndarray:
@@ -217,7 +216,6 @@ class StateSpaceFamily(Family):
     structures = (StateSpaceStructure,)
     models = (StateSpaceModel,)
     names = ("ss",)
-    start_stop = "closed form"
     several_outputs = True
     predictors = ("simulation",)
 
@@ -244,11 +242,6 @@ class StateSpaceFamily(Family):
         return StateSpaceStructure(order, n_inputs, n_outputs, n_modes=modes, **bounds)
 
     structure.__doc__ = Family.structure.__doc__
-
-    def title(self, structure: Any) -> str:
-        return repr(structure)
-
-    title.__doc__ = None  # Family.title's
 
     def start_name(self, structure: Any) -> str:
         return START_NAME
@@ -281,16 +274,17 @@ class StateSpaceFamily(Family):
                               initial=initial)  # fmt: skip
         box = ModalBox.on(structure, data.dt, data.n_samples)
         sub = n4sid(data, structure.order, feedthrough=structure.feedthrough)
-        start = box.coordinates(modal_start(sub.model.poles(), box, data.dt))
+        start = modal_start(sub.model.poles(), box, data.dt)
 
         def evaluate(Z: np.ndarray) -> np.ndarray:
             return objective(box.physical(Z))
 
-        problem = Problem(evaluate, box.lower, box.upper, x0=start, name=repr(structure))
+        problem = Problem(evaluate, box.lower, box.upper, x0=box.coordinates(start),
+                          name=repr(structure))  # fmt: skip
         return StateSpaceEstimationProblem(
             structure=structure, cost=objective, problem=problem, search=search,
             box=SearchBox(box.lower.copy(), box.upper.copy(), box.rule), box_rule=box.rule,
-            modal_box=box, subspace=sub,
+            modal_box=box, subspace=sub, start=start,
         )  # fmt: skip
 
     pose.__doc__ = None  # Family.pose's
