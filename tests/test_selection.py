@@ -13,6 +13,7 @@ from scipy import signal
 
 import flexid
 from flexid.errors import ConfigError, DataError, ModelOrderError, UnknownNameError
+from flexid.estimation import structure_of
 from flexid.models.arx import ARXStructure
 from flexid.models.polynomial import structure
 from flexid.selection import DEFAULT_GRIDS, Selection, arx_grid, select
@@ -221,8 +222,11 @@ def test_default_grids_are_documented_and_small():
     assert [e["nf"] for e in DEFAULT_GRIDS["oe"]] == [1, 2, 3, 4, 6, 8, 16]
     assert len(DEFAULT_GRIDS["armax"]) == len(DEFAULT_GRIDS["bj"]) == 16
     for name, grid in DEFAULT_GRIDS.items():
-        for entry in grid:
-            structure(name, **entry)  # every entry is a valid structure
+        for entry in grid:  # every entry is a valid structure
+            if name == "ss":
+                structure_of(name, 1, **entry)
+            else:
+                structure(name, **entry)
 
 
 # ------------------------------------------------------------------ 4. the manipulator

@@ -380,3 +380,19 @@ def test_the_figures_of_a_state_space_identification_show_every_output(two_senso
     want = linalg.eigvals(pencil, mass)
     want = want[np.isfinite(want)]
     np.testing.assert_allclose(np.sort_complex(m.zeros()), np.sort_complex(want), rtol=1e-6)
+
+
+def test_select_ranks_state_space_orders_on_the_joint_cost(two_sensor_record):
+    # the known system has two modes (order 4): the criteria on the joint cost and the
+    # held-out fits agree on it, every output's tests are kept
+    _, record = two_sensor_record
+    sel = flexid.select(record, structures="ss", orders={"order": [2, 3, 4, 5, 6]})
+    assert sel.best.structure.order == 4
+    assert min(sel.candidates, key=lambda c: c.mdl_normalized).structure.order == 4
+    best = sel.best
+    assert [r.output_name for r in best.reports] == ["hub", "tip"]
+    assert best.fit_simulation == min(r.fit_simulation for r in best.reports)
+    assert best.K == 2 * 1000  # two outputs of the 1,000 estimation samples
+    grids = {"ss": [{"order": 4}], "oe": [{"nb": 2, "nf": 2}]}
+    with pytest.raises(DataError, match="models one: select among state-space"):
+        flexid.select(record, structures=("ss", "oe"), orders=grids)

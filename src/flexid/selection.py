@@ -80,7 +80,7 @@ from scipy import linalg
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, integer, real
-from .config import CORRELATION_LAGS
+from .config import CORRELATION_LAGS, STATE_SPACE
 from .diagnostics import format_fit
 from .errors import (
     ConfigError,
@@ -89,6 +89,7 @@ from .errors import (
     ModelOrderError,
     UnknownNameError,
 )
+from .estimation import structure_of
 from .families import family_of
 from .models.polynomial import (
     STRUCTURES,
@@ -129,9 +130,13 @@ DEFAULT_GRIDS: dict[str, tuple[dict[str, int], ...]] = {
     "armax": tuple({"na": n, "nb": n, "nc": c} for n in range(1, 9) for c in (1, 2)),
     "oe": tuple({"nb": n, "nf": n} for n in _OE_ORDERS),
     "bj": tuple({"nb": n, "nc": c, "nd": c, "nf": n} for n in range(1, 9) for c in (1, 2)),
+    STATE_SPACE: tuple({"order": n} for n in (2, 4, 6, 8, 10, 12, 16)),
 }
 
-_ORDER_KEYS = frozenset(k for orders in STRUCTURES.values() for k in orders)
+#: The structures a grid may name: the polynomial ones and the state-space model of every
+#: output (:mod:`flexid.models.statespace`).
+NAMES = (*STRUCTURES, STATE_SPACE)
+_ORDER_KEYS = frozenset(k for orders in STRUCTURES.values() for k in orders) | {"order", "modes"}
 _PER_INPUT = ("nb", "nf", "nk")
 
 
@@ -147,7 +152,9 @@ class Candidate:
     n_params : int
         ``d``, the number of estimated parameters.
     K : int
-        Error samples of the estimation loss, ``N_est - structure.start``.
+        Error samples of the estimation loss, ``N_est - structure.start`` (times the outputs
+        of a state-space model: its loss sums every output's, each over its standard
+        deviation, so AIC and MDL rank the joint cost).
     sse : float
         Sum of squared one-step prediction errors on the estimation part (output units
         squared); NaN when the fit failed.
@@ -170,10 +177,14 @@ class Candidate:
     model : PolynomialModel or None
         The fitted model (None when the fit failed).
     report : ValidationReport or None
-        The held-out validation (None when the fit or the validation failed).
+        The held-out validation (None when the fit or the validation failed); of the first
+        output of a model of several.
     error : str or None
         Why the candidate could not be fitted or validated (a rank-deficient regression,
         say); such a candidate is ranked last and never recommended.
+    reports : tuple of ValidationReport
+        A model of several outputs: each output's held-out report (then the fits are the
+        lowest output's, and the tests pass when every output's do); empty otherwise.
     """
 
     structure: PolynomialStructure
@@ -191,6 +202,7 @@ class Candidate:
     model: PolynomialModel | None = field(default=None, repr=False)
     report: ValidationReport | None = field(default=None, repr=False)
     error: str | None = None
+    reports: tuple = field(default=(), repr=False)
 
     @property
     def kind(self) -> str:
@@ -580,8 +592,8 @@ def default_grid(name: str, nk: int | Sequence[int] = 1) -> list[dict[str, Any]]
 
 def _check_name(name: Any) -> str:
     key = str(name).lower() if isinstance(name, str) else None
-    if key not in STRUCTURES:
-        raise UnknownNameError("model structure in structures", str(name), tuple(STRUCTURES))
+    if key not in NAMES:
+        raise UnknownNameError("model structure in structures", str(name), NAMES)
     return key
 
 
@@ -638,7 +650,7 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
         return {name: [dict(e) for e in DEFAULT_GRIDS[name]] for name in names}
     if isinstance(orders, Mapping) and orders:
         keys = [str(k).lower() if isinstance(k, str) else k for k in orders]
-        if all(k in STRUCTURES for k in keys):
+        if all(k in NAMES for k in keys):
             per = dict(zip(keys, orders.values()))
             extra = [k for k in per if k not in names]
             if extra:
@@ -652,7 +664,7 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
                 else [dict(e) for e in DEFAULT_GRIDS[name]]
                 for name in names
             }
-        if any(k in STRUCTURES for k in keys):
+        if any(k in NAMES for k in keys):
             raise ModelOrderError(
                 "orders mixes structure names and order names; give either a mapping "
                 "structure -> grid or a mapping order name -> values"
@@ -665,7 +677,9 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
 GREYBOX_PREFIX = "greybox:"
 
 
-def _candidate_structures(structures: Any, orders: Any, nk: Any, n_inputs: int) -> list[Any]:
+def _candidate_structures(
+    structures: Any, orders: Any, nk: Any, n_inputs: int, n_outputs: int = 1
+) -> list[Any]:
     """Every candidate's structure, checked (orders, inputs), duplicates removed."""
     if isinstance(structures, str) or not isinstance(structures, Iterable):
         structures = (structures,)
@@ -673,7 +687,7 @@ def _candidate_structures(structures: Any, orders: Any, nk: Any, n_inputs: int) 
     if not structures:
         raise ConfigError(f"structures is empty; give names from {tuple(STRUCTURES)}")
     names, fixed, by_name = _requested(structures)
-    made = _from_grids(names, orders, nk, n_inputs)
+    made = _from_grids(names, orders, nk, n_inputs, n_outputs)
     out: list[Any] = []
     for s in [*made, *fixed]:
         if s.n_inputs != n_inputs:
@@ -708,11 +722,20 @@ def _requested(structures: list[Any]) -> tuple[list[str], list[Any], list[Any]]:
     return names, fixed, by_name
 
 
-def _from_grids(names: list[str], orders: Any, nk: Any, n_inputs: int) -> list:
+def _from_grids(names: list[str], orders: Any, nk: Any, n_inputs: int,
+                n_outputs: int = 1) -> list:  # fmt: skip
     """The structures of the order grids of ``names``; an entry's error names the entry."""
     made: list[PolynomialStructure] = []
     for name, entries in _grids(names, orders).items():
         for i, entry in enumerate(entries):
+            if name == STATE_SPACE:  # its family builds it, for every output of the record
+                try:
+                    made.append(structure_of(name, n_inputs, n_outputs=n_outputs, **entry))
+                except ModelOrderError as exc:
+                    raise ModelOrderError(
+                        f"orders entry {i} of {name} ({_entry_text(entry)}): {exc}"
+                    ) from None
+                continue
             entry = {"nk": nk, **entry}
             if n_inputs > 1:  # one value of a per-input order is every input's
                 entry = {
@@ -726,6 +749,17 @@ def _from_grids(names: list[str], orders: Any, nk: Any, n_inputs: int) -> list:
                     f"orders entry {i} of {name} ({_entry_text(entry)}): {exc}"
                 ) from None
     return made
+
+
+def _state_space_requested(structures: Any) -> bool:
+    """Whether ``structures`` asks for state-space models (which keep every output)."""
+    if isinstance(structures, str) or not isinstance(structures, Iterable):
+        structures = (structures,)
+    return any(
+        (isinstance(s, str) and s.lower() == STATE_SPACE)
+        or (not isinstance(s, str) and family_of(s).several_outputs)
+        for s in structures
+    )
 
 
 def _entry_text(entry: Mapping[str, Any]) -> str:
@@ -906,7 +940,7 @@ def select(
     ----------
     data : IOData, (u, y) tuple or path
         Single-output record (``u`` shape (N,) or (N, n_u), ``y`` shape (N,)); a path is read
-        with :func:`flexid.data.load`.
+        with :func:`flexid.data.load`.  Several outputs for state-space candidates only.
     structures : str, PolynomialStructure, GreyBoxModel or sequence of them, optional
         Structure names from :data:`flexid.models.polynomial.STRUCTURES` (``"arx"``, ``"armax"``,
         ``"oe"``, ``"bj"``; each gets its grid from ``orders``), and/or
@@ -915,7 +949,12 @@ def select(
         ``"greybox:NAME"`` with a name of :func:`flexid.models.greybox_library.greybox_model`): each
         one candidate, fitted by :func:`flexid.greybox_fit.greyest` (``starts`` random
         starts), its loss the simulation error (its only predictor) and its ``d`` the
-        estimated parameters, validated by running on from the record's start.  Default
+        estimated parameters, validated by running on from the record's start; and/or
+        ``"ss"`` (:class:`~flexid.models.statespace.StateSpaceStructure`, its grid of
+        ``order`` and ``modes``): a state-space model of every output, fitted by
+        :func:`flexid.ssest`, its loss the joint simulation cost (each output over its
+        standard deviation, ``K`` the samples of every output), validated output by output
+        (its fits the lowest output's, its tests passed when every output's are).  Default
         ``("arx", "oe")``.
     orders : list of dict or mapping, optional
         The grid.  None: :data:`DEFAULT_GRIDS`.  A list of dicts of orders
@@ -1003,11 +1042,13 @@ def select(
     seed = integer(seed, "seed", error=ConfigError, minimum=0)
     parsimony = real(parsimony, "parsimony", error=ConfigError, minimum=0)
     record = _as_record(data, "data")
+    several = _state_space_requested(structures)
     est, val = prepare_data(
         record,
         split=split,
         detrend=detrend,
         validation=None if validation is None else _as_record(validation, "validation"),
+        several=several,
     )
     if val.n_inputs != est.n_inputs:
         raise DataError(
@@ -1017,6 +1058,8 @@ def select(
 
     # every grid entry is checked before any fit
     delay_text = ""
+    if isinstance(nk, str) and several:  # a state-space model's delays are in its states
+        nk = 1
     if isinstance(nk, str):
         if nk != "auto":
             raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
@@ -1041,11 +1084,19 @@ def select(
             delay_text = f"{text}; the grid at each estimate and at nk = 1"
         candidates_s = []
         for d in delays:
-            for s in _candidate_structures(structures, orders, list(d), est.n_inputs):
+            for s in _candidate_structures(structures, orders, list(d), est.n_inputs,
+                                           est.n_outputs):  # fmt: skip
                 if s not in candidates_s:
                     candidates_s.append(s)
     else:
-        candidates_s = _candidate_structures(structures, orders, nk, est.n_inputs)
+        candidates_s = _candidate_structures(structures, orders, nk, est.n_inputs, est.n_outputs)
+    if est.n_outputs > 1:
+        single = [s for s in candidates_s if not family_of(s).several_outputs]
+        if single:
+            raise DataError(
+                f"the record has {est.n_outputs} outputs {list(est.output_names)}; {single[0]!r} "
+                "models one: select among state-space models ('ss') or give one output"
+            )
     for s in candidates_s:
         try:
             s.check_samples(est.n_samples)
@@ -1086,19 +1137,26 @@ def select(
             c = Candidate(
                 structure=s,
                 n_params=s.n_params,
-                K=est.n_samples - s.start,
+                K=(est.n_samples - s.start) * est.n_outputs,
                 fit_time=fit_time,
                 local_minimum=bool(local),
             )
+            outputs = list(est.output_names)
             if isinstance(model, FlexidError):
                 c.error = str(model)
             else:
                 named = getattr(model, "named", None)  # a grey-box model has its channels
-                model = named(est.input_names, est.output_names[0]) if named else model
+                model = named(est.input_names, outputs if several else outputs[0]) if named \
+                    else model  # fmt: skip
                 c.model, c.sse = model, float(sse)
                 t0 = time.perf_counter()
                 try:
-                    if s.kind != "greybox":
+                    if several:  # every output's held-out report; the first is the summary's
+                        c.stable = bool(model.is_stable)
+                        c.reports = tuple(validate(model, val, max_lag=max_lag, initial=initial,
+                                                   output=o) for o in outputs)  # fmt: skip
+                        rep = c.reports[0]
+                    elif s.kind != "greybox":
                         c.stable = bool(model.is_stable)
                         rep = validate(model, val, max_lag=max_lag, initial=initial)
                     elif validation is None:  # run on from the record's start
@@ -1111,9 +1169,11 @@ def select(
                     c.error = f"validation failed: {exc}"
                 else:
                     c.report = rep
-                    c.fit_simulation = float(rep.fit_simulation)
-                    c.fit_one_step = float(rep.fit_one_step)
-                    c.passed, c.linear_passed = bool(rep.passed), bool(rep.linear_passed)
+                    each = c.reports or (rep,)  # several outputs: the weakest decides
+                    c.fit_simulation = float(min(r.fit_simulation for r in each))
+                    c.fit_one_step = float(min(r.fit_one_step for r in each))
+                    c.passed = all(r.passed for r in each)
+                    c.linear_passed = all(r.linear_passed for r in each)
                 c.validation_time = time.perf_counter() - t0
             candidates.append(c)
             bar(c)
