@@ -27,6 +27,8 @@ Identification*, 2007, sec. 9.6), in four steps:
 
 The noise-free response of a model of the right order is recovered exactly (up to a change
 of state coordinates); the tests compare frequency responses, which do not depend on them.
+SLICOT's subspace routines (IB01AD, IB01BD) would serve, but slycot (0.7) does not wrap them,
+so the scheme is written here with :mod:`scipy.linalg`.
 """
 
 from __future__ import annotations
