@@ -30,6 +30,7 @@ from .config import (
     OUTPUT_ERROR,
     PREDICTION_ERROR,
     REFERENCES,
+    STATE_SPACE,
     STRUCTURE_NAMES,
     SUBSPACE,
     keyword,
@@ -878,13 +879,17 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 # ============================================================================ parser
-def _structure_options(p: argparse.ArgumentParser, default: str, scope: str = "") -> None:
-    """``--structure`` and its orders, alike on every command that takes a model."""
+def _structure_options(p: argparse.ArgumentParser, default: str, scope: str = "",
+                       state_space: bool = False) -> None:  # fmt: skip
+    """``--structure`` and its orders, alike on every command that takes a model (with
+    ``state_space``, the state-space model too: its orders are the command's own)."""
     tail = f"; {scope}" if scope else ""
-    names = " | ".join((*STRUCTURE_NAMES, "greybox"))
+    names = " | ".join((*STRUCTURE_NAMES, "greybox", *((STATE_SPACE,) if state_space else ())))
+    extra = f", --order for {STATE_SPACE}" if state_space else ""
     p.add_argument(
         "--structure",
-        help=f"model structure: {names} ({default}); give its orders, or --greybox for greybox",
+        help=f"model structure: {names} ({default}); give its orders, or --greybox for "
+        f"greybox{extra}",
     )
     p.add_argument(
         "--greybox", metavar="NAME",
@@ -1043,7 +1048,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="record: .csv, .npz, .dat or .mat; several: estimation records of one system, "
         "fitted together, each with its own initial state (then --validation FILE is needed)",
     )
-    _structure_options(i, "default arx")
+    _structure_options(i, "default arx", state_space=True)
     i.add_argument("--order", type=int,
                    help="number of poles of --structure ss, a state-space model of every "
                    "output (or those --output names) with the modes searched (no default)")
