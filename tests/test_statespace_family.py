@@ -206,6 +206,8 @@ def test_identify_ss_by_n4sid_pem_and_an_optimiser_reports_every_output(two_sens
     assert ident.nfev == 300 and ident.model.is_stable
     one = flexid.identify(record, structure="ss", order=4, output="tip")
     assert one.model.output_names == ("tip",) and not one.outputs
+    direct = flexid.identify(record, structure="ss", order=4, feedthrough=True)
+    assert direct.model.structure.feedthrough and direct.model.D.shape == (2, 1)
 
 
 def test_identify_ss_bad_input_is_a_typed_error():
@@ -214,7 +216,7 @@ def test_identify_ss_bad_input_is_a_typed_error():
                     output_names=["a", "b"])  # fmt: skip
     with pytest.raises(ModelOrderError, match="needs its order"):
         flexid.identify(record, structure="ss")
-    with pytest.raises(ModelOrderError, match="takes order, modes, frequency and damping, not na"):
+    with pytest.raises(ModelOrderError, match="damping and feedthrough, not na"):
         flexid.identify(record, 2, structure="ss", order=2)
     with pytest.raises(DataError, match="no output channel 'c'"):
         flexid.identify(record, structure="ss", order=2, output="a,c")

@@ -65,6 +65,7 @@ def identify(
     modes: int | None = None,
     frequency: tuple[float, float] | None = None,
     damping: tuple[float, float] | None = None,
+    feedthrough: bool | None = None,
     optimiser: str = PREDICTION_ERROR,
     params: Mapping[str, Any] | None = None,
     cost: str | CostSpec | None = None,
@@ -135,6 +136,8 @@ def identify(
     frequency, damping : (float, float), optional
         For ``structure="ss"``: the bounds of the modes' natural frequencies (Hz, within
         Nyquist) and damping ratios (within (0, 1]) that the search keeps to.
+    feedthrough : bool, optional
+        For ``structure="ss"``: estimate ``D`` (default no, MATLAB ``ssest``'s default).
     optimiser : str
         A registered optimiser name (``flexid list optimisers``), ``"ls"`` for least
         squares (the exact optimum of the one-step ARX cost; for other structures the ARX
@@ -247,7 +250,8 @@ def identify(
         nk = list(found.nk) if first.n_inputs > 1 else found.nk[0]
         delay_text = found.describe()
     extra = {k: v for k, v in (("order", order), ("modes", modes), ("frequency", frequency),
-                               ("damping", damping)) if v is not None}  # fmt: skip
+                               ("damping", damping), ("feedthrough", feedthrough))
+             if v is not None}  # fmt: skip
     if family.several_outputs:
         extra["n_outputs"] = first.n_outputs
     structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk,

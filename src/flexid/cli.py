@@ -346,6 +346,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         modes=args.modes,
         frequency=_pair(args.frequency, "--frequency"),
         damping=_pair(args.damping, "--damping"),
+        feedthrough=args.feedthrough,
         parametrisation=args.parametrisation,
         penalty_kind=args.penalty,
         init=args.init,
@@ -1059,6 +1060,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "record's resolution 1/(N dt) to Nyquist)")
     i.add_argument("--damping", metavar="LO,HI",
                    help="bounds of the modes' damping ratios (--structure ss; default 1e-4,1)")
+    i.add_argument("--feedthrough", action="store_true", default=None,
+                   help="estimate the direct term D (--structure ss; default: none)")
     _channels_option(i)
     i.add_argument(
         "--optimiser",

@@ -230,11 +230,12 @@ class StateSpaceFamily(Family):
                 )
             return spec
         order, modes = orders.pop("order", None), orders.pop("modes", None)
-        bounds = {k: orders.pop(k) for k in ("frequency", "damping") if k in orders}
+        bounds = {k: orders.pop(k) for k in ("frequency", "damping", "feedthrough")
+                  if k in orders}  # fmt: skip
         other = sorted(k for k, v in orders.items() if v is not None and (k, v) != ("nk", 1))
         if other:
             raise ModelOrderError(
-                f"structure 'ss' takes order, modes, frequency and damping, not "
+                f"structure 'ss' takes order, modes, frequency, damping and feedthrough, not "
                 f"{', '.join(other)}"
             )
         if order is None:
