@@ -16,7 +16,6 @@ nominal values, the start of the reference.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -30,6 +29,7 @@ from .errors import ConfigError
 from .models.greybox import GreyBoxModel
 from .optimisers import Problem
 from .parametrisation import SearchBox
+from .reference import lower_of
 
 if TYPE_CHECKING:
     from .greybox_fit import GreyBoxResult
@@ -165,13 +165,8 @@ class GreyBoxEstimationProblem:
         cost : float
         name : str
         """
-        ref = self.output_error_reference()
-        start = self.cost_ls
-        if math.isfinite(ref.cost) and not (math.isfinite(start) and start < ref.cost):
-            return ref.cost, REFERENCE_NAME
-        if math.isfinite(start):
-            return start, START_NAME
-        return math.nan, "no finite reference"
+        return lower_of(self.cost_ls, START_NAME, self.output_error_reference().cost,
+                        REFERENCE_NAME)  # fmt: skip
 
 
 def build_greybox_problem(

@@ -31,6 +31,7 @@ points a budget or a constraint stopped, by orders of magnitude.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -46,6 +47,7 @@ __all__ = [
     "ReferenceResult",
     "ReferenceRun",
     "levenberg_marquardt",
+    "lower_of",
     "optimality",
     "standard_errors",
     "status_of",
@@ -267,6 +269,32 @@ class ReferenceResult(OptimizeResult):
         lines = [f"{k.rjust(width)}: {self[k]!r}" for k in shown if k in self]
         lines.append(f"{'runs'.rjust(width)}: {len(self.get('runs', []))} run(s)")
         return "\n".join(lines)
+
+
+def lower_of(start: float, start_name: str, reference: float,
+             reference_name: str) -> tuple[float, str]:  # fmt: skip
+    """The best known cost of a posed problem: the lower finite one of its start and its
+    reference (the reference on a tie).
+
+    Parameters
+    ----------
+    start, reference : float
+        The costs of the problem's start (given values, a subspace estimate) and of its
+        gradient reference.
+    start_name, reference_name : str
+        What each is, in words.
+
+    Returns
+    -------
+    cost : float
+        NaN when neither is finite.
+    name : str
+    """
+    if math.isfinite(reference) and not (math.isfinite(start) and start < reference):
+        return reference, reference_name
+    if math.isfinite(start):
+        return start, start_name
+    return math.nan, "no finite reference"
 
 
 def status_of(local_minimum: bool, on_cap: bool, out_of_budget: bool) -> int:

@@ -15,7 +15,6 @@ initial state fitted.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -30,6 +29,7 @@ from .families import Family, ReferenceFit
 from .models.statespace import StateSpaceModel, StateSpaceStructure, state_sequence
 from .optimisers import Problem
 from .parametrisation import SearchBox
+from .reference import lower_of
 from .statespace_fit import SSEST_STARTS, ModalBox, StateSpaceResult, modal_start, refine
 from .subspace import SubspaceResult, n4sid
 from .validation import ValidationReport, residual_report
@@ -165,11 +165,8 @@ class StateSpaceEstimationProblem:
         cost : float
         name : str
         """
-        ref = self.output_error_reference()
-        start = self.cost_ls
-        if math.isfinite(ref.cost) and not start < ref.cost:
-            return ref.cost, REFERENCE_NAME
-        return start, START_NAME
+        return lower_of(self.cost_ls, START_NAME, self.output_error_reference().cost,
+                        REFERENCE_NAME)  # fmt: skip
 
 
 def _record(data: Any, dt: float | None, model: StateSpaceModel) -> IOData:
