@@ -148,11 +148,9 @@ class _Context:
             if m.structure == GREYBOX:  # the spec names a model, not orders
                 self.structure = m.greybox_model()
             else:
-                orders = m.orders()
-                if family_named(m.structure).several_outputs:
-                    orders["n_outputs"] = self.records[0].n_outputs
-                self.structure = structure_of(m.structure, self.records[0].n_inputs,
-                                              **orders)  # fmt: skip
+                first = self.records[0]
+                self.structure = structure_of(m.structure, first.n_inputs, first.n_outputs,
+                                              **m.orders())  # fmt: skip
         except ModelOrderError as exc:
             raise ConfigError(f"[model]: {exc}") from None
         #: the structure's family, which every model-specific step of a run asks
@@ -278,20 +276,19 @@ def _report_numbers(report: Any) -> dict[str, Any]:
 def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
     """The held-out numbers of a run's model; with several outputs, the first output's and
     each output's under ``outputs``."""
-    report = ctx.family.held_out(model, ctx.records[0], ctx.val, max_lag=ctx.spec.max_lag,
-                                 initial=ctx.spec.validate_initial)  # fmt: skip
-    numbers = _report_numbers(report)
-    names = list(getattr(model, "output_names", ()))
-    if len(names) > 1:  # the record's names for the model's outputs, in order
+    if len(getattr(model, "output_names", ())) > 1:  # the record's names, in order
         names = list(ctx.val.output_names)
         model = model.named(list(ctx.val.input_names), names)
-        numbers["outputs"] = {
+        each = {
             o: _report_numbers(ctx.family.validate(
                 model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.validate_initial,
                 split=None, dt=None, output=o))
             for o in names
         }  # fmt: skip
-    return numbers
+        return {**each[names[0]], "outputs": each}
+    report = ctx.family.held_out(model, ctx.records[0], ctx.val, max_lag=ctx.spec.max_lag,
+                                 initial=ctx.spec.validate_initial)  # fmt: skip
+    return _report_numbers(report)
 
 
 def _least_squares_record(ctx: _Context) -> dict[str, Any]:

@@ -252,10 +252,8 @@ def identify(
     extra = {k: v for k, v in (("order", order), ("modes", modes), ("frequency", frequency),
                                ("damping", damping), ("feedthrough", feedthrough))
              if v is not None}  # fmt: skip
-    if family.several_outputs:
-        extra["n_outputs"] = first.n_outputs
-    structure = structure_of(structure, first.n_inputs, na=na, nb=nb, nc=nc, nd=nd, nf=nf, nk=nk,
-                             **extra)  # fmt: skip
+    structure = structure_of(structure, first.n_inputs, first.n_outputs, na=na, nb=nb, nc=nc,
+                             nd=nd, nf=nf, nk=nk, **extra)  # fmt: skip
     for record in (*records, val):
         structure.check_samples(record.n_samples)
     cost_spec, search = specs_from_keywords(
@@ -284,22 +282,20 @@ def identify(
     model = model.named(first.input_names, outputs if len(outputs) > 1 else outputs[0])
     cost_value, cost_search = rescored(objective, model, cost_value)
     t_val = time.perf_counter()
-    per_output = len(outputs) > 1
-    reports = tuple(
-        validate(model, r, max_lag=max_lag, initial=validate_initial,
-                 output=outputs[0] if per_output else None) for r in records
-    )  # fmt: skip
-    report_val = validate(model, val, max_lag=max_lag, initial=validate_initial,
-                          output=outputs[0] if per_output else None)  # fmt: skip
     by_output, between = (), ()
-    if per_output:  # every output's held-out and estimation reports
+    if len(outputs) > 1:  # every output's estimation and held-out reports (one record)
         by_output = tuple(
             (validate(model, first, max_lag=max_lag, initial=validate_initial, output=o),
              validate(model, val, max_lag=max_lag, initial=validate_initial, output=o))
             for o in outputs
         )  # fmt: skip
+        (reports, report_val) = ((by_output[0][0],), by_output[0][1])  # the first's
         residuals = np.column_stack([v.y - v.y_one_step for _, v in by_output])
         between = tuple(output_cross_tests(residuals, max_lag, outputs))
+    else:
+        reports = tuple(validate(model, r, max_lag=max_lag, initial=validate_initial)
+                        for r in records)  # fmt: skip
+        report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
     t_end = time.perf_counter()
     info = data_info(
         records, val.n_samples, list(first.input_names), outputs,

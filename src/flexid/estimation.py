@@ -167,7 +167,7 @@ def search_box(
 
 
 # ================================================================================ structure
-def structure_of(structure: Any, n_inputs: int, **orders: Any) -> Any:
+def structure_of(structure: Any, n_inputs: int, n_outputs: int = 1, **orders: Any) -> Any:
     """The model structure of an identification, from a name or object and the orders.
 
     The family that builds the name (:func:`flexid.families.family_named`) or owns the object
@@ -181,6 +181,9 @@ def structure_of(structure: Any, n_inputs: int, **orders: Any) -> Any:
         family), or a structure (no orders).
     n_inputs : int
         Inputs of the record (a scalar ``nb``, ``nf`` or ``nk`` applies to each).
+    n_outputs : int, optional
+        Outputs of the record, for a family whose models take every output
+        (:attr:`~flexid.families.Family.several_outputs`); the others model one.
     **orders : int, sequence of int or None
         ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` (None: not given).
 
@@ -206,8 +209,11 @@ def structure_of(structure: Any, n_inputs: int, **orders: Any) -> Any:
             family = family_named(name)
         except UnknownNameError as exc:  # the name as given, not lowered
             raise UnknownNameError(exc.kind, str(structure), exc.known) from None
-        return family.structure(name, n_inputs, **orders)
-    return family_of(structure).structure(structure, n_inputs, **orders)
+    else:
+        family, name = family_of(structure), structure
+    if family.several_outputs:
+        orders["n_outputs"] = n_outputs
+    return family.structure(name, n_inputs, **orders)
 
 
 # ================================================================================ rules

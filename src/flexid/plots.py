@@ -498,24 +498,15 @@ def identification_figures(
     for name, unit, est_report, val_report, tail in per:
         for part, report in (("estimation", est_report), ("validation", val_report)):
             arrays = report.arrays()
-            fig = plot_time_response(
-                arrays["time"],
-                arrays["y"],
-                arrays["y_simulation"],
-                title=f"{part}: simulation (free run), fit {report.fit_simulation:.1f} %",
-                output=name,
-                unit=unit,
-            )
-            paths.append(_save(fig, outdir / f"{p}{part}_simulation{tail}.png"))
-            fig = plot_time_response(
-                arrays["time"],
-                arrays["y"],
-                arrays["y_one_step"],
-                title=f"{part}: one-step prediction, fit {report.fit_one_step:.1f} %",
-                output=name,
-                unit=unit,
-            )
-            paths.append(_save(fig, outdir / f"{p}{part}_one_step{tail}.png"))
+            for kind, words, fit in (
+                ("simulation", "simulation (free run)", report.fit_simulation),
+                ("one_step", "one-step prediction", report.fit_one_step),
+            ):
+                fig = plot_time_response(
+                    arrays["time"], arrays["y"], arrays[f"y_{kind}"],
+                    title=f"{part}: {words}, fit {fit:.1f} %", output=name, unit=unit,
+                )  # fmt: skip
+                paths.append(_save(fig, outdir / f"{p}{part}_{kind}{tail}.png"))
         arrays = val_report.arrays()
         fig = plot_spectra(
             arrays["psd_frequency"],

@@ -730,7 +730,7 @@ def _from_grids(names: list[str], orders: Any, nk: Any, n_inputs: int,
         for i, entry in enumerate(entries):
             if name == STATE_SPACE:  # its family builds it, for every output of the record
                 try:
-                    made.append(structure_of(name, n_inputs, n_outputs=n_outputs, **entry))
+                    made.append(structure_of(name, n_inputs, n_outputs, **entry))
                 except ModelOrderError as exc:
                     raise ModelOrderError(
                         f"orders entry {i} of {name} ({_entry_text(entry)}): {exc}"
