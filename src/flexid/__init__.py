@@ -12,6 +12,10 @@ Data and models
 Structure selection
     :func:`select` (AIC, FPE, MDL and the held-out tests over a grid of structures);
     :func:`estimate_delay` (MATLAB ``delayest``, and the prewhitened cross-correlation)
+Frequency responses
+    :func:`frf` (MATLAB ``tfestimate``, ``spa``, ``etfe``) -> :class:`FrequencyResponseEstimate`
+    with coherence and a confidence band; :func:`frequency_agreement` (the share of a
+    model's response inside that band)
 Grey-box models
     :class:`GreyBoxModel` of :class:`GreyParameter` (a plant's equations with named physical
     parameters), the built-in ones and a user's (``file.py:NAME``, or registered by
@@ -93,6 +97,10 @@ _LAZY = {
     "PolynomialCost": "costs.polynomial",
     "select": "selection",
     "estimate_delay": "delay",
+    # frequency responses
+    "frf": "frequency",
+    "FrequencyResponseEstimate": "frequency",
+    "frequency_agreement": "frequency",
     # grey-box models
     "GreyBoxModel": "models.greybox",
     "GreyParameter": "models.greybox",

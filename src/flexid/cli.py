@@ -1,4 +1,4 @@
-"""The ``flexid`` command: generate, identify, compare, select, greybox, report, list.
+"""The ``flexid`` command: generate, identify, compare, select, greybox, frf, report, list.
 
 Every user error (a missing or malformed file, an unknown name, bad orders, invalid
 hyper-parameters or configuration keys) prints one line on stderr and exits with status 2;
@@ -112,6 +112,13 @@ _SUBCOMMANDS = {
         "reference or a registered optimiser, then validate it (identify --structure greybox "
         "on a record does the same).",
         "flexid greybox --plant twin-rotor --model twin-rotor-pitch --set Mg=0.5",
+    ),
+    "frf": (
+        "Estimate a record's frequency response from every input to every output (H1 from "
+        "Welch's cross-spectra, Blackman-Tukey or the smoothed empirical transfer function) "
+        "with each output's coherence and a confidence band; print the settings and the "
+        "resonance peaks, draw the Bode figure.",
+        "flexid frf man.csv --figure man_frf.png",
     ),
     "report": (
         "Write a Markdown or HTML report (tables and figures) of a result store, or export it "
@@ -646,6 +653,47 @@ def _cmd_greybox(args: argparse.Namespace) -> int:
         print(json.dumps(ident.to_dict(), indent=2, allow_nan=False))
     else:
         print(ident.summary())
+    return 0
+
+
+def _cmd_frf(args: argparse.Namespace) -> int:
+    from .data import load
+    from .frequency import frf
+
+    figure = Path(args.figure) if args.figure is not None else None
+    if figure is not None:
+        if figure.suffix.lower() not in (".png", ".pdf", ".svg"):
+            raise ConfigError(f"--figure {args.figure!r}: a .png, .pdf or .svg file")
+        if not figure.parent.is_dir():
+            raise ConfigError(f"--figure {args.figure!r}: no folder {str(figure.parent)!r}")
+    options: dict[str, Any] = {}
+    for key in ("inputs", "outputs"):
+        if getattr(args, key) is not None:
+            options[key] = _columns(getattr(args, key))
+    if args.dt is not None:
+        options["dt"] = args.dt
+    data = load(args.file, **options)
+    estimate = frf(
+        data, args.method, segment=args.segment, lag_width=args.lag_width, width=args.width,
+        resolution=args.resolution, level=args.level,
+    )  # fmt: skip
+    if figure is not None:
+        import io
+
+        from ._files import write_bytes
+        from .plots import _plt, plot_bode
+
+        fig = plot_bode(estimate, title=f"{Path(args.file).name}: frequency response")
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format=figure.suffix[1:].lower(), dpi=110, bbox_inches="tight")
+        _plt().close(fig)
+        write_bytes(figure, buffer.getvalue())  # whole or not at all
+    if args.json:
+        print(json.dumps(estimate.to_dict(), allow_nan=False))
+    else:
+        print(estimate.summary())
+        if figure is not None:
+            print(f"figure: {figure}")
     return 0
 
 
@@ -1262,6 +1310,34 @@ def build_parser() -> argparse.ArgumentParser:
     gb.add_argument("--split", type=_value, help="estimation share (default 2/3) or split index")
     gb.add_argument("--dt", type=float, help=_DT_HELP)
     gb.set_defaults(func=_cmd_greybox)
+
+    fr = sub.add_parser(
+        "frf", help="a record's frequency response with coherence and confidence band"
+    )
+    fr.add_argument("file", help="record: .csv, .npz, .dat or .mat")
+    fr.add_argument("--method", default="tfestimate", choices=["tfestimate", "spa", "etfe"],
+                    help="tfestimate (default: H1 from Welch's cross-spectra), spa "
+                    "(Blackman-Tukey) or etfe (smoothed DFT ratio)")  # fmt: skip
+    fr.add_argument("--segment", type=int,
+                    help="tfestimate: samples per segment (default N/4.5: 8 segments)")
+    fr.add_argument("--lag-width", type=int,
+                    help="spa: lag window width M in samples (default min(N/10, 30))")
+    fr.add_argument("--width", type=int,
+                    help="etfe: smoothing width in DFT bins, odd (default 11)")
+    fr.add_argument("--resolution", type=float,
+                    help="frequency resolution in Hz instead of --segment, --lag-width or "
+                    "--width (default: none)")
+    fr.add_argument("--level", type=float, default=0.95,
+                    help="confidence level of the band")
+    fr.add_argument("--inputs", help="input columns (names or 0-based indices; default: a "
+                    "flexid file's own, else columns u, u1, ...)")
+    fr.add_argument("--outputs", help="output columns (names or 0-based indices; default: a "
+                    "flexid file's own, else columns y, y1, ...)")
+    fr.add_argument("--dt", type=float, help=_DT_HELP)
+    fr.add_argument("--figure", help="write the Bode figure here (.png, .pdf or .svg; "
+                    "default: none)")
+    fr.add_argument("--json", action="store_true", help="print the estimate as JSON")
+    fr.set_defaults(func=_cmd_frf)
 
     su = sub.add_parser("suite", help="the benchmark suite: list, run or report")
     su.add_argument("action", choices=["list", "run", "report"], help="what to do")

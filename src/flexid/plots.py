@@ -31,6 +31,7 @@ __all__ = [
     "PlottingUnavailable",
     "comparison_figures",
     "identification_figures",
+    "plot_bode",
     "plot_comparison_convergence",
     "plot_convergence",
     "plot_correlations",
@@ -281,6 +282,132 @@ def plot_spectra(
     return fig
 
 
+def _model_modes(model: Any) -> list[float]:
+    """The natural frequencies (Hz) of a model's lightly damped pairs, for marking."""
+    if not hasattr(model, "poles") or not hasattr(model, "dt"):
+        return []
+    from .models.modes import modes
+
+    try:
+        found = modes(model.poles(), model.dt)
+    except FlexidError:
+        return []
+    return [m.frequency for m in found if m.kind == "pair" and 0 < m.damping < 1]
+
+
+def plot_bode(
+    estimate: Any, models: Mapping[str, Any] | None = None, *, title: str = "",
+    coherence: float | None = None, modes: Mapping[str, Sequence[float]] | None = None,
+) -> Figure:
+    """Bode figure of a record's frequency-response estimate and models, with coherence.
+
+    For every input-output pair, three panels share a log frequency axis in Hz: magnitude
+    in dB (the estimate, its confidence band shaded, the models; each model's modes marked
+    by a triangle on the top edge in its colour), phase in degrees (the estimate's band
+    shaded) and the output's coherence with the inputs.  The estimate is drawn black where
+    the coherence reaches ``coherence`` and grey where the record cannot be trusted.
+
+    Parameters
+    ----------
+    estimate : FrequencyResponseEstimate
+        From :func:`flexid.frf`.
+    models : mapping of str to model or ndarray, optional
+        ``label -> model`` (anything with ``frequency_response(f)``, shape (F, ny, nu), such
+        as every linear flexid model; its ``poles()`` give the marked modes) or ``label ->
+        response`` at the estimate's frequencies, shape (F, ny, nu).
+    title : str, optional
+        Figure title.
+    coherence : float, optional
+        The coherence a frequency needs to be drawn as trusted (default
+        :data:`flexid.frequency.COHERENCE_LEVEL`).
+    modes : mapping of str to sequence of float, optional
+        ``label -> natural frequencies`` (Hz) to mark for a model given as a response
+        (default: a model's own lightly damped modes, none for a response).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Rows of three panels per output, one column per input.
+    """
+    from .frequency import COHERENCE_LEVEL
+
+    plt = _plt()
+    level = COHERENCE_LEVEL if coherence is None else float(coherence)
+    f = estimate.frequency
+    ny, nu = estimate.n_outputs, estimate.n_inputs
+    fig, axes = plt.subplots(
+        3 * ny, nu, sharex=True, squeeze=False, figsize=(6.4 * nu + 2.2, 5.6 * ny),
+        height_ratios=[3.0, 2.0, 1.2] * ny, layout="constrained",
+    )  # fmt: skip
+    curves = []
+    for i, (label, model) in enumerate((models or {}).items()):
+        g = model.frequency_response(f) if hasattr(model, "frequency_response") else model
+        marked = (modes or {}).get(label)
+        curves.append((label, np.asarray(g, dtype=complex).reshape(f.size, ny, nu),
+                       _model_modes(model) if marked is None else list(marked),
+                       _style(i)))  # fmt: skip
+    mag_db = estimate.magnitude_db()
+    phase = estimate.phase_deg()
+    lower, upper = estimate.band()
+    half = estimate.phase_band()
+    with np.errstate(divide="ignore"):
+        low_db, high_db = 20 * np.log10(lower), 20 * np.log10(upper)
+    for j in range(ny):
+        trusted = estimate.coherence[:, j] >= level
+        for i in range(nu):
+            ax_m, ax_p, ax_c = axes[3 * j, i], axes[3 * j + 1, i], axes[3 * j + 2, i]
+            finite = mag_db[:, j, i][np.isfinite(mag_db[:, j, i])]
+            floor = (finite.min() if finite.size else 0.0) - 20.0
+            ax_m.fill_between(f, np.maximum(low_db[:, j, i], floor), high_db[:, j, i],
+                              color="0.6", alpha=0.3, lw=0,
+                              label=f"{100 * estimate.level:.0f} % band")  # fmt: skip
+            ax_m.plot(f, mag_db[:, j, i], color="0.7", lw=1,
+                      label=f"estimate, coherence < {level:g}")  # fmt: skip
+            # the estimate over the models, thinner: both stay visible where they agree
+            ax_m.plot(f, np.where(trusted, mag_db[:, j, i], np.nan), color="k", lw=1.0,
+                      zorder=3, label=f"estimate ({estimate.method})")  # fmt: skip
+            ax_p.fill_between(f, phase[:, j, i] - half[:, j, i], phase[:, j, i] + half[:, j, i],
+                              color="0.6", alpha=0.3, lw=0)  # fmt: skip
+            ax_p.plot(f, phase[:, j, i], color="0.7", lw=1)
+            ax_p.plot(f, np.where(trusted, phase[:, j, i], np.nan), color="k", lw=1.0, zorder=3)
+            for label, g, mode_f, style in curves:
+                gji = g[:, j, i]
+                with np.errstate(divide="ignore"):
+                    ax_m.plot(f, 20 * np.log10(np.abs(gji)), lw=1.2, label=label, **style)
+                ph = np.degrees(np.unwrap(np.angle(gji)))
+                # the same branch as the estimate's phase where the record is trusted
+                at = int(np.argmax(trusted)) if trusted.any() else 0
+                ph -= 360.0 * np.round((ph[at] - phase[at, j, i]) / 360.0)
+                ax_p.plot(f, ph, lw=1.2, **style)
+                shown = [m for m in mode_f if f[0] <= m <= f[-1]]
+                ax_m.plot(shown, np.ones(len(shown)), ls="none", marker="v", ms=7,
+                          color=style["color"], transform=ax_m.get_xaxis_transform(),
+                          clip_on=False)  # fmt: skip
+            ax_c.plot(f, estimate.coherence[:, j], color="k", lw=1)
+            ax_c.axhline(level, color="0.4", ls=":", lw=1)
+            ax_c.set_ylim(0.0, 1.05)
+            unit_in = estimate.input_units[i] if estimate.input_units else ""
+            unit_out = estimate.output_units[j] if estimate.output_units else ""
+            gain_unit = f"{unit_out or '1'}/{unit_in or '1'}" if unit_in or unit_out else ""
+            ax_m.set_title(f"{estimate.input_names[i]} \u2192 {estimate.output_names[j]}",
+                           pad=12)  # fmt: skip
+            ax_m.set_ylabel(_with_unit("magnitude", f"dB re 1 {gain_unit}" if gain_unit
+                                       else "dB"))  # fmt: skip
+            ax_p.set_ylabel("phase [deg]")
+            ax_c.set_ylabel("coherence")
+            for ax in (ax_m, ax_p, ax_c):
+                ax.set_xscale("log")
+                ax.grid(True, which="both", alpha=0.3)
+            _readable_log_ticks(ax_c)
+            if j == ny - 1:
+                ax_c.set_xlabel("frequency [Hz]")
+    axes[0, 0].set_xlim(f[0], f[-1])
+    _outside_legend(axes[0, -1])
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
 # Roots closer than this (relative to max(1, |root|)) are drawn as one repeated root: a root
 # of multiplicity k is computed as k roots spread by about eps^(1/k) (1e-5 for k = 3).
 _REPEATED = 1e-4
@@ -470,8 +597,9 @@ def identification_figures(
     -------
     list of pathlib.Path
         The files written: ``convergence.png`` (when an optimiser ran), then
-        ``{estimation,validation}_{simulation,one_step}.png``, ``spectra.png`` and
-        ``correlations.png`` (validation record), and ``pole_zero.png`` (zeros of the first
+        ``{estimation,validation}_{simulation,one_step}.png``, ``spectra.png``,
+        ``correlations.png`` and ``bode.png`` (validation record; no Bode figure for a model
+        without a frequency response), and ``pole_zero.png`` (zeros of the first
         input, to the first output), each with ``prefix``; with several outputs each output's
         figures carry its name (``validation_simulation_<output>.png``).
     """
@@ -520,6 +648,15 @@ def identification_figures(
             title=f"Residual correlation tests (validation){f', {name}' if tail else ''}",
         )
         paths.append(_save(fig, outdir / f"{p}correlations{tail}.png"))
+        if val_report.frequency_estimate is not None:
+            fig = plot_bode(
+                val_report.frequency_estimate, {"model": val_report.frequency_model},
+                modes={"model": _model_modes(ident.model)},
+                title=f"Frequency response of {name} (validation): model inside the band at "
+                f"{100 * float(val_report.frequency.share[0]):.0f} % of the trusted "
+                "frequencies",
+            )  # fmt: skip
+            paths.append(_save(fig, outdir / f"{p}bode{tail}.png"))
     fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())
     paths.append(_save(fig, outdir / f"{p}pole_zero.png"))
     return paths

@@ -284,9 +284,17 @@ class PolynomialFamily(Family):
             initial=initial, initial_one_step=initial_one_step, poles=model.poles(),
             zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
             predictor_stable=predictor_stable, test_start=start,
+            response=_response_of(model),
         )
 
     validate.__doc__ = None  # Family.validate's
+
+
+def _response_of(model: Any) -> Any:
+    """The model's frequency response as ``f -> (F, n_u)``, None for a duck-typed model
+    without one."""
+    response = getattr(model, "frequency_response", None)
+    return None if response is None else (lambda f: response(f)[:, 0, :])
 
 
 def _polynomial_structure(structure: Any) -> Any:

@@ -360,6 +360,7 @@ class StateSpaceFamily(Family):
             poles=model.poles(), zeros=zeros,
             predictor_stable=model.predictor_stable if y1 is not None else None,
             output_unit=record.output_units[k] if record.output_units else "",
+            response=lambda f: model.frequency_response(f)[:, k, :],
         )  # fmt: skip
 
     validate.__doc__ = None  # Family.validate's

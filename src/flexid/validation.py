@@ -22,6 +22,7 @@ Initial conditions
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,6 +31,7 @@ import numpy as np
 from ._json import jsonable
 from ._validate import checked_keywords, positive_real
 from .config import CORRELATION_LAGS
+from .data import IOData
 from .diagnostics import (
     CorrelationTest,
     _peak,
@@ -43,6 +45,7 @@ from .diagnostics import (
 )
 from .errors import DataError, check_finite
 from .families import family_of
+from .frequency import FrequencyAgreement, FrequencyResponseEstimate, frequency_agreement, frf
 from .models.polynomial import INITIAL_RULES, _check_initial
 
 __all__ = [
@@ -263,6 +266,18 @@ class ValidationReport:
         ``"measured"``) and no rule applies.
     output_unit : str
         The output's unit from the record (empty when the record gives none).
+    frequency : FrequencyAgreement or None
+        The share of the record's frequency-response estimate (over ``t >= start``) whose
+        confidence band holds the model's response, where the coherence is at least
+        :data:`~flexid.frequency.COHERENCE_LEVEL`; None for a model without a frequency
+        response (a grey-box model) or a record the estimate cannot be made from
+        (:attr:`frequency_note` says why).
+    frequency_estimate : FrequencyResponseEstimate or None
+        That estimate (``tfestimate``) of this output.
+    frequency_model : ndarray of complex, shape (F, n_u), or None
+        The model's response from every input to this output at the estimate's frequencies.
+    frequency_note : str
+        Why there is no frequency verdict (empty when there is one).
     """
 
     n_samples: int
@@ -294,6 +309,10 @@ class ValidationReport:
     simulation_diverged: bool = False
     initial_one_step: str | None = None
     output_unit: str = ""
+    frequency: FrequencyAgreement | None = None
+    frequency_estimate: FrequencyResponseEstimate | None = field(default=None, repr=False)
+    frequency_model: np.ndarray | None = field(default=None, repr=False)
+    frequency_note: str = ""
 
     @property
     def initial_rule(self) -> str:
@@ -453,6 +472,7 @@ class ValidationReport:
         elif st.predictor_stable is False:
             lines.append("  one-step predictor: UNSTABLE (a root of C or of an F outside it)")
         lines += ["  " + row for row in st.table().splitlines()]
+        lines += ["", *self._frequency_lines()]
         lines += [
             "",
             "Spectral peaks (Welch PSD, largest above DC)",
@@ -460,6 +480,22 @@ class ValidationReport:
             f"  model (simulation)     {self.peak_model:10.4g} Hz",
         ]
         return "\n".join(lines)
+
+    def _frequency_lines(self) -> list[str]:
+        if self.frequency is None:
+            return ["Frequency response", f"  no verdict: {self.frequency_note}"]
+        agree, est = self.frequency, self.frequency_estimate
+        head = (f"Frequency response (H1 {est.method}, {est.averages:.1f} equivalent averages, "
+                f"bandwidth {est.bandwidth:.3g} Hz)")  # fmt: skip
+        share, judged = float(agree.share[0]), int(agree.judged[0])
+        if judged == 0:
+            return [head, f"  no frequency with coherence >= {agree.coherence:g}: no verdict"]
+        return [
+            head,
+            f"  inside the {100 * agree.level:.0f} % band at {100 * share:.1f} % of {judged} "
+            f"frequencies with coherence >= {agree.coherence:g} (a true model: about "
+            f"{100 * agree.level:.0f} %)",
+        ]
 
     def to_dict(self, arrays: bool = False) -> dict[str, Any]:
         """The report in JSON-safe plain types.
@@ -505,6 +541,8 @@ class ValidationReport:
             "input_names": [str(n) for n in self.input_names],
             "output_name": str(self.output_name),
             "output_unit": self.output_unit,
+            "frequency": None if self.frequency is None else self.frequency.to_dict(),
+            "frequency_note": self.frequency_note,
         }
         if arrays:
             out["arrays"] = jsonable(self.arrays())
@@ -517,6 +555,7 @@ def residual_report(
     *, start: int, dt: float, max_lag: int, names: list[str], output_name: str, initial: str,
     initial_one_step: str | None, poles: Any, zeros: Any, predictor_stable: bool | None = None,
     test_start: int | None = None, output_unit: str = "",
+    response: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> ValidationReport:
     """The validation report of a model from its outputs over a record.
 
@@ -559,6 +598,10 @@ def residual_report(
         First sample of the correlation tests' residual (default ``start``).
     output_unit : str, optional
         The output's unit.
+    response : callable, optional
+        ``response(frequencies) -> (F, n_u)``: the model's frequency response from every
+        input to this output at frequencies in Hz, for the frequency-domain verdict (None: a
+        model without one).
 
     Returns
     -------
@@ -590,6 +633,7 @@ def residual_report(
     )
     stability = stability_report(np.asarray(poles), zeros, dt)
     stability.predictor_stable = predictor_stable
+    frequency = _frequency_verdict(u, y, dt, response, names, output_name)
     return ValidationReport(
         n_samples=n,
         start=start,
@@ -620,7 +664,30 @@ def residual_report(
         simulation_diverged=diverged,
         initial_one_step=initial_one_step,
         output_unit=output_unit,
+        **frequency,
     )
+
+
+def _frequency_verdict(
+    u: np.ndarray, y: np.ndarray, dt: float, response: Callable | None, names: list[str],
+    output_name: str,
+) -> dict[str, Any]:
+    """The report's frequency-domain fields: the record's estimate and the model's share
+    inside its band, or why there is none."""
+    if response is None:
+        return {"frequency_note": "the model has no frequency response (not linear)"}
+    record = IOData(u, y, dt=dt, input_names=names, output_names=[output_name])
+    try:
+        estimate = frf(record)
+    except DataError as exc:  # a short record or a constant input: no verdict, said why
+        return {"frequency_note": str(exc)}
+    g = np.asarray(response(estimate.frequency), dtype=complex).reshape(
+        estimate.frequency.size, 1, -1)  # fmt: skip
+    return {
+        "frequency": frequency_agreement(estimate, g),
+        "frequency_estimate": estimate,
+        "frequency_model": g[:, 0, :],
+    }
 
 
 @checked_keywords

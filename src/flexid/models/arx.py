@@ -129,6 +129,30 @@ def channel_names(
     return names, "y" if output_name is None else str(output_name)
 
 
+def transfer_response(parts: Sequence[tuple[np.ndarray, np.ndarray]], frequencies: Any,
+                      dt: float) -> np.ndarray:
+    """The responses of one output's transfer functions, one per input, at frequencies in Hz.
+
+    Parameters
+    ----------
+    parts : sequence of (num, den)
+        Each input's numerator and denominator in positive powers of ``z``, equal lengths.
+    frequencies : array_like, shape (F,)
+        Frequencies in Hz.
+    dt : float
+        Sample time in seconds.
+
+    Returns
+    -------
+    ndarray of complex, shape (F, 1, nu)
+        ``num(z) / den(z)`` at ``z = exp(j 2 pi f dt)``.
+    """
+    f = np.asarray(frequencies, dtype=float).reshape(-1)
+    z = np.exp(2j * np.pi * f * dt)
+    columns = [np.polyval(num, z) / np.polyval(den, z) for num, den in parts]
+    return np.stack(columns, axis=-1)[:, None, :]
+
+
 class NamedChannels:
     """The record's channel names a model keeps (``input_names``, ``output_name``)."""
 
@@ -555,6 +579,21 @@ class ARX(NamedChannels):
         """Largest pole modulus ``max |p_i|`` (0.0 when ``na = 0``); below 1 means stable."""
         p = self.poles()
         return float(np.abs(p).max()) if p.size else 0.0
+
+    def frequency_response(self, frequencies: Any) -> np.ndarray:
+        """``G(z) = z^-nk B(z) / A(z)`` of every input at ``z = exp(j 2 pi f dt)``.
+
+        Parameters
+        ----------
+        frequencies : array_like, shape (F,)
+            Frequencies in Hz.
+
+        Returns
+        -------
+        ndarray of complex, shape (F, 1, n_inputs)
+        """
+        parts = [self._tf_num_den(j) for j in range(self.structure.n_inputs)]
+        return transfer_response(parts, frequencies, self.dt)
 
     # ------------------------------------------------------------------ export
     def to_control(self) -> control.TransferFunction:
