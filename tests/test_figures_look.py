@@ -178,7 +178,7 @@ def identification_set(ident, tmp_path_factory):
 def test_identification_writes_the_expected_figure_set(identification_set, tmp_path):
     assert set(identification_set) == {
         "convergence", "estimation_simulation", "estimation_one_step", "validation_simulation",
-        "validation_one_step", "spectra", "pole_zero", "correlations",
+        "validation_one_step", "spectra", "pole_zero", "correlations", "bode",
     }
 
 
@@ -221,6 +221,19 @@ def test_spectra_state_the_decibel_reference(identification_set):
     assert ax.get_xlabel() == "frequency [Hz]"
     assert ax.get_ylabel() == "PSD [dB re 1 (m/s^2)^2/Hz]"
     assert "tip_acceleration" in ax.get_title()
+    assert_looks_right(fig)
+
+
+def test_the_bode_figure_states_its_units_and_the_verdict(identification_set):
+    fig = identification_set["bode"]
+    magnitude, phase, coherence = fig.axes
+    assert magnitude.get_ylabel() == "magnitude [dB re 1 m/s^2/N m]"
+    assert phase.get_ylabel() == "phase [deg]" and coherence.get_ylabel() == "coherence [-]"
+    assert coherence.get_xlabel() == "frequency [Hz]" and magnitude.get_xscale() == "log"
+    # 200 validation samples: too few for a coherence of 0.9, and the title says so
+    assert fig.get_suptitle() == "tip_acceleration (validation): no frequency with coherence >= 0.9"
+    labels = magnitude.get_legend_handles_labels()[1]
+    assert labels[:3] == ["95 % band", "estimate, coherence < 0.9", "estimate (tfestimate)"]
     assert_looks_right(fig)
 
 

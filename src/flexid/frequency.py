@@ -126,12 +126,24 @@ class FrequencyResponseEstimate:
         return self.response.shape[1]
 
     def magnitude_db(self) -> np.ndarray:
-        """``20 log10 |H|``, shape (F, ny, nu) (``-inf`` where ``H = 0``)."""
+        """The magnitude in dB.
+
+        Returns
+        -------
+        ndarray, shape (F, ny, nu)
+            ``20 log10 |H|`` (``-inf`` where ``H = 0``).
+        """
         with np.errstate(divide="ignore"):
             return 20.0 * np.log10(np.abs(self.response))
 
     def phase_deg(self) -> np.ndarray:
-        """Phase of ``H`` in degrees, unwrapped along frequency, shape (F, ny, nu)."""
+        """The phase in degrees.
+
+        Returns
+        -------
+        ndarray, shape (F, ny, nu)
+            The phase of ``H``, unwrapped along frequency.
+        """
         return np.degrees(np.unwrap(np.angle(self.response), axis=0))
 
     def band(self) -> tuple[np.ndarray, np.ndarray]:
@@ -176,38 +188,35 @@ class FrequencyResponseEstimate:
             )
         return np.abs(g - self.response) <= self.radius
 
-    def peaks(self, *, prominence: float = 6.0, uncertainty: float = 0.5) -> np.ndarray:
-        """Frequencies of the resonance peaks of the estimate.
+    def peaks(self, *, prominence: float = 6.0) -> np.ndarray:
+        """Frequencies of the resonance peaks of the estimate that its band confirms.
 
-        A peak is a local maximum of the response's power summed over the input-output
-        pairs, ``sum |H_ji|^2``, that stands ``prominence`` dB above its surroundings
-        (:func:`scipy.signal.find_peaks`) and is known: at it, every element's confidence
-        radius is below ``uncertainty`` times its magnitude (the default 0.5: the magnitude
-        known within -6 dB and +3.5 dB).  A resonance narrower than :attr:`bandwidth`
-        is flattened by the smoothing and its coherence drops: it is found only with a
-        finer resolution.
+        A peak is a local maximum of the response's amplitude over every input-output pair,
+        ``A = sqrt(sum |H_ji|^2)``, that stands ``prominence`` dB above its contour line
+        (:func:`scipy.signal.find_peaks`), and stands there beyond doubt: the peak's lower
+        band edge ``A - R`` lies above the higher base's upper edge ``A + R``
+        (``R = sqrt(sum r_ji^2)``), so noise in a poorly excited band makes no peak.  A
+        resonance narrower than :attr:`bandwidth` is flattened by the smoothing (its
+        coherence drops): it is found only with a finer resolution.
 
         Parameters
         ----------
         prominence : float, optional
             Least prominence in dB (default 6: twice the amplitude).
-        uncertainty : float, optional
-            Largest confidence radius relative to the magnitude at a peak (default 0.5).
 
         Returns
         -------
         ndarray, shape (k,)
             Peak frequencies in Hz, increasing.
         """
-        power = np.sum(np.abs(self.response) ** 2, axis=(1, 2))
-        with np.errstate(divide="ignore"):
-            db = 10.0 * np.log10(power)
-        db = np.where(np.isfinite(db), db, np.min(db[np.isfinite(db)], initial=0.0))
-        found, _ = signal.find_peaks(db, prominence=prominence)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            relative = self.radius[found] / np.abs(self.response[found])
-        known = np.all(relative < uncertainty, axis=(1, 2))
-        return self.frequency[found[known]]
+        amplitude = np.sqrt(np.sum(np.abs(self.response) ** 2, axis=(1, 2)))
+        spread = np.sqrt(np.sum(self.radius**2, axis=(1, 2)))
+        db = 20.0 * np.log10(np.maximum(amplitude, np.finfo(float).tiny))
+        found, props = signal.find_peaks(db, prominence=prominence)
+        left, right = props["left_bases"], props["right_bases"]
+        base = np.where(db[left] > db[right], left, right)
+        sure = amplitude[found] - spread[found] > amplitude[base] + spread[base]
+        return self.frequency[found[sure]]
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe form: the settings and, per frequency, the response, coherence and radius.

@@ -295,6 +295,13 @@ def _model_modes(model: Any) -> list[float]:
     return [m.frequency for m in found if m.kind == "pair" and 0 < m.damping < 1]
 
 
+def _agreement_words(agreement: Any) -> str:
+    share, judged = float(agreement.share[0]), int(agreement.judged[0])
+    if judged == 0:
+        return f"no frequency with coherence >= {agreement.coherence:g}"
+    return f"model inside the band at {100 * share:.0f} % of {judged} trusted frequencies"
+
+
 def plot_bode(
     estimate: Any, models: Mapping[str, Any] | None = None, *, title: str = "",
     coherence: float | None = None, modes: Mapping[str, Sequence[float]] | None = None,
@@ -380,9 +387,10 @@ def plot_bode(
                 ph -= 360.0 * np.round((ph[at] - phase[at, j, i]) / 360.0)
                 ax_p.plot(f, ph, lw=1.2, **style)
                 shown = [m for m in mode_f if f[0] <= m <= f[-1]]
-                ax_m.plot(shown, np.ones(len(shown)), ls="none", marker="v", ms=7,
-                          color=style["color"], transform=ax_m.get_xaxis_transform(),
-                          clip_on=False)  # fmt: skip
+                if shown:  # an empty line off the axes' clip box collapses the layout
+                    ax_m.plot(shown, np.ones(len(shown)), ls="none", marker="v", ms=7,
+                              color=style["color"], transform=ax_m.get_xaxis_transform(),
+                              clip_on=False)  # fmt: skip
             ax_c.plot(f, estimate.coherence[:, j], color="k", lw=1)
             ax_c.axhline(level, color="0.4", ls=":", lw=1)
             ax_c.set_ylim(0.0, 1.05)
@@ -394,7 +402,7 @@ def plot_bode(
             ax_m.set_ylabel(_with_unit("magnitude", f"dB re 1 {gain_unit}" if gain_unit
                                        else "dB"))  # fmt: skip
             ax_p.set_ylabel("phase [deg]")
-            ax_c.set_ylabel("coherence")
+            ax_c.set_ylabel("coherence [-]")
             for ax in (ax_m, ax_p, ax_c):
                 ax.set_xscale("log")
                 ax.grid(True, which="both", alpha=0.3)
@@ -652,9 +660,7 @@ def identification_figures(
             fig = plot_bode(
                 val_report.frequency_estimate, {"model": val_report.frequency_model},
                 modes={"model": _model_modes(ident.model)},
-                title=f"Frequency response of {name} (validation): model inside the band at "
-                f"{100 * float(val_report.frequency.share[0]):.0f} % of the trusted "
-                "frequencies",
+                title=f"{name} (validation): {_agreement_words(val_report.frequency)}",
             )  # fmt: skip
             paths.append(_save(fig, outdir / f"{p}bode{tail}.png"))
     fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())

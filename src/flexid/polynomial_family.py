@@ -284,7 +284,7 @@ class PolynomialFamily(Family):
             initial=initial, initial_one_step=initial_one_step, poles=model.poles(),
             zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
             predictor_stable=predictor_stable, test_start=start,
-            response=_response_of(model),
+            response=_response_of(model), input_units=record.input_units,
         )
 
     validate.__doc__ = None  # Family.validate's

@@ -361,6 +361,7 @@ class StateSpaceFamily(Family):
             predictor_stable=model.predictor_stable if y1 is not None else None,
             output_unit=record.output_units[k] if record.output_units else "",
             response=lambda f: model.frequency_response(f)[:, k, :],
+            input_units=record.input_units,
         )  # fmt: skip
 
     validate.__doc__ = None  # Family.validate's

@@ -555,7 +555,7 @@ def residual_report(
     *, start: int, dt: float, max_lag: int, names: list[str], output_name: str, initial: str,
     initial_one_step: str | None, poles: Any, zeros: Any, predictor_stable: bool | None = None,
     test_start: int | None = None, output_unit: str = "",
-    response: Callable[[np.ndarray], np.ndarray] | None = None,
+    response: Callable[[np.ndarray], np.ndarray] | None = None, input_units: Any = (),
 ) -> ValidationReport:
     """The validation report of a model from its outputs over a record.
 
@@ -602,6 +602,8 @@ def residual_report(
         ``response(frequencies) -> (F, n_u)``: the model's frequency response from every
         input to this output at frequencies in Hz, for the frequency-domain verdict (None: a
         model without one).
+    input_units : sequence of str, optional
+        The inputs' units (for the frequency response's).
 
     Returns
     -------
@@ -633,7 +635,8 @@ def residual_report(
     )
     stability = stability_report(np.asarray(poles), zeros, dt)
     stability.predictor_stable = predictor_stable
-    frequency = _frequency_verdict(u, y, dt, response, names, output_name)
+    frequency = _frequency_verdict(u, y, dt, response, names, output_name, input_units,
+                                   output_unit)  # fmt: skip
     return ValidationReport(
         n_samples=n,
         start=start,
@@ -670,13 +673,15 @@ def residual_report(
 
 def _frequency_verdict(
     u: np.ndarray, y: np.ndarray, dt: float, response: Callable | None, names: list[str],
-    output_name: str,
+    output_name: str, input_units: Any, output_unit: str,
 ) -> dict[str, Any]:
     """The report's frequency-domain fields: the record's estimate and the model's share
     inside its band, or why there is none."""
     if response is None:
         return {"frequency_note": "the model has no frequency response (not linear)"}
-    record = IOData(u, y, dt=dt, input_names=names, output_names=[output_name])
+    units = {"input_units": list(input_units)} if len(input_units) else {}
+    record = IOData(u, y, dt=dt, input_names=names, output_names=[output_name],
+                    output_units=[output_unit], **units)  # fmt: skip
     try:
         estimate = frf(record)
     except DataError as exc:  # a short record or a constant input: no verdict, said why

@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on 
     from scipy import signal
 
 
-__all__ = ["ARX", "ARXStructure", "NamedChannels", "channel_names"]
+__all__ = ["ARX", "ARXStructure", "NamedChannels", "channel_names", "transfer_response"]
 
 
 def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
