@@ -257,6 +257,7 @@ class ComparisonResult:
             "fit sim %",
             "error range (1-step)",
             "corr. pass",
+            "in freq. band",
             "stable",
         ]
         rows = [head]
@@ -268,6 +269,7 @@ class ComparisonResult:
                 _fit(v["fit_simulation"]),
                 f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
                 "yes" if v["correlation_passed"] else "no",
+                _share(v.get("frequency_share")),
                 "yes" if self.reference.get("stable") else "NO",
             ]
         )
@@ -281,6 +283,7 @@ class ComparisonResult:
                     _fit(v["fit_simulation"]),
                     f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
                     "yes" if v["correlation_passed"] else "no",
+                    _share(v.get("frequency_share")),
                     "yes" if oe.get("stable") else "NO",
                 ]
             )
@@ -295,6 +298,7 @@ class ComparisonResult:
                     _fit(s["fit_simulation"]),
                     f"[{s['error_min']:.4g}, {s['error_max']:.4g}]",
                     f"{s['correlation_pass_rate'] * 100:.0f}%",
+                    _share(s.get("frequency_share")),
                     f"{s['stable_rate'] * 100:.0f}%",
                 ]
             )
@@ -354,12 +358,14 @@ class ComparisonResult:
         return "\n".join(lines + self._notes())
 
     def _output_rows(self) -> list[list[str]]:
-        """With several outputs: each row's held-out simulation fit and correlation-test pass
-        rate per output (medians and shares over its runs); empty with one output."""
+        """With several outputs: each row's held-out simulation fit, correlation-test pass
+        rate and share inside the frequency band per output (medians and shares over its
+        runs); empty with one output."""
         names = list(self.reference["validation"].get("outputs", {}))
         if not names:
             return []
-        head = ["optimiser"] + [f"{h} {o}" for o in names for h in ("fit sim %", "pass")]
+        head = ["optimiser"] + [f"{h} {o}" for o in names
+                                for h in ("fit sim %", "pass", "in band")]  # fmt: skip
         rows = [head]
 
         def row(label: str, validations: list[dict]) -> list[str]:
@@ -367,11 +373,14 @@ class ComparisonResult:
             for o in names:
                 each = [v["outputs"][o] for v in validations if o in v.get("outputs", {})]
                 if not each:
-                    cells += ["-", "-"]
+                    cells += ["-", "-", "-"]
                     continue
                 cells.append(_fit(float(np.median([e["fit_simulation"] for e in each]))))
                 share = np.mean([e["correlation_passed"] for e in each])
                 cells.append(f"{share * 100:.0f}%")
+                bands = [e["frequency_share"] for e in each
+                         if e.get("frequency_share") is not None]  # fmt: skip
+                cells.append(_share(float(np.median(bands)) if bands else None))
             return cells
 
         rows.append(row(self.start_label, [self.reference["validation"]]))
@@ -484,3 +493,10 @@ def _p(value: float | None) -> str:
     if value is None or math.isnan(value):
         return "-"
     return f"{value:.2g}" + ("*" if value < 0.05 else "")
+
+
+def _share(value: Any) -> str:
+    """A share inside the frequency band as a percentage; ``"-"`` without a verdict."""
+    if value is None or not math.isfinite(value):
+        return "-"
+    return f"{100 * value:.0f}%"

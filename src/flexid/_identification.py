@@ -249,11 +249,12 @@ class Identification:
             lines.append(_indent(report.summary()))
         if self.outputs:
             lines.append(f"{'output':<24} {'fit sim. est. %':>16} {'fit sim. held-out %':>20} "
-                         f"{'correlation tests':>18}")  # fmt: skip
+                         f"{'correlation tests':>18} {'in frequency band':>18}")  # fmt: skip
             for est, val in self.outputs:
                 lines.append(f"{val.output_name:<24} {format_fit(est.fit_simulation):>16} "
                              f"{format_fit(val.fit_simulation):>20} "
-                             f"{'PASS' if val.passed else 'FAIL':>18}")  # fmt: skip
+                             f"{'PASS' if val.passed else 'FAIL':>18} "
+                             f"{val.frequency_verdict:>18}")  # fmt: skip
             if self.output_tests:
                 lines.append("residuals between outputs (held out, every lag but 0)")
                 width = max(len(t.name) for t in self.output_tests)
@@ -343,6 +344,7 @@ _REPORT_ROWS = (
     "RMSE simulation",
     "error range one-step",
     "correlation tests",
+    "inside the frequency band",
     "largest pole radius",
     "spectral peak measured, Hz",
     "spectral peak model, Hz",
@@ -361,6 +363,7 @@ def _report_column(report: ValidationReport) -> list[str]:
         f"{report.rmse_simulation:.4g}",
         f"[{lo:.4g}, {hi:.4g}]",
         "PASS" if report.passed else "FAIL",
+        report.frequency_verdict,
         f"{st.max_pole_radius:.5f}" + ("" if st.stable else " (UNSTABLE)"),
         f"{report.peak_measured:.4g}",
         f"{report.peak_model:.4g}",

@@ -447,6 +447,7 @@ class Selection:
             "fit sim %",
             "fit 1-step %",
             "tests",
+            "in band",
             "stable",
             "time s",
             "note",
@@ -456,7 +457,7 @@ class Selection:
             mark = "<- recommended" if c is self.best else ""
             if not c.ok:
                 rows.append(
-                    [str(i), c.label, str(c.n_params)] + ["-"] * 9 + [f"failed: {c.error}"]
+                    [str(i), c.label, str(c.n_params)] + ["-"] * 10 + [f"failed: {c.error}"]
                 )
                 continue
             tests = "pass" if c.passed else ("fail BV" if c.linear_passed else "fail")
@@ -472,6 +473,7 @@ class Selection:
                     format_fit(c.fit_simulation),
                     format_fit(c.fit_one_step),
                     tests,
+                    _band(c),
                     "yes" if c.stable else "NO",
                     f"{c.fit_time + c.validation_time:.2f}",
                     mark,
@@ -488,7 +490,9 @@ class Selection:
             One row per candidate: rank, structure and orders, ``d``, ``V``, the normalized
             AIC and MDL (``AIC/K``, ``MDL/K``), FPE, held-out simulation and one-step fits,
             the correlation tests (``pass``; ``fail BV``: only the Billings-Voon tests fail;
-            ``fail``), stability, fit + validation time, and the recommendation marked.
+            ``fail``), the share of trusted frequencies inside the held-out record's band
+            (the weakest output's), stability, fit + validation time, and the
+            recommendation marked.
         """
         return text_table(self._rows(), left=(1, -1))
 
@@ -1281,3 +1285,12 @@ def _fallback(ok: list[Candidate], criterion: str) -> tuple[Candidate, str]:
             f"({format_fit(lin.fit_simulation)} %)."
         )
     return best, note
+
+
+def _band(c: Candidate) -> str:
+    """The candidate's frequency verdict: its (weakest output's) share inside the band."""
+    reports = [r for r in (c.reports or (c.report,)) if r is not None]
+    judged = [r for r in reports if r.frequency_verdict != "-"]
+    if not judged:
+        return "-"
+    return min(judged, key=lambda r: float(r.frequency.share[0])).frequency_verdict

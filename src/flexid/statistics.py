@@ -155,7 +155,8 @@ def summarise(
         cost's ``median``, ``q25``, ``q75``, ``iqr``, ``best``, ``worst``, the median FE and
         wall time (s), the share of stable models; ``reach``, per tolerance the target cost,
         success rate and FE to reach it; the medians of the fits (%) and error bounds, and
-        the correlation-test pass rate.
+        the correlation-test pass rate, the median share of frequencies inside the record's
+        band (``frequency_share``, NaN where no run has one).
     """
     ok = [r for r in records if r["status"] == "ok"]
     failed = [r for r in records if r["status"] != "ok"]
@@ -199,16 +200,21 @@ def _reach(ok: list[Mapping[str, Any]], reference: float, targets: Sequence[floa
 
 
 def _validation_medians(ok: list[Mapping[str, Any]]) -> dict[str, float]:
-    """Medians of the runs' validation figures (NaN where no run has one) and the share of
-    runs whose correlation tests pass."""
+    """Medians of the runs' validation figures (NaN where no run has one; None, a model
+    without a frequency verdict, counts as none) and the share of runs whose correlation
+    tests pass."""
     out = {}
-    for key in ("fit_one_step", "fit_simulation", "error_min", "error_max"):
-        values = np.array([r.get("validation", {}).get(key, math.nan) for r in ok], dtype=float)
+    for key in ("fit_one_step", "fit_simulation", "error_min", "error_max", "frequency_share"):
+        values = np.array([_number(r.get("validation", {}).get(key)) for r in ok], dtype=float)
         out[key] = float(np.nanmedian(values)) if np.isfinite(values).any() else math.nan
     passes = [r.get("validation", {}).get("correlation_passed") for r in ok]
     passes = [p for p in passes if p is not None]
     out["correlation_pass_rate"] = float(np.mean(passes)) if passes else math.nan
     return out
+
+
+def _number(value: Any) -> float:
+    return math.nan if value is None else float(value)
 
 
 def convergence_band(

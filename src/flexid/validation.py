@@ -481,18 +481,26 @@ class ValidationReport:
         ]
         return "\n".join(lines)
 
+    @property
+    def frequency_verdict(self) -> str:
+        """The frequency verdict in a few characters for a table: ``"93 % of 40"`` (the share
+        inside the band, of how many frequencies judged) or ``"-"`` (no verdict)."""
+        agree = self.frequency
+        if agree is None or int(agree.judged[0]) == 0:
+            return "-"
+        return f"{100 * float(agree.share[0]):.0f} % of {int(agree.judged[0])}"
+
     def _frequency_lines(self) -> list[str]:
         if self.frequency is None:
             return ["Frequency response", f"  no verdict: {self.frequency_note}"]
         agree, est = self.frequency, self.frequency_estimate
         head = (f"Frequency response (H1 {est.method}, {est.averages:.1f} equivalent averages, "
                 f"bandwidth {est.bandwidth:.3g} Hz)")  # fmt: skip
-        share, judged = float(agree.share[0]), int(agree.judged[0])
-        if judged == 0:
+        if int(agree.judged[0]) == 0:
             return [head, f"  no frequency with coherence >= {agree.coherence:g}: no verdict"]
         return [
             head,
-            f"  inside the {100 * agree.level:.0f} % band at {100 * share:.1f} % of {judged} "
+            f"  inside the {100 * agree.level:.0f} % band at {self.frequency_verdict} "
             f"frequencies with coherence >= {agree.coherence:g} (a true model: about "
             f"{100 * agree.level:.0f} %)",
         ]
