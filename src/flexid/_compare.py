@@ -271,8 +271,9 @@ def _report_numbers(report: Any) -> dict[str, Any]:
         "error_max": float(err[1]),
         "correlation_passed": bool(report.passed),
         # the share inside the record's frequency band (None: no verdict, said in the report)
-        "frequency_share": None if report.frequency_verdict == "-" else float(
-            report.frequency.share[0]),  # fmt: skip
+        "frequency_share": (
+            None if report.frequency_verdict == "-" else float(report.frequency.share[0])
+        ),
     }
 
 
