@@ -285,9 +285,18 @@ def test_ecdf(result):
     assert_looks_right(fig)
 
 
-def test_comparison_figures_are_these_two_kinds(result, tmp_path):
+def test_comparison_figures_are_these_three_kinds(result, tmp_path):
     names = [p.name for p in plots.comparison_figures(result, tmp_path)]
-    assert names == ["convergence.png"] + [f"fe_to_target_{t:g}.png" for t in result.spec.targets]
+    assert names == ["convergence.png"] + [
+        f"fe_to_target_{t:g}.png" for t in result.spec.targets] + ["bode.png"]  # fmt: skip
+
+
+def test_the_comparison_s_bode_figure_draws_the_reference_and_each_best_run(result):
+    fig = plots.comparison_bode(result)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    # ARX on its one-step cost: least squares is the reference
+    assert labels[3:] == ["least squares", "sda (best of 2)", "random-search (best of 2)"]
+    assert_looks_right(fig)
 
 
 # ============================================================================ selection

@@ -67,7 +67,7 @@ def test_correlation_panels_show_the_bands():
 def test_comparison_figures(tmp_path):
     result = compare(tiny_spec("fig"), progress=False)
     paths = comparison_figures(result, tmp_path, prefix="c-")
-    assert [p.name for p in paths] == ["c-convergence.png", "c-fe_to_target_1.png"]
+    assert [p.name for p in paths] == ["c-convergence.png", "c-fe_to_target_1.png", "c-bode.png"]
     assert all(_is_png(p) for p in paths)
 
 

@@ -50,7 +50,15 @@ from .families import family_named, family_of
 from .optimisers import Budget, get, minimize
 from .store import ResultStore
 
-__all__ = ["ComparisonResult", "build_data", "check_spec", "compare", "load_result", "run_seed"]
+__all__ = [
+    "ComparisonResult",
+    "build_data",
+    "check_spec",
+    "compare",
+    "frequency_views",
+    "load_result",
+    "run_seed",
+]
 
 
 # ================================================================================ context
@@ -1014,6 +1022,51 @@ def _progress(
             bar.update(1, f"{where}{record['label']} run {record['run']}: {cost}")
 
     return update
+
+
+@checked_keywords
+def frequency_views(result: ComparisonResult) -> tuple[Any, dict[str, Any]]:
+    """The held-out record's frequency-response estimate and the models to draw on it.
+
+    The comparison's records and problem are posed again from its specification (the data
+    file must still hold what it held), and the models rebuilt from the stored runs: the
+    reference (or the start where there is none) and each optimiser's best run.
+
+    Parameters
+    ----------
+    result : ComparisonResult
+        The comparison (from :func:`compare` or :func:`load_result`).
+
+    Returns
+    -------
+    estimate : FrequencyResponseEstimate
+        ``tfestimate`` of the held-out record, every input and output.
+    models : dict of str to model
+        ``label -> model``: the reference first, then each optimiser's best run
+        (``"pso (best of 5)"``); empty for models without a frequency response.
+
+    Raises
+    ------
+    FlexidError
+        When the data cannot be read again or the estimate cannot be made.
+    """
+    from .frequency import frf
+
+    ctx = _Context.from_spec(result.spec)
+    models: dict[str, Any] = {}
+    oe = result.reference.get("output_error")
+    if oe and "theta" in oe:
+        models[result.reference_label] = ctx.structure.model(np.asarray(oe["theta"]), dt=ctx.dt)
+    else:
+        models[result.start_label] = ctx.structure.model(ctx.theta_ls, dt=ctx.dt)
+    for label, runs in result.records.items():
+        ok = [r for r in runs if r["status"] == "ok" and "x" in r]
+        if ok:
+            best = min(ok, key=lambda r: r["cost"])
+            theta = ctx.estimation.theta(np.asarray(best["x"], dtype=float))
+            models[f"{label} (best of {len(ok)})"] = ctx.structure.model(theta, dt=ctx.dt)
+    models = {k: m for k, m in models.items() if hasattr(m, "frequency_response")}
+    return frf(ctx.val), models
 
 
 @checked_keywords

@@ -181,6 +181,11 @@ class ComparisonResult:
             self.stats[label]["test"] = t
 
     @property
+    def reference_label(self) -> str:
+        """The reference's row in the tables (its optimum of the posed cost)."""
+        return _REFERENCE_ROW
+
+    @property
     def start_label(self) -> str:
         """What the first row of the tables is: least squares, or a grey-box model's given
         parameter values."""

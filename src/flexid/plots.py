@@ -29,6 +29,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = [
     "PlottingUnavailable",
+    "comparison_bode",
     "comparison_figures",
     "identification_figures",
     "plot_bode",
@@ -295,6 +296,9 @@ def _model_modes(model: Any) -> list[float]:
     return [m.frequency for m in found if m.kind == "pair" and 0 < m.damping < 1]
 
 
+_BODE_POINTS = 1500  # a model's response: log-spaced frequencies across the estimate's
+
+
 def _agreement_words(agreement: Any) -> str:
     share, judged = float(agreement.share[0]), int(agreement.judged[0])
     if judged == 0:
@@ -318,10 +322,11 @@ def plot_bode(
     ----------
     estimate : FrequencyResponseEstimate
         From :func:`flexid.frf`.
-    models : mapping of str to model or ndarray, optional
+    models : mapping of str to model, callable or ndarray, optional
         ``label -> model`` (anything with ``frequency_response(f)``, shape (F, ny, nu), such
-        as every linear flexid model; its ``poles()`` give the marked modes) or ``label ->
-        response`` at the estimate's frequencies, shape (F, ny, nu).
+        as every linear flexid model; its ``poles()`` give the marked modes), ``label ->
+        response(f)`` (a function of frequencies in Hz), both drawn on a fine grid, or
+        ``label -> response`` at the estimate's frequencies, shape (F, ny, nu).
     title : str, optional
         Figure title.
     coherence : float, optional
@@ -346,11 +351,18 @@ def plot_bode(
         3 * ny, nu, sharex=True, squeeze=False, figsize=(6.4 * nu + 2.2, 5.6 * ny),
         height_ratios=[3.0, 2.0, 1.2] * ny, layout="constrained",
     )  # fmt: skip
+    # a model is drawn on a fine grid of its own: its resonances sharper than the estimate's
+    dense = np.geomspace(f[0], f[-1], _BODE_POINTS)
     curves = []
     for i, (label, model) in enumerate((models or {}).items()):
-        g = model.frequency_response(f) if hasattr(model, "frequency_response") else model
+        if hasattr(model, "frequency_response"):
+            grid, g = dense, model.frequency_response(dense)
+        elif callable(model):
+            grid, g = dense, model(dense)
+        else:
+            grid, g = f, model
         marked = (modes or {}).get(label)
-        curves.append((label, np.asarray(g, dtype=complex).reshape(f.size, ny, nu),
+        curves.append((label, grid, np.asarray(g, dtype=complex).reshape(grid.size, ny, nu),
                        _model_modes(model) if marked is None else list(marked),
                        _style(i)))  # fmt: skip
     mag_db = estimate.magnitude_db()
@@ -377,15 +389,16 @@ def plot_bode(
                               color="0.6", alpha=0.3, lw=0)  # fmt: skip
             ax_p.plot(f, phase[:, j, i], color="0.7", lw=1)
             ax_p.plot(f, np.where(trusted, phase[:, j, i], np.nan), color="k", lw=1.0, zorder=3)
-            for label, g, mode_f, style in curves:
+            for label, grid, g, mode_f, style in curves:
                 gji = g[:, j, i]
                 with np.errstate(divide="ignore"):
-                    ax_m.plot(f, 20 * np.log10(np.abs(gji)), lw=1.2, label=label, **style)
+                    ax_m.plot(grid, 20 * np.log10(np.abs(gji)), lw=1.2, label=label, **style)
                 ph = np.degrees(np.unwrap(np.angle(gji)))
                 # the same branch as the estimate's phase where the record is trusted
                 at = int(np.argmax(trusted)) if trusted.any() else 0
-                ph -= 360.0 * np.round((ph[at] - phase[at, j, i]) / 360.0)
-                ax_p.plot(f, ph, lw=1.2, **style)
+                near = int(np.argmin(np.abs(grid - f[at])))
+                ph -= 360.0 * np.round((ph[near] - phase[at, j, i]) / 360.0)
+                ax_p.plot(grid, ph, lw=1.2, **style)
                 shown = [m for m in mode_f if f[0] <= m <= f[-1]]
                 if shown:  # an empty line off the axes' clip box collapses the layout
                     ax_m.plot(shown, np.ones(len(shown)), ls="none", marker="v", ms=7,
@@ -657,8 +670,11 @@ def identification_figures(
         )
         paths.append(_save(fig, outdir / f"{p}correlations{tail}.png"))
         if val_report.frequency_estimate is not None:
+            names = list(getattr(ident.model, "output_names", ()))
+            k = names.index(name) if name in names else 0
             fig = plot_bode(
-                val_report.frequency_estimate, {"model": val_report.frequency_model},
+                val_report.frequency_estimate,
+                {"model": lambda f, k=k: ident.model.frequency_response(f)[:, k : k + 1, :]},
                 modes={"model": _model_modes(ident.model)},
                 title=f"{name} (validation): {_agreement_words(val_report.frequency)}",
             )  # fmt: skip
@@ -848,7 +864,7 @@ def plot_ecdf(ecdf: dict[str, Any], *, ax: Axes | None = None, title: str = "") 
 def comparison_figures(
     result: ComparisonResult, outdir: str | Path, prefix: str = ""
 ) -> list[Path]:
-    """Write the convergence band figure and one FE-to-target ECDF per target.
+    """Write the convergence band figure, one FE-to-target ECDF per target and the Bode figure.
 
     Parameters
     ----------
@@ -863,7 +879,8 @@ def comparison_figures(
     -------
     list of pathlib.Path
         ``convergence.png``, then ``fe_to_target_<t>.png`` for each target ``t`` of the
-        spec, each with ``prefix``.
+        spec, then ``bode.png`` (:func:`comparison_bode`, where there is one), each with
+        ``prefix``.
     """
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
@@ -872,7 +889,37 @@ def comparison_figures(
         paths.append(
             _save(plot_fe_to_target(result, t), outdir / f"{prefix}fe_to_target_{t:g}.png")
         )
+    bode = comparison_bode(result)
+    if bode is not None:
+        paths.append(_save(bode, outdir / f"{prefix}bode.png"))
     return paths
+
+
+def comparison_bode(result: ComparisonResult) -> Figure | None:
+    """The Bode figure of a comparison: the held-out record's estimate, the reference and
+    each optimiser's best run (:func:`flexid._compare.frequency_views`).
+
+    Parameters
+    ----------
+    result : ComparisonResult
+        The comparison.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        None when its models have no frequency response (grey-box) or its record cannot be
+        read again (a data file moved or changed since the runs).
+    """
+    from ._compare import frequency_views
+
+    try:
+        estimate, models = frequency_views(result)
+    except FlexidError:
+        return None
+    if not models:
+        return None
+    return plot_bode(estimate, models,
+                     title=f"{result.spec.name or 'comparison'}: held-out record")  # fmt: skip
 
 
 # ============================================================================ selection
