@@ -269,3 +269,63 @@ def test_identification_figures_include_the_bode_figure(tmp_path):
     ident = flexid.identify(data, 2, 2, 1)
     paths = identification_figures(ident, tmp_path)
     assert tmp_path / "bode.png" in paths
+
+
+# ============================================================================ modes
+def test_the_beam_s_own_modes_are_its_finite_difference_frequencies_and_damping():
+    # two routes: eig of the damped first-order A against eigh(K, M) and the modal damping
+    # law (equal for modal damping: |s| = omega; rounding of eig on a 30-state A, 1e-9)
+    from flexid.envs import beam
+    from flexid.plants import get_plant
+
+    params = beam.BeamParameters()
+    f, zeta = get_plant("manipulator").true_modes()
+    np.testing.assert_allclose(f[:5], beam.natural_frequencies(params, n_modes=5), rtol=1e-9)
+    np.testing.assert_allclose(zeta[:3], [params.damping_ratio(k) for k in (1, 2, 3)],
+                               rtol=1e-9)  # fmt: skip
+    f_rotor, z_rotor = get_plant("twin-rotor").true_modes({"Mg": 0.5})
+    from flexid.envs.twin_rotor_physics import TwinRotorParameters, pitch_linear_mode
+
+    assert (f_rotor[0], z_rotor[0]) == pitch_linear_mode(TwinRotorParameters(Mg=0.5))
+
+
+def test_a_mode_table_matches_model_modes_peaks_and_the_truth_one_to_one():
+    from flexid.frequency import mode_table, mode_table_text
+    from flexid.models.statespace import StateSpaceModel
+
+    dt = 0.01
+    blocks = []
+    for f, zeta in ((5.0, 0.02), (12.0, 0.05)):
+        s = 2 * np.pi * f * (-zeta + 1j * np.sqrt(1 - zeta**2))
+        z = np.exp(s * dt)
+        blocks.append(np.array([[z.real, z.imag], [-z.imag, z.real]]))
+    a = np.block([[blocks[0], np.zeros((2, 2))], [np.zeros((2, 2)), blocks[1]]])
+    model = StateSpaceModel(a, np.ones((4, 1)), np.ones((1, 4)), np.zeros((1, 1)), dt=dt)
+    truth = ([5.01, 12.0, 30.0, 80.0], [0.02, 0.05, 0.1, 0.1])  # 80 Hz: above Nyquist
+    rows = mode_table(model, truth=truth)
+    assert [round(r.frequency, 9) for r in rows[:2]] == [5.0, 12.0]
+    assert rows[0].true_frequency == 5.01 and rows[0].frequency_error == pytest.approx(
+        100 * (5.0 - 5.01) / 5.01)  # fmt: skip
+    assert rows[1].damping_error == pytest.approx(0.0, abs=1e-12)
+    assert len(rows) == 3 and np.isnan(rows[2].frequency) and rows[2].true_frequency == 30.0
+    text = mode_table_text(rows)
+    assert "missed" in text and "record peak" not in text  # no estimate: no peak column
+    # the simulated record's peaks join the table
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(20000)
+    y = model.simulate(u[:, None])[:, 0] + 0.01 * rng.standard_normal(20000)
+    rows = mode_table(model, estimate=frf(IOData(u, y, dt=dt)))
+    # a resonance's peak lies near, not at, its natural frequency (the damping and the other
+    # mode move it: 12.05 Hz here): within 1 %
+    np.testing.assert_allclose([r.peak for r in rows], [5.0, 12.0], rtol=0.01)
+
+
+def test_identify_reports_the_modes_against_the_simulated_plant_s(tmp_path):
+    record = flexid.generate("manipulator", preset="paper-manipulator", seed=0)
+    path = tmp_path / "man.csv"
+    record.save(path)  # the plant and its parameters travel in the file's header
+    ident = flexid.identify(str(path), structure="oe", nb=16, nf=16, nk=1, optimiser="pem")
+    first = ident.modes[0]
+    assert abs(first.frequency_error) < 0.1 and first.true_damping == 0.026
+    assert "Modes: the model's" in ident.summary() and "plant f [Hz]" in ident.summary()
+    assert ident.to_dict()["modes"][0]["true_frequency_hz"] == pytest.approx(11.8398, rel=1e-4)

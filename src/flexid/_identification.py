@@ -17,6 +17,7 @@ from .costs.arx import ARXCost
 from .data import IOData
 from .diagnostics import format_fit
 from .families import family_of
+from .frequency import mode_table_text
 from .models.arx import ARX
 from .optimisers import History
 from .parametrisation import SearchBox
@@ -78,6 +79,10 @@ class Identification:
     output_tests : tuple of CorrelationTest
         With several outputs, the held-out residuals' cross-correlation between every pair
         of outputs at nonzero lags (:func:`flexid.diagnostics.output_cross_tests`).
+    modes : tuple of ModeMatch
+        A linear model's oscillating modes with the held-out record's confirmed resonance
+        peaks and, on a record simulated by a flexid plant, the plant's own modes
+        (:func:`flexid.frequency.mode_table`); empty for a model without modes.
     """
 
     model: ARX
@@ -99,6 +104,7 @@ class Identification:
     estimation_records: tuple = ()
     outputs: tuple = ()
     output_tests: tuple = ()
+    modes: tuple = ()
 
     @property
     def held_out(self) -> tuple[ValidationReport, ...]:
@@ -242,6 +248,10 @@ class Identification:
         lines.append("")
         lines.append(self.model.summary())
         lines.append("")
+        if self.modes:
+            lines.append(self._modes_title())
+            lines.append(_indent(mode_table_text(list(self.modes))))
+            lines.append("")
         estimation = self.estimation_records or (self.estimation,)
         for i, report in enumerate(estimation):
             several = f" {i + 1} of {len(estimation)}" if len(estimation) > 1 else ""
@@ -269,9 +279,19 @@ class Identification:
             lines.append(advice)
         return "\n".join(lines)
 
+    def _modes_title(self) -> str:
+        parts = ["the model's"]
+        if any(math.isfinite(r.peak) for r in self.modes):
+            parts.append("the held-out record's confirmed peaks")
+        if any(math.isfinite(r.true_frequency) for r in self.modes):
+            parts.append("the plant's own")
+        return "Modes: " + ", ".join(parts)
+
     def _repr_html_(self) -> str:
         """The notebook display: the numbers of :meth:`summary`, the long parts collapsed."""
         from . import _html
+
+        modes = [_html.details(self._modes_title(), mode_table_text(list(self.modes)))]
 
         rows = [["", "estimation", "validation (held out)"]]
         columns = [_report_column(r) for r in (self.estimation, self.validation)]
@@ -282,6 +302,7 @@ class Identification:
             _html.key_values(self._items()),
             _html.table(rows),
             _html.details("model", self.model.summary()),
+            *(modes if self.modes else []),
             _html.details("estimation record", self.estimation.summary()),
             _html.details("validation record (held out)", self.validation.summary()),
         )
@@ -330,6 +351,7 @@ class Identification:
                                  "validation": v.to_dict()} for e, v in self.outputs],
                     "output_tests": [t.to_dict() for t in self.output_tests]}
                    if self.outputs else {}),
+                "modes": [r.to_dict() for r in self.modes],
                 "timings": {k: round(v, 6) for k, v in self.timings.items()},
                 "data": self.data_info,
             }

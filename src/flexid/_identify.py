@@ -35,14 +35,16 @@ from .config import (
 from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
 from .diagnostics import output_cross_tests
-from .errors import BudgetError, ConfigError, UnknownNameError
+from .errors import BudgetError, ConfigError, DataError, FlexidError, UnknownNameError
 from .estimation import build_problem, structure_of
 from .families import family_named, family_of
+from .frequency import frf, mode_table
 from .greybox_family import greybox_of
 from .models.greybox import GreyBoxModel
 from .models.polynomial import PolynomialStructure, _check_initial
 from .models.statespace import StateSpaceStructure
 from .optimisers import Budget, minimize
+from .plants import PLANTS, get_plant
 from .validation import validate
 
 __all__ = ["Identification", "identify"]
@@ -323,7 +325,26 @@ def identify(
         data_info=info,
         outputs=by_output,
         output_tests=between,
+        modes=_modes(model, val, first.metadata),
     )
+
+
+def _modes(model: Any, val: IOData, metadata: Mapping[str, Any]) -> tuple:
+    """The model's mode table against the held-out record's peaks and, on a record a flexid
+    plant simulated, the plant's own modes; empty for a model without a frequency response."""
+    if not hasattr(model, "frequency_response"):
+        return ()
+    try:
+        estimate = frf(val)
+    except DataError:  # too short or a constant input: the table without the record's peaks
+        estimate = None
+    truth = None
+    if metadata.get("plant") in PLANTS:
+        try:
+            truth = get_plant(metadata["plant"]).true_modes(metadata.get("parameters"))
+        except FlexidError:  # a plant without its modes, or parameters it does not know
+            truth = None
+    return tuple(mode_table(model, estimate=estimate, truth=truth))
 
 
 def _family(structure: Any) -> Any:

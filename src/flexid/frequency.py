@@ -47,14 +47,18 @@ from scipy import ndimage, signal, stats
 from ._validate import checked_keywords, integer, real
 from .data import IOData, load
 from .errors import DataError, UnknownNameError
+from .models.modes import modes as modes_of
 
 __all__ = [
     "COHERENCE_LEVEL",
     "FREQUENCY_METHODS",
     "FrequencyAgreement",
     "FrequencyResponseEstimate",
+    "ModeMatch",
     "frequency_agreement",
     "frf",
+    "mode_table",
+    "mode_table_text",
 ]
 
 FREQUENCY_METHODS = ("tfestimate", "spa", "etfe")
@@ -596,3 +600,184 @@ def _smoothed_etfe(
     f = np.arange(1, half + 1) / (n * dt)
     averages = 1.0 / float(kernel @ kernel)
     return f, smooth[1 : half + 1], averages, {"width": w}
+
+
+# Two modes match when their frequencies differ by less than this share: closer than the
+# first manipulator modes' spacing (11.8 -> 32.2 Hz) and wider than an identified mode's error
+MATCH_TOLERANCE = 0.1
+
+
+@dataclass(frozen=True)
+class ModeMatch:
+    """One row of a mode table: a model's mode, the record's peak and the plant's mode.
+
+    Attributes
+    ----------
+    frequency, damping : float
+        The model's mode: natural frequency [Hz] and damping ratio (NaN: a plant mode the
+        model has not found).
+    peak_gain : float
+        The model's largest gain over its input-output pairs at the mode's damped frequency
+        ``f sqrt(1 - zeta^2)``, in dB (NaN for a missed mode).
+    peak : float
+        The record's estimate's confirmed peak matched to it [Hz] (NaN: none).
+    true_frequency, true_damping : float
+        The plant's own mode matched to it (NaN: none, or the plant's modes unknown).
+    """
+
+    frequency: float
+    damping: float
+    peak_gain: float = math.nan
+    peak: float = math.nan
+    true_frequency: float = math.nan
+    true_damping: float = math.nan
+
+    @property
+    def frequency_error(self) -> float:
+        """``(f - f_true) / f_true`` in % (NaN without both)."""
+        return 100.0 * (self.frequency - self.true_frequency) / self.true_frequency
+
+    @property
+    def damping_error(self) -> float:
+        """``zeta - zeta_true`` (NaN without both)."""
+        return self.damping - self.true_damping
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe form (NaN as None).
+
+        Returns
+        -------
+        dict
+        """
+        values = {
+            "frequency_hz": self.frequency, "damping": self.damping,
+            "peak_gain_db": self.peak_gain, "peak_hz": self.peak,
+            "true_frequency_hz": self.true_frequency, "true_damping": self.true_damping,
+            "frequency_error_percent": self.frequency_error,
+            "damping_error": self.damping_error,
+        }  # fmt: skip
+        return {k: (float(v) if math.isfinite(v) else None) for k, v in values.items()}
+
+
+@checked_keywords
+def mode_table(
+    model: Any,
+    *,
+    estimate: FrequencyResponseEstimate | None = None,
+    truth: tuple[Any, Any] | None = None,
+    tolerance: float = MATCH_TOLERANCE,
+) -> list[ModeMatch]:
+    """A model's modes matched to a record's resonance peaks and to the plant's own modes.
+
+    Each oscillating mode of the model (a pole pair with damping ratio in (0, 1),
+    :func:`flexid.models.modes.modes`) gets its peak gain, the estimate's confirmed peak
+    (:meth:`FrequencyResponseEstimate.peaks`) and the plant's mode nearest to it; matches
+    are one to one, nearest first, within ``tolerance`` relative frequency.  The plant's
+    modes below the Nyquist frequency that no model mode matches end the table as missed.
+
+    Parameters
+    ----------
+    model : object
+        A linear model with ``poles()``, ``dt`` and ``frequency_response(f)``.
+    estimate : FrequencyResponseEstimate, optional
+        The record's estimate, for its peaks.
+    truth : (frequency, damping), optional
+        The plant's modes (:meth:`flexid.plants.Plant.true_modes`), arrays in Hz and [-].
+    tolerance : float, optional
+        Largest relative frequency difference of a match (default 0.1).
+
+    Returns
+    -------
+    list of ModeMatch
+        The model's modes by frequency, then the missed plant modes.
+    """
+    tol = real(tolerance, "tolerance", error=DataError, minimum=0.0, low_open=True)
+    found = [m for m in modes_of(model.poles(), model.dt) if m.kind == "pair"
+             and 0.0 < m.damping < 1.0]  # fmt: skip
+    f = np.array([m.frequency for m in found])
+    zeta = np.array([m.damping for m in found])
+    if f.size:
+        damped = f * np.sqrt(1.0 - zeta**2)
+        gain = np.abs(model.frequency_response(damped)).max(axis=(1, 2))
+        with np.errstate(divide="ignore"):
+            gain_db = 20.0 * np.log10(gain)
+    else:
+        gain_db = np.zeros(0)
+    peaks = estimate.peaks() if estimate is not None else np.zeros(0)
+    to_peak = _match(f, peaks, tol)
+    nyquist = 0.5 / model.dt
+    if truth is not None:
+        tf, tz = (np.asarray(v, dtype=float).reshape(-1) for v in truth)
+        keep = tf < nyquist
+        tf, tz = tf[keep], tz[keep]
+    else:
+        tf = tz = np.zeros(0)
+    to_true = _match(f, tf, tol)
+    rows = [
+        ModeMatch(
+            float(f[i]), float(zeta[i]), float(gain_db[i]),
+            float(peaks[to_peak[i]]) if i in to_peak else math.nan,
+            float(tf[to_true[i]]) if i in to_true else math.nan,
+            float(tz[to_true[i]]) if i in to_true else math.nan,
+        )
+        for i in range(f.size)
+    ]  # fmt: skip
+    matched = set(to_true.values())
+    rows += [ModeMatch(math.nan, math.nan, true_frequency=float(tf[j]),
+                       true_damping=float(tz[j]))
+             for j in range(tf.size) if j not in matched]  # fmt: skip
+    return rows
+
+
+def _match(a: np.ndarray, b: np.ndarray, tolerance: float) -> dict[int, int]:
+    """One-to-one matches ``i -> j`` of frequencies ``a`` to ``b``, nearest (in log
+    frequency) first, within ``tolerance`` relative difference."""
+    if a.size == 0 or b.size == 0:
+        return {}
+    distance = np.abs(np.log(a[:, None] / b[None, :]))
+    limit = math.log1p(tolerance)
+    out: dict[int, int] = {}
+    used: set[int] = set()
+    for flat in np.argsort(distance, axis=None):
+        i, j = divmod(int(flat), b.size)
+        if distance[i, j] > limit:
+            break
+        if i not in out and j not in used:
+            out[i] = j
+            used.add(j)
+    return out
+
+
+def mode_table_text(rows: list[ModeMatch]) -> str:
+    """A mode table as aligned text, a column left out where no row has a value.
+
+    Parameters
+    ----------
+    rows : list of ModeMatch
+        From :func:`mode_table`.
+
+    Returns
+    -------
+    str
+    """
+    columns = [
+        ("f [Hz]", lambda r: r.frequency, "{:.4g}"),
+        ("damping", lambda r: r.damping, "{:.4f}"),
+        ("peak gain [dB]", lambda r: r.peak_gain, "{:.1f}"),
+        ("record peak [Hz]", lambda r: r.peak, "{:.4g}"),
+        ("plant f [Hz]", lambda r: r.true_frequency, "{:.4g}"),
+        ("f error %", lambda r: r.frequency_error, "{:+.3f}"),
+        ("plant damping", lambda r: r.true_damping, "{:.4f}"),
+        ("damping error", lambda r: r.damping_error, "{:+.4f}"),
+    ]
+    shown = [c for c in columns if any(math.isfinite(c[1](r)) for r in rows)]
+    if not rows or not shown:
+        return "no oscillating mode"
+    table = [[name for name, _, _ in shown]]
+    for r in rows:
+        cells = [form.format(get(r)) if math.isfinite(get(r)) else "-" for _, get, form in shown]
+        if not math.isfinite(r.frequency):
+            cells[0] = "missed"
+        table.append(cells)
+    widths = [max(len(row[k]) for row in table) for k in range(len(shown))]
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in table)

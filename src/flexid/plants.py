@@ -154,6 +154,10 @@ class Plant:
     input_limits, reward, terminal : str, callable or None
         Optional pure functions (:class:`PlantFunctions`), a function or a name in
         :attr:`module`; None: the defaults documented there.
+    modes : str, callable or None
+        ``modes(params) -> (frequency, damping)``: the plant's own modes, natural frequencies
+        [Hz] and damping ratios, each (k,) (:meth:`true_modes`); a function or a name in
+        :attr:`module`.  None: the plant does not know them.
     """
 
     name: str
@@ -177,6 +181,8 @@ class Plant:
     input_limits: str | Callable[..., Any] | None = field(default=None, repr=False)
     reward: str | Callable[..., np.ndarray] | None = field(default=None, repr=False)
     terminal: str | Callable[..., np.ndarray] | None = field(default=None, repr=False)
+    modes: str | Callable[..., tuple[np.ndarray, np.ndarray]] | None = field(
+        default=None, repr=False)  # fmt: skip
 
     def __post_init__(self) -> None:
         for name in PURE_FUNCTIONS:
@@ -229,6 +235,36 @@ class Plant:
         if found["terminal"] is None:
             found["terminal"] = _never
         return PlantFunctions(**found)
+
+    def true_modes(self, params: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """The plant's own modes, what an identified model's modes are scored against.
+
+        Parameters
+        ----------
+        params : dataclass instance or mapping, optional
+            The plant's parameters, or the overrides of a record's metadata (its
+            ``"parameters"``); default the plant's defaults.
+
+        Returns
+        -------
+        frequency : ndarray, shape (k,)
+            Natural frequencies [Hz], increasing.
+        damping : ndarray, shape (k,)
+            Damping ratios [-].
+
+        Raises
+        ------
+        PlantParameterError
+            When the plant gives no :attr:`modes`, or bad parameters.
+        """
+        if self.modes is None:
+            raise PlantParameterError(f"plant {self.name!r} does not give its modes")
+        function = getattr(self.physics(), self.modes) if isinstance(self.modes, str) else (
+            self.modes)  # fmt: skip
+        if params is None or isinstance(params, Mapping):
+            params = self.make_parameters(params)
+        frequency, damping = function(params)
+        return np.asarray(frequency, dtype=float), np.asarray(damping, dtype=float)
 
     def _resolve(self, name: str) -> Callable[..., Any] | None:
         """The function a pure-function field names (or holds), its signature checked."""
@@ -584,6 +620,7 @@ _add(
         transition="step_states",
         output="outputs",
         initial_state="initial_state",
+        modes="modes",
         presets={
             "paper-manipulator": {
                 "description": "Nasir & Tokhi 4.1: 2,300 samples at 1 ms, random +-0.3 N m "
@@ -624,6 +661,7 @@ _add(
         output="outputs",
         initial_state="initial_state",
         input_limits="input_limits",
+        modes="modes",
         presets={
             "paper-twin-rotor": {
                 "description": "Nasir & Tokhi 4.1: vertical channel, 8,000 samples at 0.1 s, "

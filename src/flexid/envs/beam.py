@@ -63,6 +63,7 @@ __all__ = [
     "initial_state",
     "measure",
     "measured_model",
+    "modes",
     "natural_frequencies",
     "node_positions",
     "noise_floor",
@@ -599,6 +600,37 @@ def natural_frequencies(params: BeamParameters | None = None, n_modes: int = 3) 
     )
     omega, _ = _modes(p)
     return omega[1 : 1 + n_modes] / (2.0 * math.pi)
+
+
+def modes(params: BeamParameters | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The plant's own modes: natural frequency and damping ratio of each flexible mode.
+
+    The complex eigenvalue pairs ``s`` of :func:`continuous_model`'s ``A`` (the beam on its
+    hub, modal damping and hub viscous friction included, the measurement chain left out):
+    ``f = |s| / (2 pi)``, ``zeta = -Re(s) / |s|``.  The rigid-body mode (at 0 Hz) and
+    overdamped modes (real eigenvalues) are left out.
+
+    Parameters
+    ----------
+    params : BeamParameters, optional
+        The beam (default: the rig's :class:`BeamParameters`).
+
+    Returns
+    -------
+    frequency : ndarray, shape (k,)
+        Natural frequencies [Hz], increasing.
+    damping : ndarray, shape (k,)
+        Their damping ratios [-].
+    """
+    p = _params(params)
+    s = np.linalg.eigvals(_continuous(p)[0])
+    # the rigid body's double eigenvalue at 0 comes out of eigvals split by rounding, as a
+    # pair some 1e-5 of the first flexible frequency: a mode is at least 1e-3 of that one
+    first = _modes(p)[0][1]
+    s = s[(s.imag > 0) & (np.abs(s) > 1e-3 * first)]
+    w = np.abs(s)
+    order = np.argsort(w)
+    return w[order] / (2.0 * math.pi), -s.real[order] / w[order]
 
 
 @functools.lru_cache(maxsize=64)

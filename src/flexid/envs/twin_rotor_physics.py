@@ -62,6 +62,7 @@ __all__ = [
     "initial_state",
     "input_limits",
     "measure",
+    "modes",
     "noise_floor",
     "outputs",
     "pitch_linear_mode",
@@ -267,6 +268,29 @@ def pitch_linear_mode(params: TwinRotorParameters | None = None) -> tuple[float,
     p = params or TwinRotorParameters()
     wn = math.sqrt(p.Mg / p.I1)
     return wn / (2 * math.pi), p.B1psi / (2 * math.sqrt(p.Mg * p.I1))
+
+
+def modes(params: TwinRotorParameters | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The plant's own modes: pitch's pendulum mode linearised at rest.
+
+    The one oscillating mode of the linearisation at the origin (rotors at rest, beam level,
+    :func:`pitch_linear_mode`); yaw has no restoring torque (an integrator and friction).
+    Around another operating point the thrusts and the gyroscopic coupling move it.
+
+    Parameters
+    ----------
+    params : TwinRotorParameters, optional
+        Default the defaults.
+
+    Returns
+    -------
+    frequency : ndarray, shape (1,)
+        Natural frequency [Hz].
+    damping : ndarray, shape (1,)
+        Damping ratio [-] (viscous friction only).
+    """
+    f, zeta = pitch_linear_mode(params)
+    return np.array([f]), np.array([zeta])
 
 
 def clip_inputs(u: Any, params: TwinRotorParameters | None = None) -> np.ndarray:
