@@ -329,3 +329,35 @@ def test_identify_reports_the_modes_against_the_simulated_plant_s(tmp_path):
     assert abs(first.frequency_error) < 0.1 and first.true_damping == pytest.approx(0.026)
     assert "Modes: the model's" in ident.summary() and "plant f [Hz]" in ident.summary()
     assert ident.to_dict()["modes"][0]["true_frequency_hz"] == pytest.approx(11.8398, rel=1e-4)
+
+
+def test_select_from_a_flat_grid_over_arx_and_oe_writes_its_frequency_figures(tmp_path, capsys):
+    # the README's command, small: each structure takes the grid's orders it has (ARX ties
+    # na = nb), and --figure writes the selection, Bode and stabilisation figures
+    record = flexid.generate("manipulator", preset="paper-manipulator", seed=0, n_samples=900)
+    path = tmp_path / "man.csv"
+    record.save(path)
+    figure = tmp_path / "sel.png"
+    argv = ["select", str(path), "--structures", "arx,oe", "--orders", "nb=2,4",
+            "--orders", "nf=2,4", "--nk", "1", "--figure", str(figure), "--no-progress"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "ARX(na=4, nb=4, nk=1)" in out and "OE(nb=2, nf=4, nk=1)" in out
+    assert "in band" in out
+    for name in ("sel.png", "sel_bode.png", "sel_stabilisation.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+
+
+def test_the_stabilisation_diagram_marks_a_mode_found_again_at_the_next_order():
+    from flexid.plots import stabilisation_diagram
+
+    rng = np.random.default_rng(0)
+    dt, n = 0.01, 6000
+    den = np.convolve(*[[1, -2 * 0.98 * np.cos(2 * np.pi * f * dt), 0.98**2] for f in (5, 15)])
+    u = rng.standard_normal(n)
+    y = signal.lfilter([0, 0.05, 0.02], den, u) + 0.001 * rng.standard_normal(n)
+    sel = flexid.select(IOData(u, y, dt=dt), structures="arx",
+                        orders={"na": [4, 6], "nb": [3]}, nk=1)  # fmt: skip
+    fig = stabilisation_diagram(sel)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert "stable" in labels and fig.axes[0].get_ylabel() == "model order (poles) [-]"

@@ -551,16 +551,22 @@ def _cmd_select(args: argparse.Namespace) -> int:
         validation=validation,
         progress=not (args.json or args.no_progress) and sys.stderr.isatty(),
     )
+    written = []
     if args.figure:
-        from .plots import selection_figure
+        from .plots import _save, selection_bode, selection_figure, stabilisation_diagram
 
-        selection_figure(result, args.figure)
+        written.append(selection_figure(result, args.figure))
+        base = Path(args.figure)
+        for name, fig in (("bode", selection_bode(result)),
+                          ("stabilisation", stabilisation_diagram(result))):  # fmt: skip
+            if fig is not None:
+                written.append(_save(fig, base.with_name(f"{base.stem}_{name}{base.suffix}")))
     if args.json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
     else:
         print(result.summary())
-        if args.figure:
-            print(f"figure: {args.figure}")
+        if written:
+            print(f"figures: {', '.join(str(p) for p in written)}")
     return 0
 
 
@@ -1254,7 +1260,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_detrend(se)
     _add_validation(se)
     se.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
-    se.add_argument("--figure", help="write the selection figure (PNG) here (default: none)")
+    se.add_argument("--figure", help="write the selection figure (PNG) here, and beside it "
+                    "NAME_bode.png and NAME_stabilisation.png (the held-out record's frequency "
+                    "response with the best candidates; their modes against the order) "
+                    "(default: none)")  # fmt: skip
     se.add_argument("--json", action="store_true", help="print a machine-readable result")
     se.add_argument("--no-progress", action="store_true", help="no progress bar")
     se.set_defaults(func=_cmd_select)

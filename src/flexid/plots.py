@@ -43,7 +43,9 @@ __all__ = [
     "plot_spectra",
     "plot_time_response",
     "reference_name",
+    "selection_bode",
     "selection_figure",
+    "stabilisation_diagram",
     "suite_figure",
 ]
 
@@ -1006,6 +1008,150 @@ def selection_figure(
     fig.tight_layout()
     if path is not None:
         return _save(fig, Path(path))
+    return fig
+
+
+def _held_out_estimate(selection: Selection) -> Any:
+    """The held-out record's frequency-response estimate, every output of the recommendation
+    (or of the first candidate validated)."""
+    from .data import IOData
+    from .frequency import frf
+
+    for c in [selection.best, *selection.candidates]:
+        if c is None or c.report is None:
+            continue
+        if not c.reports:
+            return c.report.frequency_estimate
+        first = c.reports[0]
+        record = IOData(first.u, np.column_stack([r.y for r in c.reports]), dt=first.dt,
+                        input_names=list(first.input_names),
+                        output_names=[r.output_name for r in c.reports])  # fmt: skip
+        try:
+            return frf(record)
+        except FlexidError:
+            return None
+    return None
+
+
+def selection_bode(selection: Selection, *, shown: int = 4) -> Figure | None:
+    """Bode figure of a selection: the held-out record's estimate, the recommendation and the
+    candidates with the next best held-out fits.
+
+    Parameters
+    ----------
+    selection : Selection
+        The result of :func:`flexid.select`.
+    shown : int, optional
+        How many models to draw, the recommendation first (default 4).
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        None without a linear candidate or an estimate of the held-out record.
+    """
+    estimate = _held_out_estimate(selection)
+    linear = [c for c in selection.candidates
+              if c.ok and hasattr(c.model, "frequency_response")]  # fmt: skip
+    if estimate is None or not linear:
+        return None
+    best = selection.best if selection.best in linear else None
+    others = sorted((c for c in linear if c is not best), key=lambda c: -_fit(c))
+    chosen = ([best] if best is not None else []) + others
+    models = {(f"{c.label} (recommended)" if c is best else c.label): c.model
+              for c in chosen[:shown]}  # fmt: skip
+    return plot_bode(estimate, models, title="Structure selection: held-out record")
+
+
+# Two modes of neighbouring orders are the same physical mode when their frequencies differ
+# by less than 1 % and their damping ratios by less than 5 % (the usual criteria of a
+# stabilisation diagram in modal analysis, e.g. Peeters & De Roeck 2001)
+_STABLE_FREQUENCY = 0.01
+_STABLE_DAMPING = 0.05
+
+
+def stabilisation_diagram(selection: Selection) -> Figure | None:
+    """Stabilisation diagram of a selection: each candidate's modes against its order.
+
+    For the recommendation's structure (or the first linear one), one row per order (the
+    best ranked candidate with that many poles), one marker per oscillating mode at its
+    natural frequency: filled where a mode of the next lower order lies within 1 % in
+    frequency and 5 % in damping (stable), hollow where within 1 % in frequency only, a
+    cross where new.  Physical modes line up in columns as the order grows; modes that
+    wander are the fit's.  The held-out record's estimated magnitude is drawn behind, on its
+    own axis.
+
+    Parameters
+    ----------
+    selection : Selection
+        The result of :func:`flexid.select`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        None with fewer than two orders of one linear structure.
+    """
+    from .models.modes import modes
+
+    linear = [c for c in selection.candidates
+              if c.ok and hasattr(c.model, "frequency_response")]  # fmt: skip
+    if not linear:
+        return None
+    kind = selection.best.kind if selection.best in linear else linear[0].kind
+    # one candidate per order: the best ranked of those with that many poles
+    per_order: dict[int, Any] = {}
+    for c in selection.ranked():
+        if c in linear and c.kind == kind:
+            per_order.setdefault(len(c.model.poles()), c)
+    group = [per_order[n] for n in sorted(per_order)]
+    rows = []
+    for c in group:
+        pairs = [m for m in modes(c.model.poles(), c.model.dt)
+                 if m.kind == "pair" and 0 < m.damping < 1]  # fmt: skip
+        rows.append((len(c.model.poles()), np.array([m.frequency for m in pairs]),
+                     np.array([m.damping for m in pairs])))  # fmt: skip
+    if len({order for order, _, _ in rows}) < 2:
+        return None
+    fig, ax = _axes(None, figsize=(8.0, 4.8))
+    estimate = _held_out_estimate(selection)
+    if estimate is not None:
+        back = ax.twinx()
+        power = np.sqrt(np.sum(np.abs(estimate.response) ** 2, axis=(1, 2)))
+        back.plot(estimate.frequency, 20 * np.log10(np.maximum(power, 1e-300)), color="0.75",
+                  lw=1, zorder=0)  # fmt: skip
+        back.set_ylabel("held-out record's magnitude [dB]", color="0.5")
+        back.tick_params(axis="y", colors="0.5")
+        ax.set_zorder(back.get_zorder() + 1)
+        ax.patch.set_visible(False)
+    seen = set()
+    for k, (order, f, zeta) in enumerate(rows):
+        lower = [r for r in rows[:k] if r[0] < order]
+        prev_f, prev_z = (lower[-1][1], lower[-1][2]) if lower else (np.zeros(0), np.zeros(0))
+        for fi, zi in zip(f, zeta):
+            near = np.abs(prev_f - fi) <= _STABLE_FREQUENCY * fi
+            if near.any() and np.any(np.abs(prev_z[near] - zi) <= _STABLE_DAMPING * zi):
+                style, label = {"marker": "o", "mfc": "k", "mec": "k"}, "stable"
+            elif near.any():
+                style, label = ({"marker": "o", "mfc": "white", "mec": "k"},
+                                "stable in frequency")  # fmt: skip
+            else:
+                style, label = {"marker": "x", "color": "0.45"}, "new"
+            ax.plot(fi, order, ls="none", ms=6, label=None if label in seen else label, **style)
+            seen.add(label)
+    ax.set_xscale("log")
+    ax.set_xlabel("natural frequency [Hz]")
+    ax.set_ylabel("model order (poles) [-]")
+    name = "grey-box" if kind == "greybox" else kind.upper()
+    ax.set_title(f"Stabilisation diagram: {name} candidates (vs the next lower order: "
+                 "1 % in frequency, 5 % in damping)", fontsize=10)  # fmt: skip
+    ax.grid(True, which="both", alpha=0.3)
+    _readable_log_ticks(ax)
+    if estimate is not None:
+        ax.set_xlim(estimate.frequency[0], estimate.frequency[-1])
+    handles, labels = ax.get_legend_handles_labels()
+    order = sorted(range(len(labels)), key=lambda i: ["stable", "stable in frequency",
+                                                      "new"].index(labels[i]))  # fmt: skip
+    ax.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper left",
+              bbox_to_anchor=(1.12, 1.0), frameon=False)  # fmt: skip
     return fig
 
 

@@ -673,8 +673,31 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
                 "orders mixes structure names and order names; give either a mapping "
                 "structure -> grid or a mapping order name -> values"
             )
+    if isinstance(orders, Mapping) and len(names) > 1:
+        return {name: _own_grid(name, orders) for name in names}
     entries = _entries(orders, "orders")
     return {name: [dict(e) for e in entries] for name in names}
+
+
+#: An order a structure needs that a grid over several structures leaves out is tied to
+#: another, as the default grids tie them: ARX's and ARMAX's na = nb, OE's and BJ's nf = nb
+_TIES = {"na": "nb", "nf": "nb"}
+
+
+def _own_grid(name: str, orders: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The product of the orders of a flat grid that structure ``name`` takes (its default
+    grid when it takes none of them), the orders it needs tied (:data:`_TIES`)."""
+    own = STRUCTURES.get(name, ("order", "modes"))
+    taken = {k: v for k, v in orders.items() if k in own}
+    if not taken:
+        return [dict(e) for e in DEFAULT_GRIDS[name]]
+    return [_tied(name, e) for e in _entries(taken, "orders")]
+
+
+def _tied(name: str, entry: dict[str, Any]) -> dict[str, Any]:
+    own = STRUCTURES.get(name, ())
+    return {**{k: entry[v] for k, v in _TIES.items() if k in own and k not in entry
+               and v in entry}, **entry}  # fmt: skip
 
 
 #: A grey-box candidate of :func:`select` by name: ``"greybox:twin-rotor-pitch"``.
@@ -964,8 +987,12 @@ def select(
         The grid.  None: :data:`DEFAULT_GRIDS`.  A list of dicts of orders
         (``[{"nb": 16, "nf": 16}, ...]``) applies to every named structure; a mapping
         order name -> values (``{"nb": range(1, 5), "nf": range(1, 5)}``; a scalar is one
-        value) is the product of the values; a mapping structure name -> either of those
-        gives each structure its grid (structures it leaves out keep their default grid).
+        value) is the product of the values, for each structure over the orders it takes
+        (``{"nb": [8, 16], "nf": [8, 16]}`` with ``("arx", "oe")``: ARX(nb, nb) and
+        OE(nb, nf); an order a structure needs and the grid leaves out is tied as the
+        default grids tie it, ``na = nb``, ``nf = nb``; a structure that takes none of them
+        keeps its default grid); a mapping structure name -> either of those gives each
+        structure its grid (structures it leaves out keep their default grid).
     nk : int, sequence of int or "auto", optional
         Input delay in samples (one per input) of every grid entry without its own ``nk``;
         ``"auto"`` (default): every grid entry at ``nk = 1`` and at the delays estimated
