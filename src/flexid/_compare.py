@@ -1025,25 +1025,29 @@ def _progress(
 
 
 @checked_keywords
-def frequency_views(result: ComparisonResult) -> tuple[Any, dict[str, Any]]:
+def frequency_views(result: ComparisonResult, run: str = "best") -> tuple[Any, dict[str, Any]]:
     """The held-out record's frequency-response estimate and the models to draw on it.
 
     The comparison's records and problem are posed again from its specification (the data
     file must still hold what it held), and the models rebuilt from the stored runs: the
-    reference (or the start where there is none) and each optimiser's best run.
+    start (least squares), the reference and each optimiser's best run.
 
     Parameters
     ----------
     result : ComparisonResult
         The comparison (from :func:`compare` or :func:`load_result`).
+    run : {"best", "median"}, optional
+        Each optimiser's run of lowest cost (default) or of median cost (the lower middle
+        one of an even number).
 
     Returns
     -------
     estimate : FrequencyResponseEstimate
         ``tfestimate`` of the held-out record, every input and output.
     models : dict of str to model
-        ``label -> model``: the reference first, then each optimiser's best run
-        (``"pso (best of 5)"``); empty for models without a frequency response.
+        ``label -> model``: the start and the reference first, then each optimiser's chosen
+        run (``"pso (best of 5)"``, ``"pso (median of 5)"``); empty for models without a
+        frequency response.
 
     Raises
     ------
@@ -1052,19 +1056,20 @@ def frequency_views(result: ComparisonResult) -> tuple[Any, dict[str, Any]]:
     """
     from .frequency import frf
 
+    if run not in ("best", "median"):
+        raise ConfigError(f"run must be 'best' or 'median', not {run!r}")
     ctx = _Context.from_spec(result.spec)
-    models: dict[str, Any] = {}
+    models: dict[str, Any] = {result.start_label: ctx.structure.model(ctx.theta_ls, dt=ctx.dt)}
     oe = result.reference.get("output_error")
     if oe and "theta" in oe:
         models[result.reference_label] = ctx.structure.model(np.asarray(oe["theta"]), dt=ctx.dt)
-    else:
-        models[result.start_label] = ctx.structure.model(ctx.theta_ls, dt=ctx.dt)
     for label, runs in result.records.items():
         ok = [r for r in runs if r["status"] == "ok" and "x" in r]
         if ok:
-            best = min(ok, key=lambda r: r["cost"])
-            theta = ctx.estimation.theta(np.asarray(best["x"], dtype=float))
-            models[f"{label} (best of {len(ok)})"] = ctx.structure.model(theta, dt=ctx.dt)
+            ranked = sorted(ok, key=lambda r: r["cost"])
+            chosen = ranked[0] if run == "best" else ranked[(len(ranked) - 1) // 2]
+            theta = ctx.estimation.theta(np.asarray(chosen["x"], dtype=float))
+            models[f"{label} ({run} of {len(ok)})"] = ctx.structure.model(theta, dt=ctx.dt)
     models = {k: m for k, m in models.items() if hasattr(m, "frequency_response")}
     return frf(ctx.val), models
 
