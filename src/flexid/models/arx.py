@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on 
     from scipy import signal
 
 
-__all__ = ["ARX", "ARXStructure", "NamedChannels", "channel_names", "transfer_response"]
+__all__ = ["ARX", "ARXStructure", "NamedChannels", "PlantResponse", "channel_names"]
 
 
 def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
@@ -129,28 +129,32 @@ def channel_names(
     return names, "y" if output_name is None else str(output_name)
 
 
-def transfer_response(parts: Sequence[tuple[np.ndarray, np.ndarray]], frequencies: Any,
-                      dt: float) -> np.ndarray:
-    """The responses of one output's transfer functions, one per input, at frequencies in Hz.
+class PlantResponse:
+    """The frequency response of a single-output model from its transfer functions
+    ``_plant_tf(j)`` (each input's numerator and denominator in positive powers of ``z``,
+    equal lengths)."""
 
-    Parameters
-    ----------
-    parts : sequence of (num, den)
-        Each input's numerator and denominator in positive powers of ``z``, equal lengths.
-    frequencies : array_like, shape (F,)
-        Frequencies in Hz.
-    dt : float
-        Sample time in seconds.
+    dt: float
 
-    Returns
-    -------
-    ndarray of complex, shape (F, 1, nu)
-        ``num(z) / den(z)`` at ``z = exp(j 2 pi f dt)``.
-    """
-    f = np.asarray(frequencies, dtype=float).reshape(-1)
-    z = np.exp(2j * np.pi * f * dt)
-    columns = [np.polyval(num, z) / np.polyval(den, z) for num, den in parts]
-    return np.stack(columns, axis=-1)[:, None, :]
+    def frequency_response(self, frequencies: Any) -> np.ndarray:
+        """The plant ``G(z)`` of every input at ``z = exp(j 2 pi f dt)``.
+
+        Parameters
+        ----------
+        frequencies : array_like, shape (F,)
+            Frequencies in Hz.
+
+        Returns
+        -------
+        ndarray of complex, shape (F, 1, n_inputs)
+        """
+        f = np.asarray(frequencies, dtype=float).reshape(-1)
+        z = np.exp(2j * np.pi * f * self.dt)
+        columns = []
+        for j in range(self.structure.n_inputs):  # type: ignore[attr-defined]
+            num, den = self._plant_tf(j)  # type: ignore[attr-defined]
+            columns.append(np.polyval(num, z) / np.polyval(den, z))
+        return np.stack(columns, axis=-1)[:, None, :]
 
 
 class NamedChannels:
@@ -380,7 +384,7 @@ class ARXStructure:
         return ARX(self, theta, dt=dt)
 
 
-class ARX(NamedChannels):
+class ARX(NamedChannels, PlantResponse):
     """An ARX model with its parameters.
 
     Parameters
@@ -444,7 +448,7 @@ class ARX(NamedChannels):
         """``B_j`` including the delay, in powers of ``q^-1``: ``[0]*nk + b``."""
         return np.concatenate([np.zeros(self.structure.nk[j]), self.b[j]])
 
-    def _tf_num_den(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+    def _plant_tf(self, j: int) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator in positive powers of z (equal lengths)."""
         num = self._b_delayed(j)
         den = self.a
@@ -580,21 +584,6 @@ class ARX(NamedChannels):
         p = self.poles()
         return float(np.abs(p).max()) if p.size else 0.0
 
-    def frequency_response(self, frequencies: Any) -> np.ndarray:
-        """``G(z) = z^-nk B(z) / A(z)`` of every input at ``z = exp(j 2 pi f dt)``.
-
-        Parameters
-        ----------
-        frequencies : array_like, shape (F,)
-            Frequencies in Hz.
-
-        Returns
-        -------
-        ndarray of complex, shape (F, 1, n_inputs)
-        """
-        parts = [self._tf_num_den(j) for j in range(self.structure.n_inputs)]
-        return transfer_response(parts, frequencies, self.dt)
-
     # ------------------------------------------------------------------ export
     def to_control(self) -> control.TransferFunction:
         """The model as a python-control transfer function.
@@ -609,7 +598,7 @@ class ARX(NamedChannels):
 
         nums, dens = [], []
         for j in range(self.structure.n_inputs):
-            num, den = self._tf_num_den(j)
+            num, den = self._plant_tf(j)
             nums.append(num)
             dens.append(den)
         names = {"inputs": list(self.input_names), "outputs": [self.output_name]}
@@ -632,7 +621,7 @@ class ARX(NamedChannels):
         """
         from scipy import signal
 
-        num, den = self._tf_num_den(input)
+        num, den = self._plant_tf(input)
         num = np.trim_zeros(num, "f")  # leading zeros are the delay; scipy warns about them
         return signal.dlti(num if num.size else [0.0], den, dt=self.dt)
 

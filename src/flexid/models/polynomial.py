@@ -70,9 +70,9 @@ from .arx import (
     ARX,
     ARXStructure,
     NamedChannels,
+    PlantResponse,
     _check_samples,
     channel_names,
-    transfer_response,
 )
 from .realisation import Path, accurate_roots, run_paths
 
@@ -616,7 +616,7 @@ def run_predictor(
 
 
 # ================================================================================ model
-class PolynomialModel(NamedChannels):
+class PolynomialModel(NamedChannels, PlantResponse):
     """A polynomial model (ARX, ARMAX, OE, BJ or general) with its parameters.
 
     Parameters
@@ -1028,21 +1028,6 @@ class PolynomialModel(NamedChannels):
         num, den = self.c, _poly_mul(self.a, self.d)
         n = max(num.size, den.size)
         return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
-
-    def frequency_response(self, frequencies: Any) -> np.ndarray:
-        """The plant ``G(z) = z^-nk B(z) / (A(z) F(z))`` of every input at ``z = exp(j 2 pi f dt)``.
-
-        Parameters
-        ----------
-        frequencies : array_like, shape (F,)
-            Frequencies in Hz.
-
-        Returns
-        -------
-        ndarray of complex, shape (F, 1, n_inputs)
-        """
-        parts = [self._plant_tf(j) for j in range(self.structure.n_inputs)]
-        return transfer_response(parts, frequencies, self.dt)
 
     def to_control(self, *, noise: bool = False) -> control.TransferFunction:
         """The plant ``B/(A F)`` (or the noise model ``C/(A D)``) as a python-control system.
