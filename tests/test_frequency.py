@@ -361,3 +361,33 @@ def test_the_stabilisation_diagram_marks_a_mode_found_again_at_the_next_order():
     fig = stabilisation_diagram(sel)
     labels = fig.axes[0].get_legend_handles_labels()[1]
     assert "stable" in labels and fig.axes[0].get_ylabel() == "model order (poles) [-]"
+
+
+def test_the_twin_rotor_s_mode_at_an_operating_point_is_its_linearisation_s():
+    # an independent route: the eigenvalues of a central-difference Jacobian of the model's
+    # own equations (Coulomb friction off: no linearisation at rest) at the balance point of
+    # 0.6 V on the main rotor; the difference step 1e-6 leaves ~1e-8 relative error
+    from dataclasses import replace
+
+    from flexid.envs import twin_rotor_physics as tr
+    from flexid.plants import get_plant
+
+    p = tr.TwinRotorParameters(lock_yaw=True)  # the paper's preset: yaw held at rest
+    f, zeta = get_plant("twin-rotor").true_modes(p, inputs={"main_rotor": 0.6})
+    tau1 = p.k1 * 0.6 / p.T10
+    psi = np.arcsin(float(tr.thrust(tau1, p.a1, p.b1, p.thrust_law)) / p.Mg)
+    x0 = np.array([psi, 0.0, 0.0, 0.0, tau1, 0.0, p.kc * tau1])
+    u0 = np.array([[0.6, 0.0]])
+    smooth = replace(p, B2psi=0.0, B2phi=0.0)
+    assert np.abs(tr.derivatives(x0[None], u0, smooth)).max() < 1e-12  # a balance point
+    h = 1e-6
+    jac = np.column_stack([
+        (tr.derivatives((x0 + h * e)[None], u0, smooth)[0]
+         - tr.derivatives((x0 - h * e)[None], u0, smooth)[0]) / (2 * h)
+        for e in np.eye(7)
+    ])  # fmt: skip
+    s = np.linalg.eigvals(jac)
+    s = s[s.imag > 0]
+    assert s.size == 1
+    assert f[0] == pytest.approx(abs(s[0]) / (2 * np.pi), rel=1e-7)
+    assert zeta[0] == pytest.approx(-s[0].real / abs(s[0]), rel=1e-6)

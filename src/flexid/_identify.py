@@ -331,7 +331,8 @@ def identify(
 
 def _modes(model: Any, val: IOData, metadata: Mapping[str, Any]) -> tuple:
     """The model's mode table against the held-out record's peaks and, on a record a flexid
-    plant simulated, the plant's own modes; empty for a model without a frequency response."""
+    plant simulated, the plant's own modes at the record's mean input; empty for a model
+    without a frequency response."""
     if not hasattr(model, "frequency_response"):
         return ()
     try:
@@ -340,8 +341,12 @@ def _modes(model: Any, val: IOData, metadata: Mapping[str, Any]) -> tuple:
         estimate = None
     truth = None
     if metadata.get("plant") in PLANTS:
+        # the operating point: the record's mean input, a removed mean put back
+        removed = (metadata.get("detrend") or {}).get("u_mean")
+        mean = val.u.mean(axis=0) + (np.asarray(removed) if removed is not None else 0.0)
         try:
-            truth = get_plant(metadata["plant"]).true_modes(metadata.get("parameters"))
+            truth = get_plant(metadata["plant"]).true_modes(
+                metadata.get("parameters"), inputs=dict(zip(val.input_names, mean)))
         except FlexidError:  # a plant without its modes, or parameters it does not know
             truth = None
     return tuple(mode_table(model, estimate=estimate, truth=truth))

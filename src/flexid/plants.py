@@ -155,8 +155,9 @@ class Plant:
         Optional pure functions (:class:`PlantFunctions`), a function or a name in
         :attr:`module`; None: the defaults documented there.
     modes : str, callable or None
-        ``modes(params) -> (frequency, damping)``: the plant's own modes, natural frequencies
-        [Hz] and damping ratios, each (k,) (:meth:`true_modes`); a function or a name in
+        ``modes(params, inputs) -> (frequency, damping)``: the plant's own modes at the
+        operating point of constant ``inputs`` (n_u,) (None: 0), natural frequencies [Hz]
+        and damping ratios, each (k,) (:meth:`true_modes`); a function or a name in
         :attr:`module`.  None: the plant does not know them.
     """
 
@@ -236,7 +237,9 @@ class Plant:
             found["terminal"] = _never
         return PlantFunctions(**found)
 
-    def true_modes(self, params: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    def true_modes(
+        self, params: Any = None, *, inputs: Any = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The plant's own modes, what an identified model's modes are scored against.
 
         Parameters
@@ -244,6 +247,10 @@ class Plant:
         params : dataclass instance or mapping, optional
             The plant's parameters, or the overrides of a record's metadata (its
             ``"parameters"``); default the plant's defaults.
+        inputs : array_like or mapping, optional
+            The operating point's inputs (a record's mean input), in :attr:`input_names`
+            order, or ``name -> value`` (inputs not named are 0); default 0.  A nonlinear
+            plant's modes are its linearisation's there.
 
         Returns
         -------
@@ -263,7 +270,13 @@ class Plant:
             self.modes)  # fmt: skip
         if params is None or isinstance(params, Mapping):
             params = self.make_parameters(params)
-        frequency, damping = function(params)
+        if isinstance(inputs, Mapping):
+            unknown = sorted(set(inputs) - set(self.input_names))
+            if unknown:
+                raise PlantParameterError(f"{self.name}: no input {unknown[0]!r}; its inputs "
+                                          f"are {list(self.input_names)}")  # fmt: skip
+            inputs = [float(inputs.get(n, 0.0)) for n in self.input_names]
+        frequency, damping = function(params, inputs)
         return np.asarray(frequency, dtype=float), np.asarray(damping, dtype=float)
 
     def _resolve(self, name: str) -> Callable[..., Any] | None:

@@ -602,7 +602,7 @@ def natural_frequencies(params: BeamParameters | None = None, n_modes: int = 3) 
     return omega[1 : 1 + n_modes] / (2.0 * math.pi)
 
 
-def modes(params: BeamParameters | None = None) -> tuple[np.ndarray, np.ndarray]:
+def modes(params: BeamParameters | None = None, inputs=None) -> tuple[np.ndarray, np.ndarray]:
     """The plant's own modes: natural frequency and damping ratio of each flexible mode.
 
     The complex eigenvalue pairs ``s`` of :func:`continuous_model`'s ``A`` (the beam on its
@@ -614,6 +614,8 @@ def modes(params: BeamParameters | None = None) -> tuple[np.ndarray, np.ndarray]
     ----------
     params : BeamParameters, optional
         The beam (default: the rig's :class:`BeamParameters`).
+    inputs : array_like, optional
+        The operating point's input; the beam is linear, its modes do not depend on it.
 
     Returns
     -------

@@ -270,27 +270,45 @@ def pitch_linear_mode(params: TwinRotorParameters | None = None) -> tuple[float,
     return wn / (2 * math.pi), p.B1psi / (2 * math.sqrt(p.Mg * p.I1))
 
 
-def modes(params: TwinRotorParameters | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The plant's own modes: pitch's pendulum mode linearised at rest.
+def modes(
+    params: TwinRotorParameters | None = None, inputs: Any = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The plant's own modes: pitch's pendulum mode linearised at an operating point.
 
-    The one oscillating mode of the linearisation at the origin (rotors at rest, beam level,
-    :func:`pitch_linear_mode`); yaw has no restoring torque (an integrator and friction).
-    Around another operating point the thrusts and the gyroscopic coupling move it.
+    The operating point of constant motor voltages ``inputs``: the rotors at their steady
+    states ``tau_i = k_i u_i / T_i0``, the beam at the pitch where the main rotor's moment
+    balances gravity, ``Mg sin(psi) = m1(tau_1)``, at rest, yaw not turning (locked, as in
+    the paper's preset, or its reaction torque balanced by the tail rotor; a turning yaw
+    couples into pitch through the gyroscopic moment).  The linearisation is block
+    triangular (the rotors drive pitch and yaw, nothing drives the rotors back; yaw has no
+    restoring torque), so its one oscillating mode is pitch's:
+    ``omega^2 = Mg cos(psi) / I1``, ``zeta = B1psi / (2 sqrt(Mg cos(psi) I1))``.  Coulomb
+    friction has no linearisation at rest and is left out, as in :func:`pitch_linear_mode`.
 
     Parameters
     ----------
     params : TwinRotorParameters, optional
         Default the defaults.
+    inputs : array_like, shape (2,), optional
+        The motor voltages of the operating point [V] (a record's mean input); default 0.
 
     Returns
     -------
-    frequency : ndarray, shape (1,)
-        Natural frequency [Hz].
-    damping : ndarray, shape (1,)
-        Damping ratio [-] (viscous friction only).
+    frequency : ndarray, shape (1,) or (0,)
+        Natural frequency [Hz]; none where the main rotor's moment exceeds ``Mg`` (no
+        balance: the beam turns over).
+    damping : ndarray, shape (1,) or (0,)
+        Damping ratio [-].
     """
-    f, zeta = pitch_linear_mode(params)
-    return np.array([f]), np.array([zeta])
+    p = params or TwinRotorParameters()
+    u = np.zeros(2) if inputs is None else np.asarray(inputs, dtype=float).reshape(2)
+    tau1 = p.k1 * u[0] / p.T10
+    ratio = float(thrust(tau1, p.a1, p.b1, p.thrust_law)) / p.Mg
+    if abs(ratio) >= 1.0:
+        return np.zeros(0), np.zeros(0)
+    stiffness = p.Mg * math.sqrt(1.0 - ratio * ratio)  # Mg cos(psi)
+    w = math.sqrt(stiffness / p.I1)
+    return np.array([w / (2 * math.pi)]), np.array([p.B1psi / (2 * math.sqrt(stiffness * p.I1))])
 
 
 def clip_inputs(u: Any, params: TwinRotorParameters | None = None) -> np.ndarray:
