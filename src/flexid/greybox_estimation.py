@@ -19,7 +19,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from .errors import ConfigError
 from .models.greybox import GreyBoxModel
 from .optimisers import Problem
 from .parametrisation import SearchBox
-from .reference import lower_of
+from .reference import StartOrReference
 
 if TYPE_CHECKING:
     from .greybox_fit import GreyBoxResult
@@ -45,7 +45,7 @@ REFERENCE_NAME = (
 
 
 @dataclass
-class GreyBoxEstimationProblem:
+class GreyBoxEstimationProblem(StartOrReference):
     """The search problem of a grey-box identification, and how to read its results.
 
     Attributes
@@ -71,6 +71,8 @@ class GreyBoxEstimationProblem:
     box: Any
     box_rule: str
     _ref: Any = field(default=None, repr=False)
+    start_name: ClassVar[str] = START_NAME
+    reference_name: ClassVar[str] = REFERENCE_NAME
 
     @property
     def theta_ls(self) -> np.ndarray:
@@ -156,17 +158,6 @@ class GreyBoxEstimationProblem:
             ref["wall_time"] = time.perf_counter() - t0
             self._ref = ((starts, seed), ref)
         return self._ref[1]
-
-    def reference_cost(self) -> tuple[float, str]:
-        """The lower finite cost of the given values and the reference.
-
-        Returns
-        -------
-        cost : float
-        name : str
-        """
-        return lower_of(self.cost_ls, START_NAME, self.output_error_reference().cost,
-                        REFERENCE_NAME)  # fmt: skip
 
 
 def build_greybox_problem(

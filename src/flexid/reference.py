@@ -35,7 +35,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import linalg
@@ -46,6 +46,7 @@ __all__ = [
     "STATUS",
     "ReferenceResult",
     "ReferenceRun",
+    "StartOrReference",
     "levenberg_marquardt",
     "lower_of",
     "optimality",
@@ -295,6 +296,31 @@ def lower_of(start: float, start_name: str, reference: float,
     if math.isfinite(start):
         return start, start_name
     return math.nan, "no finite reference"
+
+
+class StartOrReference:
+    """A posed problem whose best known cost is the lower finite one of its start and its
+    gradient reference (:func:`lower_of`): a grey-box or state-space problem, whose start
+    (given values, a subspace estimate) is a model of the structure as good as any.
+
+    A subclass gives ``cost_ls`` (the start's cost), ``output_error_reference()`` (a result
+    with ``cost``) and the class attributes ``start_name`` and ``reference_name``.
+    """
+
+    start_name: ClassVar[str]
+    reference_name: ClassVar[str]
+
+    def reference_cost(self) -> tuple[float, str]:
+        """The lower finite cost of the start and the reference, and what it is.
+
+        Returns
+        -------
+        cost : float
+        name : str
+        """
+        return lower_of(self.cost_ls, self.start_name,  # type: ignore[attr-defined]
+                        self.output_error_reference().cost,  # type: ignore[attr-defined]
+                        self.reference_name)  # fmt: skip
 
 
 def status_of(local_minimum: bool, on_cap: bool, out_of_budget: bool) -> int:

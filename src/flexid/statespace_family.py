@@ -29,7 +29,7 @@ from .families import Family, ReferenceFit
 from .models.statespace import StateSpaceModel, StateSpaceStructure, state_sequence
 from .optimisers import Problem
 from .parametrisation import SearchBox
-from .reference import lower_of
+from .reference import StartOrReference
 from .statespace_fit import SSEST_STARTS, ModalBox, StateSpaceResult, modal_start, refine
 from .subspace import SubspaceResult, n4sid
 from .validation import ValidationReport, residual_report
@@ -46,7 +46,7 @@ REFERENCE_NAME = (
 
 
 @dataclass
-class StateSpaceEstimationProblem:
+class StateSpaceEstimationProblem(StartOrReference):
     """The search problem of a state-space identification, and how to read its results.
 
     Attributes
@@ -79,7 +79,8 @@ class StateSpaceEstimationProblem:
     subspace: SubspaceResult
     start: np.ndarray
     _ref: Any = field(default=None, repr=False)
-    #: The reference in words, as a comparison's header names it.
+    #: The start and the reference in words, as a comparison's header names them.
+    start_name: ClassVar[str] = START_NAME
     reference_name: ClassVar[str] = REFERENCE_NAME
 
     @property
@@ -156,17 +157,6 @@ class StateSpaceEstimationProblem:
             ref["cost"] = float(self.cost(ref.x[None])[0])
             self._ref = ((starts, seed), ref)
         return self._ref[1]
-
-    def reference_cost(self) -> tuple[float, str]:
-        """The lower cost of the subspace start and the reference.
-
-        Returns
-        -------
-        cost : float
-        name : str
-        """
-        return lower_of(self.cost_ls, START_NAME, self.output_error_reference().cost,
-                        REFERENCE_NAME)  # fmt: skip
 
 
 def _record(data: Any, dt: float | None, model: StateSpaceModel) -> IOData:
