@@ -502,7 +502,7 @@ class LaguerreFamily(Family):
 
     def validate(self, model: Any, data: Any, *, max_lag: int, initial: str,
                  split: float | int | None, dt: float | None,
-                 output: str | None) -> ValidationReport:
+                 output: str | None, estimated_on: Any = None) -> ValidationReport:
         """Simulate the model from rest over the record and report on it.
 
         Parameters
@@ -520,6 +520,8 @@ class LaguerreFamily(Family):
             Not used: the record has its own.
         output : str or None
             Not used: one output.
+        estimated_on : object
+            Not used: the residual tests take the parameters as known.
 
         Returns
         -------

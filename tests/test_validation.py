@@ -26,7 +26,6 @@ from flexid.diagnostics import (
     correlation_bound,
     error_range,
     fit_percent,
-    max_outside_allowed,
     psd,
     residual_tests,
     rmse,
@@ -267,13 +266,6 @@ def test_bound_is_1_96_over_sqrt_n():
     assert correlation_bound(1000) == pytest.approx(1.959964 / math.sqrt(1000), rel=1e-6)
 
 
-def test_max_outside_allowed_is_binomial_99_quantile():
-    for m in (10, 25, 50, 51):
-        cdf = np.cumsum([math.comb(m, k) * 0.05**k * 0.95 ** (m - k) for k in range(m + 1)])
-        assert max_outside_allowed(m) == int(np.argmax(cdf >= 0.99))
-    assert max_outside_allowed(25) == 4
-
-
 @pytest.mark.slow
 def test_false_alarm_rate_on_white_noise():
     rng = np.random.default_rng(2024)
@@ -297,8 +289,9 @@ def test_false_alarm_rate_on_white_noise():
     assert 0.035 <= cross_rate <= 0.065, cross_rate
     # the narrower sqrt(2N-1) band flags far more (about 16 %): the check can tell them apart
     assert sysidentpy_out / (draws * lags) > 0.12
-    # a valid residual fails each test rarely (rule designed for <= ~2 %)
-    assert auto_fail / draws <= 0.04 and cross_fail / draws <= 0.04
+    # each test alone rejects a valid residual at its level, 5 %: 400 draws give a binomial
+    # standard deviation of 1.1 %, so [1.5, 9] % is more than three of them either side
+    assert 0.015 <= auto_fail / draws <= 0.09 and 0.015 <= cross_fail / draws <= 0.09
 
 
 @pytest.mark.slow
@@ -520,8 +513,9 @@ def test_summary_and_to_dict():
     assert f"{rep.fit_one_step:9.2f} %" in text
     assert f"{rep.fit_simulation:9.2f} %" in text
     assert "one-step" in text and "simulation (free run)" in text
-    assert f"{rep.correlation_tests[0].n_outside} of 12 lags outside the 95 % band" in text
-    assert "PASS" in text or "FAIL" in text
+    auto = rep.correlation_tests[0]
+    assert f"{auto.n_outside} of 12" in text and f"{auto.statistic:8.1f}   12" in text
+    assert f"PASS at 5 % (Holm over {len(rep.all_tests)} tests)" in text or "FAIL at 5 %" in text
     assert f"{rep.stability.max_pole_radius:.5f}" in text
     assert "Hz" in text and "[initial state estimated by least squares]" in text
     d = rep.to_dict()

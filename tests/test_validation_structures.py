@@ -203,11 +203,11 @@ def test_true_model_passes_the_correlation_tests_and_stability_matches(kind):
     model = _true_model(kind)
     for initial in RULES:
         rep = validate(model, IOData(u, y, input_names="torque"), initial=initial)
-        # the residual of the true model is the white innovation, independent of u: each
-        # test rejects it in about 2 % of records; this record (seed 7, fixed) passes
-        # all of them under every rule, with every count well inside the allowance
+        # the residual of the true model is the white innovation, independent of u: the
+        # battery rejects it in 5 % of records; this record (seed 7, fixed) passes under
+        # every rule, every test with a p-value far from the level
         assert rep.passed, rep.summary()
-        assert all(t.n_outside <= t.max_outside - 1 for t in rep.all_tests)
+        assert all(t.adjusted_p > 0.2 for t in rep.all_tests if t.applicable)
     st = rep.stability
     assert st.stable and not st.non_minimum_phase and st.predictor_stable
     # poles: roots of F only (OE and BJ have A = 1); np.roots of a monic quadratic built by

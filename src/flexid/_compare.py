@@ -44,11 +44,13 @@ from ._comparison_result import ComparisonResult, _f
 from ._validate import checked_keywords, positive_int
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
 from .data import IOData, prepare_data, split_parts
+from .diagnostics import output_cross_tests
 from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
 from .families import family_named, family_of
 from .optimisers import Budget, get, minimize
 from .store import ResultStore
+from .validation import joint_tests
 
 __all__ = [
     "ComparisonResult",
@@ -291,16 +293,22 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
     if len(getattr(model, "output_names", ())) > 1:  # the record's names, in order
         names = list(ctx.val.output_names)
         model = model.named(list(ctx.val.input_names), names)
-        each = {
-            o: _report_numbers(ctx.family.validate(
+        reports = [
+            ctx.family.validate(
                 model, ctx.val, max_lag=ctx.spec.max_lag, initial=ctx.spec.validate_initial,
-                split=None, dt=None, output=o))
+                split=None, dt=None, output=o, estimated_on=ctx.records[0],
+            ).at_level(ctx.spec.alpha)
             for o in names
-        }  # fmt: skip
-        return {**each[names[0]], "outputs": each}
+        ]
+        residuals = np.column_stack([r.residual for r in reports])
+        between = output_cross_tests(residuals, ctx.spec.max_lag, names, alpha=ctx.spec.alpha)
+        joint = all(t.passed for t in joint_tests(reports, between))
+        each = {o: _report_numbers(r) for o, r in zip(names, reports, strict=True)}
+        # the headline is the first output's numbers with the joint verdict of every output
+        return {**each[names[0]], "correlation_passed": joint, "outputs": each}
     report = ctx.family.held_out(model, ctx.records[0], ctx.val, max_lag=ctx.spec.max_lag,
                                  initial=ctx.spec.validate_initial)  # fmt: skip
-    return _report_numbers(report)
+    return _report_numbers(report.at_level(ctx.spec.alpha))
 
 
 def _least_squares_record(ctx: _Context) -> dict[str, Any]:

@@ -21,7 +21,7 @@ from .frequency import mode_table_text
 from .models.arx import ARX
 from .optimisers import History
 from .parametrisation import SearchBox
-from .validation import ValidationReport
+from .validation import ValidationReport, joint_tests, joint_verdict
 
 __all__ = ["Identification", "data_info", "timings"]
 
@@ -105,6 +105,22 @@ class Identification:
     outputs: tuple = ()
     output_tests: tuple = ()
     modes: tuple = ()
+
+    @property
+    def joint_tests(self) -> list:
+        """With several outputs, every output's held-out tests and those between outputs
+        judged together (:func:`flexid.validation.joint_tests`); empty with one output."""
+        if not self.outputs:
+            return []
+        return joint_tests([v for _, v in self.outputs], self.output_tests)
+
+    @property
+    def passed(self) -> bool:
+        """The held-out verdict: the validation report's, or with several outputs the joint
+        one (a true model fails it in at most ``alpha`` of records)."""
+        if self.outputs:
+            return all(t.passed for t in self.joint_tests)
+        return self.validation.passed
 
     @property
     def held_out(self) -> tuple[ValidationReport, ...]:
@@ -269,6 +285,8 @@ class Identification:
                 lines.append("residuals between outputs (held out, every lag but 0)")
                 width = max(len(t.name) for t in self.output_tests)
                 lines += [f"  {t.name:{width}}  {t.verdict()}" for t in self.output_tests]
+            lines.append(f"joint verdict of the {len(self.outputs)} outputs (held out): "
+                         f"{joint_verdict(self.joint_tests)}")  # fmt: skip
             lines.append("")
         for report in self.held_out:
             which = f", output {report.output_name!r}" if self.outputs else ""
@@ -349,7 +367,9 @@ class Identification:
                 "validation": self.validation.to_dict(),
                 **({"outputs": [{"output": v.output_name, "estimation": e.to_dict(),
                                  "validation": v.to_dict()} for e, v in self.outputs],
-                    "output_tests": [t.to_dict() for t in self.output_tests]}
+                    "output_tests": [t.to_dict() for t in self.output_tests],
+                    "joint": {"passed": self.passed, "verdict": joint_verdict(self.joint_tests),
+                              "tests": [t.to_dict() for t in self.joint_tests]}}
                    if self.outputs else {}),
                 "modes": [r.to_dict() for r in self.modes],
                 "timings": {k: round(v, 6) for k, v in self.timings.items()},

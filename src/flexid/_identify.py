@@ -28,13 +28,14 @@ from .config import (
     KEYWORDS,
     PREDICTION_ERROR,
     REFERENCES,
+    VALIDATION_ALPHA,
     CostSpec,
     SearchSpec,
     specs_from_keywords,
 )
 from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
-from .diagnostics import output_cross_tests
+from .diagnostics import check_level, output_cross_tests
 from .errors import BudgetError, ConfigError, DataError, FlexidError, UnknownNameError
 from .estimation import build_problem, structure_of
 from .families import family_named, family_of
@@ -80,6 +81,7 @@ def identify(
     output: str | int | None = None,
     detrend: bool | str = False,
     max_lag: int = CORRELATION_LAGS,
+    alpha: float = VALIDATION_ALPHA,
     weight: float | None = None,
     penalty: float | None = None,
     initial: str | None = None,
@@ -179,6 +181,9 @@ def identify(
         estimation record's operating point).
     max_lag : int
         Lags of the correlation tests.
+    alpha : float
+        Family-wise level of the validation verdicts (default 5 %): a true model fails its
+        residual tests in at most ``alpha`` of records (:func:`flexid.validate`).
 {keywords}
     search : SearchSpec, optional
         All search settings at once, as a program builds them (then none of the search
@@ -204,6 +209,7 @@ def identify(
     """
     t_start = time.perf_counter()
     _check_initial(validate_initial, "validation initial-condition rule")
+    alpha = check_level(alpha, ConfigError)
     if optimiser not in REFERENCES:
         budget = _budget(budget)
     model_gb = greybox_of(structure, greybox)
@@ -229,7 +235,7 @@ def identify(
         return identify_greybox(
             data, model_gb, optimiser=optimiser, params=params, cost=cost,
             predictor=predictor, weight=weight, budget=budget, seed=seed, split=split,
-            validation=validation, max_lag=max_lag, callback=callback,
+            validation=validation, max_lag=max_lag, alpha=alpha, callback=callback,
             load_options=load_options, initial=initial, detrend=detrend,
         )
     family = _family(structure)
@@ -286,18 +292,19 @@ def identify(
     t_val = time.perf_counter()
     by_output, between = (), ()
     if len(outputs) > 1:  # every output's estimation and held-out reports (one record)
+        check = {"max_lag": max_lag, "initial": validate_initial, "alpha": alpha}
         by_output = tuple(
-            (validate(model, first, max_lag=max_lag, initial=validate_initial, output=o),
-             validate(model, val, max_lag=max_lag, initial=validate_initial, output=o))
+            (validate(model, first, output=o, estimated_on="same", **check),
+             validate(model, val, output=o, estimated_on=records, **check))
             for o in outputs
         )  # fmt: skip
         (reports, report_val) = ((by_output[0][0],), by_output[0][1])  # the first's
         residuals = np.column_stack([v.y - v.y_one_step for _, v in by_output])
-        between = tuple(output_cross_tests(residuals, max_lag, outputs))
+        between = tuple(output_cross_tests(residuals, max_lag, outputs, alpha=alpha))
     else:
-        reports = tuple(validate(model, r, max_lag=max_lag, initial=validate_initial)
-                        for r in records)  # fmt: skip
-        report_val = validate(model, val, max_lag=max_lag, initial=validate_initial)
+        check = {"max_lag": max_lag, "initial": validate_initial, "alpha": alpha}
+        reports = tuple(validate(model, r, estimated_on="same", **check) for r in records)
+        report_val = validate(model, val, estimated_on=records, **check)
     t_end = time.perf_counter()
     info = data_info(
         records, val.n_samples, list(first.input_names), outputs,

@@ -17,7 +17,13 @@ from typing import Any
 
 from ._identification import Identification, _indent, data_info, timings
 from ._json import jsonable
-from .config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec, specs_from_keywords
+from .config import (
+    GREYBOX_REFERENCE_STARTS,
+    VALIDATION_ALPHA,
+    CostSpec,
+    SearchSpec,
+    specs_from_keywords,
+)
 from .data import ESTIMATION_SHARE, IOData, detrend_kind, detrend_pair, load
 from .diagnostics import format_fit
 from .errors import ConfigError, DataError
@@ -268,6 +274,7 @@ def identify_greybox(
     max_lag: int,
     callback: Callable | None,
     load_options: Mapping[str, Any] | None,
+    alpha: float = VALIDATION_ALPHA,
     reference_starts: int = GREYBOX_REFERENCE_STARTS,
     initial: str | None = None,
     detrend: bool | str | None = None,
@@ -330,8 +337,9 @@ def identify_greybox(
     reports: dict[str, tuple[ValidationReport, ValidationReport]] = {}
     for name in model.outputs:
         reports[name] = (
-            validate(fitted, est, max_lag=max_lag, output=name),
-            validate(on_val, val_record, max_lag=max_lag, split=val_split, output=name),
+            validate(fitted, est, max_lag=max_lag, output=name, alpha=alpha),
+            validate(on_val, val_record, max_lag=max_lag, split=val_split, output=name,
+                     alpha=alpha),
         )
     t_end = time.perf_counter()
     first = reports[model.outputs[0]]

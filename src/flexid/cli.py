@@ -33,6 +33,7 @@ from .config import (
     STATE_SPACE,
     STRUCTURE_NAMES,
     SUBSPACE,
+    VALIDATION_ALPHA,
     keyword,
 )
 from .errors import ConfigError, FlexidError, FlexidWarning
@@ -348,6 +349,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         output=_one_or_more(_columns(args.output)) if args.output is not None else None,
         detrend=args.detrend,
         max_lag=args.max_lag,
+        **({} if args.alpha is None else {"alpha": args.alpha}),
         load_options=load_options,
         order=args.order,
         modes=args.modes,
@@ -426,6 +428,15 @@ def _add_keyword_option(p: argparse.ArgumentParser, option: str) -> None:
     p.add_argument(option, help=keyword(option).help)
 
 
+def _add_alpha(p: argparse.ArgumentParser, config: bool = False) -> None:
+    default = f"the config's, else {VALIDATION_ALPHA:g}" if config else f"{VALIDATION_ALPHA:g}"
+    p.add_argument(
+        "--alpha", type=float,
+        help="level of the validation verdicts: a true model fails its residual tests in at "
+        f"most this share of records (default {default})",
+    )
+
+
 def _cmd_compare(args: argparse.Namespace) -> int:
     from ._compare import check_spec, compare
     from .config import _check_run_timeout, command_specs
@@ -444,7 +455,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         args.config, plant=args.plant, optimisers=_names(args.optimisers), runs=args.runs,
         budget=args.budget, seed=args.seed, data_seed=args.data_seed, model=orders,
         cost=_cost_overrides(args), search=_search_overrides(args),
-        params=_optimiser_params(args.param),
+        params=_optimiser_params(args.param), alpha=args.alpha,
     )
     if len(specs) > 1:  # compare() checks its own spec before it opens the store; check the
         for spec in specs:  # others too before the first comparison writes anything
@@ -546,6 +557,7 @@ def _cmd_select(args: argparse.Namespace) -> int:
         initial=args.initial,
         criterion=args.criterion,
         max_lag=args.max_lag,
+        **({} if args.alpha is None else {"alpha": args.alpha}),
         detrend=args.detrend,
         split=_split(args.split),
         validation=validation,
@@ -1152,6 +1164,7 @@ def build_parser() -> argparse.ArgumentParser:
     _record_options(i, mat=True)
     _add_detrend(i)
     i.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
+    _add_alpha(i)
     i.add_argument(
         "--figures",
         help="write the paper's figures (PNG) to this folder (default: none)",
@@ -1202,6 +1215,7 @@ def build_parser() -> argparse.ArgumentParser:
         scope="built-in comparison",
     )
     c.add_argument("--cost", help=_COST_HELP)
+    _add_alpha(c, config=True)
     _add_keyword_option(c, "--predictor")
     _add_search_options(c)
     c.add_argument("--store", help=f"SQLite result store (default {DEFAULT_OUT}/results.sqlite)")
@@ -1260,6 +1274,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_detrend(se)
     _add_validation(se)
     se.add_argument("--max-lag", type=int, default=25, help="lags of the correlation tests")
+    _add_alpha(se)
     se.add_argument("--figure", help="write the selection figure (PNG) here, and beside it "
                     "NAME_bode.png and NAME_stabilisation.png (the held-out record's frequency "
                     "response with the best candidates; their modes against the order) "

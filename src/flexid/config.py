@@ -78,6 +78,8 @@ __all__ = [
     "STATE_SPACE",
     "STRUCTURE_NAMES",
     "SUBSPACE",
+    "VALIDATION_ALPHA",
+    "VALIDATION_GUIDE",
     "ComparisonSpec",
     "CostSpec",
     "DataSpec",
@@ -147,6 +149,11 @@ def add_structure_names(names: Sequence[str]) -> None:
 #: Lags of the residual correlation tests (auto- and cross-correlation, Billings-Voon), as
 #: MATLAB's ``resid`` and Ljung (System Identification, 2nd ed., sec. 16.6) use.
 CORRELATION_LAGS = 25
+#: Family-wise level of a validation verdict: the rate at which the residual tests together
+#: reject a true model (Holm's correction over the tests; see :mod:`flexid.diagnostics`).
+VALIDATION_ALPHA = 0.05
+#: The guide's page on reading a validation verdict, named beside every FAIL.
+VALIDATION_GUIDE = "https://github.com/flexid/flexid/blob/main/docs/guide/validation.rst"
 #: Largest pole radius of the ``"poles"`` search space, and of every reference fitted to
 #: compare with it: a pole closer to the circle than 1e-4 is not a model a user wants.
 POLE_RADIUS_CAP = 0.9999
@@ -752,6 +759,9 @@ class ComparisonSpec:
         ``<= reference_cost * (1 + t)`` (default ``(0.1, 0.01, 0.001)``).
     max_lag : int
         Largest lag, in samples, of the validation correlation tests (default 25).
+    alpha : float
+        Family-wise level of the validation verdicts (``alpha`` in the ``[validation]``
+        table; default :data:`VALIDATION_ALPHA`, 5 %).
     validate_initial : {"estimate", "zero", "measured"}
         Initial-condition rule of the validation's simulations and predictions (``initial``
         in the ``[validation]`` table; default ``"estimate"``, MATLAB ``compare``'s).
@@ -786,6 +796,7 @@ class ComparisonSpec:
     max_lag: int = CORRELATION_LAGS
     validate_initial: str = "estimate"
     run_timeout: float | None = None
+    alpha: float = VALIDATION_ALPHA
 
     def __post_init__(self) -> None:
         _check_int(self, "runs", "[run] runs", low=1)
@@ -793,6 +804,11 @@ class ComparisonSpec:
         object.__setattr__(self, "run_timeout", timeout)
         _check_int(self, "seed", "[run] seed", low=0)
         _check_int(self, "max_lag", "[validation] max_lag", low=1)
+        alpha = self.alpha
+        if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
+            raise ConfigError(f"[validation] alpha must be a level in (0, 1), e.g. 0.05, got "
+                              f"{alpha!r}")  # fmt: skip
+        object.__setattr__(self, "alpha", float(alpha))
         if self.validate_initial not in ("estimate", "zero", "measured"):
             from .errors import UnknownNameError
 
@@ -841,8 +857,8 @@ class ComparisonSpec:
         dict
             ``data``, ``model``, ``cost``, ``search`` (as dicts), ``bounds``, ``seed``,
             ``budget``, ``schedule_cap`` (None unless the budget is ``"schedule"``),
-            ``max_lag`` and ``validate_initial``.  ``data`` has ``digest`` only when it is
-            set (a file's record once :func:`flexid.compare` has read it).
+            ``max_lag``, ``alpha`` and ``validate_initial``.  ``data`` has ``digest`` only when
+            it is set (a file's record once :func:`flexid.compare` has read it).
         """
         return {
             "data": _data_dict(self.data),
@@ -854,6 +870,7 @@ class ComparisonSpec:
             "budget": self.budget,
             "schedule_cap": self.schedule_cap if self.budget == SCHEDULE else None,
             "max_lag": self.max_lag,
+            "alpha": self.alpha,
             "validate_initial": self.validate_initial,
         }
 
@@ -1049,7 +1066,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
     except TypeError as exc:
         raise ConfigError(f"{source}: {exc}") from None
     run = _take(top.get("run", {}), _RUN_KEYS, "run")
-    validation = _take(top.get("validation", {}), ("max_lag", "initial"), "validation")
+    validation = _take(top.get("validation", {}), ("max_lag", "initial", "alpha"), "validation")
     execution = _take(top.get("compare", {}), _COMPARE_KEYS, "compare")
     if "optimisers" in top:
         optimisers = _optimiser_specs(top["optimisers"], "[[optimisers]]")
@@ -1071,6 +1088,7 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         "search": search_spec,
         "bounds": bounds,
         "max_lag": validation.get("max_lag", 25),
+        "alpha": validation.get("alpha", VALIDATION_ALPHA),
         "validate_initial": validation.get("initial", "estimate"),
         **execution,
     }
@@ -1349,6 +1367,7 @@ def command_specs(
     cost: Mapping[str, Any] | None = None,
     search: Mapping[str, Any] | None = None,
     params: Mapping[str, Any] | None = None,
+    alpha: float | None = None,
 ) -> list[ComparisonSpec]:
     """The comparisons a command asks for: a configuration file's, or the built-in one.
 
@@ -1375,6 +1394,8 @@ def command_specs(
         Fields of :class:`CostSpec` and :class:`SearchSpec` to change.
     params : mapping, optional
         Hyper-parameters (see :func:`with_optimiser_params`).
+    alpha : float, optional
+        Family-wise level of the validation verdicts, replacing the comparisons'.
 
     Returns
     -------
@@ -1430,4 +1451,6 @@ def command_specs(
         ]
     if params:
         specs = [with_optimiser_params(spec, params) for spec in specs]
+    if alpha is not None:
+        specs = [replace(spec, alpha=alpha) for spec in specs]
     return specs

@@ -21,23 +21,19 @@ Correlation
 Band
     ``+-1.96 / sqrt(N)``: under the null hypothesis (white residual, independent of the
     input) each estimated correlation is approximately normal with variance ``1/N``, so about
-    5 % of lags fall outside by chance.  (sysidentpy uses ``1.96/sqrt(2N-1)``, which flags
-    about three times too many lags.)
-Pass rule
-    A test over ``m`` counted lags passes when **both**
-
-    1. the number of lags outside the 95 % band is at most the 99 % quantile of
-       ``Binomial(m, 0.05)`` (the count expected by chance, e.g. 4 of 25, 6 of 51), and
-    2. no lag exceeds the simultaneous 99 % band ``z / sqrt(N)`` with the Bonferroni value
-       ``z = Phi^-1(1 - 0.005 / m)`` (about 3.3 for 51 lags), so one gross violation (a large
-       lag-1 autocorrelation, say) fails the test even if the other lags are quiet.
-
-    Each rule alone rejects a valid model in at most about 1 % of records, so a single test
-    wrongly fails in at most about 2 % of records, and a valid single-input
-    model fails at least one of the five tests in up to about 8 % of records; see
-    ``linear_passed`` and ``nonlinear_passed`` for the two groups.  A plain "no lag outside
-    the 95 % band" rule, as often read off plots, fails a perfect model in most records of 25 lags
-    (``1 - 0.95**25 = 72 %``).
+    5 % of lags fall outside by chance.  The plots draw it and each test counts the lags
+    outside it, as information: a count is not a verdict (25 lags of a perfect model all
+    stay inside in only ``0.95**25 = 28 %`` of records).
+Verdict
+    Each test is a portmanteau test over its counted lags (:mod:`flexid.portmanteau`): a
+    statistic ``Q``, about ``chi^2(m)`` for a valid model whatever the input's colour, and a
+    p-value, with the estimated parameters' effect on the distribution accounted for when
+    the report knows which record the model was estimated on.  A report judges its battery
+    at the family-wise level ``alpha`` (default
+    :data:`~flexid.config.VALIDATION_ALPHA`, 5 %) with Holm's correction: it rejects a
+    true model in at most ``alpha`` of records, and each test's adjusted p-value says how
+    far it is from the verdict.  The measured rates (size and power) are in the guide's
+    validation page.
 
 Tests (Billings & Voon 1986; Billings & Zhu 1994), with ``e`` the one-step residual and ``u``
 each input in turn; ``L = max_lag``:
@@ -79,28 +75,28 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from scipy import fft as sfft
 from scipy import signal, stats
 
-from ._validate import integer, positive_int, positive_real
-from .config import CORRELATION_LAGS
-from .errors import DataError, check_finite
+from ._validate import integer, positive_int, positive_real, real
+from .config import CORRELATION_LAGS, VALIDATION_ALPHA
+from .errors import DataError, FlexidError, check_finite
+from .portmanteau import KNOWN, ParameterEffect, describe, holm, portmanteau
 
 __all__ = [
     "CONFIDENCE",
-    "PASS_LEVEL",
     "CorrelationTest",
     "billings_voon_tests",
+    "check_level",
     "correlation_bound",
-    "correlation_test",
     "error_range",
     "fit_percent",
     "format_fit",
-    "max_outside_allowed",
+    "judged",
     "output_cross_tests",
     "psd",
     "residual_tests",
@@ -109,10 +105,7 @@ __all__ = [
 ]
 
 CONFIDENCE = 0.95
-"""Confidence level of the per-lag band ``z / sqrt(N)``."""
-
-PASS_LEVEL = 0.01
-"""False-rejection level of each of the two pass rules (see the module docstring)."""
+"""Confidence level of the per-lag band ``z / sqrt(N)`` drawn on the correlation plots."""
 
 
 # ============================================================================ input checks
@@ -302,32 +295,9 @@ def correlation_bound(n: int, confidence: float = CONFIDENCE) -> float:
     return float(z / math.sqrt(n))
 
 
-def max_outside_allowed(m: int, p: float = 1.0 - CONFIDENCE, level: float = PASS_LEVEL) -> int:
-    """Largest number of lags outside the band that a valid model shows by chance.
-
-    The ``1 - level`` quantile of ``Binomial(m, p)``: a white residual exceeds it in at most
-    ``level`` of records (e.g. 4 of 25 lags, 6 of 51 at the defaults).
-
-    Parameters
-    ----------
-    m : int
-        Number of counted lags.
-    p : float
-        Probability of one lag outside the band (0.05 for the 95 % band).
-    level : float
-        Accepted rate of wrongly failed valid models.
-
-    Returns
-    -------
-    int
-        The allowed number of lags outside the band.
-    """
-    return int(stats.binom.ppf(1.0 - level, m, p))
-
-
 @dataclass
 class CorrelationTest:
-    """One correlation test: the function, its band and the verdict.
+    """One residual test: the correlation function, its statistic, p-value and verdict.
 
     Attributes
     ----------
@@ -344,20 +314,29 @@ class CorrelationTest:
     n_samples : int
         Number of samples the correlation was estimated from.
     bound : float
-        Half-width of the 95 % band, ``1.96/sqrt(n_samples)``.
-    strict_bound : float
-        Half-width of the simultaneous (Bonferroni) 99 % band over the counted lags.
+        Half-width of the 95 % band of one lag, ``1.96/sqrt(n_samples)`` (for plots and the
+        count of lags outside it, which is information, not the verdict).
     n_outside : int
         Counted lags outside the 95 % band.
     n_lags : int
         Number of counted lags ``m``.
-    max_outside : int
-        Allowed count: the 99 % quantile of ``Binomial(m, 0.05)``.
-    passed : bool
-        ``n_outside <= max_outside`` and no counted lag beyond ``strict_bound``.
+    statistic : float
+        The portmanteau statistic ``Q`` (:mod:`flexid.portmanteau`), about ``chi^2(dof)``
+        for a valid model.
+    dof : int
+        Its degrees of freedom.
+    p_value : float
+        The test's own p-value.
+    adjusted_p : float
+        Its p-value after Holm's correction over the battery it was judged in (the report's
+        tests); the test's own when judged alone.
+    alpha : float
+        The family-wise level of the verdict.
     applicable : bool
         False when a signal of the test is constant (``u^2`` of a binary input): the
         correlation is then identically zero and says nothing; the test counts as passed.
+    parameters : str
+        How the estimated parameters entered the statistic, in words.
     """
 
     name: str
@@ -367,12 +346,25 @@ class CorrelationTest:
     counted: np.ndarray
     n_samples: int
     bound: float
-    strict_bound: float
     n_outside: int
     n_lags: int
-    max_outside: int
-    passed: bool
+    statistic: float
+    dof: int
+    p_value: float
+    adjusted_p: float = float("nan")
+    alpha: float = VALIDATION_ALPHA
     applicable: bool = True
+    parameters: str = KNOWN
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.adjusted_p):
+            self.adjusted_p = self.p_value
+
+    @property
+    def passed(self) -> bool:
+        """Not rejected at ``alpha``: the adjusted p-value is at least ``alpha`` (or the test
+        does not apply)."""
+        return (not self.applicable) or self.adjusted_p >= self.alpha
 
     @property
     def fraction_outside(self) -> float:
@@ -385,8 +377,14 @@ class CorrelationTest:
         vals = np.abs(self.values[self.counted])
         return float(vals.max()) if vals.size else 0.0
 
+    @property
+    def worst_lag(self) -> int:
+        """The counted lag of the largest ``|r|`` (0 when none is counted)."""
+        vals = np.where(self.counted, np.abs(self.values), -1.0)
+        return int(self.lags[int(np.argmax(vals))]) if np.any(self.counted) else 0
+
     def verdict(self) -> str:
-        """One line: ``"n of m lags outside the 95 % band (max allowed k): PASS"``.
+        """One line: ``"Q = 31.2 (25 dof), p = 0.18, Holm 0.90; 2/25 lags outside 95 %: PASS"``.
 
         Returns
         -------
@@ -395,12 +393,19 @@ class CorrelationTest:
         """
         if not self.applicable:
             return "n/a (a constant signal, e.g. u^2 of a binary input)"
-        word = "PASS" if self.passed else "FAIL"
-        extra = "" if self.max_abs <= self.strict_bound else "; a lag beyond the 99 % joint band"
+        held = "" if self.adjusted_p == self.p_value else f", Holm {_p_text(self.adjusted_p)}"
         return (
-            f"{self.n_outside} of {self.n_lags} lags outside the 95 % band "
-            f"(allowed {self.max_outside}){extra}: {word}"
+            f"Q = {self.statistic:.1f} ({self.dof} dof), p = {_p_text(self.p_value)}{held}; "
+            f"{self.n_outside}/{self.n_lags} lags outside 95 %: {self.word}"
         )
+
+    @property
+    def word(self) -> str:
+        """``"PASS"``, ``"FAIL (lag +7)"`` (the counted lag of the largest correlation) or
+        ``"n/a"``."""
+        if not self.applicable:
+            return "n/a"
+        return "PASS" if self.passed else f"FAIL (lag {self.worst_lag:+d})"
 
     def to_dict(self, arrays: bool = False) -> dict[str, Any]:
         """JSON-safe plain types; the correlation arrays only when ``arrays`` is true.
@@ -420,12 +425,16 @@ class CorrelationTest:
             "description": self.description,
             "n_samples": int(self.n_samples),
             "bound": float(self.bound),
-            "strict_bound": float(self.strict_bound),
             "n_outside": int(self.n_outside),
             "n_lags": int(self.n_lags),
             "fraction_outside": float(self.fraction_outside),
-            "max_outside": int(self.max_outside),
             "max_abs": self.max_abs,
+            "statistic": float(self.statistic),
+            "dof": int(self.dof),
+            "p_value": float(self.p_value),
+            "adjusted_p": float(self.adjusted_p),
+            "alpha": float(self.alpha),
+            "parameters": self.parameters,
             "passed": bool(self.passed),
             "applicable": bool(self.applicable),
         }
@@ -436,63 +445,89 @@ class CorrelationTest:
         return out
 
 
-def correlation_test(
-    name: str,
-    lags: np.ndarray,
-    values: np.ndarray,
-    n_samples: int,
-    counted: np.ndarray | None = None,
-    description: str = "",
-    applicable: bool = True,
+def _p_text(p: float, equals: str = "") -> str:
+    """A p-value for a line of text: three significant digits (after ``equals``), ``"< 1e-16"``
+    below that (double precision's resolution of ``1 - F``)."""
+    return "< 1e-16" if p < 1e-16 else f"{equals}{p:.3g}"
+
+
+def _test(
+    name: str, description: str, e: np.ndarray, x: np.ndarray, max_lag: int, counted: Any,
+    *, shift: int = 0, effect: ParameterEffect | None = None, applicable: bool = True,
+    alpha: float = VALIDATION_ALPHA,
 ) -> CorrelationTest:
-    """Judge a correlation function against the 95 % band with the module's pass rule.
+    """One test of ``corr(e(t), x(t - shift - tau))``: the correlation for plots (lags
+    ``tau`` at which ``counted(tau)`` is true are counted) and the portmanteau statistic over
+    the counted lags."""
+    lags, r = xcorr(e, x, max_lag)
+    if shift:  # lags from ``shift`` on, renumbered from 0
+        lags, r = lags[lags >= shift] - shift, r[lags >= shift]
+    counted = np.asarray(counted(lags), dtype=bool)
+    n = e.size
+    bound = correlation_bound(n)
+    n_out = int(np.count_nonzero(np.abs(r[counted]) > bound))
+    stat = portmanteau(e, x, lags[counted] + shift, effect)
+    return CorrelationTest(
+        name=name, description=description, lags=lags, values=r, counted=counted,
+        n_samples=int(n), bound=bound, n_outside=n_out, n_lags=int(counted.sum()),
+        statistic=stat.statistic, dof=stat.dof, p_value=stat.p_value, alpha=alpha,
+        applicable=bool(applicable and stat.dof > 0),
+        parameters=describe(effect),
+    )  # fmt: skip
+
+
+def _every(lags: np.ndarray) -> np.ndarray:
+    return np.ones(lags.size, dtype=bool)
+
+
+def judged(
+    tests: Sequence[CorrelationTest], alpha: float = VALIDATION_ALPHA
+) -> list[CorrelationTest]:
+    """A battery of tests judged together at the family-wise level ``alpha``.
+
+    Holm's correction (:func:`flexid.portmanteau.holm`) over the applicable tests: the
+    battery rejects a valid model in at most ``alpha`` of records, whatever the tests'
+    dependence.
 
     Parameters
     ----------
-    name : str
-        Name of the test.
-    lags, values : ndarray, shape (K,)
-        Lags and correlation coefficients (e.g. from :func:`xcorr`).
-    n_samples : int
-        Samples used for the estimate; sets the band ``1.96/sqrt(n_samples)``.
-    counted : ndarray of bool, shape (K,), optional
-        Lags to count; default all.
-    description : str
-        Formula or words for reports.
-    applicable : bool
-        False marks an uninformative test (a constant signal); it then passes.
+    tests : sequence of CorrelationTest
+        The tests, each with its own p-value.
+    alpha : float
+        Family-wise level, in (0, 1).
 
     Returns
     -------
-    CorrelationTest
-        The verdict with the counts, the bounds and the correlation arrays.
+    list of CorrelationTest
+        Copies with ``adjusted_p`` and ``alpha`` set (an inapplicable test keeps its own
+        p-value and passes).
     """
-    lags = np.asarray(lags)
-    values = np.asarray(values, dtype=float)
-    counted = np.ones(lags.size, dtype=bool) if counted is None else np.asarray(counted, bool)
-    m = int(counted.sum())
-    bound = correlation_bound(n_samples)
-    z_strict = stats.norm.ppf(1.0 - PASS_LEVEL / (2.0 * max(m, 1)))
-    strict = float(z_strict / math.sqrt(n_samples))
-    absval = np.abs(values[counted])
-    n_out = int(np.count_nonzero(absval > bound))
-    allowed = max_outside_allowed(m)
-    passed = (n_out <= allowed and not bool(np.any(absval > strict))) or not applicable
-    return CorrelationTest(
-        name=name,
-        description=description,
-        lags=lags,
-        values=values,
-        counted=counted,
-        n_samples=int(n_samples),
-        bound=bound,
-        strict_bound=strict,
-        n_outside=n_out,
-        n_lags=m,
-        max_outside=allowed,
-        passed=bool(passed),
-        applicable=bool(applicable),
-    )
+    alpha = check_level(alpha)
+    live = [i for i, t in enumerate(tests) if t.applicable]
+    adjusted = dict(zip(live, holm([tests[i].p_value for i in live]), strict=True))
+    return [
+        replace(t, adjusted_p=float(adjusted.get(i, t.p_value)), alpha=alpha)
+        for i, t in enumerate(tests)
+    ]
+
+
+def check_level(alpha: Any, error: type[FlexidError] = DataError) -> float:
+    """A family-wise level, checked: a number in (0, 1).
+
+    Parameters
+    ----------
+    alpha : object
+        The level given.
+    error : type of FlexidError
+        The exception raised otherwise.
+
+    Returns
+    -------
+    float
+        The level.
+    """
+    return float(real(alpha, "alpha (the validation level)", error=error, minimum=0.0,
+                      maximum=1.0, low_open=True, high_open=True))  # fmt: skip
 
 
 def _inputs_2d(u: Any, n: int) -> np.ndarray:
@@ -520,9 +555,10 @@ def _input_names(names: Sequence[str] | None, n_u: int) -> list[str]:
 
 
 def residual_tests(
-    e: Any, u: Any, max_lag: int = CORRELATION_LAGS, input_names: Sequence[str] | None = None
+    e: Any, u: Any, max_lag: int = CORRELATION_LAGS, input_names: Sequence[str] | None = None,
+    *, effect: ParameterEffect | None = None, alpha: float = VALIDATION_ALPHA,
 ) -> list[CorrelationTest]:
-    """Whiteness and independence tests of a residual (MATLAB ``resid``, with correct bands).
+    """Whiteness and independence tests of a residual (MATLAB ``resid``, as portmanteau tests).
 
     Parameters
     ----------
@@ -534,40 +570,38 @@ def residual_tests(
         Largest lag ``L``; needs ``N >= 2 L + 2``.
     input_names : sequence of str, optional
         Names used in the test names (default ``u`` or ``u1, u2, ...``).
+    effect : ParameterEffect, optional
+        How the model's estimated parameters enter the statistics
+        (:mod:`flexid.portmanteau`); default: taken as known.
+    alpha : float, optional
+        Level of each test's own verdict (a report judges its battery with Holm's
+        correction instead).
 
     Returns
     -------
     list of CorrelationTest
-        ``auto e`` (lags ``-L..L`` stored, ``1..L`` counted) and one ``cross <input>-e``
-        per input (``corr(e(t), u(t - tau))``, lags ``-L..L`` all counted).
+        ``auto e`` (lags ``-L..L`` stored, ``1..L`` tested) and one ``cross <input>-e`` per
+        input (``corr(e(t), u(t - tau))``, lags ``-L..L`` all tested).
     """
     e = _vector(e, "residual e")
     n = e.size
     max_lag = _check_max_lag(max_lag, n, "residual")
     u = _inputs_2d(u, n)
     names = _input_names(input_names, u.shape[1])
-    lags, r = xcorr(e, e, max_lag)
     tests = [
-        correlation_test(
-            "auto e", lags, r, n, counted=lags > 0, description="phi_ee(tau) = corr(e(t), e(t-tau))"
-        )
-    ]
+        _test("auto e", "phi_ee(tau) = corr(e(t), e(t-tau))", e, e, max_lag,
+              lambda lags: lags > 0, effect=effect, alpha=alpha)
+    ]  # fmt: skip
     for j, name in enumerate(names):
-        lags, r = xcorr(e, u[:, j], max_lag)
-        tests.append(
-            correlation_test(
-                f"cross {name}-e",
-                lags,
-                r,
-                n,
-                description=f"phi_ue(tau) = corr(e(t), {name}(t-tau))",
-            )
-        )
+        tests.append(_test(
+            f"cross {name}-e", f"phi_ue(tau) = corr(e(t), {name}(t-tau))", e, u[:, j], max_lag,
+            _every, effect=effect, alpha=alpha))  # fmt: skip
     return tests
 
 
 def output_cross_tests(
-    e: Any, max_lag: int = CORRELATION_LAGS, output_names: Sequence[str] | None = None
+    e: Any, max_lag: int = CORRELATION_LAGS, output_names: Sequence[str] | None = None,
+    *, alpha: float = VALIDATION_ALPHA,
 ) -> list[CorrelationTest]:
     """Independence of the residuals of several outputs from each other (MATLAB ``resid`` of
     a multi-output model).
@@ -585,12 +619,14 @@ def output_cross_tests(
         Largest lag ``L``; needs ``N >= 2 L + 2``.
     output_names : sequence of str, optional
         Names used in the test names (default ``y1, y2, ...``).
+    alpha : float, optional
+        Level of each test's own verdict.
 
     Returns
     -------
     list of CorrelationTest
         One ``cross <i>-<j>`` per pair ``i < j`` (lags ``-L..L`` stored, every lag but 0
-        counted), by the pass rule of :func:`correlation_test`.
+        tested).
 
     Raises
     ------
@@ -608,15 +644,17 @@ def output_cross_tests(
     tests = []
     for i in range(ny):
         for j in range(i + 1, ny):
-            lags, r = xcorr(_vector(e[:, i], names[i]), _vector(e[:, j], names[j]), max_lag)
-            tests.append(correlation_test(
-                f"cross {names[i]}-{names[j]}", lags, r, n, counted=lags != 0,
-                description=f"corr(e_{names[i]}(t), e_{names[j]}(t-tau)), tau != 0"))  # fmt: skip
+            tests.append(_test(
+                f"cross {names[i]}-{names[j]}",
+                f"corr(e_{names[i]}(t), e_{names[j]}(t-tau)), tau != 0",
+                _vector(e[:, i], names[i]), _vector(e[:, j], names[j]), max_lag,
+                lambda lags: lags != 0, alpha=alpha))  # fmt: skip
     return tests
 
 
 def billings_voon_tests(
-    e: Any, u: Any, max_lag: int = CORRELATION_LAGS, input_names: Sequence[str] | None = None
+    e: Any, u: Any, max_lag: int = CORRELATION_LAGS, input_names: Sequence[str] | None = None,
+    *, effect: ParameterEffect | None = None, alpha: float = VALIDATION_ALPHA,
 ) -> list[CorrelationTest]:
     """Higher-order correlation tests for un-modelled nonlinear terms (Billings & Voon 1986).
 
@@ -630,6 +668,11 @@ def billings_voon_tests(
         Largest lag ``L``; needs ``N >= 2 L + 2``.
     input_names : sequence of str, optional
         Names used in the test names.
+    effect : ParameterEffect, optional
+        How the estimated parameters enter the statistics of the two tests linear in ``e``
+        (the estimate moves ``e^2`` only to second order).
+    alpha : float, optional
+        Level of each test's own verdict.
 
     Returns
     -------
@@ -647,41 +690,18 @@ def billings_voon_tests(
     tests = []
     for j, name in enumerate(names):
         uj = u[:, j]
-        lags, r = xcorr(e, e * uj, max_lag)
-        keep = lags >= 1  # corr(e(t), (e u)(t - k)) at k = 1 + tau
-        tests.append(
-            correlation_test(
-                f"BV e({name}e)" if len(names) > 1 else "BV e(eu)",
-                lags[keep] - 1,
-                r[keep],
-                n,
-                description=f"corr(e(t), e(t-1-tau) {name}(t-1-tau)), tau = 0..{max_lag - 1}",
-            )
-        )
-        u2 = uj * uj  # xcorr removes the mean: u^2' = u^2 - mean(u^2)
+        tests.append(_test(
+            f"BV e({name}e)" if len(names) > 1 else "BV e(eu)",
+            f"corr(e(t), e(t-1-tau) {name}(t-1-tau)), tau = 0..{max_lag - 1}",
+            e, e * uj, max_lag, _every, shift=1, effect=effect, alpha=alpha))  # fmt: skip
+        u2 = uj * uj  # the tests remove the mean: u^2' = u^2 - mean(u^2)
         u2_varies = bool(np.ptp(u2) > 1e-12 * max(float(np.max(np.abs(u2))), 1e-300))
-        lags, r = xcorr(e, u2, max_lag)
-        tests.append(
-            correlation_test(
-                f"BV {name}2'-e",
-                lags,
-                r,
-                n,
-                description=f"corr({name}^2'(t-tau), e(t)), tau = -{max_lag}..{max_lag}",
-                applicable=u2_varies,
-            )
-        )
-        lags, r = xcorr(e2, u2, max_lag)
-        tests.append(
-            correlation_test(
-                f"BV {name}2'-e2'",
-                lags,
-                r,
-                n,
-                description=f"corr({name}^2'(t-tau), e^2'(t)), tau = -{max_lag}..{max_lag}",
-                applicable=u2_varies,
-            )
-        )
+        tests.append(_test(
+            f"BV {name}2'-e", f"corr({name}^2'(t-tau), e(t)), tau = -{max_lag}..{max_lag}",
+            e, u2, max_lag, _every, effect=effect, applicable=u2_varies, alpha=alpha))  # fmt: skip
+        tests.append(_test(
+            f"BV {name}2'-e2'", f"corr({name}^2'(t-tau), e^2'(t)), tau = -{max_lag}..{max_lag}",
+            e2, u2, max_lag, _every, applicable=u2_varies, alpha=alpha))  # fmt: skip
     return tests
 
 

@@ -345,6 +345,7 @@ class Family(abc.ABC):
     def validate(
         self, model: Any, data: Any, *, max_lag: int, initial: str,
         split: float | int | None, dt: float | None, output: str | None,
+        estimated_on: Any = None,
     ) -> Any:  # a ValidationReport (whose module imports this one)
         """The validation report of ``model`` on ``data`` (see :func:`flexid.validate`).
 
@@ -364,6 +365,10 @@ class Family(abc.ABC):
             Sample time of an array pair.
         output : str or None
             The output to validate, for a model with several.
+        estimated_on : IOData, sequence of IOData, "same" or None
+            The record(s) the model was estimated on (see :func:`flexid.validate`), for the
+            residual tests' null distribution; a family that cannot use it takes the
+            parameters as known.
 
         Returns
         -------
@@ -392,10 +397,11 @@ class Family(abc.ABC):
         Returns
         -------
         ValidationReport
-            By default :meth:`validate` on ``validation``.
+            By default :meth:`validate` on ``validation``, the model estimated on
+            ``estimation``.
         """
         return self.validate(model, validation, max_lag=max_lag, initial=initial, split=None,
-                             dt=None, output=None)  # fmt: skip
+                             dt=None, output=None, estimated_on=estimation)  # fmt: skip
 
     def model_numbers(self, model: Any, estimation: Any, records: Any) -> dict[str, Any]:
         """What a comparison stores of each run's model, beside its held-out report.

@@ -70,6 +70,7 @@ class GreyBoxFamily(Family):
     def validate(
         self, model: Any, data: Any, *, max_lag: int, initial: str,
         split: float | int | None, dt: float | None, output: str | None,
+        estimated_on: Any = None,
     ) -> ValidationReport:
         return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt, output=output)
 

@@ -51,7 +51,8 @@ from .models.polynomial import STRUCTURES, PolynomialModel, PolynomialStructure
 from .models.polynomial import structure as _named_structure
 from .optimisers import Problem
 from .parametrisation import make_parametrisation
-from .prediction_error import pem
+from .portmanteau import ParameterEffect
+from .prediction_error import pem, prediction_jacobian
 from .validation import ValidationReport, residual_report
 
 __all__ = ["PolynomialFamily", "pose_polynomial"]
@@ -201,6 +202,7 @@ class PolynomialFamily(Family):
     def validate(
         self, model: Any, data: Any, *, max_lag: int, initial: str,
         split: float | int | None, dt: float | None, output: str | None,
+        estimated_on: Any = None,
     ) -> ValidationReport:
         if output is not None:
             raise DataError("output= selects a grey-box model's output; this model has one")
@@ -285,9 +287,40 @@ class PolynomialFamily(Family):
             zeros=[np.asarray(model.zeros(input=i)) for i in range(n_u)],
             predictor_stable=predictor_stable, test_start=start,
             response=_response_of(model), input_units=record.input_units,
+            effect=_parameter_effect(model, record, estimated_on, initial),
         )
 
     validate.__doc__ = None  # Family.validate's
+
+
+def _parameter_effect(
+    model: Any, record: IOData, estimated_on: Any, initial: str
+) -> ParameterEffect | None:
+    """How the model's estimate enters the residual tests on ``record``
+    (:mod:`flexid.portmanteau`): the gradient of its one-step residual there (rows
+    ``t >= start``, those the tests use) and, for held-out records, the inverse Gram of the
+    estimation records' gradients.  None when the model was not estimated from data, or its
+    gradient cannot be had (a duck-typed model, an unstable predictor): the report then
+    takes the parameters as known and says so."""
+    if estimated_on is None:
+        return None
+    if isinstance(estimated_on, str) and estimated_on != "same":
+        raise DataError(f"estimated_on must be 'same', a record or records, got {estimated_on!r}")
+    try:
+        poly = model if isinstance(model, PolynomialModel) else _as_polynomial(model)
+
+        def gradient(r: IOData) -> np.ndarray:
+            u = r.u[:, 0] if r.n_inputs == 1 else r.u
+            return prediction_jacobian(poly.structure, poly.theta, u, r.y[:, 0], initial)[1]
+
+        here = gradient(record)
+        if isinstance(estimated_on, str):
+            return ParameterEffect(here)
+        records = [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
+        gram = sum(j.T @ j for j in map(gradient, records))
+    except (DataError, ModelOrderError):
+        return None
+    return ParameterEffect(here, np.linalg.pinv(gram, rcond=1e-12, hermitian=True))
 
 
 def _response_of(model: Any) -> Any:

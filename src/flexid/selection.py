@@ -80,8 +80,8 @@ from scipy import linalg
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, integer, real
-from .config import CORRELATION_LAGS, STATE_SPACE
-from .diagnostics import format_fit
+from .config import CORRELATION_LAGS, STATE_SPACE, VALIDATION_ALPHA
+from .diagnostics import check_level, format_fit
 from .errors import (
     ConfigError,
     DataError,
@@ -351,6 +351,8 @@ class Selection:
         The initial-condition rule of the fits and validations.
     max_lag : int
         Largest lag of the correlation tests.
+    alpha : float
+        Family-wise level of the validation verdicts.
     n_estimation, n_validation : int
         Samples of the estimation and validation parts.
     dt : float
@@ -371,6 +373,7 @@ class Selection:
     note: str
     initial: str = "estimate"
     max_lag: int = CORRELATION_LAGS
+    alpha: float = VALIDATION_ALPHA
     n_estimation: int = 0
     n_validation: int = 0
     dt: float = 1.0
@@ -424,7 +427,8 @@ class Selection:
             *([("delay", self.delay)] if self.delay else []),
             (
                 "validation",
-                f"initial state {self.initial}, correlation tests up to lag {self.max_lag}",
+                f"initial state {self.initial}, residual tests up to lag {self.max_lag} "
+                f"judged at {100 * self.alpha:g} %",
             ),
             (
                 "recommended",
@@ -551,6 +555,7 @@ class Selection:
                 "note": self.note,
                 "initial": self.initial,
                 "max_lag": self.max_lag,
+                "alpha": self.alpha,
                 "n_estimation": self.n_estimation,
                 "n_validation": self.n_validation,
                 "dt": self.dt,
@@ -946,6 +951,7 @@ def select(
     initial: str = "estimate",
     criterion: str = "simulation",
     max_lag: int = CORRELATION_LAGS,
+    alpha: float = VALIDATION_ALPHA,
     starts: int | None = None,
     seed: int = 0,
     parsimony: float = 0.01,
@@ -1019,6 +1025,9 @@ def select(
     max_lag : int, optional
         Largest lag of the correlation tests (>= 1); the validation part must hold
         ``start + 2 max_lag + 2`` samples for every candidate.
+    alpha : float, optional
+        Family-wise level of the validation verdicts (default 5 %): a true model fails its
+        residual tests in at most ``alpha`` of records (:func:`flexid.validate`).
     starts : int, optional
         Extra random/perturbed starts of each PEM fit (>= 0; see
         :func:`flexid.prediction_error.pem`).  Default: the references' own
@@ -1063,11 +1072,12 @@ def select(
     t_begin = time.perf_counter()
     from .data import prepare_data
     from .delay import DELAY_METHODS, estimate_delay
-    from .validation import validate
+    from .validation import joint_tests, validate
 
     criterion = _check_criterion(criterion)
     initial = _check_initial(initial)
     max_lag = integer(max_lag, "max_lag", error=ConfigError, minimum=1)
+    alpha = check_level(alpha, ConfigError)
     if starts is not None:  # None: each family's default
         starts = integer(starts, "starts", error=ConfigError, minimum=0)
     seed = integer(seed, "seed", error=ConfigError, minimum=0)
@@ -1182,18 +1192,20 @@ def select(
                 c.model, c.sse = model, float(sse)
                 t0 = time.perf_counter()
                 try:
+                    check = {"max_lag": max_lag, "alpha": alpha}
                     if several:  # every output's held-out report; the first is the summary's
                         c.stable = bool(model.is_stable)
-                        c.reports = tuple(validate(model, val, max_lag=max_lag, initial=initial,
-                                                   output=o) for o in outputs)  # fmt: skip
+                        c.reports = tuple(validate(model, val, initial=initial, output=o,
+                                                   estimated_on=est, **check)
+                                          for o in outputs)  # fmt: skip
                         rep = c.reports[0]
                     elif s.kind != "greybox":
                         c.stable = bool(model.is_stable)
-                        rep = validate(model, val, max_lag=max_lag, initial=initial)
+                        rep = validate(model, val, initial=initial, estimated_on=est, **check)
                     elif validation is None:  # run on from the record's start
-                        rep = validate(model, record, max_lag=max_lag, split=est.n_samples)
+                        rep = validate(model, record, split=est.n_samples, **check)
                     else:
-                        rep = validate(model, val, max_lag=max_lag)
+                        rep = validate(model, val, **check)
                     if s.kind == "greybox":  # its linearisation, and a finite simulation
                         c.stable = bool(rep.stability.stable and not rep.simulation_diverged)
                 except FlexidError as exc:
@@ -1203,7 +1215,10 @@ def select(
                     each = c.reports or (rep,)  # several outputs: the weakest decides
                     c.fit_simulation = float(min(r.fit_simulation for r in each))
                     c.fit_one_step = float(min(r.fit_one_step for r in each))
-                    c.passed = all(r.passed for r in each)
+                    if several:  # one verdict at alpha over every output's tests
+                        c.passed = all(t.passed for t in joint_tests(each))
+                    else:
+                        c.passed = rep.passed
                     c.linear_passed = all(r.linear_passed for r in each)
                 c.validation_time = time.perf_counter() - t0
             candidates.append(c)
@@ -1219,6 +1234,7 @@ def select(
         note=note,
         initial=initial,
         max_lag=max_lag,
+        alpha=alpha,
         n_estimation=est.n_samples,
         n_validation=val.n_samples,
         dt=float(est.dt),
@@ -1294,8 +1310,9 @@ def _fallback(ok: list[Candidate], criterion: str) -> tuple[Candidate, str]:
         note += (
             "Its residuals are white and independent of the input, but fail the "
             f"Billings-Voon test(s) {', '.join(failed) or '-'}: a nonlinear effect the "
-            "linear model cannot hold, or chance (a valid model fails one of the five tests "
-            "in up to about 8 % of records); check it on another record."
+            "linear model cannot hold, or chance (a valid model fails the battery in "
+            f"{100 * best.report.alpha:g} % of records, the verdicts' level); check it on "
+            "another record."
         )
     else:
         note += (

@@ -307,6 +307,7 @@ class StateSpaceFamily(Family):
     def validate(
         self, model: Any, data: Any, *, max_lag: int, initial: str,
         split: float | int | None, dt: float | None, output: str | None,
+        estimated_on: Any = None,
     ) -> ValidationReport:
         record = _record(data, dt, model)
         if split is not None:

@@ -23,22 +23,25 @@ Initial conditions
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ._json import jsonable
 from ._validate import checked_keywords, positive_real
-from .config import CORRELATION_LAGS
+from .config import CORRELATION_LAGS, VALIDATION_ALPHA, VALIDATION_GUIDE
 from .data import IOData
 from .diagnostics import (
     CorrelationTest,
+    _p_text,
     _peak,
     billings_voon_tests,
+    check_level,
     error_range,
     fit_percent,
     format_fit,
+    judged,
     psd,
     residual_tests,
     rmse,
@@ -47,11 +50,14 @@ from .errors import DataError, check_finite
 from .families import family_of
 from .frequency import FrequencyAgreement, FrequencyResponseEstimate, frequency_agreement, frf
 from .models.polynomial import INITIAL_RULES, _check_initial
+from .portmanteau import KNOWN, ParameterEffect, describe
 
 __all__ = [
     "INITIAL_RULES",
     "StabilityReport",
     "ValidationReport",
+    "joint_tests",
+    "joint_verdict",
     "residual_report",
     "stability_report",
     "validate",
@@ -278,6 +284,13 @@ class ValidationReport:
         The model's response from every input to this output at the estimate's frequencies.
     frequency_note : str
         Why there is no frequency verdict (empty when there is one).
+    alpha : float
+        Family-wise level of the verdict: the residual tests are judged together with
+        Holm's correction (:func:`flexid.diagnostics.judged`), so that a true model fails
+        in at most ``alpha`` of records.
+    parameters : str
+        How the model's estimated parameters entered the tests' statistics, in words
+        (:class:`~flexid.portmanteau.ParameterEffect`).
     """
 
     n_samples: int
@@ -313,6 +326,45 @@ class ValidationReport:
     frequency_estimate: FrequencyResponseEstimate | None = field(default=None, repr=False)
     frequency_model: np.ndarray | None = field(default=None, repr=False)
     frequency_note: str = ""
+    alpha: float = VALIDATION_ALPHA
+    parameters: str = KNOWN
+
+    def __post_init__(self) -> None:
+        tests = judged(self.all_tests, self.alpha)
+        k = len(self.correlation_tests)
+        self.correlation_tests, self.nonlinear_tests = tests[:k], tests[k:]
+
+    def at_level(self, alpha: float) -> ValidationReport:
+        """The same report judged at another family-wise level.
+
+        Parameters
+        ----------
+        alpha : float
+            The level, in (0, 1).
+
+        Returns
+        -------
+        ValidationReport
+            A copy whose tests' verdicts are at ``alpha``.
+        """
+        return replace(self, alpha=check_level(alpha))
+
+    @property
+    def failing(self) -> list[CorrelationTest]:
+        """The tests rejected at :attr:`alpha`, most significant first."""
+        return sorted((t for t in self.all_tests if not t.passed), key=lambda t: t.adjusted_p)
+
+    def verdict(self) -> str:
+        """The overall verdict in one line, with the level and, on a FAIL, the test that
+        rejected most clearly and the others that did.
+
+        Returns
+        -------
+        str
+            ``"PASS at 5 % (Holm over 5 tests)"`` or ``"FAIL at 5 %: auto e (Holm p =
+            2.1e-05, largest at lag +1); also cross u-e"`` (the most significant first).
+        """
+        return joint_verdict(self.all_tests)
 
     @property
     def initial_rule(self) -> str:
@@ -343,7 +395,8 @@ class ValidationReport:
 
     @property
     def passed(self) -> bool:
-        """All correlation tests (linear and Billings-Voon) pass (see the module pass rule)."""
+        """The verdict at :attr:`alpha`: no residual test (linear or Billings-Voon) rejected
+        after Holm's correction over them all."""
         return self.linear_passed and self.nonlinear_passed
 
     def test(self, name: str) -> CorrelationTest:
@@ -450,14 +503,22 @@ class ValidationReport:
             lines.append(f"  {label:22} {r:11.4g} {lo:11.4g} {hi:11.4g}")
         lines += [
             "",
-            f"Correlation tests on the one-step residual (max lag {self.max_lag}, "
-            f"95 % band +-{self.correlation_tests[0].bound:.4f})",
+            f"Residual tests on the one-step residual, lags up to {self.max_lag}",
+            f"  {self.parameters}",
         ]
         width = max(len(t.name) for t in self.all_tests)
+        lines.append(f"  {'test':{width}}  {'Q':>8} {'dof':>4} {'p':>9} {'Holm p':>9} "
+                     f"{'outside 95 %':>13}  verdict")  # fmt: skip
         for t in self.all_tests:
-            lines.append(f"  {t.name:{width}}  {t.verdict()}")
-        overall = "PASS" if self.passed else "FAIL"
-        lines.append(f"  {'overall':{width}}  {overall}")
+            if not t.applicable:
+                lines.append(f"  {t.name:{width}}  {t.verdict()}")
+                continue
+            lines.append(f"  {t.name:{width}}  {t.statistic:8.1f} {t.dof:4d} "
+                         f"{_p_text(t.p_value):>9} {_p_text(t.adjusted_p):>9} "
+                         f"{f'{t.n_outside} of {t.n_lags}':>13}  {t.word}")  # fmt: skip
+        lines.append(f"  {'overall':{width}}  {self.verdict()}")
+        if not self.passed:
+            lines.append(f"  what a failing test suggests: {VALIDATION_GUIDE}")
         st = self.stability
         lines += [
             "",
@@ -538,6 +599,8 @@ class ValidationReport:
             "error_range_simulation": jsonable(self.error_range_simulation),
             "simulation_diverged": bool(self.simulation_diverged),
             "max_lag": int(self.max_lag),
+            "alpha": float(self.alpha),
+            "parameters": self.parameters,
             "passed": bool(self.passed),
             "linear_passed": bool(self.linear_passed),
             "nonlinear_passed": bool(self.nonlinear_passed),
@@ -557,6 +620,63 @@ class ValidationReport:
         return out
 
 
+def joint_tests(
+    reports: Any, between: Any = (), alpha: float | None = None
+) -> list[CorrelationTest]:
+    """The residual tests of a multi-output model's outputs, judged together.
+
+    Every output's tests and the tests between outputs' residuals
+    (:func:`~flexid.diagnostics.output_cross_tests`) as one battery under Holm's correction,
+    so that a true model fails the joint verdict in at most ``alpha`` of records however many
+    outputs it has.
+
+    Parameters
+    ----------
+    reports : sequence of ValidationReport
+        One report per output, on the same record.
+    between : sequence of CorrelationTest, optional
+        The tests between the outputs' residuals.
+    alpha : float, optional
+        Family-wise level; default the first report's.
+
+    Returns
+    -------
+    list of CorrelationTest
+        Copies named ``"<output>: <test>"`` (the between tests keep their names), judged;
+        the joint verdict passes when every one does.
+    """
+    reports = list(reports)
+    level = reports[0].alpha if alpha is None else alpha
+    named = [replace(t, name=f"{r.output_name}: {t.name}") for r in reports for t in r.all_tests]
+    return judged(named + list(between), level)
+
+
+def joint_verdict(tests: Any) -> str:
+    """The joint verdict of :func:`joint_tests` in one line, as
+    :meth:`ValidationReport.verdict` words one report's.
+
+    Parameters
+    ----------
+    tests : sequence of CorrelationTest
+        Judged tests.
+
+    Returns
+    -------
+    str
+        ``"PASS at 5 % (Holm over 12 tests)"`` or ``"FAIL at 5 %: <test> (...)"``.
+    """
+    tests = list(tests)
+    level = f"{100 * tests[0].alpha:g} %"
+    failing = sorted((t for t in tests if not t.passed), key=lambda t: t.adjusted_p)
+    if not failing:
+        return f"PASS at {level} (Holm over {sum(t.applicable for t in tests)} tests)"
+    first, *others = failing
+    names = [t.name for t in others[:3]] + ([f"{len(others) - 3} more"] if len(others) > 3 else [])
+    also = f"; also {', '.join(names)}" if names else ""
+    return (f"FAIL at {level}: {first.name} (Holm p {_p_text(first.adjusted_p, '= ')}, "
+            f"largest at lag {first.worst_lag:+d}){also}")  # fmt: skip
+
+
 # ============================================================================ entry point
 def residual_report(
     y_full: np.ndarray, y1_full: np.ndarray | None, ysim_full: np.ndarray, u_full: np.ndarray,
@@ -564,6 +684,7 @@ def residual_report(
     initial_one_step: str | None, poles: Any, zeros: Any, predictor_stable: bool | None = None,
     test_start: int | None = None, output_unit: str = "",
     response: Callable[[np.ndarray], np.ndarray] | None = None, input_units: Any = (),
+    effect: ParameterEffect | None = None,
 ) -> ValidationReport:
     """The validation report of a model from its outputs over a record.
 
@@ -612,6 +733,9 @@ def residual_report(
         model without one).
     input_units : sequence of str, optional
         The inputs' units (for the frequency response's).
+    effect : ParameterEffect, optional
+        How the model's estimated parameters enter the residual tests, with the gradient's
+        rows over the tested samples (default: the parameters taken as known).
 
     Returns
     -------
@@ -629,8 +753,8 @@ def residual_report(
         y1 = y1_full[seg]
         e = y - y1
     skip = 0 if test_start is None else max(test_start - start, 0)
-    tests = residual_tests(e[skip:], u[skip:], max_lag, names)
-    nonlinear = billings_voon_tests(e[skip:], u[skip:], max_lag, names)
+    tests = residual_tests(e[skip:], u[skip:], max_lag, names, effect=effect)
+    nonlinear = billings_voon_tests(e[skip:], u[skip:], max_lag, names, effect=effect)
     f, p_meas = psd(y, dt)
     if diverged:  # an unstable model's free run overflowed: a result to report, not an error
         p_model = np.full_like(p_meas, np.nan)
@@ -675,6 +799,7 @@ def residual_report(
         simulation_diverged=diverged,
         initial_one_step=initial_one_step,
         output_unit=output_unit,
+        parameters=describe(effect),
         **frequency,
     )
 
@@ -713,6 +838,8 @@ def validate(
     split: float | int | None = None,
     dt: float | None = None,
     output: str | None = None,
+    alpha: float = VALIDATION_ALPHA,
+    estimated_on: Any = None,
 ) -> ValidationReport:
     """Validate a model on a record: fits, errors, correlation tests, PSD, stability.
 
@@ -753,6 +880,17 @@ def validate(
     output : str, optional
         For a grey-box model with several outputs, the one to validate (all are simulated
         together; the report is of this one).  Other models have one output.
+    alpha : float, optional
+        Family-wise level of the verdict (default :data:`~flexid.config.VALIDATION_ALPHA`,
+        5 %): a true model fails in at most ``alpha`` of records.
+    estimated_on : IOData, sequence of IOData or "same", optional
+        The record(s) the model's parameters were estimated on: ``"same"`` when that is
+        ``data``, whose residual the estimate made orthogonal to its gradient (the tests
+        partial that out), or records held out from ``data``, whose estimation error adds to
+        the residual (the tests add its covariance); see :mod:`flexid.portmanteau`.
+        Default: the parameters taken as known, as for a model not estimated from data.
+        Only the polynomial family accounts for it; other families' tests take their
+        parameters as known and their reports say so.
 
     Returns
     -------
@@ -773,6 +911,10 @@ def validate(
         input count does not match the data.
     """
     initial = _check_initial(initial)
-    return family_of(model, default="polynomial").validate(
-        model, data, max_lag=max_lag, initial=initial, split=split, dt=dt, output=output
+    alpha = check_level(alpha)
+    family = family_of(model, default="polynomial")
+    extra = {} if estimated_on is None else {"estimated_on": estimated_on}
+    report = family.validate(
+        model, data, max_lag=max_lag, initial=initial, split=split, dt=dt, output=output, **extra
     )
+    return report if alpha == report.alpha else report.at_level(alpha)
