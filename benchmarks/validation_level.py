@@ -20,6 +20,7 @@ stopped.  The table gives each rate with its Wilson 95 % interval.
 
 Run:  python benchmarks/validation_level.py [--records 500] [--systems arx oe bj manipulator]
                                             [--power] [--workers 2] [--out FILE.jsonl]
+                                            [--first SEED]
 (systems: arx, oe, bj, two-mode, manipulator, twin-rotor; with --power, the wrong models of
 those systems)
 """
@@ -163,6 +164,7 @@ def _rate(flags: list[bool]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--records", type=int, default=500)
+    parser.add_argument("--first", type=int, default=0, help="seed of the first record")
     parser.add_argument("--systems", nargs="+", default=["arx", "oe", "bj"])
     parser.add_argument("--power", action="store_true", help="the known-wrong models")
     parser.add_argument("--workers", type=int, default=2)
@@ -176,7 +178,8 @@ def main() -> None:
             row = json.loads(line)
             done.add((row["name"], row["seed"]))
     tasks = [(n, WRONG[n][0] if args.power else n, s) for n in names
-             for s in range(args.records) if (n, s) not in done]  # fmt: skip
+             for s in range(args.first, args.first + args.records)
+             if (n, s) not in done]  # fmt: skip
     if tasks:
         from multiprocessing import get_context
 

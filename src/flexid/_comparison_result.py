@@ -17,7 +17,7 @@ import numpy as np
 
 from ._json import jsonable
 from ._table import text_table
-from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec
+from .config import GREYBOX, LEAST_SQUARES, VALIDATION_GUIDE, ComparisonSpec
 from .diagnostics import format_fit as _fit
 from .errors import StoreError
 from .estimation import choose_reference
@@ -356,6 +356,9 @@ class ComparisonResult:
             "",
             _VALIDATION_CAPTION,
             self.validation_table(),
+            f"corr. pass: no residual test rejected at {100 * self.spec.alpha:g} % (Holm); how "
+            "to read a failure:",
+            f"  {VALIDATION_GUIDE}",
         ]
         outputs = self._output_rows()
         if outputs:

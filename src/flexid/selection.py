@@ -80,7 +80,7 @@ from scipy import linalg
 from ._json import jsonable
 from ._table import text_table
 from ._validate import checked_keywords, integer, real
-from .config import CORRELATION_LAGS, STATE_SPACE, VALIDATION_ALPHA
+from .config import CORRELATION_LAGS, STATE_SPACE, VALIDATION_ALPHA, VALIDATION_GUIDE
 from .diagnostics import check_level, format_fit
 from .errors import (
     ConfigError,
@@ -510,7 +510,12 @@ class Selection:
         """
         lines = [self._title()]
         lines += [f"  {label:<11}: {value}" for label, value in self._items()]
-        lines += ["", self.table(), "", self.note]
+        lines += ["", self.table()]
+        if any(c.ok and not c.passed for c in self.candidates):
+            lines += [f"fail: a residual test rejected at {100 * self.alpha:g} % (Holm; fail BV: "
+                      "only a Billings-Voon test); how to read a failure:",
+                      f"  {VALIDATION_GUIDE}"]  # fmt: skip
+        lines += ["", self.note]
         return "\n".join(lines)
 
     def __str__(self) -> str:
