@@ -21,8 +21,8 @@ stopped.  The table gives each rate with its Wilson 95 % interval.
 Run:  python benchmarks/validation_level.py [--records 500] [--systems arx oe bj manipulator]
                                             [--power] [--workers 2] [--out FILE.jsonl]
                                             [--first SEED]
-(systems: arx, oe, bj, two-mode, manipulator, twin-rotor; with --power, the wrong models of
-those systems)
+(systems: arx, oe, bj, two-mode, oe16 (the manipulator's OE(16,16,1) as a true system),
+manipulator, twin-rotor; with --power, the wrong models of those systems)
 """
 
 from __future__ import annotations
@@ -62,6 +62,12 @@ def _record(system: str, rng: np.random.Generator) -> tuple[flexid.IOData, objec
     if system == "manipulator":
         seed = int(rng.integers(2**31))
         return flexid.generate("manipulator", preset="paper-manipulator", seed=seed), None
+    if system == "oe16":  # the manipulator's OE(16,16,1) as a true system, its own noise level
+        truth, sigma = _oe16()
+        u = flexid.generate("manipulator", preset="paper-manipulator", seed=int(
+            rng.integers(2**31))).u[:, 0]  # fmt: skip
+        y = truth.simulate(u, initial="zero") + sigma * rng.standard_normal(u.size)
+        return flexid.IOData(u, y, dt=truth.dt), truth
     if system == "twin-rotor":
         seed = int(rng.integers(2**31))
         record = flexid.generate("twin-rotor", preset="paper-twin-rotor", seed=seed,
@@ -89,12 +95,28 @@ def _record(system: str, rng: np.random.Generator) -> tuple[flexid.IOData, objec
     return flexid.IOData(u, y, dt=1.0), true
 
 
+_TRUTH: list = []
+
+
+def _oe16():
+    """OE(16,16,1) of the manipulator's lab record of seed 0 (the reference's), and the
+    standard deviation of its held-out residual: a known system of the plant's character."""
+    if not _TRUTH:
+        data = flexid.generate("manipulator", preset="paper-manipulator", seed=0)
+        ident = flexid.identify(data, structure="oe", nb=16, nf=16, nk=1, optimiser="pem")
+        residual = ident.validation.y - ident.validation.y_one_step
+        _TRUTH.append((ident.model.to_polynomial() if hasattr(ident.model, "to_polynomial")
+                       else ident.model, float(np.std(residual))))  # fmt: skip
+    return _TRUTH[0]
+
+
 #: The structure each system is identified at, and how.
 FITS = {
     "arx": ({"na": 2, "nb": 2, "nk": 1}, "ls"),
     "oe": ({"structure": "oe", "nb": 2, "nf": 2, "nk": 1}, "pem"),
     "bj": ({"structure": "bj", "nb": 2, "nc": 1, "nd": 1, "nf": 2, "nk": 1}, "pem"),
     "manipulator": ({"structure": "oe", "nb": 16, "nf": 16, "nk": 1}, "pem"),
+    "oe16": ({"structure": "oe", "nb": 16, "nf": 16, "nk": 1}, "pem"),
 }
 
 #: Known-wrong models for the power table: (system, orders, how).

@@ -48,6 +48,30 @@ def test_identify_json_gives_coefficients_fits_and_timings(tmp_path, capsys):
     assert "timings" in result and result["model"]["stable"] is True
 
 
+def test_identify_judges_its_verdicts_at_the_level_given(tmp_path, capsys):
+    result = json.loads(_identify(tmp_path, capsys, "--na", "2", "--optimiser", "ls",
+                                  "--alpha", "0.2", "--json"))  # fmt: skip
+    assert result["validation"]["alpha"] == 0.2 == result["estimation"]["alpha"]
+    assert all(t["alpha"] == 0.2 for t in result["validation"]["correlation_tests"])
+    for bad in ("0", "1.5", "nan"):
+        status, out, err = _run(["identify", str(tmp_path / "rec.csv"), "--na", "2",
+                                 "--optimiser", "ls", "--alpha", bad], capsys)  # fmt: skip
+        assert status == 2 and out == "" and "alpha" in err and len(err.splitlines()) == 1
+
+
+def test_a_comparison_config_sets_its_level(tmp_path):
+    from flexid.config import load_config
+    from flexid.errors import ConfigError
+
+    path = tmp_path / "c.toml"
+    path.write_text('[data]\nplant = "manipulator"\n[validation]\nalpha = 0.01\n')
+    (spec,) = load_config(path)
+    assert spec.alpha == 0.01 and spec.key_material()["alpha"] == 0.01
+    path.write_text('[data]\nplant = "manipulator"\n[validation]\nalpha = 2\n')
+    with pytest.raises(ConfigError, match=r"\[validation\] alpha"):
+        load_config(path)
+
+
 def test_identify_with_an_optimiser(tmp_path, capsys):
     out = _identify(tmp_path, capsys, "--na", "2", "--optimiser", "de", "--budget", "3000",
                     "--seed", "3", "--no-progress")

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy import signal
+from scipy import linalg, signal
 
 import flexid
 from flexid.diagnostics import judged, residual_tests
 from flexid.errors import ConfigError, DataError
-from flexid.portmanteau import ParameterEffect, holm, portmanteau
+from flexid.portmanteau import ParameterEffect, estimation_root, holm, portmanteau
 
 A, B = [1.0, -1.5, 0.7], [0.0, 1.0, 0.5]  # a lightly damped second-order ARX system
 
@@ -68,6 +68,24 @@ def test_a_lag_that_is_a_parameters_regressor_is_not_counted():
     assert known.dof == 2 * lag + 1
 
 
+def test_the_held_out_spread_survives_an_ill_conditioned_gradient():
+    """Each direction of theta adds about N_held-out / N_estimation to the statistic however
+    weakly the estimate determines it: with a gradient whose columns are nearly dependent
+    (condition 1e9, as OE(16,16,1) of the manipulator) the triangular factor keeps every
+    direction, where the normal equations J'J (condition 1e18) lose the weakest."""
+    rng = np.random.default_rng(9)
+    n, p = 3000, 6
+    base = rng.standard_normal((n, p))
+    mix = np.linalg.qr(rng.standard_normal((p, p)))[0] @ np.diag(np.logspace(0, -9, p))
+    j = base @ mix  # singular values 1 .. 1e-9 times sqrt(n)
+    est, val = j[: 2 * n // 3], j[2 * n // 3 :]
+    root = estimation_root([est])
+    x = linalg.solve_triangular(root, val.T, trans="T").T
+    # the trace of J_v P J_v' is about p N_v / N_e = 3 (the columns' statistics are alike)
+    assert 2.0 < float(np.sum(x**2)) < 4.5
+    np.testing.assert_allclose(root.T @ root, est.T @ est, rtol=1e-12, atol=1e-12 * n)
+
+
 def _rejections(draw, draws=300):
     return np.mean([draw() < 0.05 for _ in range(draws)])
 
@@ -115,8 +133,7 @@ def test_estimation_on_the_record_and_held_out_are_both_accounted_for():
         ut = u[2:]
         rates["same"].append(portmanteau(e_all, ut, lags, ParameterEffect(-phi)).p_value)
         rates["same_known"].append(portmanteau(e_all, ut, lags).p_value)
-        cov = np.linalg.inv(phi[:k].T @ phi[:k])
-        effect = ParameterEffect(-phi[k:], cov)
+        effect = ParameterEffect(-phi[k:], estimation_root([-phi[:k]]))
         rates["held"].append(portmanteau(e[k:], ut[k:], lags, effect).p_value)
         rates["held_known"].append(portmanteau(e[k:], ut[k:], lags).p_value)
     rate = {key: float(np.mean(np.array(v) < 0.05)) for key, v in rates.items()}
@@ -175,3 +192,26 @@ def test_validate_at_a_level_and_on_its_estimation_record():
         flexid.identify(est, na=2, optimiser="ls", alpha=0.0)
     with pytest.raises(DataError, match="estimated_on"):
         flexid.validate(ident.model, val, estimated_on="elsewhere")
+
+
+def test_a_multi_output_verdict_is_one_battery_at_the_level():
+    """Two outputs' reports judged together: Holm over all their tests, so each adjusted
+    p-value is at least its own report's, and the joint verdict fails when any does."""
+    from flexid.validation import joint_tests, joint_verdict
+
+    rng = np.random.default_rng(7)
+    reports = []
+    for name, order in (("hub", 2), ("tip", 1)):  # the tip's model misses a pole
+        u, y = _arx_record(1200, rng)
+        data = flexid.IOData(u, y, dt=0.01, output_names=[name])
+        reports.append(flexid.identify(data, na=order, optimiser="ls").validation)
+    tests = joint_tests(reports)
+    assert len(tests) == sum(len(r.all_tests) for r in reports)
+    assert [t.name for t in tests][:2] == ["hub: auto e", "hub: cross u-e"]
+    own = [t for r in reports for t in r.all_tests]
+    assert all(j.adjusted_p >= o.adjusted_p for j, o in zip(tests, own, strict=True))
+    assert reports[0].passed and not reports[1].passed
+    worst = min(tests, key=lambda t: t.adjusted_p)
+    assert worst.name.startswith("tip: ")
+    assert joint_verdict(tests).startswith(f"FAIL at 5 %: {worst.name}")
+    assert joint_verdict(joint_tests(reports[:1])).startswith("PASS at 5 %")

@@ -51,7 +51,7 @@ from .models.polynomial import STRUCTURES, PolynomialModel, PolynomialStructure
 from .models.polynomial import structure as _named_structure
 from .optimisers import Problem
 from .parametrisation import make_parametrisation
-from .portmanteau import ParameterEffect
+from .portmanteau import ParameterEffect, estimation_root
 from .prediction_error import pem, prediction_jacobian
 from .validation import ValidationReport, residual_report
 
@@ -298,8 +298,8 @@ def _parameter_effect(
 ) -> ParameterEffect | None:
     """How the model's estimate enters the residual tests on ``record``
     (:mod:`flexid.portmanteau`): the gradient of its one-step residual there (rows
-    ``t >= start``, those the tests use) and, for held-out records, the inverse Gram of the
-    estimation records' gradients.  None when the model was not estimated from data, or its
+    ``t >= start``, those the tests use) and, for held-out records, the triangular factor of
+    the estimation records' gradients.  None when the model was not estimated from data, or its
     gradient cannot be had (a duck-typed model, an unstable predictor): the report then
     takes the parameters as known and says so."""
     if estimated_on is None:
@@ -317,10 +317,10 @@ def _parameter_effect(
         if isinstance(estimated_on, str):
             return ParameterEffect(here)
         records = [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
-        gram = sum(j.T @ j for j in map(gradient, records))
+        root = estimation_root([gradient(r) for r in records])
     except (DataError, ModelOrderError):
         return None
-    return ParameterEffect(here, np.linalg.pinv(gram, rcond=1e-12, hermitian=True))
+    return ParameterEffect(here, root)
 
 
 def _response_of(model: Any) -> Any:

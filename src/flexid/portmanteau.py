@@ -33,6 +33,12 @@ The model's parameters were estimated, which changes the statistic's distributio
   ``sigma^2 P``, ``P = (J_e' J_e)^-1`` from the estimation record, is added to the
   statistic's: ``Q = g' (Phi'Phi + Phi'J P J'Phi)^-1 g / sigma^2``, ``g = Phi' e``.
 
+Both are computed from triangular factors (``J = Q R`` by Householder QR), never from the
+normal equations ``J'J``: the gradient of a high-order model of a lightly damped plant is
+ill-conditioned (OE(16,16,1) of the manipulator: ``cond(J)`` about ``4e9``, so ``J'J`` would
+lose every digit in its weakest directions), and each direction of ``theta`` adds about
+``N_validation / N_estimation`` to the statistic however weakly it is determined.
+
 Without a :class:`ParameterEffect` the parameters are taken as known (true values).
 
 A battery of tests is judged at a family-wise level ``alpha`` by :func:`holm`: valid for
@@ -54,9 +60,17 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import stats
+from scipy import linalg, stats
 
-__all__ = ["KNOWN", "ParameterEffect", "Portmanteau", "describe", "holm", "portmanteau"]
+__all__ = [
+    "KNOWN",
+    "ParameterEffect",
+    "Portmanteau",
+    "describe",
+    "estimation_root",
+    "holm",
+    "portmanteau",
+]
 
 #: How a report words tests whose parameters were taken as known (no :class:`ParameterEffect`).
 KNOWN = "the parameters taken as known"
@@ -79,19 +93,20 @@ class ParameterEffect:
     gradient : ndarray, shape (N, p)
         ``d e / d theta``, the derivative of the one-step residual with respect to the
         parameters, over the tested samples (output units per parameter unit).
-    covariance : ndarray, shape (p, p), or None
-        ``(J_e' J_e)^+`` of the estimation record(s) when the tested record was held out
-        from the estimation (the estimate's covariance is ``sigma^2`` times it); None when
+    root : ndarray, shape (p, p), or None
+        When the tested record was held out from the estimation: the upper-triangular
+        ``R`` of the estimation records' stacked gradient, ``J_e = Q R`` (the estimate's
+        covariance is ``sigma^2 (R'R)^-1``; :func:`estimation_root` computes it).  None when
         the tested record is the estimation record.
     """
 
     gradient: np.ndarray
-    covariance: np.ndarray | None = None
+    root: np.ndarray | None = None
 
     @property
     def held_out(self) -> bool:
         """The tested record was not the estimation record."""
-        return self.covariance is not None
+        return self.root is not None
 
     def describe(self) -> str:
         """The rule in words, for a report.
@@ -105,6 +120,32 @@ class ParameterEffect:
         if self.held_out:
             return f"the estimation error of {p} parameters added to the tests' null"
         return f"the estimate of {p} parameters partialled out of the tests"
+
+
+def estimation_root(gradients: Any) -> np.ndarray:
+    """The triangular factor of the estimation records' gradients, for a held-out test.
+
+    Parameters
+    ----------
+    gradients : sequence of ndarray, shape (N_k, p)
+        ``d e / d theta`` on each estimation record.
+
+    Returns
+    -------
+    ndarray, shape (p, p)
+        Upper-triangular ``R`` with ``J_e = Q R``, ``J_e`` the records' gradients stacked.
+    """
+    stacked = np.vstack([np.asarray(j, dtype=float) for j in gradients])
+    return linalg.qr(stacked, mode="r")[0][: stacked.shape[1]]
+
+
+def _orthonormal_range(j: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the column space of ``j`` (pivoted Householder QR; columns
+    whose pivot is below ``N eps`` of the largest are dependent and left out)."""
+    q, r, _ = linalg.qr(j, mode="economic", pivoting=True)
+    d = np.abs(np.diag(r))
+    keep = d > j.shape[0] * np.finfo(float).eps * (d[0] if d.size else 0.0)
+    return q[:, keep]
 
 
 def describe(effect: ParameterEffect | None) -> str:
@@ -215,20 +256,26 @@ def portmanteau(
     energy = float(e @ e)
     if energy == 0.0 or lags.size == 0:
         return Portmanteau(0.0, 0, 1.0)
-    gradient = None
-    k = 0
+    basis = None  # what the sums are taken against: the residual's gradient, orthonormal
     if effect is not None:
         gradient = np.asarray(effect.gradient, dtype=float)
-        gradient = gradient - gradient.mean(axis=0)
-    gram, g, pj = _sums(e, x, lags, gradient)
+        if effect.held_out:
+            basis = gradient
+        else:
+            basis = _orthonormal_range(gradient - gradient.mean(axis=0))
+    gram, g, pj = _sums(e, x, lags, basis)
+    k = 0
     if effect is not None and not effect.held_out:
-        jj_inv, k = _inverse_on_range(gradient.T @ gradient)
         # the part of Phi orthogonal to J: its Gram and its product with e (whose own
         # product with J the estimate has made zero, up to the search's tolerance)
-        gram = gram - pj @ jj_inv @ pj.T
-        g = g - pj @ (jj_inv @ (gradient.T @ e))
+        k = basis.shape[1]
+        gram = gram - pj @ pj.T
+        g = g - pj @ (basis.T @ e)
     elif effect is not None:
-        gram = gram + pj @ np.asarray(effect.covariance, dtype=float) @ pj.T
+        # Phi'J P J'Phi with P = (R'R)^-1: X = Phi'J R^-1 by a triangular solve
+        spread = linalg.solve_triangular(np.asarray(effect.root, dtype=float), pj.T,
+                                         trans="T").T  # fmt: skip
+        gram = gram + spread @ spread.T
     inv, dof = _inverse_on_range(gram)
     q = float(g @ inv @ g) / (energy / n)
     if dof == 0:
