@@ -259,10 +259,8 @@ def portmanteau(
     basis = None  # what the sums are taken against: the residual's gradient, orthonormal
     if effect is not None:
         gradient = np.asarray(effect.gradient, dtype=float)
-        if effect.held_out:
-            basis = gradient
-        else:
-            basis = _orthonormal_range(gradient - gradient.mean(axis=0))
+        gradient = gradient - gradient.mean(axis=0)  # as e is: a shift of e is not tested
+        basis = gradient if effect.held_out else _orthonormal_range(gradient)
     gram, g, pj = _sums(e, x, lags, basis)
     k = 0
     if effect is not None and not effect.held_out:
