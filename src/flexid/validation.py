@@ -352,7 +352,7 @@ class ValidationReport:
     @property
     def failing(self) -> list[CorrelationTest]:
         """The tests rejected at :attr:`alpha`, most significant first."""
-        return sorted((t for t in self.all_tests if not t.passed), key=lambda t: t.adjusted_p)
+        return _failing(self.all_tests)
 
     def verdict(self) -> str:
         """The overall verdict in one line, with the level and, on a FAIL, the test that
@@ -651,6 +651,10 @@ def joint_tests(
     return judged(named + list(between), level)
 
 
+def _failing(tests: Any) -> list[CorrelationTest]:
+    return sorted((t for t in tests if not t.passed), key=lambda t: t.adjusted_p)
+
+
 def joint_verdict(tests: Any) -> str:
     """The joint verdict of :func:`joint_tests` in one line, as
     :meth:`ValidationReport.verdict` words one report's.
@@ -667,7 +671,7 @@ def joint_verdict(tests: Any) -> str:
     """
     tests = list(tests)
     level = f"{100 * tests[0].alpha:g} %"
-    failing = sorted((t for t in tests if not t.passed), key=lambda t: t.adjusted_p)
+    failing = _failing(tests)
     if not failing:
         return f"PASS at {level} (Holm over {sum(t.applicable for t in tests)} tests)"
     first, *others = failing
