@@ -13,6 +13,8 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from .portmanteau import holm
+
 __all__ = [
     "best_at",
     "convergence_band",
@@ -64,32 +66,6 @@ def fe_to_target(history: Mapping[str, Sequence], target: float) -> float:
     best = np.asarray(history["best"], dtype=float)
     hits = np.flatnonzero(best <= target)
     return float(history["fe"][hits[0]]) if hits.size else float("nan")
-
-
-def holm(p_values: Sequence[float]) -> np.ndarray:
-    """Holm-Bonferroni adjusted p-values (step-down, monotone, capped at 1).
-
-    Parameters
-    ----------
-    p_values : sequence of float
-        Raw p-values of the ``k`` comparisons.
-
-    Returns
-    -------
-    ndarray, shape (k,)
-        Adjusted p-values, in the input order.
-    """
-    p = np.asarray(p_values, dtype=float)
-    m = p.size
-    if m == 0:
-        return p
-    order = np.argsort(p, kind="stable")
-    adjusted = np.empty(m)
-    running = 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (m - rank) * p[i]))
-        adjusted[i] = running
-    return adjusted
 
 
 def rank_sum_against_best(costs: Mapping[str, Sequence[float]]) -> dict[str, dict[str, Any]]:
