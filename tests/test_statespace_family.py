@@ -202,6 +202,11 @@ def test_identify_ss_by_n4sid_pem_and_an_optimiser_reports_every_output(two_sens
         assert "Validation record (held out), output 'tip'" in text
         assert ident.to_dict()["outputs"][1]["output"] == "tip"
         assert "residuals between outputs" in text and len(ident.output_tests) == 1
+        # one verdict over both outputs' tests and the test between them, at the level
+        joint = ident.to_dict()["joint"]
+        n_tests = sum(len(r.all_tests) for r in ident.held_out) + 1
+        assert len(joint["tests"]) == n_tests and joint["passed"] == ident.passed
+        assert f"joint verdict of the 2 outputs (held out): {joint['verdict']}" in text
     ident = flexid.identify(record, structure="ss", order=4, optimiser="de", budget=300, seed=2)
     assert ident.nfev == 300 and ident.model.is_stable
     one = flexid.identify(record, structure="ss", order=4, output="tip")

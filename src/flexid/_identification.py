@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ._json import jsonable
-from .config import SearchSpec
+from .config import VALIDATION_GUIDE, SearchSpec
 from .costs.arx import ARXCost
 from .data import IOData
 from .diagnostics import format_fit
@@ -287,6 +287,8 @@ class Identification:
                 lines += [f"  {t.name:{width}}  {t.verdict()}" for t in self.output_tests]
             lines.append(f"joint verdict of the {len(self.outputs)} outputs (held out): "
                          f"{joint_verdict(self.joint_tests)}")  # fmt: skip
+            if not self.passed:
+                lines.append(f"  what a failing test suggests: {VALIDATION_GUIDE}")
             lines.append("")
         for report in self.held_out:
             which = f", output {report.output_name!r}" if self.outputs else ""
