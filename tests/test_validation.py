@@ -608,6 +608,14 @@ def test_binary_input_marks_u_squared_tests_not_applicable():
     assert "n/a" in t_u2e.verdict()
     # a non-binary input keeps them applicable
     assert all(t.applicable for t in billings_voon_tests(e, rng.normal(size=n), 10))
+    # two levels with an offset (a PRBS between 1 and 3): u^2 = 4 u - 3 repeats the input
+    # cross-correlation test, which the battery would otherwise count twice; e^2 against it
+    # still asks whether the residual's size follows the input
+    shifted = u / 2 + 2
+    _, t_u2e, t_u2e2 = billings_voon_tests(e, shifted, 10)
+    (cross,) = residual_tests(e, shifted, 10)[1:]
+    assert not t_u2e.applicable and t_u2e2.applicable
+    assert t_u2e.statistic == pytest.approx(cross.statistic, rel=1e-9)
 
 
 @pytest.mark.numerics

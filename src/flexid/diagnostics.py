@@ -333,8 +333,10 @@ class CorrelationTest:
     alpha : float
         The family-wise level of the verdict.
     applicable : bool
-        False when a signal of the test is constant (``u^2`` of a binary input): the
-        correlation is then identically zero and says nothing; the test counts as passed.
+        False when the test says nothing: a signal of it is constant (``u^2`` of a binary
+        input, whose correlation is identically zero), or ``u^2`` of a two-level input, an
+        affine function of ``u`` that repeats the input cross-correlation test; it then
+        passes and does not count in the battery.
     parameters : str
         How the estimated parameters entered the statistic, in words.
     """
@@ -392,7 +394,7 @@ class CorrelationTest:
             The verdict line.
         """
         if not self.applicable:
-            return "n/a (a constant signal, e.g. u^2 of a binary input)"
+            return "n/a (u^2 of a two-level input: constant, or repeating the linear test)"
         held = "" if self.adjusted_p == self.p_value else f", Holm {_p_text(self.adjusted_p)}"
         return (
             f"Q = {self.statistic:.1f} ({self.dof} dof), p = {_p_text(self.p_value)}{held}; "
@@ -696,9 +698,13 @@ def billings_voon_tests(
             e, e * uj, max_lag, _every, shift=1, effect=effect, alpha=alpha))  # fmt: skip
         u2 = uj * uj  # the tests remove the mean: u^2' = u^2 - mean(u^2)
         u2_varies = bool(np.ptp(u2) > 1e-12 * max(float(np.max(np.abs(u2))), 1e-300))
+        # an input of two levels a, b (a PRBS with an offset) has u^2 = (a + b) u - a b, an
+        # affine function of u: corr(u^2', e) then repeats the input cross-correlation test
+        levels = np.unique(uj).size
         tests.append(_test(
             f"BV {name}2'-e", f"corr({name}^2'(t-tau), e(t)), tau = -{max_lag}..{max_lag}",
-            e, u2, max_lag, _every, effect=effect, applicable=u2_varies, alpha=alpha))  # fmt: skip
+            e, u2, max_lag, _every, effect=effect, applicable=u2_varies and levels > 2,
+            alpha=alpha))  # fmt: skip
         tests.append(_test(
             f"BV {name}2'-e2'", f"corr({name}^2'(t-tau), e^2'(t)), tau = -{max_lag}..{max_lag}",
             e2, u2, max_lag, _every, applicable=u2_varies, alpha=alpha))  # fmt: skip
