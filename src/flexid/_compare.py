@@ -44,13 +44,12 @@ from ._comparison_result import ComparisonResult, _f
 from ._validate import checked_keywords, positive_int
 from .config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
 from .data import IOData, prepare_data, split_parts
-from .diagnostics import output_cross_tests
 from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
 from .families import family_named, family_of
 from .optimisers import Budget, get, minimize
 from .store import ResultStore
-from .validation import joint_tests
+from .validation import between_outputs, joint_tests
 
 __all__ = [
     "ComparisonResult",
@@ -300,9 +299,7 @@ def _validation_numbers(model, ctx: _Context) -> dict[str, Any]:
             ).at_level(ctx.spec.alpha)
             for o in names
         ]
-        residuals = np.column_stack([r.residual for r in reports])
-        between = output_cross_tests(residuals, ctx.spec.max_lag, names, alpha=ctx.spec.alpha)
-        joint = all(t.passed for t in joint_tests(reports, between))
+        joint = all(t.passed for t in joint_tests(reports, between_outputs(reports)))
         each = {o: _report_numbers(r) for o, r in zip(names, reports, strict=True)}
         # the headline is the first output's numbers with the joint verdict of every output
         return {**each[names[0]], "correlation_passed": joint, "outputs": each}

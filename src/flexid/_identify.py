@@ -35,7 +35,7 @@ from .config import (
 )
 from .data import IOData, is_records, joined, prepare_data
 from .delay import estimate_delay
-from .diagnostics import check_level, output_cross_tests
+from .diagnostics import check_level
 from .errors import BudgetError, ConfigError, DataError, FlexidError, UnknownNameError
 from .estimation import build_problem, structure_of
 from .families import family_named, family_of
@@ -46,7 +46,7 @@ from .models.polynomial import PolynomialStructure, _check_initial
 from .models.statespace import StateSpaceStructure
 from .optimisers import Budget, minimize
 from .plants import PLANTS, get_plant
-from .validation import validate
+from .validation import between_outputs, validate
 
 __all__ = ["Identification", "identify"]
 
@@ -299,8 +299,7 @@ def identify(
             for o in outputs
         )  # fmt: skip
         (reports, report_val) = ((by_output[0][0],), by_output[0][1])  # the first's
-        residuals = np.column_stack([v.y - v.y_one_step for _, v in by_output])
-        between = tuple(output_cross_tests(residuals, max_lag, outputs, alpha=alpha))
+        between = tuple(between_outputs([v for _, v in by_output]))
     else:
         check = {"max_lag": max_lag, "initial": validate_initial, "alpha": alpha}
         reports = tuple(validate(model, r, estimated_on="same", **check) for r in records)

@@ -235,6 +235,27 @@ def _wanted(
     return wanted + (" (not NaN)" if allow_inf else "")
 
 
+def level(value: Any, name: str, *, error: type[FlexidError]) -> float:
+    """Check that ``value`` is a probability strictly between 0 and 1 (a test's level).
+
+    Parameters
+    ----------
+    value : object
+        The argument to check.
+    name : str
+        How the message names the argument.
+    error : type of FlexidError
+        The exception class to raise.
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+    """
+    return float(real(value, name, error=error, minimum=0.0, maximum=1.0, low_open=True,
+                      high_open=True))  # fmt: skip
+
+
 def positive_real(value: Any, name: str, *, error: type[FlexidError], unit: str = "") -> float:
     """Check that ``value`` is a finite real number > 0 and return it as ``float``.
 

@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from ._validate import integer, is_integer, real
+from ._validate import integer, is_integer, level, real
 from .errors import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -804,11 +804,8 @@ class ComparisonSpec:
         object.__setattr__(self, "run_timeout", timeout)
         _check_int(self, "seed", "[run] seed", low=0)
         _check_int(self, "max_lag", "[validation] max_lag", low=1)
-        alpha = self.alpha
-        if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not 0 < alpha < 1:
-            raise ConfigError(f"[validation] alpha must be a level in (0, 1), e.g. 0.05, got "
-                              f"{alpha!r}")  # fmt: skip
-        object.__setattr__(self, "alpha", float(alpha))
+        alpha = level(self.alpha, "[validation] alpha", error=ConfigError)
+        object.__setattr__(self, "alpha", alpha)
         if self.validate_initial not in ("estimate", "zero", "measured"):
             from .errors import UnknownNameError
 

@@ -82,10 +82,10 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import signal, stats
 
-from ._validate import integer, positive_int, positive_real, real
+from ._validate import integer, level, positive_int, positive_real
 from .config import CORRELATION_LAGS, VALIDATION_ALPHA
 from .errors import DataError, FlexidError, check_finite
-from .portmanteau import KNOWN, ParameterEffect, describe, holm, portmanteau
+from .portmanteau import KNOWN, ParameterEffect, _unit, describe, holm, portmanteau
 
 __all__ = [
     "CONFIDENCE",
@@ -258,13 +258,9 @@ def xcorr(a: Any, b: Any, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
     max_lag = integer(
         max_lag, f"max_lag for {n} samples", error=DataError, minimum=0, maximum=n - 1
     )
-    # the coefficients do not depend on the signals' scale: each is scaled to a peak in
-    # [0.5, 1) first, so that a diverging residual (1e200, say) cannot overflow the sums to
-    # inf and every coefficient to 0 (which would pass every test); by a power of two, which
-    # is exact, since a rounding here would be amplified by the centring that follows
-    a, b = (np.ldexp(x, -math.frexp(float(np.max(np.abs(x))))[1]) for x in (a, b))
-    a = a - a.mean()
-    b = b - b.mean()
+    # scaled by powers of two first: a diverging residual cannot overflow the sums to inf and
+    # every coefficient to 0 (which would pass every test)
+    a, b = _unit(a), _unit(b)
     lags = np.arange(-max_lag, max_lag + 1)
     scale = math.sqrt(float(a @ a)) * math.sqrt(float(b @ b))
     if scale == 0.0:
@@ -528,8 +524,7 @@ def check_level(alpha: Any, error: type[FlexidError] = DataError) -> float:
     float
         The level.
     """
-    return float(real(alpha, "alpha (the validation level)", error=error, minimum=0.0,
-                      maximum=1.0, low_open=True, high_open=True))  # fmt: skip
+    return level(alpha, "alpha (the validation level)", error=error)
 
 
 def _inputs_2d(u: Any, n: int) -> np.ndarray:

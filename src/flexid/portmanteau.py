@@ -220,7 +220,10 @@ def _inverse_on_range(a: np.ndarray) -> tuple[np.ndarray, int]:
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
-    """``v`` scaled by a power of two to a peak in [0.5, 1), its mean removed."""
+    """``v`` scaled by a power of two to a peak in [0.5, 1), its mean removed: correlations
+    do not depend on the scale, and a diverging residual (1e200, say) then cannot overflow
+    their sums; the power of two is exact, since a rounding here would be amplified by the
+    centring that follows."""
     peak = float(np.max(np.abs(v))) if v.size else 0.0
     v = np.ldexp(v, -math.frexp(peak)[1]) if peak > 0.0 else v
     return v - v.mean()
@@ -248,8 +251,6 @@ def portmanteau(
     Portmanteau
         Statistic, degrees of freedom and p-value.
     """
-    # the statistic does not depend on the scale of e or x: each is scaled to a peak in
-    # [0.5, 1) first, by a power of two (exact), so that a diverging residual cannot overflow
     e, x = (_unit(np.asarray(v, dtype=float)) for v in (e, x))
     lags = np.asarray(lags, dtype=int)
     n = e.size

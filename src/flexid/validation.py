@@ -42,6 +42,7 @@ from .diagnostics import (
     fit_percent,
     format_fit,
     judged,
+    output_cross_tests,
     psd,
     residual_tests,
     rmse,
@@ -56,6 +57,7 @@ __all__ = [
     "INITIAL_RULES",
     "StabilityReport",
     "ValidationReport",
+    "between_outputs",
     "joint_tests",
     "joint_verdict",
     "residual_report",
@@ -618,6 +620,26 @@ class ValidationReport:
         if arrays:
             out["arrays"] = jsonable(self.arrays())
         return out
+
+
+def between_outputs(reports: Any) -> list[CorrelationTest]:
+    """The tests between the residuals of a multi-output model's outputs
+    (:func:`~flexid.diagnostics.output_cross_tests`), at the reports' lags and level.
+
+    Parameters
+    ----------
+    reports : sequence of ValidationReport
+        One report per output, on the same record.
+
+    Returns
+    -------
+    list of CorrelationTest
+        One per pair of outputs.
+    """
+    reports = list(reports)
+    residuals = np.column_stack([r.residual for r in reports])
+    names = [r.output_name for r in reports]
+    return output_cross_tests(residuals, reports[0].max_lag, names, alpha=reports[0].alpha)
 
 
 def joint_tests(
