@@ -23,7 +23,12 @@ from flexid.config import (
 )
 from flexid.costs.arx import ARXCost
 from flexid.data import IOData, save
-from flexid.errors import ConfigError, ModelOrderError, UnknownNameError
+from flexid.errors import (
+    ConfigError,
+    FlexidDeprecationWarning,
+    ModelOrderError,
+    UnknownNameError,
+)
 from flexid.estimation import build_problem, check_search, model_structure
 from flexid.models.arx import ARXStructure
 from flexid.stability import is_stable, max_pole_radius, pole_radius_batched
@@ -162,11 +167,31 @@ def test_output_error_in_identify_beats_least_squares_on_the_simulation_cost():
     y0 = ARXStructure(2, 2, 1).model(np.r_[A_TRUE, B1]).simulate(u)
     data = IOData(u, (y0 + 0.3 * rng.standard_normal(n))[:, None], dt=0.01)
     ls = identify(data, 2, 2, optimiser="ls", predictor="simulation")
-    oe = identify(data, 2, 2, optimiser="oe", predictor="simulation")
+    oe = identify(data, 2, 2, optimiser="pem", predictor="simulation")
     assert oe.model.is_stable and oe.cost_value <= ls.cost_value
     assert oe.nfev > 0 and "Levenberg-Marquardt" in oe.summary()
-    with pytest.raises(ConfigError, match="simulation"):
-        identify(data, 2, 2, optimiser="oe")
+    # the one-step ARX cost's gradient reference is its exact optimum, least squares
+    one_step = identify(data, 2, 2, optimiser="pem")
+    np.testing.assert_array_equal(one_step.model.theta, identify(data, 2, 2).model.theta)
+
+
+def test_the_old_reference_spelling_oe_warns_and_runs_pem():
+    """``optimiser="oe"`` read as "an output-error model" and gave an ARX model: one name,
+    one meaning now; the old spelling warns, says what to write, and runs ``"pem"``."""
+    rng = np.random.default_rng(2)
+    n = 600
+    u = rng.uniform(-1, 1, (n, 1))
+    y0 = ARXStructure(2, 2, 1).model(np.r_[A_TRUE, B1]).simulate(u)
+    data = IOData(u, (y0 + 0.3 * rng.standard_normal(n))[:, None], dt=0.01)
+    for kwargs in ({"predictor": "simulation"}, {"structure": "oe", "nb": 2, "nf": 2, "nk": 1}):
+        orders = {} if "structure" in kwargs else {"na": 2, "nb": 2}
+        with pytest.warns(FlexidDeprecationWarning, match="write 'pem'") as caught:
+            old = identify(data, optimiser="oe", **orders, **kwargs)
+        assert caught[0].filename == __file__  # the warning points at the caller's line
+        new = identify(data, optimiser="pem", **orders, **kwargs)
+        assert old.optimiser == "pem"
+        np.testing.assert_array_equal(old.model.theta, new.model.theta)
+        assert old.cost_value == new.cost_value
 
 
 def test_simulation_comparison_uses_the_output_error_reference():

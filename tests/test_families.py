@@ -189,7 +189,7 @@ def test_identify_and_select_take_the_polynomial_family_estimates(record):
     assert family.reference_hint(oe, "simulation") == "optimiser='pem'"
     arx = ARXStructure(2, 2)
     assert family.reference_hint(arx, "one-step") == "optimiser='ls'"
-    assert family.reference_hint(arx, "simulation") == "optimiser='oe'"
+    assert family.reference_hint(arx, "simulation") == "optimiser='pem'"
 
 
 class TaggedOE(Tagged):

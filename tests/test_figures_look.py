@@ -164,12 +164,12 @@ def identification_set(ident, tmp_path_factory):
     """The figures identification_figures writes, kept instead of saved."""
     figures = {}
 
-    def keep(fig, path):
-        figures[path.stem] = fig
-        return path
+    def keep(fig, name):
+        figures[name.removesuffix(".png")] = fig
+        return name, b""
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(plots, "_save", keep)
+        mp.setattr(plots, "_drawn", keep)
         plots.identification_figures(ident, tmp_path_factory.mktemp("figures"))
     return figures
 

@@ -187,7 +187,7 @@ def test_validate_at_a_level_and_on_its_estimation_record():
     assert not under.passed
     assert under.verdict().startswith("FAIL at 5 %: ") and "auto e" in under.verdict()
     assert "p < 1e-16" in under.verdict() and "lag" in under.verdict()
-    assert "what a failing test suggests" in under.summary()
+    assert "how to read a failure" in under.summary()
     with pytest.raises(ConfigError, match="alpha"):
         flexid.identify(est, na=2, optimiser="ls", alpha=0.0)
     with pytest.raises(DataError, match="estimated_on"):

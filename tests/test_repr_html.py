@@ -12,6 +12,7 @@ import pytest
 
 from flexid import IOData, compare, identify
 from flexid._html import escape, table
+from flexid._table import labelled
 from flexid.config import ModelSpec, OptimiserSpec
 from helpers import manipulator_data, small_spec
 
@@ -131,7 +132,7 @@ def test_identification_html_has_the_numbers_of_summary(identification):
     header, compact = page.tables[0], page.tables[1]
     # the header table is the labelled lines of summary(), value for value
     for label, value in header:
-        assert f"  {label:<12}: {value}" in summary.splitlines()
+        assert "\n".join(labelled([(label, value)], label_width=12)) in summary
     # every number of the compact table is a number of that record's report, formatted the
     # same; the verdicts are the reports' too
     assert compact[0] == ["", "estimation", "validation (held out)"]
@@ -173,7 +174,7 @@ def test_comparison_html_has_the_tables_of_summary(comparison):
     assert_has_numbers_of(summary, page)
     header, costs, validation = page.tables
     for label, value in header:
-        assert f"  {label:<10}: {value}" in summary.splitlines()
+        assert "\n".join(labelled([(label, value)], label_width=10)) in summary
     # the HTML tables hold the cells of the plain-text tables, in the same order
     for html_rows, text in (
         (costs, comparison.cost_table()),

@@ -12,6 +12,7 @@ import pytest
 from scipy import signal
 
 import flexid
+from flexid._table import LINE_WIDTH
 from flexid.errors import ConfigError, DataError, ModelOrderError, UnknownNameError
 from flexid.estimation import structure_of
 from flexid.models.arx import ARXStructure
@@ -169,7 +170,10 @@ def test_table_summary_json_and_html(oe_selection):
     marked = [line for line in lines if "<- recommended" in line]
     assert len(marked) == 1 and "OE(nb=2, nf=2, nk=1)" in marked[0]
     assert len(lines) == 2 + len(sel.candidates)
-    assert sel.note in sel.summary() and table in sel.summary()
+    summary = sel.summary()  # the note wrapped and the table in blocks at a terminal's width
+    assert " ".join(sel.note.split()) in " ".join(summary.split())
+    assert sel.table(LINE_WIDTH) in summary
+    assert max(len(line) for line in sel.table(LINE_WIDTH).splitlines()) <= LINE_WIDTH
     d = sel.to_dict()
     text = json.dumps(d, allow_nan=False)
     assert json.loads(text)["candidates"][d["best"]]["label"] == sel.best.label

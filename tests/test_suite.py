@@ -139,9 +139,9 @@ def test_one_pool_serves_every_problem_and_computes_the_references(ran, tmp_path
     started = []
     real_init = _compare._Worker.__init__
 
-    def counted(self, mp):
+    def counted(self, mp, *args, **kwargs):
         started.append(1)
-        real_init(self, mp)
+        real_init(self, mp, *args, **kwargs)
 
     def refuse(ctx):
         raise AssertionError("a reference was computed in the main process")

@@ -14,7 +14,9 @@ An optimiser cannot end or hang a comparison: whatever it raises (``SystemExit``
 its process is a failed run and the process is replaced, and a run longer than
 ``run_timeout`` seconds is ended (its process killed and replaced) and recorded as failed.
 With one worker and a time limit, each run is done in a child process, the only way to end a
-Python function that never returns.
+Python function that never returns.  Serially without a limit, the runs of an optimiser that
+is not trusted (a plugin's, see :func:`~flexid.optimisers.registry.is_trusted`) are done in
+a child process too, after the others: one that ends its process is a failed run.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ from .errors import ConfigError, ModelOrderError
 from .estimation import build_problem, check_search, structure_of
 from .families import family_named, family_of
 from .optimisers import Budget, get, minimize
+from .optimisers.registry import is_trusted
 from .store import ResultStore
 from .validation import between_outputs, joint_tests
 
@@ -524,7 +527,8 @@ def _worker_environment() -> Iterator[None]:
 class _Worker:
     """A worker process, the parent's end of its pipe and the run it is doing."""
 
-    def __init__(self, mp: Any) -> None:
+    def __init__(self, mp: Any, what: str = "worker process") -> None:
+        self.what = what  # how a failed run's reason names the process that died
         self.conn, child = mp.Pipe()
         self.process = mp.Process(target=_worker_main, args=(child,), name="flexid-worker")
         try:
@@ -594,14 +598,19 @@ class _Worker:
             self.kill()
             code = self.process.exitcode
             if not self.ready:
+                # the usual cause: spawn runs the caller's script again in the child, and an
+                # unguarded script starts the comparison there too, which multiprocessing stops
                 raise RuntimeError(
-                    f"a flexid worker process ended before it started (exit code {code})"
+                    f"a flexid worker process ended before it started (exit code {code}).\n"
+                    "A script that runs a comparison in child processes (workers, a time limit "
+                    "or an\nuntrusted plugin) must start it under "
+                    '`if __name__ == "__main__":`: the children\nimport the script again.'
                 )
             if self.item is None:
                 return None, False
-            reason = f"worker process died (exit code {code})"
+            reason = f"{self.what} died (exit code {code})"
             if code is not None and code < 0:
-                reason = f"worker process died (exit code {code}, {_signal_name(-code)})"
+                reason = f"{self.what} died (exit code {code}, {_signal_name(-code)})"
             return self._fail(reason), False
         deadline = self.deadline(run_timeout)
         if deadline is not None and time.monotonic() >= deadline:
@@ -650,14 +659,15 @@ def _signal_name(signum: int) -> str:
 
 def _execute_processes(
     jobs: Sequence[_Job], items: Sequence[tuple[int, tuple | None]], workers: int,
-    run_timeout: float | None,
+    run_timeout: float | None, what: str = "worker process",
 ) -> Iterator[tuple[int, dict]]:
     """Yield ``(job index, record)`` from ``workers`` worker processes as tasks complete.
 
     One pool serves every comparison: a worker is sent a comparison's payload with its first
     task of that comparison.  A worker that dies or exceeds ``run_timeout`` in a run yields
-    that run as failed and is replaced.  However the generator ends (done, an exception,
-    closed early, an interrupt), every worker process has ended when it does.
+    that run as failed and is replaced; ``what`` names the process in the failed run's
+    reason.  However the generator ends (done, an exception, closed early, an interrupt),
+    every worker process has ended when it does.
     """
     mp = get_context("spawn")  # a fresh interpreter: no threads or locks copied by fork
     payloads: dict[int, Mapping] = {}
@@ -679,7 +689,7 @@ def _execute_processes(
 
     try:
         while len(pool) < needed():
-            pool.append(_Worker(mp))
+            pool.append(_Worker(mp, what))
         while queue or any(w.busy for w in pool):
             for w in pool:
                 if w.ready and not w.busy and queue:
@@ -697,7 +707,7 @@ def _execute_processes(
                     pool.remove(w)
                     w.stop()
                     if len(pool) < needed():
-                        pool.append(_Worker(mp))
+                        pool.append(_Worker(mp, what))
                 if done is not None:
                     yield done
     finally:
@@ -844,8 +854,11 @@ def compare(
     -----
     An optimiser that raises (``SystemExit`` and ``GeneratorExit`` included) or, in a
     worker process, ends its process, gives a failed run with the reason; the other runs go
-    on.  ``KeyboardInterrupt`` ends the comparison, worker processes included; the runs
-    finished before it are in the store.
+    on.  With ``workers=1``, the runs of an optimiser not registered as trusted (a plugin's,
+    see :func:`~flexid.optimisers.registry.is_trusted`) are done in a child process after
+    the others, so that one ending its process is a failed run too.  ``KeyboardInterrupt``
+    ends the comparison, worker processes included; the runs finished before it are in the
+    store.
     """
     t0 = time.perf_counter()
     ctx = _checked_context(spec)  # the whole specification, before the store is opened
@@ -964,10 +977,28 @@ def _execute(
         yield from _execute_dask(jobs, items, scheduler)
         return
     if workers == 1 and run_timeout is None:
-        for i, task in items:
-            yield i, _do(jobs[i].ctx, task)
+        yield from _execute_serial(jobs, items)
         return
     yield from _execute_processes(jobs, items, workers, run_timeout)
+
+
+def _execute_serial(
+    jobs: Sequence[_Job], items: Sequence[tuple[int, tuple | None]]
+) -> Iterator[tuple[int, dict]]:
+    """Yield ``(job index, record)`` of the tasks done one at a time.
+
+    The references and the runs of trusted optimisers are done in this process, in order,
+    as fast as ever; then the runs of the others in one child process of the worker pool,
+    which a run that ends it (``os._exit``, a segfault) cannot take this process down with:
+    the run is failed, the process replaced.  Where a run is done does not change its numbers.
+    """
+    trusted = [task is None or is_trusted(task[0]["name"]) for _, task in items]
+    here = [item for item, ok in zip(items, trusted, strict=True) if ok]
+    away = [item for item, ok in zip(items, trusted, strict=True) if not ok]
+    for i, task in here:
+        yield i, _do(jobs[i].ctx, task)
+    if away:
+        yield from _execute_processes(jobs, away, 1, None, what="the optimiser's child process")
 
 
 def _execute_dask(

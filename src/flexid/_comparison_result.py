@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
-from ._table import text_table
+from ._table import LINE_WIDTH, labelled, text_table, wrapped
 from .config import GREYBOX, LEAST_SQUARES, VALIDATION_GUIDE, ComparisonSpec
 from .diagnostics import format_fit as _fit
 from .errors import StoreError
@@ -196,8 +196,14 @@ class ComparisonResult:
         return "least squares"
 
     # ------------------------------------------------------------------ tables
-    def cost_table(self) -> str:
+    def cost_table(self, width: int | None = None) -> str:
         """Final cost, FE to target and success rate per optimiser.
+
+        Parameters
+        ----------
+        width : int, optional
+            The longest line: a wider table is printed in blocks of columns, each repeating
+            the row names (default: one block; :meth:`summary` keeps to the terminal's width).
 
         Returns
         -------
@@ -206,7 +212,7 @@ class ComparisonResult:
             runs, median, IQR and best cost, median FE to each target with the success rate,
             the Holm-corrected rank-sum p-value and the median wall time in seconds.
         """
-        return text_table(self._cost_rows())
+        return text_table(self._cost_rows(), width=width)
 
     def _cost_rows(self) -> list[list[str]]:
         targets = self.spec.targets
@@ -243,8 +249,14 @@ class ComparisonResult:
             rows.append(row)
         return rows
 
-    def validation_table(self) -> str:
+    def validation_table(self, width: int | None = None) -> str:
         """Held-out fits, modelling-error range and correlation-test pass rate.
+
+        Parameters
+        ----------
+        width : int, optional
+            The longest line: a wider table is printed in blocks of columns, each repeating
+            the row names (default: one block; :meth:`summary` keeps to the terminal's width).
 
         Returns
         -------
@@ -253,7 +265,7 @@ class ComparisonResult:
             one-step and simulation fits (%), the one-step error range, the correlation-test
             pass rate and the share of stable models.
         """
-        return text_table(self._validation_rows())
+        return text_table(self._validation_rows(), width=width)
 
     def _validation_rows(self) -> list[list[str]]:
         head = [
@@ -271,7 +283,7 @@ class ComparisonResult:
             [
                 self.start_label,
                 _fit(v["fit_one_step"]),
-                _fit(v["fit_simulation"]),
+                _sim_fit(v["fit_simulation"], bool(self.reference.get("stable"))),
                 f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
                 "yes" if v["correlation_passed"] else "no",
                 _share(v.get("frequency_share")),
@@ -285,7 +297,7 @@ class ComparisonResult:
                 [
                     _REFERENCE_ROW,
                     _fit(v["fit_one_step"]),
-                    _fit(v["fit_simulation"]),
+                    _sim_fit(v["fit_simulation"], bool(oe.get("stable"))),
                     f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
                     "yes" if v["correlation_passed"] else "no",
                     _share(v.get("frequency_share")),
@@ -300,7 +312,7 @@ class ComparisonResult:
                 [
                     label,
                     _fit(s["fit_one_step"]),
-                    _fit(s["fit_simulation"]),
+                    _sim_fit(s["fit_simulation"], s["stable_rate"] == 1.0),
                     f"[{s['error_min']:.4g}, {s['error_max']:.4g}]",
                     f"{s['correlation_pass_rate'] * 100:.0f}%",
                     _share(s.get("frequency_share")),
@@ -308,6 +320,13 @@ class ComparisonResult:
                 ]
             )
         return rows
+
+    def _any_unstable(self) -> bool:
+        """Whether a row of the validation table holds an unstable model (marked ``!``)."""
+        oe = self.reference.get("output_error")
+        runs = any(s["ok"] and s["stable_rate"] < 1.0 for s in self.stats.values())
+        reference = bool(oe and "validation" in oe and not oe.get("stable"))
+        return not self.reference.get("stable") or reference or runs
 
     def _title(self) -> str:
         return f"Comparison {self.spec.name!r} [{self.key}]"
@@ -349,20 +368,21 @@ class ComparisonResult:
             :meth:`validation_table`, failed runs and the rank-sum conclusion.
         """
         lines = [self._title()]
-        lines += [f"  {label:<10}: {value}" for label, value in self._items()]
+        lines += labelled(self._items(), label_width=10)
         lines += [
             "",
-            self.cost_table(),
+            self.cost_table(LINE_WIDTH),
             "",
             _VALIDATION_CAPTION,
-            self.validation_table(),
+            self.validation_table(LINE_WIDTH),
+            *([_UNSTABLE_NOTE] if self._any_unstable() else []),
             f"corr. pass: no residual test rejected at {100 * self.spec.alpha:g} % (Holm); how "
             "to read a failure:",
             f"  {VALIDATION_GUIDE}",
         ]
         outputs = self._output_rows()
         if outputs:
-            lines += ["", _OUTPUTS_CAPTION, text_table(outputs)]
+            lines += ["", _OUTPUTS_CAPTION, text_table(outputs, width=LINE_WIDTH)]
         return "\n".join(lines + self._notes())
 
     def _output_rows(self) -> list[list[str]]:
@@ -406,16 +426,15 @@ class ComparisonResult:
         oe = self.reference.get("output_error") or {}
         if oe.get("local_minimum") is False and oe.get("cost") == self.reference_cost:
             where = "on the pole-radius cap" if oe.get("on_cap") else "short of it"
-            lines.append(
-                f"  The reference (LM) did not end at a verified local minimum ({where}): "
-                "a run below it is news, not an error."
-            )
+            lines.append(wrapped(
+                f"The reference (LM) did not end at a verified local minimum ({where}): "
+                "a run below it is news, not an error.", indent="  "))  # fmt: skip
         failed = {k: v.get("errors") for k, v in self.stats.items() if v.get("failed")}
         for label, errors in failed.items():
             lines.append(f"  {label}: failed runs: {'; '.join(errors or [])}")
         conclusion = self._conclusion()
         if conclusion:
-            lines += ["", conclusion]
+            lines += ["", wrapped(conclusion, hang="")]
         return lines
 
     def _conclusion(self) -> str:
@@ -489,6 +508,16 @@ def _search_text(search) -> str:
     if search.numerator == "fit":
         text += "; b fitted by least squares for each denominator"
     return text
+
+
+#: Under the validation table when a row is marked: why an unstable model's fit misleads.
+_UNSTABLE_NOTE = ("!: an UNSTABLE model (or some runs'): its free run diverges; fit over the "
+                  "held-out record only")
+
+
+def _sim_fit(value: float, stable: bool) -> str:
+    """A held-out simulation fit, marked ``!`` for an unstable model."""
+    return _fit(value) + ("" if stable else " !")
 
 
 def _f(value: float) -> str:

@@ -48,6 +48,7 @@ __all__ = [
     "read_dat",
     "read_mat",
     "write_bytes",
+    "write_files",
     "write_text",
 ]
 
@@ -588,7 +589,7 @@ def _text_file(path: Path) -> Iterator[None]:
 
 
 def _read_text(path: Path) -> str:
-    with _text_file(path), open(path, encoding="utf-8", newline="") as handle:
+    with _text_file(path), open(path, encoding="utf-8-sig", newline="") as handle:
         return handle.read()
 
 
@@ -635,7 +636,7 @@ def read_csv(path: Path) -> tuple[dict | None, list[str], np.ndarray]:
     """
     with _text_file(path):
         capacity = _count_lines(path)
-        with open(path, encoding="utf-8") as handle:
+        with open(path, encoding="utf-8-sig") as handle:  # a leading BOM is not a name
             return _read_csv_lines(path, handle, capacity)
 
 
@@ -732,6 +733,84 @@ def write_bytes(path: Path, payload: bytes) -> None:
         except OSError:
             pass
         raise DataFileError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+def write_files(folder: Path, files: Sequence[tuple[str, bytes]], what: str) -> list[Path]:
+    """Write a set of files into a folder (created), all of them or none.
+
+    Each file is first written whole to a temporary file beside it; only when every one is
+    written are they renamed into place, so a full disk or a refused write leaves neither a
+    partial file nor a partial set (a rename is not a write: it needs no space).
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        Where the files go; it and its missing parents are created, and removed again if
+        the set cannot be written.
+    files : sequence of (str, bytes)
+        File names in ``folder`` and their contents; existing files of these names are
+        replaced.
+    what : str
+        What the files are, for the message (``"figures"``).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in the order given.
+
+    Raises
+    ------
+    DataFileError
+        ``"cannot write <what> to <folder>: <cause>"`` when the folder cannot be made or a
+        file cannot be written (no space left, no permission, the folder is a file).
+    """
+    folder = Path(folder)
+    made: list[Path] = []
+    staged: list[tuple[Path, Path]] = []
+    try:
+        made = _make_folder(folder)
+        for name, payload in files:
+            path = folder / name
+            staged.append((path.with_name(f".{path.name}.tmp{os.getpid()}"), path))
+            with open(staged[-1][0], "wb") as handle:
+                handle.write(payload)
+        for tmp, path in staged:
+            os.replace(tmp, path)
+    except OSError as exc:
+        for tmp, _ in staged:
+            try:
+                tmp.unlink(missing_ok=True)
+            except OSError:
+                pass
+        for made_folder in reversed(made):
+            try:
+                made_folder.rmdir()
+            except OSError:  # not empty: someone else's files went in meanwhile
+                break
+        raise DataFileError(f"cannot write {what} to {folder}: {_cause(exc, folder)}") from None
+    return [path for _, path in staged]
+
+
+def _make_folder(folder: Path) -> list[Path]:
+    """Create ``folder`` and its missing parents; the folders created, outermost first."""
+    missing = []
+    for part in (folder, *folder.parents):
+        if part.exists() or part.is_symlink():
+            break
+        missing.append(part)
+    for part in reversed(missing):
+        part.mkdir()
+    return list(reversed(missing))
+
+
+def _cause(exc: OSError, folder: Path) -> str:
+    """Why a folder could not be written, in a few lower-case words."""
+    if folder.exists() and not folder.is_dir():
+        return "not a folder"
+    if isinstance(exc, (FileExistsError, NotADirectoryError)):
+        return "a part of its path is not a folder"
+    text = exc.strerror or str(exc)
+    return text[:1].lower() + text[1:]
 
 
 def median_step(times: np.ndarray) -> tuple[float, bool]:

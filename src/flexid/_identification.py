@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ._json import jsonable
+from ._table import labelled, wrapped
 from .config import VALIDATION_GUIDE, SearchSpec
 from .costs.arx import ARXCost
 from .data import IOData
@@ -260,7 +261,7 @@ class Identification:
             the model should not be trusted, one last line that says why (:meth:`advice`).
         """
         lines = [self._title()]
-        lines += [f"  {label:<12}: {value}" for label, value in self._items()]
+        lines += labelled(self._items(), label_width=12)
         lines.append("")
         lines.append(self.model.summary())
         lines.append("")
@@ -285,10 +286,10 @@ class Identification:
                 lines.append("residuals between outputs (held out, every lag but 0)")
                 width = max(len(t.name) for t in self.output_tests)
                 lines += [f"  {t.name:{width}}  {t.verdict()}" for t in self.output_tests]
-            lines.append(f"joint verdict of the {len(self.outputs)} outputs (held out): "
-                         f"{joint_verdict(self.joint_tests)}")  # fmt: skip
+            lines.append(wrapped(f"joint verdict of the {len(self.outputs)} outputs (held out): "
+                                 f"{joint_verdict(self.joint_tests)}"))  # fmt: skip
             if not self.passed:
-                lines.append(f"  what a failing test suggests: {VALIDATION_GUIDE}")
+                lines.append(f"  how to read a failure: {VALIDATION_GUIDE}")
             lines.append("")
         for report in self.held_out:
             which = f", output {report.output_name!r}" if self.outputs else ""
@@ -296,7 +297,7 @@ class Identification:
             lines.append(_indent(report.summary()))
         advice = self.advice()
         if advice:
-            lines.append(advice)
+            lines.append(wrapped(advice, hang="  "))
         return "\n".join(lines)
 
     def _modes_title(self) -> str:

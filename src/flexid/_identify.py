@@ -31,6 +31,7 @@ from .config import (
     VALIDATION_ALPHA,
     CostSpec,
     SearchSpec,
+    current_reference,
     specs_from_keywords,
 )
 from .data import IOData, is_records, joined, prepare_data
@@ -148,8 +149,9 @@ def identify(
         least-squares estimate read as the structure, the start of the reference), or
         ``"pem"`` for the gradient reference of the cost: Levenberg-Marquardt with analytic
         gradients from several starts (:func:`flexid.prediction_error.pem`; for ARX with the
-        simulation predictor :func:`flexid.output_error.output_error`, also named ``"oe"``;
-        for the one-step ARX cost, least squares, its exact optimum).  Default ``"pem"``:
+        simulation predictor :func:`flexid.output_error.output_error`; for the one-step ARX
+        cost, least squares, its exact optimum).  ``"oe"``, its old spelling, warns and runs
+        ``"pem"``: an output-error model is ``structure="oe"``.  Default ``"pem"``:
         measured on the built-in plants, a metaheuristic at a default budget ends far from
         it (the twin rotor's ARX(5,5,1) by HBCSD: a pole on the radius cap, held-out
         simulation fit 2.9 % against least squares' 83.4 %), so a metaheuristic is run
@@ -210,6 +212,7 @@ def identify(
     t_start = time.perf_counter()
     _check_initial(validate_initial, "validation initial-condition rule")
     alpha = check_level(alpha, ConfigError)
+    optimiser = current_reference(optimiser, stacklevel=4)  # past the keyword checker
     if optimiser not in REFERENCES:
         budget = _budget(budget)
     model_gb = greybox_of(structure, greybox)

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from . import __version__
+from ._table import wrapped
 from ._validate import integer
 from .config import (
     COMPARE_BUDGET,
@@ -36,7 +37,7 @@ from .config import (
     VALIDATION_ALPHA,
     keyword,
 )
-from .errors import ConfigError, FlexidError, FlexidWarning
+from .errors import ConfigError, DataFileError, FlexidError, FlexidWarning
 from .metrics import METRICS
 from .plants import PLANTS, all_presets
 
@@ -362,16 +363,23 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         numerator=args.numerator,
         callback=_identify_progress(args),
     )
+    unwritten = None
     if args.figures:
         from .plots import identification_figures
 
-        paths = identification_figures(ident, args.figures)
-        if not args.json:
-            print(f"figures: {len(paths)} PNG files in {args.figures}")
+        try:
+            paths = identification_figures(ident, args.figures)
+        except DataFileError as exc:  # the results are printed all the same: nothing lost
+            unwritten = exc
+        else:
+            if not args.json:
+                print(f"figures: {len(paths)} PNG files in {args.figures}")
     if args.json:
         print(json.dumps(ident.to_dict(), indent=2, allow_nan=False))
     else:
         print(ident.summary())
+    if unwritten is not None:
+        raise DataFileError(f"{unwritten}; results printed above")
     return 0
 
 
@@ -486,14 +494,19 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             from .report import figure_prefix
 
             figdir = Path(args.figures) if args.figures else store.parent
+            prefix = figure_prefix(result)
             try:
-                paths = comparison_figures(result, figdir, prefix=figure_prefix(result))
+                paths = comparison_figures(result, figdir, prefix=prefix)
             except PlottingUnavailable as exc:
                 if not args.json:
                     print(f"(no figures: {exc})")
+            except DataFileError as exc:
+                n_runs = sum(len(runs) for runs in result.records.values())
+                runs = "1 run" if n_runs == 1 else f"{n_runs} runs"
+                raise DataFileError(f"{exc}; {runs} stored in {store}") from None
             else:
-                if not args.json:
-                    print(f"figures: {', '.join(str(p) for p in paths)}")
+                if not args.json:  # one short line, whatever the names' length
+                    print(f"figures: {len(paths)} PNG files in {figdir} ({prefix}*.png)")
         if not args.json:
             print()
     if args.json:
@@ -752,15 +765,17 @@ def _list_optimisers(args: argparse.Namespace) -> None:
         origin = f" (variant of {e['variant_of']})" if e["variant_of"] else ""
         src = "" if e["source"] == "flexid" else f" [{e['source']}]"
         bounds = e["bounds"]["kind"]
-        if not args.long:  # one line each: the name, the bounds and the first sentence
+        if not args.long:  # the name, the bounds and the first sentence, continued under it
             first = e["summary"].split(". ")[0].rstrip(".")
-            print(f"{e['name']:<{width}}  {bounds:<{bwidth}}  {first}{origin}{src}")
+            print(wrapped(f"{e['name']:<{width}}  {bounds:<{bwidth}}  {first}{origin}{src}",
+                          hang=" " * (width + bwidth + 4)))  # fmt: skip
             continue
-        print(f"{e['name']}{origin}{src}: {e['summary']}")
+        print(wrapped(f"{e['name']}{origin}{src}: {e['summary']}"))
         note = e["bounds"]["note"]
-        print(f"    at the bounds: {bounds}" + (f": {note}" if note else ""))
+        print(wrapped(f"at the bounds: {bounds}" + (f": {note}" if note else ""), indent="    "))
         for pname, p in e["hyperparameters"].items():
-            print(f"    {pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}")
+            print(wrapped(f"{pname} = {p['default']!r}  ({p['type']}, {p['range']}) {p['doc']}",
+                          indent="    "))  # fmt: skip
     if not args.long:
         print("\n(--long: every optimiser's hyper-parameters, defaults and ranges)")
     print("\nOptimisers of other libraries (flexid's FE budget, initial population and seed):")
@@ -776,17 +791,21 @@ def _list_signals(args: argparse.Namespace) -> None:
 
 def _list_plants(args: argparse.Namespace) -> None:
     for plant in PLANTS.values():
-        print(
+        print(wrapped(
             f"{plant.name:12s} {', '.join(plant.input_names)} -> "
-            f"{', '.join(plant.output_names)}; dt {plant.dt:g} s; gymnasium id {plant.env_id}"
-        )
+            f"{', '.join(plant.output_names)}; dt {plant.dt:g} s; gymnasium id {plant.env_id}",
+            hang=" " * 13,
+        ))  # fmt: skip
 
 
 def _list_presets(args: argparse.Namespace) -> None:
     from ._json import jsonable
 
-    for name, preset in all_presets().items():
-        print(f"{name}: {json.dumps(jsonable(preset), allow_nan=False, default=str)}")
+    for name, preset in all_presets().items():  # its description, then its settings
+        settings = {k: v for k, v in jsonable(preset).items() if k != "description"}
+        print(wrapped(f"{name}: {preset.get('description', '')}"))
+        for k, v in settings.items():  # as in a config's [data] table
+            print(wrapped(f"{k} = {json.dumps(v, allow_nan=False, default=str)}", indent="    "))
 
 
 def _list_greybox(args: argparse.Namespace) -> None:
@@ -798,10 +817,10 @@ def _list_greybox(args: argparse.Namespace) -> None:
         except FlexidError as exc:  # an installed model that fails to load says so
             print(f"{name}: cannot be loaded ({exc})")
             continue
-        print(
+        print(wrapped(
             f"{name}: {', '.join(model.inputs)} -> {', '.join(model.outputs)}; estimated "
             f"{', '.join(model.free)}"
-        )
+        ))  # fmt: skip
     print("and any path/to/file.py:NAME (a GreyBoxModel, or a function returning one)")
 
 
@@ -1134,7 +1153,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=PREDICTION_ERROR,
         help=f"registered optimiser (e.g. hbcsd, the paper's), {LEAST_SQUARES!r} (least "
         f"squares) or {PREDICTION_ERROR!r}, the default: the structure's gradient reference "
-        f"(least squares for the one-step ARX cost; {OUTPUT_ERROR!r} for ARX simulation); "
+        f"(least squares for the one-step ARX cost; {OUTPUT_ERROR!r}: its old spelling); "
         f"{SUBSPACE!r} for --structure ss: subspace identification",
     )
     _add_keyword_option(i, "--initial")
@@ -1411,13 +1430,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _one_line_warnings(show: Callable) -> Callable:
+def _paragraph_warnings(show: Callable) -> Callable:
     """``warnings.showwarning`` that prints flexid's warnings (store, data, identification)
-    as one line on stderr."""
+    as one paragraph on stderr: ``flexid: warning: ...``, continued lines indented."""
 
     def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-        if issubclass(category, FlexidWarning):
-            print(f"flexid: warning: {message}", file=file or sys.stderr)
+        if issubclass(category, FlexidWarning):  # one paragraph, at a terminal's width
+            print(wrapped(f"flexid: warning: {message}", hang="  "), file=file or sys.stderr)
         else:
             show(message, category, filename, lineno, file, line)
 
@@ -1442,7 +1461,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     debug = "--debug" in argv
     shown = warnings.showwarning
-    warnings.showwarning = _one_line_warnings(shown)
+    warnings.showwarning = _paragraph_warnings(shown)
     terminate = _on_sigterm(_raise_terminated)
     try:
         args, extra = parser.parse_known_args(argv)

@@ -42,17 +42,23 @@ Example (``experiments/paper-manipulator.toml`` is a complete one)::
 
 from __future__ import annotations
 
+import codecs
+import datetime
+import difflib
 import hashlib
 import json
+import math
+import numbers
 import os
 import sys
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from ._validate import integer, is_integer, level, real
-from .errors import ConfigError
+from ._validate import _interval, _within, integer, is_integer, level, real
+from .errors import ConfigError, FlexidDeprecationWarning
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -62,8 +68,10 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 __all__ = [
     "COMPARE_BUDGET",
     "COMPARE_RUNS",
+    "CONFIG_SCHEMA",
     "CORRELATION_LAGS",
     "DEFAULT_OPTIMISERS",
+    "DEPRECATED_REFERENCES",
     "GREYBOX",
     "IDENTIFY_BUDGET",
     "KEYWORDS",
@@ -81,6 +89,7 @@ __all__ = [
     "VALIDATION_ALPHA",
     "VALIDATION_GUIDE",
     "ComparisonSpec",
+    "ConfigKey",
     "CostSpec",
     "DataSpec",
     "Keyword",
@@ -89,7 +98,9 @@ __all__ = [
     "SearchSpec",
     "add_structure_names",
     "auto_initial",
+    "check_config",
     "command_specs",
+    "current_reference",
     "default_spec",
     "keyword",
     "load_config",
@@ -108,7 +119,8 @@ SCHEDULE = "schedule"
 #: The least-squares reference: an ``optimiser`` name of ``identify`` and the label of the
 #: reference row every comparison includes.
 LEAST_SQUARES = "ls"
-#: The output-error (simulation cost) reference: an ``optimiser`` name of ``identify``.
+#: A deprecated spelling of :data:`PREDICTION_ERROR` (it read as "an output-error model",
+#: which is ``structure="oe"``); ``identify`` warns and runs ``"pem"``.
 OUTPUT_ERROR = "oe"
 #: The gradient reference of any structure's cost (Levenberg-Marquardt with analytic
 #: gradients, :func:`flexid.prediction_error.pem`): an ``optimiser`` name of ``identify``.
@@ -116,8 +128,11 @@ PREDICTION_ERROR = "pem"
 #: Subspace identification of a state-space model (:func:`flexid.n4sid`): an ``optimiser``
 #: name of ``identify`` for ``structure="ss"``.
 SUBSPACE = "n4sid"
-#: The ``optimiser`` names of the references, which take no FE budget.
+#: The ``optimiser`` names of the references, which take no FE budget (the deprecated
+#: spellings among them, so they are recognised before they are replaced).
 REFERENCES = (LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR, SUBSPACE)
+#: Old reference names and the one each now is.
+DEPRECATED_REFERENCES = {OUTPUT_ERROR: PREDICTION_ERROR}
 #: Levenberg-Marquardt starts of the polynomial references beside the deterministic ones
 #: (least squares, Steiglitz-McBride, Hannan-Rissanen), in identify, compare and select alike,
 #: so one structure gives one model whichever job fits it.
@@ -159,6 +174,39 @@ VALIDATION_GUIDE = "https://github.com/flexid/flexid/blob/main/docs/guide/valida
 POLE_RADIUS_CAP = 0.9999
 #: Bound of every reflection coefficient ``|k|`` of the ``"reflection"`` search space.
 REFLECTION_CAP = 0.9999
+
+
+def current_reference(optimiser: str, *, stacklevel: int = 3) -> str:
+    """The optimiser name to run: a deprecated reference spelling warns and gives its new one.
+
+    Parameters
+    ----------
+    optimiser : str
+        An ``optimiser`` name as a user wrote it.
+    stacklevel : int
+        Passed to :func:`warnings.warn`, so the warning points at the user's call.
+
+    Returns
+    -------
+    str
+        ``optimiser`` itself, or the name a deprecated spelling stands for (``"oe"`` ->
+        ``"pem"``).
+
+    Warns
+    -----
+    FlexidDeprecationWarning
+        For a deprecated spelling, saying what to write.
+    """
+    new = DEPRECATED_REFERENCES.get(optimiser) if isinstance(optimiser, str) else None
+    if new is None:
+        return optimiser
+    warnings.warn(
+        f"optimiser {optimiser!r} is deprecated: write {new!r}; an output-error model is "
+        "structure 'oe'",
+        FlexidDeprecationWarning,
+        stacklevel=stacklevel,
+    )
+    return new
 
 
 def auto_initial(structure: str) -> str:
@@ -746,9 +794,9 @@ class ComparisonSpec:
     optimisers : tuple of OptimiserSpec
         The optimisers compared (default: hbcsd, bfa, sda, pso, de); labels must be unique.
     runs : int
-        Runs per optimiser, >= 1 (default 10).
+        Runs per optimiser (default 10).
     seed : int
-        Seed of the runs, >= 0 (default 0).
+        Seed of the runs (default 0).
     budget : int or "schedule"
         Function evaluations per run (default 10,000), or ``"schedule"``: each optimiser's
         own loop counts, capped at ``schedule_cap``.
@@ -774,9 +822,10 @@ class ComparisonSpec:
     Raises
     ------
     ConfigError
-        For a non-integer or out-of-range count, no optimiser, repeated labels, an
-        optimiser labelled ``"ls"``, a target that is not positive or a time limit that is
-        not a positive number of seconds.
+        For a count that is not an integer or is out of its range in
+        :data:`CONFIG_SCHEMA`, no optimiser, repeated labels, an optimiser labelled
+        ``"ls"``, a target that is not positive or a time limit that is not a positive
+        number of seconds.
     """
 
     name: str = "comparison"
@@ -799,11 +848,11 @@ class ComparisonSpec:
     alpha: float = VALIDATION_ALPHA
 
     def __post_init__(self) -> None:
-        _check_int(self, "runs", "[run] runs", low=1)
+        _check_int(self, "runs", "run")
         timeout = _check_run_timeout(self.run_timeout, "[compare] run_timeout")
         object.__setattr__(self, "run_timeout", timeout)
-        _check_int(self, "seed", "[run] seed", low=0)
-        _check_int(self, "max_lag", "[validation] max_lag", low=1)
+        _check_int(self, "seed", "run")
+        _check_int(self, "max_lag", "validation")
         alpha = level(self.alpha, "[validation] alpha", error=ConfigError)
         object.__setattr__(self, "alpha", alpha)
         if self.validate_initial not in ("estimate", "zero", "measured"):
@@ -812,9 +861,9 @@ class ComparisonSpec:
             raise UnknownNameError(
                 "[validation] initial", str(self.validate_initial), ("estimate", "zero", "measured")
             )
-        _check_int(self, "schedule_cap", "[run] schedule_cap", low=1)
+        _check_int(self, "schedule_cap", "run")
         if self.budget != SCHEDULE:
-            _check_int(self, "budget", "[run] budget", low=1)
+            _check_int(self, "budget", "run")
         if not self.optimisers:
             raise ConfigError("a comparison needs at least one optimiser")
         labels = [o.display for o in self.optimisers]
@@ -962,69 +1011,367 @@ def _check_run_timeout(value: Any, what: str) -> float | None:
     ConfigError
         For a ``bool``, a string, NaN, an infinity or a value <= 0.
     """
-    return real(value, what, error=ConfigError, minimum=0, low_open=True, none_ok=True, unit="s")
+    key = CONFIG_SCHEMA["compare"]["run_timeout"]
+    return real(value, what, error=ConfigError, minimum=key.minimum, low_open=key.low_open,
+                none_ok=True, unit="s")  # fmt: skip
 
 
-def _check_int(spec: ComparisonSpec, name: str, what: str, low: int) -> None:
-    """Check an integer field and store it as ``int`` (a NumPy integer would change the key)."""
-    value = integer(getattr(spec, name), what, error=ConfigError, minimum=low)
+def _check_int(spec: ComparisonSpec, name: str, table: str) -> None:
+    """Check an integer field against its key of :data:`CONFIG_SCHEMA` (a spec built in
+    Python has the bounds of a file's) and store it as ``int`` (a NumPy integer would change
+    the store key)."""
+    key = CONFIG_SCHEMA[table][name]
+    value = integer(getattr(spec, name), f"[{table}] {name}", error=ConfigError,
+                    minimum=key.minimum, maximum=key.maximum)  # fmt: skip
     object.__setattr__(spec, name, value)
 
 
-def _take(table: Mapping[str, Any], allowed: Sequence[str], section: str) -> dict[str, Any]:
-    if not isinstance(table, Mapping):
-        raise ConfigError(f"[{section}] must be a table")
-    unknown = sorted(set(table) - set(allowed))
+@dataclass(frozen=True)
+class ConfigKey:
+    """What one key of a configuration file takes: its TOML types and the range of its values.
+
+    Attributes
+    ----------
+    types : tuple of str
+        The TOML types it takes: ``"string"``, ``"integer"``, ``"number"`` (an integer or a
+        float), ``"boolean"``, ``"table"``, ``"array"`` (never empty).
+    minimum, maximum : int, float or None
+        Bounds of a number; None for none.
+    low_open, high_open : bool
+        Exclude the bound itself (``minimum=0, low_open=True`` is "> 0").
+    choices : tuple of str
+        The only strings it takes; empty for any string.  A name that a registry or another
+        module knows (a plant, an optimiser, a metric, a predictor...) is checked, and the
+        known ones listed, by the code that looks it up.
+    items : ConfigKey or None
+        What each item of an array takes; None: the key's other types and range.
+    table : str or None
+        The entry of :data:`CONFIG_SCHEMA` a table (or each table of an array) is checked
+        against; None for a table of free names (hyper-parameters, plant parameters, signal
+        options...), which the code that takes them checks.
+    """
+
+    types: tuple[str, ...]
+    minimum: float | None = None
+    maximum: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple[str, ...] = ()
+    items: ConfigKey | None = None
+    table: str | None = None
+
+    def item(self) -> ConfigKey:
+        """What each item of an array of this key takes.
+
+        Returns
+        -------
+        ConfigKey
+        """
+        if self.items is not None:
+            return self.items
+        return replace(self, types=tuple(t for t in self.types if t != "array"))
+
+    def wanted(self, ranged: bool = False, finite: bool = False) -> str:
+        """What the key takes, in words.
+
+        Parameters
+        ----------
+        ranged : bool, optional
+            Say the range of its numbers (for a message about a number out of it), not its
+            types.
+        finite : bool, optional
+            Say too that a number must be finite (for a message about an infinity or NaN).
+
+        Returns
+        -------
+        str
+            Its types, ``"an integer, 'schedule' or an array of them"``, or the range of its
+            numbers, ``"an integer in [1, 10000]"``.
+        """
+        if ranged:
+            kind = "integer" if "integer" in self.types else "number"
+            article = "an" if kind == "integer" else "a"
+            bounds = _interval(self.minimum, self.maximum, self.low_open, self.high_open)
+            return f"{article} {'finite ' if finite else ''}{kind}{f' {bounds}' if bounds else ''}"
+        parts = []
+        for kind in self.types:
+            if kind == "array" and self.item().types == ("table",):
+                parts.append("an array of tables")
+            elif kind == "array":
+                parts.append("an array of them" if self.items is None else "an array")
+            elif kind == "string" and self.choices:
+                parts.extend(map(repr, self.choices))
+            else:
+                parts.append(_KINDS[kind])
+        return parts[0] if len(parts) == 1 else f"{', '.join(parts[:-1])} or {parts[-1]}"
+
+    def check(self, value: Any, name: str, source: str = "") -> None:
+        """Raise unless ``value`` is of a type and in the range this key takes.
+
+        Parameters
+        ----------
+        value : object
+            The value read.
+        name : str
+            Where it is in the file, as messages name it (``"[run] runs"``).
+        source : str, optional
+            The file, the start of every message.
+
+        Raises
+        ------
+        ConfigError
+            Naming the file, ``name``, what the key takes and the value given; for a table
+            of :data:`CONFIG_SCHEMA`, the first of its keys that is unknown or wrong.
+        """
+        where = f"{source}: {name}" if source else name
+        kind = _kind(value)
+        taken = kind in self.types or ("number" in self.types and kind in ("integer", "float"))
+        if not taken or (kind == "array" and not value):
+            got = "an empty array" if taken else _KINDS.get(kind, kind)
+            raise ConfigError(f"{where} must be {self.wanted()}, got {_shown(value)} ({got})")
+        if kind == "string" and self.choices and value not in self.choices:
+            raise ConfigError(f"{where} must be {self.wanted()}, got {_shown(value)}")
+        if kind in ("integer", "float"):
+            finite = math.isfinite(value)
+            if not (finite and _within(value, self.minimum, self.maximum, self.low_open,
+                                       self.high_open, allow_inf=False)):  # fmt: skip
+                wanted = self.wanted(ranged=True, finite=not finite)
+                raise ConfigError(f"{where} must be {wanted}, got {_shown(value)}")
+        elif kind == "array":
+            item = self.item()
+            for i, entry in enumerate(value):
+                item.check(entry, f"{name} #{i + 1}", source)
+        elif kind == "table" and self.table is not None:
+            _check_table(value, self.table, name, source)
+
+
+#: The TOML types of :class:`ConfigKey`, and of the values a message says were given.
+_KINDS = {
+    "string": "a string", "integer": "an integer", "number": "a number", "float": "a float",
+    "boolean": "a boolean", "table": "a table", "array": "an array", "date": "a date or time",
+}  # fmt: skip
+
+
+def _kind(value: Any) -> str:
+    """The TOML type of a value read (a key of :data:`_KINDS`, else its Python type's name):
+    NumPy numbers and tuples count as what they hold, for a mapping built in Python."""
+    if isinstance(value, bool):
+        return "boolean"
+    if is_integer(value):
+        return "integer"
+    if isinstance(value, numbers.Real):
+        return "float"
+    if isinstance(value, str):
+        return "string"
+    if isinstance(value, Mapping):
+        return "table"
+    if isinstance(value, (list, tuple)):
+        return "array"
+    if isinstance(value, (datetime.date, datetime.time)):  # a datetime is a date
+        return "date"
+    return type(value).__name__
+
+
+def _shown(value: Any, width: int = 24) -> str:
+    """``repr(value)``, cut to about ``width`` characters so a message stays one short line."""
+    text = value.isoformat() if isinstance(value, (datetime.date, datetime.time)) else repr(value)
+    return text if len(text) <= width else f"{text[: width - 3]}..."
+
+
+def _check_table(table: Mapping[str, Any], schema: str, name: str, source: str) -> None:
+    """Check every key of a table against its entry of :data:`CONFIG_SCHEMA`, in order.
+
+    ``name`` is how messages name the table (``"[data]"``, ``"[[optimisers]] #2"``); the
+    keys of the top level are named as TOML writes them (``name``, ``[data]``,
+    ``[[optimisers]]``).
+    """
+    keys = CONFIG_SCHEMA[schema]
+    top = schema == "top level"
+    unknown = [k for k in table if k not in keys]
     if unknown:
+        where = f"{source}: " if source else ""
         raise ConfigError(
-            f"unknown key(s) {', '.join(map(repr, unknown))} in [{section}]; "
-            f"allowed: {', '.join(allowed)}"
+            f"{where}unknown key(s) {', '.join(map(repr, unknown))} in "
+            f"{'[top level]' if top else name}; {_allowed(unknown, keys)}"
         )
-    return dict(table)
+    for k, value in table.items():
+        key = keys[k]
+        if not top:
+            label = f"{name} {k}"
+        elif key.table is not None:
+            label = f"[{k}]"
+        elif key.items is not None and key.items.table is not None:
+            label = f"[[{k}]]"
+        else:
+            label = k
+        key.check(value, label, source)
 
 
-_DATA_KEYS = tuple(k for k in DataSpec.__dataclass_fields__ if k != "digest")  # set by compare
-_MODEL_KEYS = tuple(ModelSpec.__dataclass_fields__)
-_COST_KEYS = tuple(CostSpec.__dataclass_fields__)
-_SEARCH_KEYS = tuple(SearchSpec.__dataclass_fields__)
-_RUN_KEYS = ("runs", "seed", "budget", "schedule_cap", "targets")
-_COMPARE_KEYS = ("run_timeout",)
-_TOP_KEYS = (
-    "name",
-    "description",
-    "data",
-    "model",
-    "cost",
-    "search",
-    "run",
-    "validation",
-    "optimisers",
-    "comparison",
-    "compare",
-)
+def _allowed(unknown: list[str], keys: Mapping[str, ConfigKey], room: int = 56) -> str:
+    """The keys the user may have meant: the close match of a misspelt key, else the keys of
+    the table, the likeliest first when they do not all fit in ``room`` characters."""
+    close = difflib.get_close_matches(unknown[0], list(keys), n=1)
+    if len(unknown) == 1 and close:
+        return f"did you mean {close[0]!r}?"
+    names = list(keys)
+    if len(", ".join(names)) > room:
+        likeness = {k: difflib.SequenceMatcher(None, unknown[0], k).ratio() for k in names}
+        names.sort(key=lambda k: -likeness[k])
+        while len(", ".join(names)) > room - 5:
+            names.pop()
+        names.append("...")
+    return f"allowed: {', '.join(names)}"
 
 
-def _optimiser_specs(entries: Any, where: str) -> tuple[OptimiserSpec, ...]:
-    if not isinstance(entries, list) or not entries:
-        raise ConfigError(f"{where} must be a non-empty array of tables")
+def check_config(config: Mapping[str, Any], source: str = "config") -> None:
+    """Check a parsed configuration against :data:`CONFIG_SCHEMA`: every key known, every
+    value of a type and in a range its key takes.
+
+    Parameters
+    ----------
+    config : mapping
+        The parsed TOML (or an equivalent dict).
+    source : str
+        Where it comes from (the file), the start of every message.
+
+    Raises
+    ------
+    ConfigError
+        For the first unknown key or wrong value, in one line naming the file, the table and
+        the key: ``"bad.toml: [run] runs must be an integer in [1, 10000], got 99999"``.
+    """
+    ConfigKey(("table",), table="top level").check(config, "the configuration", source)
+
+
+# The largest values of the counts, each far beyond any experiment that ends, so a typo (or
+# 2**63 - 1) is refused at once instead of running until it is killed or memory runs out.
+# Runs are the seeds of one comparison: the paper's have 20, and 10,000 runs of each optimiser
+# are days of computing at its budgets.
+_MAX_RUNS = 10_000
+# FE of one run: the paper's largest budget is 50,050 and the schedule cap 2,000,000; a run
+# records one history row per iteration, as many as its FE for the one-evaluation methods
+# (Nelder-Mead, Powell...), about 100 bytes each: 10 million rows are a gigabyte.
+_MAX_FE = 10_000_000
+# Samples of a record: 10 million is some 80 MB a channel, and every FE of a search is a pass
+# over the whole record (a tenth of a second or more at that length): hours per run already.
+_MAX_SAMPLES = 10_000_000
+# A polynomial order: the paper's are 5 and 8; an order of a thousand is a search space of
+# thousands of dimensions, which no budget above explores.
+_MAX_ORDER = 1_000
+
+_STRING = ConfigKey(("string",))
+_TABLE = ConfigKey(("table",))  # free names, checked by the code that takes them
+_SEED = ConfigKey(("integer",), minimum=0)  # NumPy's seeds are non-negative
+_ORDER = ConfigKey(("integer",), minimum=0, maximum=_MAX_ORDER)
+_ORDERS = ConfigKey(("integer", "array"), minimum=0, maximum=_MAX_ORDER)  # or one per input
+_COLUMNS = ConfigKey(("string", "integer", "array"), minimum=0)  # by name or 0-based index
+_RUNS = ConfigKey(("integer",), minimum=1, maximum=_MAX_RUNS)
+_BUDGET = ConfigKey(("integer", "string"), minimum=1, maximum=_MAX_FE, choices=(SCHEDULE,))
+_FE = ConfigKey(("integer",), minimum=1, maximum=_MAX_FE)
+_UNIT = {"minimum": 0, "maximum": 1, "low_open": True, "high_open": True}
+_OPTIMISERS = ConfigKey(("array",), items=ConfigKey(("table",), table="optimisers"))
+
+#: The one schema of a configuration file: table -> key -> :class:`ConfigKey`.  "top level"
+#: is the file itself; "optimisers" and "comparison" are each table of ``[[optimisers]]``
+#: and ``[[comparison]]`` (a comparison's ``optimisers`` too).  :func:`check_config` checks
+#: every key of a file against it before anything is built; a key not in it is refused.
+CONFIG_SCHEMA: dict[str, dict[str, ConfigKey]] = {
+    "top level": {
+        "name": _STRING,
+        "description": _STRING,
+        **{t: ConfigKey(("table",), table=t)
+           for t in ("data", "model", "cost", "search", "run", "validation", "compare")},
+        "optimisers": _OPTIMISERS,
+        "comparison": ConfigKey(("array",), items=ConfigKey(("table",), table="comparison")),
+    },
+    "data": {
+        "plant": _STRING,
+        "preset": _STRING,
+        "signal": _STRING,
+        "n_samples": ConfigKey(("integer",), minimum=2, maximum=_MAX_SAMPLES),
+        "seed": _SEED,
+        "noise_std": ConfigKey(("number", "string", "array"), minimum=0),  # or "p%"
+        "signal_options": _TABLE,
+        "plant_params": _TABLE,
+        "sensors": _STRING,
+        "file": ConfigKey(("string", "array")),
+        "validation": _STRING,
+        "inputs": _COLUMNS,
+        "outputs": _COLUMNS,
+        "dt": ConfigKey(("number",), minimum=0, low_open=True),
+        "output": ConfigKey(("string", "integer"), minimum=0),
+        # a share or a sample index, or two ranges: [start, stop] (negative from the end) or
+        # "start:stop"
+        "split": ConfigKey(("number", "string", "array"), minimum=0, low_open=True,
+                           items=ConfigKey(("string", "array"), items=ConfigKey(("integer",)))),
+        "detrend": ConfigKey(("boolean", "string")),
+    },
+    "model": {
+        "na": _ORDER,
+        "nb": _ORDERS,
+        "nk": ConfigKey(("integer", "array"), minimum=0, maximum=_MAX_SAMPLES),  # samples
+        "structure": _STRING,
+        "nc": _ORDER,
+        "nd": _ORDER,
+        "nf": _ORDERS,
+        "greybox": _STRING,
+        "parameters": _TABLE,
+        "options": _TABLE,
+    },
+    "cost": {
+        "metric": _STRING,
+        "predictor": _STRING,
+        "weight": ConfigKey(("number",), minimum=0),
+        "penalty": ConfigKey(("number",), minimum=0),
+        "initial": _STRING,
+    },
+    "search": {
+        # "auto", a half-width, [low, high] or a table of half-widths (flexid.search_box)
+        "bounds": ConfigKey(("string", "number", "table", "array"),
+                            items=ConfigKey(("number",))),
+        "parametrisation": _STRING,
+        "penalty": _STRING,
+        "init": _STRING,
+        "r_max": ConfigKey(("number",), **_UNIT),
+        "real_pairs": _ORDER,
+        "k_max": ConfigKey(("number",), **_UNIT),
+        "numerator": _STRING,
+    },
+    "run": {
+        "runs": _RUNS,
+        "seed": _SEED,
+        "budget": replace(_BUDGET, types=(*_BUDGET.types, "array")),  # a list: a comparison each
+        "schedule_cap": _FE,
+        "targets": ConfigKey(("array",), items=ConfigKey(("number",), minimum=0, low_open=True)),
+    },
+    "validation": {
+        "max_lag": ConfigKey(("integer",), minimum=1, maximum=_MAX_SAMPLES),
+        "initial": _STRING,
+        "alpha": ConfigKey(("number",)),  # a level in (0, 1): flexid._validate.level checks it
+    },
+    "compare": {
+        "run_timeout": ConfigKey(("number",), minimum=0, low_open=True),  # seconds
+    },
+    "optimisers": {"name": _STRING, "params": _TABLE, "label": _STRING},
+    "comparison": {
+        "name": _STRING,
+        "budget": _BUDGET,
+        "runs": _RUNS,
+        "seed": _SEED,
+        "optimisers": _OPTIMISERS,
+        "schedule_cap": _FE,
+    },
+}  # fmt: skip
+
+
+def _optimiser_specs(entries: list, where: str) -> tuple[OptimiserSpec, ...]:
     optimisers = []
-    for i, entry in enumerate(entries):
-        item = _take(entry, ("name", "params", "label"), f"{where} #{i + 1}")
-        if "name" not in item or not isinstance(item["name"], str):
-            raise ConfigError(f"{where} entry #{i + 1} needs a 'name'")
-        params = item.get("params", {})
-        if not isinstance(params, Mapping):
-            raise ConfigError(f"{where} {item['name']!r}: 'params' must be a table")
-        optimisers.append(OptimiserSpec(item["name"], dict(params), item.get("label")))
+    for i, item in enumerate(entries):
+        if "name" not in item:
+            raise ConfigError(f"{where} #{i + 1} needs a 'name'")
+        params = dict(item.get("params", {}))
+        optimisers.append(OptimiserSpec(item["name"], params, item.get("label")))
     return tuple(optimisers)
-
-
-def _budgets(value: Any, where: str) -> list:
-    budgets = value if isinstance(value, list) else [value]
-    for b in budgets:
-        if b != SCHEDULE and not is_integer(b):
-            raise ConfigError(f"{where} budget must be an FE count or 'schedule', got {b!r}")
-    return budgets
 
 
 def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> list[ComparisonSpec]:
@@ -1046,37 +1393,43 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
     -------
     list of ComparisonSpec
         One spec per comparison.
+
+    Raises
+    ------
+    ConfigError
+        For a key :data:`CONFIG_SCHEMA` does not have or a value it refuses, or settings
+        that do not go together; the message starts with ``source``.
     """
-    top = _take(config, _TOP_KEYS, "top level")
+    check_config(config, source)
     try:
-        if "data" in top:
-            data = DataSpec(**_take(top["data"], _DATA_KEYS, "data"))
-        else:
-            data = DataSpec(plant="manipulator", preset="paper-manipulator")
-        model = ModelSpec(**_take(top.get("model", {}), _MODEL_KEYS, "model"))
-        cost = CostSpec(**_take(top.get("cost", {}), _COST_KEYS, "cost"))
-    except TypeError as exc:
+        return _specs(config, source)
+    except ConfigError as exc:  # a check of the specs: say which file it is about
         raise ConfigError(f"{source}: {exc}") from None
-    search = _take(top.get("search", {}), ("bounds", *_SEARCH_KEYS), "search")
-    try:
-        search_spec = SearchSpec(**{k: v for k, v in search.items() if k != "bounds"})
-    except TypeError as exc:
-        raise ConfigError(f"{source}: {exc}") from None
-    run = _take(top.get("run", {}), _RUN_KEYS, "run")
-    validation = _take(top.get("validation", {}), ("max_lag", "initial", "alpha"), "validation")
-    execution = _take(top.get("compare", {}), _COMPARE_KEYS, "compare")
+
+
+def _specs(top: Mapping[str, Any], source: str) -> list[ComparisonSpec]:
+    """:func:`spec_from_mapping` of a configuration :func:`check_config` has passed."""
+    if "data" in top:
+        data = DataSpec(**top["data"])
+    else:
+        data = DataSpec(plant="manipulator", preset="paper-manipulator")
+    model = ModelSpec(**top.get("model", {}))
+    cost = CostSpec(**top.get("cost", {}))
+    search = dict(top.get("search", {}))
+    bounds = search.pop("bounds", "auto")
+    if isinstance(bounds, list):
+        bounds = tuple(bounds)
+    search_spec = SearchSpec(**search)
+    run = dict(top.get("run", {}))
+    validation = top.get("validation", {})
     if "optimisers" in top:
         optimisers = _optimiser_specs(top["optimisers"], "[[optimisers]]")
     else:
         optimisers = tuple(OptimiserSpec(n) for n in DEFAULT_OPTIMISERS)
-    budgets = _budgets(run.pop("budget", COMPARE_BUDGET), "[run]")
+    budgets = run.pop("budget", COMPARE_BUDGET)
+    budgets = list(budgets) if isinstance(budgets, (list, tuple)) else [budgets]
     if "targets" in run:
-        if not isinstance(run["targets"], list):
-            raise ConfigError("[run] targets must be a list of relative tolerances")
         run["targets"] = tuple(run["targets"])
-    bounds = search.get("bounds", "auto")
-    if isinstance(bounds, list):
-        bounds = tuple(bounds)
     name = top.get("name", Path(source).stem if source != "config" else "comparison")
     common = {
         "data": data,
@@ -1087,25 +1440,18 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         "max_lag": validation.get("max_lag", 25),
         "alpha": validation.get("alpha", VALIDATION_ALPHA),
         "validate_initial": validation.get("initial", "estimate"),
-        **execution,
+        **top.get("compare", {}),
     }
     specs = []
     if "comparison" in top:
-        entries = top["comparison"]
-        if not isinstance(entries, list) or not entries:
-            raise ConfigError("[[comparison]] must be a non-empty array of tables")
-        for i, entry in enumerate(entries):
-            item = _take(
-                entry,
-                ("name", "budget", "runs", "seed", "optimisers", "schedule_cap"),
-                f"comparison #{i + 1}",
-            )
+        for i, entry in enumerate(top["comparison"]):
+            item = dict(entry)
             opts = (
                 _optimiser_specs(item.pop("optimisers"), f"[[comparison]] #{i + 1} optimisers")
                 if "optimisers" in item
                 else optimisers
             )
-            (budget,) = _budgets(item.pop("budget", budgets[0]), f"[[comparison]] #{i + 1}")
+            budget = item.pop("budget", budgets[0])
             label = item.pop("name", f"{name} #{i + 1}")
             specs.append(
                 ComparisonSpec(
@@ -1121,6 +1467,29 @@ def spec_from_mapping(config: Mapping[str, Any], *, source: str = "config") -> l
         )
         specs.append(ComparisonSpec(name=label, optimisers=optimisers, budget=b, **common, **run))
     return specs
+
+
+def _toml_text(raw: bytes, path: Path) -> str:
+    """The text of a configuration file: UTF-8, as TOML is, after a byte-order mark if the
+    editor wrote one (the CSV records are read past one too).
+
+    Raises
+    ------
+    ConfigError
+        For bytes that are not UTF-8, naming the first one, its offset, line and column.
+    """
+    start = len(codecs.BOM_UTF8) if raw.startswith(codecs.BOM_UTF8) else 0
+    try:
+        return raw[start:].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        offset = start + exc.start
+        line = raw.count(b"\n", 0, offset) + 1
+        line_start = raw.rfind(b"\n", 0, offset) + 1
+        column = len(raw[line_start:offset].decode("utf-8", errors="replace")) + 1
+        raise ConfigError(
+            f"{path}: not UTF-8 text: byte 0x{raw[offset]:02x} at offset {offset} "
+            f"(line {line}, column {column})"
+        ) from None
 
 
 def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
@@ -1143,16 +1512,17 @@ def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
     """
     path = Path(path)
     try:
-        with open(path, "rb") as handle:
-            config = tomllib.load(handle)
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such configuration file") from None
     except IsADirectoryError:
         raise ConfigError(f"{path}: is a directory, not a configuration file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: malformed TOML ({exc})") from None
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    try:
+        config = tomllib.loads(_toml_text(raw, path))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: malformed TOML ({exc})") from None
     specs = spec_from_mapping(config, source=str(path))
     # a relative data file is relative to the configuration file
     out = []

@@ -28,6 +28,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 import warnings
 import zipfile
@@ -106,6 +107,31 @@ def _names(names: Sequence[str] | str | None, count: int, prefix: str, what: str
     if len(names) != count:
         raise DataError(f"{what}: {len(names)} name(s) given for {count} channel(s)")
     return names
+
+
+#: Headroom below float64's largest value kept by :func:`_check_magnitude`: the costs scale
+#: a sum of squares (the paper's cost by 1e3) and the regressions sum products of lagged
+#: samples, so squares summed over a record must stay finite with room to spare.
+_HEADROOM = 1e6
+
+
+def _check_magnitude(column: np.ndarray, what: str) -> None:
+    """Refuse a finite sample so large that the record's sum of squares overflows float64.
+
+    Every cost and regression of a record sums squares or products of its samples over the
+    record; a sample beyond ``sqrt(max / (N * headroom))`` makes them infinite, and the user
+    would read "regressors singular" or a screen of overflow warnings instead of the sample.
+    """
+    if column.dtype.kind not in "fc" or column.size == 0:
+        return
+    limit = math.sqrt(np.finfo(np.float64).max / (column.size * _HEADROOM))
+    magnitude = np.abs(column)
+    worst = int(np.argmax(magnitude))
+    if magnitude[worst] > limit:
+        raise DataError(
+            f"{what} sample {worst} = {float(column[worst]):g} overflows the costs' sums of "
+            f"squares (limit {limit:.2g}); rescale the record"
+        )
 
 
 class IOData:
@@ -191,6 +217,7 @@ class IOData:
         ):
             for j, name in enumerate(names):
                 check_finite(array[:, j], f"{kind} {name!r}")
+                _check_magnitude(array[:, j], f"{kind} {name!r}")
         self.input_units = (
             _names(input_units, u.shape[1], "", "input_units")
             if input_units is not None
@@ -642,7 +669,8 @@ class IOData:
         -----
         DataWarning
             When the sample time is the median step of a time column whose steps differ
-            (also noted in ``metadata["dt_note"]``).
+            (also noted in ``metadata["dt_note"]``), or when ``inputs`` or ``outputs``
+            choose the time column (``t``/``time``).
 
         Notes
         -----
@@ -888,6 +916,16 @@ def _assemble(cls, table, columns, inputs, outputs, dt, path, metadata) -> IODat
         )
     meta = {"source": str(path), **(metadata or {})}
     time_cols = [j for j, c in enumerate(columns) if c.lower() in ("t", "time")]
+    for kind, chosen in (("input", ins), ("output", outs)):
+        for j in sorted(set(chosen) & set(time_cols)):
+            # read as asked, but a column counted from 0 or named "t" by mistake is the
+            # clock, and a model of it fits nothing
+            warnings.warn(
+                f"{path}: the {kind} column {columns[j]!r} is the time axis, not a measured "
+                f"signal (columns: {', '.join(columns)})",
+                DataWarning,
+                stacklevel=3,
+            )
     if dt is None:
         if time_cols and table.shape[0] >= 2:
             times = table[:, time_cols[0]]

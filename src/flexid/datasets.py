@@ -32,7 +32,7 @@ import numpy as np
 from ._json import jsonable
 from ._validate import checked_keywords, integer, positive_real
 from .data import IOData
-from .errors import DataError, UnknownNameError
+from .errors import DataError, UnknownNameError, plain_number
 from .plants import PLANTS, all_presets, get_plant
 from .signals import SIGNALS, make_signal
 
@@ -85,7 +85,7 @@ def _noise_levels(noise_std: Any, clean: np.ndarray) -> np.ndarray:
         return fraction * clean.std(axis=0)
     levels = np.broadcast_to(np.asarray(noise_std, dtype=float), (n_out,)).copy()
     if not np.all(np.isfinite(levels) & (levels >= 0)):
-        raise DataError(f"noise_std must be finite and >= 0, got {noise_std!r}")
+        raise DataError(f"noise_std must be finite and >= 0, got {plain_number(noise_std)}")
     return levels
 
 

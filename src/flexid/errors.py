@@ -21,6 +21,7 @@ __all__ = [
     "DataError",
     "DataFileError",
     "DataWarning",
+    "FlexidDeprecationWarning",
     "FlexidError",
     "FlexidWarning",
     "HyperParameterError",
@@ -35,6 +36,7 @@ __all__ = [
     "UnknownNameError",
     "UnknownOptimiserError",
     "check_finite",
+    "plain_number",
 ]
 
 
@@ -150,6 +152,14 @@ class StoreWarning(FlexidWarning):
     """A result store read in part: damaged run records were skipped (and are named)."""
 
 
+class FlexidDeprecationWarning(FlexidWarning, FutureWarning):
+    """An old spelling that still works, with what to write instead in the message.
+
+    A :class:`FutureWarning` as well, so Python shows it by default (a plain
+    ``DeprecationWarning`` is hidden outside ``__main__``).
+    """
+
+
 def check_finite(array: np.ndarray, what: str, error: type[FlexidError] = DataError) -> None:
     """Raise ``error`` naming the first non-finite entry of ``array``.
 
@@ -181,5 +191,36 @@ def check_finite(array: np.ndarray, what: str, error: type[FlexidError] = DataEr
         label = "sample" if array.ndim <= 1 else "index (sample, channel)"
         raise error(
             f"{what} has {int(bad.sum())} non-finite value(s); the first is "
-            f"{array[first]!r} at {label} {index}"
+            f"{plain_number(array[first])} at {label} {index}"
         )
+
+
+def plain_number(value: object) -> str:
+    """A number, or numbers, as a user reads them in a message: ``inf``, ``1e+308``,
+    ``[0.5, nan]``, never a NumPy repr such as ``np.float64(inf)`` or ``array([nan])``.
+
+    Parameters
+    ----------
+    value : object
+        A number, a NumPy scalar or array, a list or tuple of them, or anything else
+        (shown with ``str``).
+
+    Returns
+    -------
+    str
+    """
+    tolist = getattr(value, "tolist", None)
+    if callable(tolist):  # NumPy scalars and arrays: Python numbers and lists
+        value = tolist()
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(plain_number(v) for v in value) + "]"
+    if isinstance(value, (bool, str)) or value is None:
+        return str(value)
+    try:
+        number = complex(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return str(value)
+    if number.imag == 0:
+        real = number.real
+        return str(value) if isinstance(value, int) else f"{real:g}"
+    return str(number)

@@ -227,8 +227,8 @@ class Family(abc.ABC):
 
     def fit(self, estimation: Any, structure: Any, method: str, *, data: Any,
             seed: int | None) -> ReferenceFit:
-        """The family's own estimate: ``method`` ``"ls"`` (least squares), ``"pem"`` or
-        ``"oe"`` (its gradient reference) of the posed problem.
+        """The family's own estimate: ``method`` ``"ls"`` (least squares) or ``"pem"`` (its
+        gradient reference) of the posed problem (``"oe"``, the old spelling of ``"pem"``).
 
         Parameters
         ----------

@@ -74,9 +74,26 @@ def _axes(ax, **fig_kw):
     return ax.figure, ax
 
 
-def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+def _image(fig, fmt: str = "png") -> bytes:
+    """The figure as the bytes of an image file (then closed): drawn whole before any write."""
+    import io
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=fmt, dpi=110, bbox_inches="tight")
     _plt().close(fig)
+    return buffer.getvalue()
+
+
+def _drawn(fig, name: str) -> tuple[str, bytes]:
+    """A figure of a set as its file name and PNG bytes, to be written with the others."""
+    return name, _image(fig)
+
+
+def _save(fig, path: Path) -> Path:
+    from ._files import write_bytes
+
+    path = Path(path)
+    write_bytes(path, _image(fig, path.suffix[1:].lower() or "png"))  # whole or not at all
     return path
 
 
@@ -625,10 +642,17 @@ def identification_figures(
         without a frequency response), and ``pole_zero.png`` (zeros of the first
         input, to the first output), each with ``prefix``; with several outputs each output's
         figures carry its name (``validation_simulation_<output>.png``).
+
+    Raises
+    ------
+    flexid.errors.DataFileError
+        When the folder cannot be made or a figure cannot be written (a full disk, no
+        permission, a file of that name): one line naming the folder and the cause; none of
+        the figures is written then, nor any part of one.
     """
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    paths: list[Path] = []
+    from ._files import write_files
+
+    files: list[tuple[str, bytes]] = []  # every figure drawn before the first is written
     p = prefix
     output = ident.data_info.get("output", "output")
     unit = ident.data_info.get("output_unit", "")
@@ -640,7 +664,7 @@ def identification_figures(
             reference_label="least squares" if arx else "ARX least squares read as the model",
             cost=cost_label(ident.cost.metric, _cost_unit(ident.cost, unit)),
         )
-        paths.append(_save(fig, outdir / f"{p}convergence.png"))
+        files.append(_drawn(fig, f"{p}convergence.png"))
     if ident.outputs:  # several outputs: each one's figures, its name in the file name
         per = [(v.output_name, v.output_unit, e, v, f"_{v.output_name}")
                for e, v in ident.outputs]  # fmt: skip
@@ -657,7 +681,7 @@ def identification_figures(
                     arrays["time"], arrays["y"], arrays[f"y_{kind}"],
                     title=f"{part}: {words}, fit {fit:.1f} %", output=name, unit=unit,
                 )  # fmt: skip
-                paths.append(_save(fig, outdir / f"{p}{part}_{kind}{tail}.png"))
+                files.append(_drawn(fig, f"{p}{part}_{kind}{tail}.png"))
         arrays = val_report.arrays()
         fig = plot_spectra(
             arrays["psd_frequency"],
@@ -665,12 +689,12 @@ def identification_figures(
             title=f"Power spectral density of {name} (validation)",
             unit=unit,
         )
-        paths.append(_save(fig, outdir / f"{p}spectra{tail}.png"))
+        files.append(_drawn(fig, f"{p}spectra{tail}.png"))
         fig = plot_correlations(
             val_report.correlation_panels(),
             title=f"Residual correlation tests (validation){f', {name}' if tail else ''}",
         )
-        paths.append(_save(fig, outdir / f"{p}correlations{tail}.png"))
+        files.append(_drawn(fig, f"{p}correlations{tail}.png"))
         if val_report.frequency_estimate is not None:
             names = list(getattr(ident.model, "output_names", ()))
             k = names.index(name) if name in names else 0
@@ -680,10 +704,10 @@ def identification_figures(
                 modes={"model": _model_modes(ident.model)},
                 title=f"{name} (validation): {_agreement_words(val_report.frequency)}",
             )  # fmt: skip
-            paths.append(_save(fig, outdir / f"{p}bode{tail}.png"))
+            files.append(_drawn(fig, f"{p}bode{tail}.png"))
     fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())
-    paths.append(_save(fig, outdir / f"{p}pole_zero.png"))
-    return paths
+    files.append(_drawn(fig, f"{p}pole_zero.png"))
+    return write_files(Path(outdir), files, "figures")
 
 
 # ============================================================================ comparison
@@ -883,18 +907,27 @@ def comparison_figures(
         ``convergence.png``, then ``fe_to_target_<t>.png`` for each target ``t`` of the
         spec, then ``bode.png`` (:func:`comparison_bode`, where there is one), each with
         ``prefix``.
+
+    Raises
+    ------
+    flexid.errors.DataFileError
+        When the folder cannot be made or a figure cannot be written: as
+        :func:`identification_figures`, all the figures or none.
     """
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    paths = [_save(plot_comparison_convergence(result), outdir / f"{prefix}convergence.png")]
+    from ._files import write_files
+
+    return write_files(Path(outdir), _comparison_images(result, prefix), "figures")
+
+
+def _comparison_images(result: ComparisonResult, prefix: str) -> list[tuple[str, bytes]]:
+    """The file names and PNG bytes of :func:`comparison_figures`, nothing written."""
+    files = [_drawn(plot_comparison_convergence(result), f"{prefix}convergence.png")]
     for t in result.spec.targets:
-        paths.append(
-            _save(plot_fe_to_target(result, t), outdir / f"{prefix}fe_to_target_{t:g}.png")
-        )
+        files.append(_drawn(plot_fe_to_target(result, t), f"{prefix}fe_to_target_{t:g}.png"))
     bode = comparison_bode(result)
     if bode is not None:
-        paths.append(_save(bode, outdir / f"{prefix}bode.png"))
-    return paths
+        files.append(_drawn(bode, f"{prefix}bode.png"))
+    return files
 
 
 def comparison_bode(result: ComparisonResult) -> Figure | None:

@@ -17,8 +17,8 @@ import numpy as np
 
 from ._validate import is_integer
 from .config import (
+    DEPRECATED_REFERENCES,
     LEAST_SQUARES,
-    OUTPUT_ERROR,
     PREDICTION_ERROR,
     REFERENCE_STARTS,
     CostSpec,
@@ -107,6 +107,7 @@ class PolynomialFamily(Family):
 
     def fit(self, estimation: Any, structure: Any, method: str, *, data: Any,
             seed: int | None) -> ReferenceFit:
+        method = DEPRECATED_REFERENCES.get(method, method)  # identify has warned
         polynomial = isinstance(structure, PolynomialStructure)
         objective, cost_ls = estimation.cost, estimation.cost_ls
         one_step = objective.predictor != "simulation"
@@ -122,14 +123,8 @@ class PolynomialFamily(Family):
                     "order); use optimiser='pem'"
                 )
             return ReferenceFit(structure.model(objective.theta_ls, dt=data.dt), cost_ls)
-        if method not in (OUTPUT_ERROR, PREDICTION_ERROR):
+        if method != PREDICTION_ERROR:
             return super().fit(estimation, structure, method, data=data, seed=seed)
-        if not polynomial and one_step:
-            raise ConfigError(
-                "the output-error reference ('oe') minimises the simulation cost: use "
-                "predictor='simulation' (--predictor simulation); least squares ('ls') is "
-                "the optimum of the one-step cost"
-            )
         ref = estimation.output_error_reference(seed=0 if seed is None else seed)
         if polynomial:
             model = type(ref.model)(
@@ -154,7 +149,7 @@ class PolynomialFamily(Family):
     def reference_hint(self, structure: Any, predictor: str) -> str:
         if structure.kind != "arx":
             return "optimiser='pem'"
-        return "optimiser='ls'" if predictor == "one-step" else "optimiser='oe'"
+        return "optimiser='ls'" if predictor == "one-step" else "optimiser='pem'"
 
     reference_hint.__doc__ = None  # Family.reference_hint's
 

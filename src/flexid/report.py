@@ -9,14 +9,18 @@ onto it).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ._compare import load_result
 from ._comparison_result import ComparisonResult
+from ._files import write_files
 from ._html import escape, table
 from ._ioh import (
     IOH_LAYOUTS,
@@ -28,7 +32,9 @@ from ._ioh import (
     ecdf_targets,
     export_ioh,
 )
-from .errors import ConfigError
+from .config import LEAST_SQUARES
+from .errors import ConfigError, StoreError, StoreWarning
+from .store import ResultStore
 
 __all__ = [
     "IOH_LAYOUTS",
@@ -47,10 +53,12 @@ def _slug(text: str) -> str:
 
 
 def figure_prefix(result: ComparisonResult) -> str:
-    """The file-name prefix of a comparison's figures: its name and its key.
+    """The file-name prefix of a comparison's figures: its name, its key and its digest.
 
-    Two comparisons with the same name (other data, orders or budgets) have other keys, so
-    neither's figures replace the other's.
+    The key names the problem (record, model, cost, budget), which comparisons of other
+    optimisers or run counts share (they share its runs in the store); the digest names the
+    comparison itself (:func:`_comparison_digest`).  So no comparison's figures replace
+    another's, and the same comparison run again writes the same names.
 
     Parameters
     ----------
@@ -59,9 +67,25 @@ def figure_prefix(result: ComparisonResult) -> str:
     Returns
     -------
     str
-        ``"<name>-<first 8 characters of the key>-"``, letters, digits and single hyphens.
+        ``"<name>-<first 8 characters of the key>-<6-character digest>-"``, letters, digits
+        and single hyphens.
     """
-    return f"{_slug(result.spec.name)}-{result.key[:8]}-"
+    spec = result.spec
+    return f"{_slug(spec.name)}-{result.key[:8]}-{_comparison_digest(spec)}-"
+
+
+def _comparison_digest(spec) -> str:
+    """A short hash of what a comparison's figures show beyond its problem: the optimisers
+    in their order with their labels and hyper-parameters, the runs, budget and targets."""
+    shown = {
+        "optimisers": [[o.display, o.name, o.params] for o in spec.optimisers],
+        "runs": spec.runs,
+        "budget": spec.budget,
+        "max_fe": spec.max_fe,
+        "targets": list(spec.targets),
+    }
+    text = json.dumps(shown, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:6]
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
@@ -84,7 +108,8 @@ def _markdown_table(text_table: str) -> str:
     return "\n".join(_md_table(header, rows))
 
 
-def _section(result: ComparisonResult, outdir: Path, figures: bool) -> list[str]:
+def _section(result: ComparisonResult, figures: bool) -> tuple[list[str], list]:
+    """The Markdown lines of a comparison and its figures' (file name, PNG bytes)."""
     spec = result.spec
     slug = figure_prefix(result).rstrip("-")
     lines = [f"## {spec.name}", ""]
@@ -109,15 +134,16 @@ def _section(result: ComparisonResult, outdir: Path, figures: bool) -> list[str]
         lines += [conclusion, ""]
     ecdf = comparison_ecdf(result)
     lines += _ecdf_lines(result, ecdf)
+    files: list[tuple[str, bytes]] = []
     if figures:
-        from .plots import _save, comparison_figures, plot_ecdf
+        from .plots import _comparison_images, _drawn, plot_ecdf
 
-        paths = comparison_figures(result, outdir, prefix=f"{slug}-")
+        files = _comparison_images(result, f"{slug}-")
         if len(ecdf["targets"]):
-            paths.append(_save(plot_ecdf(ecdf), outdir / f"{slug}-ecdf.png"))
-        for path in paths:
-            lines += [f"![{path.stem}]({path.name})", ""]
-    return lines
+            files.append(_drawn(plot_ecdf(ecdf), f"{slug}-ecdf.png"))
+        for name, _ in files:
+            lines += [f"![{Path(name).stem}]({name})", ""]
+    return lines, files
 
 
 def _ecdf_lines(result: ComparisonResult, ecdf: dict) -> list[str]:
@@ -159,6 +185,11 @@ def write_report(
 ) -> Path:
     """Write ``report.md`` (or ``report.html``) and the PNG figures for a store.
 
+    A comparison that cannot be read (its least-squares row damaged, or not written yet
+    while its reference is computing) is left out, named in one line in the report and in
+    a :class:`~flexid.errors.StoreWarning`; the others are reported.  The report and its
+    figures are written together or not at all.
+
     Parameters
     ----------
     store : path
@@ -176,26 +207,86 @@ def write_report(
     -------
     Path
         The report file.
+
+    Raises
+    ------
+    StoreError
+        If no comparison of the store can be read (each is named, with why).
+    DataFileError
+        If the report cannot be written to ``outdir`` (a full disk, no permission, a file
+        of that name such as the store itself); no file of it is left then.
     """
     if fmt not in ("md", "html"):
         raise ConfigError(f"report format must be 'md' or 'html', got {fmt!r}")
-    check_histories(store, key)  # the statistics read every history
-    results = load_result(store, key)
-    if not results:
-        raise ConfigError(f"{store}: the store holds no comparison")
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    results, left_out = _readable_results(store, key)
     lines = ["# flexid comparison report", "", f"Store: `{store}`", ""]
+    lines += [f"Left out: {line}." for line in left_out] + ([""] if left_out else [])
+    files: list[tuple[str, bytes]] = []
     for result in results:
-        lines += _section(result, outdir, figures)
+        section, images = _section(result, figures)
+        lines += section
+        files += images
     markdown = "\n".join(lines) + "\n"
-    if fmt == "md":
-        path = outdir / "report.md"
-        path.write_text(markdown, encoding="utf-8")
-        return path
-    path = outdir / "report.html"
-    path.write_text(_to_html(markdown), encoding="utf-8")
-    return path
+    name, text = ("report.md", markdown) if fmt == "md" else ("report.html", _to_html(markdown))
+    # the report and its figures together, or nothing: never a report without its figures
+    return write_files(Path(outdir), [*files, (name, text.encode("utf-8"))], "the report")[-1]
+
+
+def _readable_results(
+    store: str | Path, key: str | None
+) -> tuple[list[ComparisonResult], list[str]]:
+    """The comparisons of a store that can be reported, and a line for each left out.
+
+    A comparison whose least-squares row is damaged, or not written yet (its reference is
+    still computing), or whose histories are unusable, is left out with a
+    :class:`~flexid.errors.StoreWarning` of one line (instead of the store's own warning
+    about its rows); the others are reported.  With none left, a :class:`StoreError`.
+    """
+    results, left_out, shown = [], [], []
+    with ResultStore(store, readonly=True) as db:
+        entries = [db.comparison(key)] if key else db.comparisons()
+        if not entries:
+            raise ConfigError(f"{store}: the store holds no comparison")
+        for entry in entries:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    check_histories(store, entry["key"])  # the statistics read every history
+                    (result,) = load_result(db, entry["key"])
+                except StoreError as exc:
+                    why = _why_unreadable(db, entry["key"], exc)
+                    left_out.append((entry["name"], entry["key"][:8], *why))
+                    caught = [w for w in caught if not issubclass(w.category, StoreWarning)]
+                else:
+                    results.append(result)
+            shown += caught
+    seen = set()
+    for w in shown:  # each warning once, though the rows were read twice
+        if (w.category, str(w.message)) not in seen:
+            seen.add((w.category, str(w.message)))
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if not results:
+        by_reason: dict[str, list[str]] = {}
+        for name, _, why, _ in left_out:
+            by_reason.setdefault(why, []).append(repr(name))
+        reasons = "; ".join(f"{', '.join(names)}: {why}" for why, names in by_reason.items())
+        raise StoreError(f"{store}: nothing to report: {reasons}")
+    lines = [
+        f"{name!r} [{short}]: {why}" + (f" ({hint})" if hint else "")
+        for name, short, why, hint in left_out
+    ]
+    for line in lines:
+        warnings.warn(f"report: left out {line}", StoreWarning, stacklevel=3)
+    return results, lines
+
+
+def _why_unreadable(db: ResultStore, key: str, exc: StoreError) -> tuple[str, str]:
+    """Why a comparison cannot be reported, in a few words, and what to do (or "")."""
+    if "least-squares reference row is missing" not in str(exc):
+        return str(exc).rsplit("]: ", 1)[-1], ""  # the message less the comparison it names
+    if db.has_run(key, LEAST_SQUARES, 0):
+        return "least-squares row damaged", "rerun it"
+    return "not finished", "no reference row yet"
 
 
 def _to_html(markdown: str) -> str:

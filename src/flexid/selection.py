@@ -78,7 +78,7 @@ import numpy as np
 from scipy import linalg
 
 from ._json import jsonable
-from ._table import text_table
+from ._table import LINE_WIDTH, labelled, text_table, wrapped
 from ._validate import checked_keywords, integer, real
 from .config import CORRELATION_LAGS, STATE_SPACE, VALIDATION_ALPHA, VALIDATION_GUIDE
 from .diagnostics import check_level, format_fit
@@ -407,6 +407,13 @@ class Selection:
         criterion = _check_criterion(self.criterion if criterion is None else criterion)
         return sorted(self.candidates, key=lambda c: c.score(criterion))
 
+    def _unstable_above_stable(self) -> list[Candidate]:
+        """The unstable candidates the ranking puts above a stable one (said under the table:
+        a criterion ranks the fit, and an unstable model's fit holds over one record only)."""
+        ranked = [c for c in self.ranked() if c.ok]
+        last_stable = max((i for i, c in enumerate(ranked) if c.stable), default=-1)
+        return [c for c in ranked[:last_stable] if not c.stable]
+
     def _title(self) -> str:
         n_passed = sum(c.passed for c in self.candidates)
         return (
@@ -474,7 +481,7 @@ class Selection:
                     f"{c.aic_normalized:.4f}",
                     _g(c.fpe),
                     f"{c.mdl_normalized:.4f}",
-                    format_fit(c.fit_simulation),
+                    format_fit(c.fit_simulation) + ("" if c.stable else " !"),
                     format_fit(c.fit_one_step),
                     tests,
                     _band(c),
@@ -485,8 +492,14 @@ class Selection:
             )
         return rows
 
-    def table(self) -> str:
+    def table(self, width: int | None = None) -> str:
         """The candidates as a plain-text table, sorted by :attr:`criterion`.
+
+        Parameters
+        ----------
+        width : int, optional
+            The longest line: a wider table is printed in blocks of columns, each repeating
+            the row names (default: one block; :meth:`summary` keeps to the terminal's width).
 
         Returns
         -------
@@ -498,7 +511,7 @@ class Selection:
             (the weakest output's), stability, fit + validation time, and the
             recommendation marked.
         """
-        return text_table(self._rows(), left=(1, -1))
+        return text_table(self._rows(), left=(1, -1), width=width, keys=2)
 
     def summary(self) -> str:
         """A readable account: what was compared, the table, and the recommendation's note.
@@ -509,13 +522,17 @@ class Selection:
             The header lines, :meth:`table` and :attr:`note`.
         """
         lines = [self._title()]
-        lines += [f"  {label:<11}: {value}" for label, value in self._items()]
-        lines += ["", self.table()]
+        lines += labelled(self._items(), label_width=11)
+        lines += ["", self.table(LINE_WIDTH)]
+        above = self._unstable_above_stable()
+        if above:
+            lines.append(wrapped(f"!: UNSTABLE, its free run diverges; ranked by {self.criterion} "
+                                 f"above stable candidates: {', '.join(c.label for c in above)}"))
         if any(c.ok and not c.passed for c in self.candidates):
-            lines += [f"fail: a residual test rejected at {100 * self.alpha:g} % (Holm; fail BV: "
-                      "only a Billings-Voon test); how to read a failure:",
+            lines += [wrapped(f"fail: a residual test rejected at {100 * self.alpha:g} % (Holm; "
+                              "fail BV: only a Billings-Voon test); how to read a failure:"),
                       f"  {VALIDATION_GUIDE}"]  # fmt: skip
-        lines += ["", self.note]
+        lines += ["", wrapped(self.note, hang="")]
         return "\n".join(lines)
 
     def __str__(self) -> str:

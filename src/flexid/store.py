@@ -71,6 +71,11 @@ _COLUMNS = {
     "meta": ("name", "value"),
 }
 _SQLITE_READONLY = 8  # primary result code of SQLITE_READONLY and its extended codes
+_SQLITE_IOERR = 10  # SQLITE_IOERR: a write the file system refused (a full disk among them)
+_SQLITE_FULL = 13  # SQLITE_FULL: "database or disk is full"
+#: Free bytes below which an I/O error of a write is read as a full disk: SQLite writes a
+#: store in pages of 4 KiB plus its log, so a folder with less than this cannot take a run.
+_FULL_BELOW = 1 << 20
 
 
 class ResultStore:
@@ -102,9 +107,13 @@ class ResultStore:
         try:
             self._db = self._open_readonly() if readonly else self._open_for_writing()
         except sqlite3.DatabaseError as exc:
+            full = _full_disk_message(self.path, exc)
+            if full is not None:
+                raise StoreError(full) from None
             raise StoreError(f"{self.path}: not a readable flexid result store ({exc})") from None
         except OSError as exc:
-            raise StoreError(f"{self.path}: cannot open ({exc})") from None
+            full = _full_disk_message(self.path, exc)
+            raise StoreError(full or f"{self.path}: cannot open ({exc})") from None
 
     def _open_readonly(self) -> sqlite3.Connection:
         db = self._connect_readonly()
@@ -365,6 +374,30 @@ class ResultStore:
         """
         yield from self._records(key)
 
+    def has_run(self, key: str, label: str, run: int) -> bool:
+        """Whether the store has a row for this run, readable or damaged.
+
+        Tells a damaged record (:meth:`runs` leaves it out) from one not written yet.
+
+        Parameters
+        ----------
+        key : str
+            The comparison's full key.
+        label : str
+            The optimiser's label (``"ls"`` for the least-squares row).
+        run : int
+            The run index.
+
+        Returns
+        -------
+        bool
+        """
+        return bool(
+            self._query(
+                "SELECT 1 FROM runs WHERE key = ? AND label = ? AND run = ?", (key, label, run)
+            )
+        )
+
     def count(self, key: str) -> dict[str, int]:
         """Number of stored runs of a comparison, by status.
 
@@ -429,7 +462,8 @@ class ResultStore:
             with self._db:
                 self._db.execute(sql, args)
         except sqlite3.DatabaseError as exc:
-            raise StoreError(f"{self.path}: write failed ({exc})") from None
+            full = _full_disk_message(self.path, exc)
+            raise StoreError(full or f"{self.path}: write failed ({exc})") from None
 
     def _query(self, sql: str, args: tuple = ()) -> list[tuple]:
         try:
@@ -462,6 +496,33 @@ def _decode_run(label: bytes, run: Any, status: Any, payload: bytes | None) -> d
         return None
     same = (str(record.get("label")), record.get("run"), str(record.get("status")))
     return record if same == (label_text, run, status) else None
+
+
+def _full_disk_message(path: Path, exc: BaseException) -> str | None:
+    """The message for a write the disk had no room for, or None for any other failure.
+
+    SQLite says "database or disk is full" (SQLITE_FULL), or only "disk I/O error" when the
+    log could not grow; the second is read as a full disk when the store's folder has less
+    than ``_FULL_BELOW`` bytes free.  SQLite rolls back a transaction it cannot finish, so
+    every run written before is still in the store.
+    """
+    import errno
+    import shutil
+
+    code = getattr(exc, "sqlite_errorcode", None)
+    primary = None if code is None else code & 0xFF
+    if primary != _SQLITE_FULL and getattr(exc, "errno", None) != errno.ENOSPC:
+        if primary != _SQLITE_IOERR and "disk I/O error" not in str(exc):
+            return None
+        try:
+            if shutil.disk_usage(path.absolute().parent).free >= _FULL_BELOW:
+                return None
+        except OSError:
+            return None
+    return (
+        f"{path}: the disk is full; the store is intact (every run written before is in it): "
+        "free some space and rerun"
+    )
 
 
 def _is_readonly_error(exc: sqlite3.DatabaseError) -> bool:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ._json import jsonable
+from ._table import LINE_WIDTH, wrapped
 from ._validate import checked_keywords, positive_real
 from .config import CORRELATION_LAGS, VALIDATION_ALPHA, VALIDATION_GUIDE
 from .data import IOData
@@ -494,6 +495,7 @@ class ValidationReport:
             f"[{self.initial_rule_one_step}]",
             f"  simulation (free run)  {format_fit(self.fit_simulation):>9} %   [{rule}]"
             + ("  DIVERGED: the unstable free run overflowed" if self.simulation_diverged else ""),
+            *self._unstable_fit_lines(),
             "",
             f"Errors y - yhat [{self.output_unit or 'output units'}]",
             f"  {'':22} {'RMSE':>11} {'min':>11} {'max':>11}",
@@ -518,9 +520,11 @@ class ValidationReport:
             lines.append(f"  {t.name:{width}}  {t.statistic:8.1f} {t.dof:4d} "
                          f"{_p_text(t.p_value):>9} {_p_text(t.adjusted_p):>9} "
                          f"{f'{t.n_outside} of {t.n_lags}':>13}  {t.word}")  # fmt: skip
-        lines.append(f"  {'overall':{width}}  {self.verdict()}")
+        # an identification's summary shows the report indented by two more characters
+        lines.append(wrapped(f"{'overall':{width}}  {self.verdict()}", indent="  ",
+                             hang=" " * (width + 2), width=LINE_WIDTH - 2))  # fmt: skip
         if not self.passed:
-            lines.append(f"  what a failing test suggests: {VALIDATION_GUIDE}")
+            lines.append(f"  how to read a failure: {VALIDATION_GUIDE}")
         st = self.stability
         lines += [
             "",
@@ -543,6 +547,16 @@ class ValidationReport:
             f"  model (simulation)     {self.peak_model:10.4g} Hz",
         ]
         return "\n".join(lines)
+
+    def _unstable_fit_lines(self) -> list[str]:
+        """The line under the simulation fit of an unstable model: its free run grows without
+        bound, so a fit from a fitted initial state holds over this record's length only."""
+        st = self.stability
+        if st.stable or self.simulation_diverged:
+            return []
+        n_eval = self.n_samples - self.start
+        return [f"  ^ UNSTABLE model (pole radius {st.max_pole_radius:.4f}): its free run "
+                f"diverges; fit over {n_eval} samples only"]  # fmt: skip
 
     @property
     def frequency_verdict(self) -> str:

@@ -44,7 +44,7 @@ import scipy.optimize
 import scipy.signal
 
 from flexid._validate import integer, positive_int, real
-from flexid.errors import PlantParameterError, check_finite
+from flexid.errors import PlantParameterError, check_finite, plain_number
 
 from . import sensors
 
@@ -258,7 +258,7 @@ class BeamParameters:
             if frac >= 0.5:
                 raise PlantParameterError(
                     "beam parameter 'anti_alias_fraction' must be below 0.5 (the Nyquist "
-                    f"frequency), got {frac!r}"
+                    f"frequency), got {plain_number(frac)}"
                 )
             object.__setattr__(self, "anti_alias_fraction", frac)
         order = integer(

@@ -22,7 +22,7 @@ from flexid._validate import real
 from flexid.envs import beam, sensors
 from flexid.envs._render import Canvas
 from flexid.envs._vector import BatchedVectorEnv
-from flexid.errors import ActionError, PlantParameterError
+from flexid.errors import ActionError, PlantParameterError, plain_number
 from flexid.plants import Plant, get_plant
 
 __all__ = ["OBSERVATION_NAMES", "PLANT", "FlexibleManipulatorEnv", "FlexibleManipulatorVectorEnv"]
@@ -76,7 +76,7 @@ class _Config:
             raise PlantParameterError(
                 "'noise_std' must be a non-negative number or 4 non-negative numbers (std of "
                 f"{', '.join(beam.OUTPUT_NAMES)} in {', '.join(beam.OUTPUT_UNITS)}), "
-                f"got {noise_std!r}"
+                f"got {plain_number(noise_std)}"
             )
         self.noise_std = sensors.total_noise(std, beam.noise_floor(self.params))
         self.noisy = bool(np.any(self.noise_std > 0))
@@ -134,7 +134,7 @@ class _Config:
         ):  # fast path for the common case
             v = float(action[0])
             if not math.isfinite(v):
-                raise ActionError(f"action must be finite, got {action!r}")
+                raise ActionError(f"action must be finite, got {plain_number(action)}")
             c = min(max(v, -self.tau_max), self.tau_max)
             return c, c != v
         try:
@@ -158,7 +158,7 @@ class _Config:
         bad = ~np.isfinite(a)
         if np.any(bad):
             where = "" if batch is None else f" for env(s) {np.flatnonzero(bad).tolist()}"
-            raise ActionError(f"action must be finite, got {action!r}{where}")
+            raise ActionError(f"action must be finite, got {plain_number(action)}{where}")
         clipped = np.clip(a, -self.tau_max, self.tau_max)
         return clipped, clipped != a
 

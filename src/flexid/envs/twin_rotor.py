@@ -20,7 +20,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .._validate import positive_real, real
-from ..errors import ActionError, PlantParameterError
+from ..errors import ActionError, PlantParameterError, plain_number
 from ..plants import Plant, get_plant
 from . import sensors
 from ._vector import BatchedVectorEnv
@@ -72,7 +72,7 @@ class _Config:
         self.pitch_ref, self.yaw_ref = (float(v) for v in sp)
         noise = np.broadcast_to(np.asarray(noise_std, dtype=float), (4,)).copy()
         if not np.all(np.isfinite(noise) & (noise >= 0)):
-            raise PlantParameterError(f"noise_std must be >= 0, got {noise_std!r}")
+            raise PlantParameterError(f"noise_std must be >= 0, got {plain_number(noise_std)}")
         self.noise = noise
         self.noisy = bool(np.any(noise > 0))
         self.encoder_step = self.params.encoder_step
@@ -96,7 +96,7 @@ class _Config:
         if a.shape != shape:
             raise ActionError(f"twin rotor: action must have shape {shape}, got {a.shape}")
         if not np.isfinite(a).all():
-            raise ActionError(f"twin rotor: action must be finite, got {action!r}")
+            raise ActionError(f"twin rotor: action must be finite, got {plain_number(action)}")
         u = np.maximum(a, -1.0)  # np.clip, without its Python-level dispatch
         np.minimum(u, 1.0, out=u)
         u *= self.u_max
@@ -213,7 +213,7 @@ class TwinRotorEnv(gymnasium.Env):
         if type(action) is np.ndarray and action.shape == (2,) and action.dtype == np.float64:
             a1, a2 = action.tolist()  # the common case, without the array round trip
             if not (math.isfinite(a1) and math.isfinite(a2)):
-                raise ActionError(f"twin rotor: action must be finite, got {action!r}")
+                raise ActionError(f"twin rotor: action must be finite, got {plain_number(action)}")
             u_max = cfg.u_max
             u1 = (a1 if -1.0 <= a1 <= 1.0 else (1.0 if a1 > 0.0 else -1.0)) * u_max
             u2 = (a2 if -1.0 <= a2 <= 1.0 else (1.0 if a2 > 0.0 else -1.0)) * u_max

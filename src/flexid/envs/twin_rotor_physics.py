@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import integer, positive_real, real
-from ..errors import DataError, PlantParameterError, check_finite
+from ..errors import DataError, PlantParameterError, check_finite, plain_number
 from . import sensors
 
 __all__ = [
@@ -558,7 +558,7 @@ def _run_arguments(
         raise DataError(f"x0 must have 7 entries, got {x.size}")
     check_finite(x, "x0", DataError)
     if p.lock_yaw and x[3] != 0:
-        raise DataError(f"with lock_yaw the yaw rate x0[3] must be 0, got {x[3]!r}")
+        raise DataError(f"with lock_yaw the yaw rate x0[3] must be 0, got {plain_number(x[3])}")
     return p, u, dt, x
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from scipy import linalg
 
 from .._json import jsonable
+from .._table import wrapped
 from .._validate import integer, positive_real
 from ..errors import DataError, ModelOrderError, check_finite
 from ..stability import is_stable as _is_stable
@@ -737,9 +738,8 @@ class ARX(NamedChannels, PlantResponse):
             lines.append(f"  noise variance = {self.noise_variance:.4g}")
         p = self.poles()
         if p.size:
-            lines.append(
-                "  poles: " + ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
-            )
+            poles = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
+            lines.append(wrapped(f"poles: {poles}", indent="  ", hang="       "))
         lines.append(
             f"  {'stable' if self.is_stable else 'UNSTABLE'}, "
             f"largest pole radius {self.max_pole_radius:.6f}"

@@ -63,6 +63,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from .._json import jsonable
+from .._table import wrapped
 from .._validate import checked_keywords, integer, positive_real
 from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
@@ -1196,7 +1197,8 @@ class PolynomialModel(NamedChannels, PlantResponse):
             lines.append(f"  noise variance = {self.noise_variance:.4g}")
         p = self.poles()
         if p.size:
-            lines.append("  poles: " + ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p))
+            poles = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
+            lines.append(wrapped(f"poles: {poles}", indent="  ", hang="       "))
         lines.append(
             f"  {'stable' if self.is_stable else 'UNSTABLE'}, "
             f"largest pole radius {self.max_pole_radius:.6f}"

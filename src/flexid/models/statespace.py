@@ -52,6 +52,7 @@ from typing import Any
 
 import numpy as np
 
+from .._table import wrapped
 from .._validate import integer
 from ..errors import ConfigError, DataError, ModelOrderError
 from .modes import Mode, modes
@@ -412,10 +413,10 @@ class StateSpaceModel:
         str
         """
         lines = [
-            f"state-space model: order {self.order}, {self.n_inputs} input(s) "
-            f"({', '.join(self.input_names)}), {self.n_outputs} output(s) "
-            f"({', '.join(self.output_names)}), dt {self.dt:g} s, "
-            f"{'stable' if self.is_stable else 'UNSTABLE'}",
+            wrapped(f"state-space model: order {self.order}, {self.n_inputs} input(s) "
+                    f"({', '.join(self.input_names)}), {self.n_outputs} output(s) "
+                    f"({', '.join(self.output_names)}), dt {self.dt:g} s, "
+                    f"{'stable' if self.is_stable else 'UNSTABLE'}"),
             f"{'mode':>4}  {'frequency Hz':>12}  {'damping':>9}  kind",
         ]
         for i, m in enumerate(self.modes(), 1):

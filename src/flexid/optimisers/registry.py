@@ -9,6 +9,10 @@
   first time the registry is listed or a name is not found among the built-ins.  A plugin
   that fails to import, or is not an Optimiser subclass, raises a :class:`PluginWarning`
   and is skipped: it never breaks flexid.
+* An optimiser is *trusted* (:func:`is_trusted`) when it may run in the caller's process: the
+  built-ins and the caller's own optimisers are; a plugin's are not unless registered with
+  ``trusted=True``.  A serial comparison runs the others in a child process, so that one that
+  ends its process (``os._exit``, a crash in compiled code) is a failed run, not the end.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ __all__ = [
     "create",
     "describe",
     "get",
+    "is_trusted",
     "register",
     "register_prefix",
     "register_variant",
@@ -60,9 +65,12 @@ _BUILTIN_MODULES = (
 
 _REGISTRY: dict[str, type[Optimiser]] = {}
 _SOURCES: dict[str, str] = {}
+_TRUSTED: dict[str, bool] = {}
 # names "prefix:rest" resolved on first use (the optimisers of another library, "ng:NGOpt")
 _PREFIXES: dict[str, Callable[[str], type[Optimiser]]] = {}
 _state = {"builtins": False, "plugins": False}
+# the entry point being loaded: what a plugin module registers on import is the plugin's
+_loading: dict[str, str | None] = {"entry_point": None}
 
 
 class PluginWarning(UserWarning):
@@ -71,7 +79,11 @@ class PluginWarning(UserWarning):
 
 @checked_keywords
 def register(
-    cls: type[Optimiser] | None = None, *, name: str | None = None, source: str = "flexid"
+    cls: type[Optimiser] | None = None,
+    *,
+    name: str | None = None,
+    source: str | None = None,
+    trusted: bool | None = None,
 ) -> type[Optimiser] | Callable[[type[Optimiser]], type[Optimiser]]:
     """Class decorator: register an optimiser under ``name`` (default ``cls.name``).
 
@@ -82,8 +94,20 @@ def register(
         ``@register(name=...)``.
     name : str, optional
         Registry name; default ``cls.name``.
-    source : str
-        Where the optimiser comes from (``"flexid"``, a plugin's distribution), for listings.
+    source : str, optional
+        Where the optimiser comes from, for listings; default ``"flexid"``, or
+        ``"plugin module:Class"`` for a plugin module that registers its optimisers as it is
+        loaded through its entry point.
+    trusted : bool, optional
+        Whether a serial comparison may run the optimiser in the caller's process, where a
+        run that ends its process (``os._exit``, a segfault of compiled code) ends the whole
+        comparison.  An untrusted optimiser's runs are done in a child process: one that
+        dies is a failed run with its reason, at the cost of starting the process.  Default:
+        True, except for a plugin's optimisers (registered while its entry point of the
+        ``flexid.optimisers`` group loads).  A plugin says ``trusted=True`` when it
+        registers its optimisers itself; the child process finds an untrusted optimiser by
+        its name, so one registered with ``trusted=False`` must be importable (a module, not
+        a notebook cell).  Runs in worker processes (``workers > 1``) are safe either way.
 
     Returns
     -------
@@ -95,6 +119,13 @@ def register(
     RegistryError
         If the name is empty, already taken, or the class is not an Optimiser subclass.
     """
+    loading = _loading["entry_point"]
+    if source is None:
+        source = "flexid" if loading is None else f"plugin {loading}"
+    if trusted is None:
+        trusted = loading is None
+    elif not isinstance(trusted, bool):
+        raise RegistryError(f"trusted must be True or False, not {trusted!r}")
 
     def decorate(klass: type[Optimiser]) -> type[Optimiser]:
         if not (isinstance(klass, type) and issubclass(klass, Optimiser)):
@@ -110,6 +141,7 @@ def register(
             klass = type(klass.__name__, (klass,), {"name": key, "__module__": klass.__module__})
         _REGISTRY[key] = klass
         _SOURCES[key] = source
+        _TRUSTED[key] = trusted
         return klass
 
     return decorate(cls) if cls is not None else decorate
@@ -159,7 +191,8 @@ def register_variant(
         namespace[key] = param  # type() calls __set_name__, which validates the default
     variant = type(f"{base_cls.__name__}_{_identifier(name)}", (base_cls,), namespace)
     variant()  # the constructor runs check(): cross-parameter rules hold for the new defaults
-    return register(variant, source=_SOURCES.get(base_cls.name, "flexid") + " (variant)")
+    return register(variant, source=_SOURCES.get(base_cls.name, "flexid") + " (variant)",
+                    trusted=_TRUSTED.get(base_cls.name, True))  # fmt: skip
 
 
 def _identifier(name: str) -> str:
@@ -176,6 +209,7 @@ def unregister(name: str) -> None:
     """
     _REGISTRY.pop(name, None)
     _SOURCES.pop(name, None)
+    _TRUSTED.pop(name, None)
 
 
 def _load_builtins() -> None:
@@ -209,6 +243,7 @@ def _load_plugins() -> None:
                 stacklevel=3,
             )
             continue
+        _loading["entry_point"] = ep.value
         try:
             obj = ep.load()
         except Exception as exc:  # a broken plugin must never break flexid
@@ -219,6 +254,8 @@ def _load_plugins() -> None:
                 stacklevel=3,
             )
             continue
+        finally:
+            _loading["entry_point"] = None
         if not (isinstance(obj, type) and issubclass(obj, Optimiser)):
             warnings.warn(
                 f"flexid: optimiser plugin {ep.name!r} ({ep.value}) is not an "
@@ -229,7 +266,7 @@ def _load_plugins() -> None:
             continue
         if ep.name in _REGISTRY:  # the plugin registered itself on import
             continue
-        register(obj, name=ep.name, source=f"plugin {ep.value}")
+        register(obj, name=ep.name, source=f"plugin {ep.value}", trusted=False)
 
 
 def reload_plugins() -> None:
@@ -290,6 +327,31 @@ def get(name: str) -> type[Optimiser]:
     return _REGISTRY[name]
 
 
+def is_trusted(name: str) -> bool:
+    """Whether optimiser ``name`` runs in the caller's process in a serial comparison.
+
+    Parameters
+    ----------
+    name : str
+        Registered optimiser name, or a name a plugin or prefix resolver knows.
+
+    Returns
+    -------
+    bool
+        True for the built-ins, their variants and optimisers registered by the caller's own
+        code; False for a plugin's optimisers not registered with ``trusted=True`` (see
+        :func:`register`), whose runs a serial comparison does in a child process.
+
+    Raises
+    ------
+    UnknownOptimiserError
+        If the name is not known.
+    """
+    get(name)  # loads the built-ins and plugins, or resolves a prefixed name
+    # a prefix resolver's class need not be registered under the name: the caller's own
+    return _TRUSTED.get(name, True)
+
+
 def create(name: str, **params: Any) -> Optimiser:
     """An instance of optimiser ``name`` with validated hyper-parameters ``params``.
 
@@ -332,10 +394,10 @@ def describe(name: str) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``name``, ``source``, ``variant_of``, ``summary``, ``reference``, ``bounds`` (what
-        it does at the bounds: ``kind`` in a few words, ``note`` in one sentence and
-        ``stays_in_box``, True, False or None when not stated) and ``hyperparameters``
-        (name -> type, default, range and description).
+        ``name``, ``source``, ``variant_of``, ``trusted`` (see :func:`is_trusted`),
+        ``summary``, ``reference``, ``bounds`` (what it does at the bounds: ``kind`` in a few
+        words, ``note`` in one sentence and ``stays_in_box``, True, False or None when not
+        stated) and ``hyperparameters`` (name -> type, default, range and description).
     """
     cls = get(name)
     doc = (cls.__doc__ or "").strip().splitlines()
@@ -344,6 +406,7 @@ def describe(name: str) -> dict[str, Any]:
         "name": name,
         "source": _SOURCES.get(name, "?"),
         "variant_of": getattr(cls, "variant_of", None),
+        "trusted": is_trusted(name),
         "summary": doc[0] if doc else "",
         "reference": cls.reference,
         "bounds": {
