@@ -79,6 +79,7 @@ def test_messages_show_numbers_not_numpy_reprs():
     assert plain_number(np.array([np.nan, 0.5])) == "[nan, 0.5]"
     assert plain_number(np.int64(7)) == "7"
     assert plain_number(np.complex128(1 + 2j)) == "(1+2j)"
+    assert plain_number("x") == "'x'"  # a string as typed, quoted
     with pytest.raises(DataError) as caught:
         check_finite(np.array([1.0, np.inf]), "output 'y'")
     assert "np.float64" not in str(caught.value) and "the first is inf" in str(caught.value)

@@ -129,8 +129,8 @@ def _check_magnitude(column: np.ndarray, what: str) -> None:
     worst = int(np.argmax(magnitude))
     if magnitude[worst] > limit:
         raise DataError(
-            f"{what} sample {worst} = {float(column[worst]):g} overflows the costs' sums of "
-            f"squares (limit {limit:.2g}); rescale the record"
+            f"{what} sample {worst} = {float(column[worst]):g} is too large to square (limit "
+            f"{limit:.2g}); rescale the record"
         )
 
 

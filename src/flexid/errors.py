@@ -202,8 +202,8 @@ def plain_number(value: object) -> str:
     Parameters
     ----------
     value : object
-        A number, a NumPy scalar or array, a list or tuple of them, or anything else
-        (shown with ``str``).
+        A number, a NumPy scalar or array, a list or tuple of them, a string (quoted), or
+        anything else (shown with ``str``).
 
     Returns
     -------
@@ -214,7 +214,9 @@ def plain_number(value: object) -> str:
         value = tolist()
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(plain_number(v) for v in value) + "]"
-    if isinstance(value, (bool, str)) or value is None:
+    if isinstance(value, str):  # quoted, as a user typed it
+        return repr(value)
+    if isinstance(value, bool) or value is None:
         return str(value)
     try:
         number = complex(value)  # type: ignore[arg-type]

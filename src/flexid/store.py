@@ -520,8 +520,7 @@ def _full_disk_message(path: Path, exc: BaseException) -> str | None:
         except OSError:
             return None
     return (
-        f"{path}: the disk is full; the store is intact (every run written before is in it): "
-        "free some space and rerun"
+        f"{path}: the disk is full; the store is intact (its runs are kept): free space, rerun"
     )
 
 

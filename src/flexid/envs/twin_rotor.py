@@ -67,7 +67,9 @@ class _Config:
         self.dt = positive_real(dt, "twin rotor: dt", error=PlantParameterError, unit="s")
         sp = np.asarray(setpoint, dtype=float).reshape(-1)
         if sp.shape != (2,) or not np.all(np.isfinite(sp)):
-            raise PlantParameterError(f"setpoint must be (pitch, yaw) in rad, got {setpoint!r}")
+            raise PlantParameterError(
+                f"setpoint must be (pitch, yaw) in rad, got {plain_number(setpoint)}"
+            )
         self.setpoint = sp
         self.pitch_ref, self.yaw_ref = (float(v) for v in sp)
         noise = np.broadcast_to(np.asarray(noise_std, dtype=float), (4,)).copy()

@@ -40,7 +40,7 @@ import os
 import numpy as np
 from scipy import signal
 
-from ..errors import FlexidError
+from ..errors import FlexidError, plain_number
 
 __all__ = [
     "BACKEND",
@@ -144,7 +144,7 @@ def set_threads(n: int | None) -> int:
     """
     global _THREADS
     if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
-        raise FlexidError(f"the thread count must be a positive integer, got {n!r}")
+        raise FlexidError(f"the thread count must be a positive integer, got {plain_number(n)}")
     old, _THREADS = _THREADS, (_cores() if n is None else n)
     return old
 
