@@ -9,6 +9,9 @@ Three parts, each printed as a Markdown table:
   frequencies (coherence >= 0.9) inside the 95 % band, and each of the beam's first four
   flexible modes as the model found it (frequency error %, damping error; "missed" where
   no mode of the model lies within 10 %).
+* ``suite``: the same table for each of the small suite's manipulator problems (ARX(8,8,1)
+  one-step and simulation, OE(8,8,1), BJ(8,2,2,8,1); both instances), HBCSD, BFA, SDA, PSO
+  and DE at the suite's budget (3 runs of 500 FE per dimension).
 * ``coverage``: the band's coverage of a known system (the two-input system of
   ``tests/test_frequency.py``), 200 records per method: the share of frequencies where the
   analytic response lies inside the 95 % circle, mean and 2.5-97.5 % range over records.
@@ -17,7 +20,7 @@ Three parts, each printed as a Markdown table:
   closed loop), read from ``../shared/data/real/`` when present: the record's confirmed
   peaks and the modes of least-squares ARX(8,8,1) and the reference OE(8,8,1) against them.
 
-    python benchmarks/frequency_views.py [--parts main-job,coverage,real]
+    python benchmarks/frequency_views.py [--parts main-job,suite,coverage,real]
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import numpy as np
 from scipy import signal
 
 import flexid
-from flexid._compare import frequency_views
+from flexid._compare import build_data, frequency_views
 from flexid.config import default_spec
 from flexid.data import IOData
 from flexid.frequency import frf, mode_table, mode_table_text
@@ -49,39 +52,56 @@ def main_job() -> None:
         t0 = time.perf_counter()
         result = flexid.compare(spec, store=Path(folder) / "runs.sqlite", workers=2)
         print(f"compare: {time.perf_counter() - t0:.1f} s, key {result.key}")
-        estimate, models = frequency_views(result, run="median")
-    record = flexid.generate("manipulator", preset=spec.data.preset, seed=spec.data.seed)
+        _views_table(result)
+
+
+def suite() -> None:
+    """The small suite's manipulator problems (both instances), the paper's optimisers."""
+    from flexid.suite import get_suite, run_suite
+
+    chosen = get_suite("small").subset(["manipulator"])
+    with tempfile.TemporaryDirectory() as folder:
+        t0 = time.perf_counter()
+        done = run_suite(chosen, ["hbcsd", "bfa", "sda", "pso", "de"],
+                         store=Path(folder) / "suite.sqlite", workers=2)  # fmt: skip
+        print(f"suite {chosen.label} {chosen.version}: {time.perf_counter() - t0:.1f} s\n")
+        for name, result in done.results.items():
+            print(f"### {name}\n")
+            _views_table(result)
+            print()
+
+
+def _views_table(result: flexid.ComparisonResult) -> None:
+    """One row per model of a comparison (least squares read as the structure, the
+    reference, each optimiser's median-cost run): the held-out share in band and the
+    beam's first four flexible modes as the model found them."""
+    estimate, models = frequency_views(result, run="median")
+    record = build_data(result.spec)
     truth = get_plant("manipulator").true_modes(record.metadata["parameters"])
     f_true = truth[0][:4]
-    shares = {result.reference_label: result.reference["output_error"]["validation"]}
+    oe = result.reference.get("output_error") or {}
     head = ["row", "held-out in band"] + [f"mode {k} ({f:.2f} Hz)" for k, f in
                                            enumerate(f_true, start=1)]  # fmt: skip
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
-    rows = []
     for label, model in models.items():
         if label == result.start_label:
             share = result.reference["validation"].get("frequency_share")
         elif label == result.reference_label:
-            share = shares[label].get("frequency_share")
+            share = oe.get("validation", {}).get("frequency_share")
         else:
             name = label.split(" (")[0]
             runs = sorted((r for r in result.records[name] if r["status"] == "ok"),
                           key=lambda r: r["cost"])  # fmt: skip
             share = runs[(len(runs) - 1) // 2]["validation"].get("frequency_share")
-        rows.append((label, share, model))
-    for label, share, model in rows:
         cells = [label, "-" if share is None else f"{100 * share:.0f} %"]
-        if model is None:
-            cells += ["-"] * len(f_true)
-        else:
-            table = mode_table(model, estimate=estimate, truth=truth)
-            for f in f_true:
-                row = next((r for r in table if r.true_frequency == f), None)
-                if row is None or not math.isfinite(row.frequency):
-                    cells.append("missed")
-                else:
-                    cells.append(f"{row.frequency_error:+.3f} %, {row.damping_error:+.4f}")
+        table = mode_table(model, estimate=estimate, truth=truth)
+        for f in f_true:
+            row = next((r for r in table if r.true_frequency == f), None)
+            if row is None or not math.isfinite(row.frequency):
+                cells.append("missed")
+            else:
+                cells.append(f"{row.frequency_error:+.3f} %, {row.damping_error:+.4f}")
         print("| " + " | ".join(cells) + " |")
 
 
@@ -136,9 +156,9 @@ def real() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--parts", default="main-job,coverage,real")
+    parser.add_argument("--parts", default="main-job,suite,coverage,real")
     args = parser.parse_args(argv)
-    parts = {"main-job": main_job, "coverage": coverage, "real": real}
+    parts = {"main-job": main_job, "suite": suite, "coverage": coverage, "real": real}
     for part in args.parts.split(","):
         print(f"## {part}\n")
         parts[part]()

@@ -161,12 +161,12 @@ def test_identify_and_compare_stay_functions_when_their_modules_are_imported_aft
 
 
 # ------------------------------------------------------------------ a light import
-def test_import_flexid_imports_neither_gymnasium_nor_numpy():
+def test_import_flexid_imports_neither_gymnasium_nor_numpy_nor_matplotlib():
     run = run_python(
         """
         import sys
         import flexid
-        print(sorted(m for m in ("gymnasium", "numpy", "scipy") if m in sys.modules))
+        print(sorted(m for m in ("gymnasium", "matplotlib", "numpy", "scipy") if m in sys.modules))
         """
     )
     assert run.stdout.strip() == "[]"

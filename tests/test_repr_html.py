@@ -4,12 +4,14 @@ ComparisonResult: well-formed HTML, the numbers of the plain-text summaries, esc
 
 from __future__ import annotations
 
+import base64
 import re
 from html.parser import HTMLParser
 
 import numpy as np
 import pytest
 
+import flexid
 from flexid import IOData, compare, identify
 from flexid._html import escape, table
 from flexid._table import labelled
@@ -189,3 +191,32 @@ def test_comparison_html_escapes_the_name(comparison):
     raw = comparison._repr_html_()
     assert NASTY not in raw and "&lt;&amp;&gt;" in raw
     assert NASTY in Page(raw).text[0]
+
+
+# ------------------------------------------------------------------ the Bode figures
+def _images(raw: str) -> list[bytes]:
+    found = re.findall(r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)"', raw)
+    return [base64.b64decode(text) for text in found]
+
+
+def test_the_displays_show_the_held_out_bode_figure(identification, comparison):
+    """An identification (one image per output), a comparison and a selection display the
+    held-out record's Bode figure inline, as PNG, after their tables."""
+    for raw in (identification._repr_html_(), comparison._repr_html_()):
+        images = _images(raw)
+        assert len(images) == 1 and images[0].startswith(b"\x89PNG\r\n\x1a\n")
+        assert raw.index("<img") > raw.index("</table>")  # the numbers first
+    choice = flexid.select(record(), structures=("arx",), orders={"arx": [{"na": 1, "nb": 1},
+                           {"na": 2, "nb": 2}]}, nk=1)  # fmt: skip
+    assert len(_images(choice._repr_html_())) == 1
+
+
+def test_the_displays_without_matplotlib_show_their_tables_alone(identification, monkeypatch):
+    from flexid import plots
+
+    def unavailable():
+        raise plots.PlottingUnavailable("figures need matplotlib")
+
+    monkeypatch.setattr(plots, "_plt", unavailable)
+    raw = identification._repr_html_()
+    assert "<img" not in raw and "<table" in raw

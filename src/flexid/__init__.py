@@ -51,6 +51,7 @@ are registered once both flexid and Gymnasium are imported, in either order (see
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from typing import Any
 
 from ._gymnasium_hook import install as _install_gymnasium_hook
@@ -192,4 +193,25 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
 
 
+def _register_notebook_figures() -> None:
+    """Give the notebook displays of the results their Bode figures.
+
+    The results sit below the figures' module in the layers, so the front door joins them;
+    matplotlib is imported when a display is first drawn, not by ``import flexid``.
+    """
+    from . import _html
+
+    def drawer(kind: str) -> Callable[[Any], list[bytes]]:
+        def draw(result: Any) -> list[bytes]:
+            from .plots import notebook_figures
+
+            return notebook_figures(kind, result)
+
+        return draw
+
+    for kind in ("identification", "comparison", "selection"):
+        _html.register_figures(kind, drawer(kind))
+
+
 _install_gymnasium_hook()  # registers the environments once Gymnasium is imported
+_register_notebook_figures()

@@ -460,7 +460,8 @@ class ComparisonResult:
         return text.rstrip()
 
     def _repr_html_(self) -> str:
-        """The notebook display: the header and both tables of :meth:`summary` in HTML."""
+        """The notebook display: the header and both tables of :meth:`summary` in HTML, and
+        the held-out record's Bode figure (the start, the reference, each optimiser's best)."""
         from . import _html
 
         return _html.block(
@@ -469,6 +470,7 @@ class ComparisonResult:
             _html.table(self._cost_rows()),
             _html.table(self._validation_rows(), caption=_VALIDATION_CAPTION),
             *(_html.paragraph(line.strip()) for line in self._notes() if line),
+            _html.figures("comparison", self, "Bode figure of the held-out record"),
         )
 
     def to_dict(self) -> dict[str, Any]:

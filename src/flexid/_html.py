@@ -8,11 +8,26 @@ of the objects' plain-text ``summary()`` formatted the same way, in tables; the 
 
 from __future__ import annotations
 
+import base64
 import html
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
-__all__ = ["block", "details", "escape", "key_values", "paragraph", "table"]
+__all__ = [
+    "block",
+    "details",
+    "escape",
+    "figures",
+    "key_values",
+    "paragraph",
+    "register_figures",
+    "table",
+]
+
+#: Kind of result -> the function that draws its figures for a display, as PNG bytes (an
+#: empty list: none).  The figures' module sits above the results' in the layers, so the
+#: front door registers them; with none registered a display shows its tables alone.
+_FIGURES: dict[str, Callable[[Any], list[bytes]]] = {}
 
 _TABLE = '<table class="flexid">'
 _LEFT = 'style="text-align: left"'
@@ -87,4 +102,43 @@ def block(title: str, *parts: str) -> str:
     return (
         '<div class="flexid-summary">'
         f"<p><strong>{escape(title)}</strong></p>" + "".join(parts) + "</div>"
+    )
+
+
+def register_figures(kind: str, draw: Callable[[Any], list[bytes]]) -> None:
+    """Register the function that draws the figures of a kind of result for its display.
+
+    Parameters
+    ----------
+    kind : str
+        ``"identification"``, ``"comparison"`` or ``"selection"``.
+    draw : callable
+        ``draw(result)`` -> list of PNG images (bytes); empty when there is no figure (or
+        no matplotlib).
+    """
+    _FIGURES[kind] = draw
+
+
+def figures(kind: str, result: Any, alt: str) -> str:
+    """The registered figures of ``result`` as inline PNG images ("" for none).
+
+    Parameters
+    ----------
+    kind : str
+        The kind of result, as registered.
+    result : object
+        The result displayed.
+    alt : str
+        The images' alternative text.
+
+    Returns
+    -------
+    str
+    """
+    draw = _FIGURES.get(kind)
+    images = [] if draw is None else draw(result)
+    return "".join(
+        f'<img src="data:image/png;base64,{base64.b64encode(png).decode("ascii")}" '
+        f'alt="{escape(alt)}" style="max-width: 100%">'
+        for png in images
     )

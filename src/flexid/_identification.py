@@ -309,7 +309,8 @@ class Identification:
         return "Modes: " + ", ".join(parts)
 
     def _repr_html_(self) -> str:
-        """The notebook display: the numbers of :meth:`summary`, the long parts collapsed."""
+        """The notebook display: the numbers of :meth:`summary`, the held-out record's Bode
+        figure (each output's), the long parts collapsed."""
         from . import _html
 
         modes = [_html.details(self._modes_title(), mode_table_text(list(self.modes)))]
@@ -322,6 +323,7 @@ class Identification:
             self._title(),
             _html.key_values(self._items()),
             _html.table(rows),
+            _html.figures("identification", self, "Bode figure of the held-out record"),
             _html.details("model", self.model.summary()),
             *(modes if self.modes else []),
             _html.details("estimation record", self.estimation.summary()),

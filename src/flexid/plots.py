@@ -32,6 +32,7 @@ __all__ = [
     "comparison_bode",
     "comparison_figures",
     "identification_figures",
+    "notebook_figures",
     "plot_bode",
     "plot_comparison_convergence",
     "plot_convergence",
@@ -74,12 +75,12 @@ def _axes(ax, **fig_kw):
     return ax.figure, ax
 
 
-def _image(fig, fmt: str = "png") -> bytes:
+def _image(fig, fmt: str = "png", dpi: int = 110) -> bytes:
     """The figure as the bytes of an image file (then closed): drawn whole before any write."""
     import io
 
     buffer = io.BytesIO()
-    fig.savefig(buffer, format=fmt, dpi=110, bbox_inches="tight")
+    fig.savefig(buffer, format=fmt, dpi=dpi, bbox_inches="tight")
     _plt().close(fig)
     return buffer.getvalue()
 
@@ -695,15 +696,8 @@ def identification_figures(
             title=f"Residual correlation tests (validation){f', {name}' if tail else ''}",
         )
         files.append(_drawn(fig, f"{p}correlations{tail}.png"))
-        if val_report.frequency_estimate is not None:
-            names = list(getattr(ident.model, "output_names", ()))
-            k = names.index(name) if name in names else 0
-            fig = plot_bode(
-                val_report.frequency_estimate,
-                {"model": lambda f, k=k: ident.model.frequency_response(f)[:, k : k + 1, :]},
-                modes={"model": _model_modes(ident.model)},
-                title=f"{name} (validation): {_agreement_words(val_report.frequency)}",
-            )  # fmt: skip
+        fig = _identification_bode(ident, name, val_report)
+        if fig is not None:
             files.append(_drawn(fig, f"{p}bode{tail}.png"))
     fig = plot_pole_zero(ident.model.poles(), ident.model.zeros())
     files.append(_drawn(fig, f"{p}pole_zero.png"))
@@ -928,6 +922,51 @@ def _comparison_images(result: ComparisonResult, prefix: str) -> list[tuple[str,
     if bode is not None:
         files.append(_drawn(bode, f"{prefix}bode.png"))
     return files
+
+
+def _identification_bode(ident: Identification, name: str, report: Any) -> Figure | None:
+    """The Bode figure of one output of an identification against its held-out record's
+    estimate (None without an estimate: a grey-box model, a record too short)."""
+    if report.frequency_estimate is None:
+        return None
+    names = list(getattr(ident.model, "output_names", ()))
+    k = names.index(name) if name in names else 0
+    return plot_bode(
+        report.frequency_estimate,
+        {"model": lambda f, k=k: ident.model.frequency_response(f)[:, k : k + 1, :]},
+        modes={"model": _model_modes(ident.model)},
+        title=f"{name} (validation): {_agreement_words(report.frequency)}",
+    )  # fmt: skip
+
+
+def notebook_figures(kind: str, result: Any) -> list[bytes]:
+    """The Bode figures of a result for its notebook display, as PNG images.
+
+    Parameters
+    ----------
+    kind : {"identification", "comparison", "selection"}
+        What ``result`` is.
+    result : Identification, ComparisonResult or Selection
+
+    Returns
+    -------
+    list of bytes
+        An identification's held-out Bode figure per output, a comparison's
+        (:func:`comparison_bode`) or a selection's (:func:`selection_bode`); empty where
+        there is none, or without matplotlib (the display then shows its tables alone).
+    """
+    try:
+        if kind == "identification":
+            if result.outputs:
+                shown = [(v.output_name, v) for _, v in result.outputs]
+            else:
+                shown = [(result.data_info.get("output", "output"), result.validation)]
+            drawn = [_identification_bode(result, name, v) for name, v in shown]
+        else:
+            drawn = [{"comparison": comparison_bode, "selection": selection_bode}[kind](result)]
+    except PlottingUnavailable:
+        return []
+    return [_image(fig, dpi=80) for fig in drawn if fig is not None]
 
 
 def comparison_bode(result: ComparisonResult) -> Figure | None:

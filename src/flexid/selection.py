@@ -546,7 +546,8 @@ class Selection:
         )
 
     def _repr_html_(self) -> str:
-        """The notebook display: the header, the table and the note of :meth:`summary`."""
+        """The notebook display: the header, the table and the note of :meth:`summary`, and
+        the held-out record's Bode figure of the best candidates."""
         from . import _html
 
         return _html.block(
@@ -554,6 +555,7 @@ class Selection:
             _html.key_values(self._items()),
             _html.table(self._rows(), left=2),
             _html.paragraph(self.note),
+            _html.figures("selection", self, "Bode figure of the held-out record"),
         )
 
     def to_dict(self) -> dict[str, Any]:
