@@ -207,6 +207,9 @@ def test_the_fit_of_an_unstable_model_says_so_on_its_own_line():
     sim = next(i for i, line in enumerate(lines) if "simulation (free run)" in line)
     assert "UNSTABLE model" in lines[sim + 1] and "diverges" in lines[sim + 1]
     assert "samples only" in lines[sim + 1]
+    shown = ident._repr_html_()  # the notebook's table says it too, and the verdict's level
+    assert "(UNSTABLE model)" in shown
+    assert "FAIL at 5 %" in shown or "PASS at 5 %" in shown
     stable = identify(_arx_record(300), 1, 1, 1, optimiser="ls")
     assert "UNSTABLE model" not in stable.validation.summary()
 

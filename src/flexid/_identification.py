@@ -405,11 +405,12 @@ def _report_column(report: ValidationReport) -> list[str]:
     return [
         f"{report.n_samples}",
         format_fit(report.fit_one_step),
-        format_fit(report.fit_simulation) + (" (diverged)" if report.simulation_diverged else ""),
+        format_fit(report.fit_simulation) + (" (diverged)" if report.simulation_diverged else
+                                             "" if st.stable else " (UNSTABLE model)"),
         f"{report.rmse_one_step:.4g}",
         f"{report.rmse_simulation:.4g}",
         f"[{lo:.4g}, {hi:.4g}]",
-        "PASS" if report.passed else "FAIL",
+        f"{'PASS' if report.passed else 'FAIL'} at {100 * report.alpha:g} %",
         report.frequency_verdict,
         f"{st.max_pole_radius:.5f}" + ("" if st.stable else " (UNSTABLE)"),
         f"{report.peak_measured:.4g}",
