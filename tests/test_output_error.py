@@ -94,6 +94,8 @@ def test_stable_when_ls_unstable_and_optimum_on_the_boundary() -> None:
     assert res.stable and max_pole_radius(res.theta[:2])[0] < 1.0
     for run in res.runs:
         assert is_stable(run.theta0[:2])[0] and is_stable(run.theta[:2])[0]
+        if run.kind == "along the cap" or run.kind.startswith("pulled in"):
+            continue  # the restarts of the best end on the circle start where it ended
         # every run moved a long way (>= 10 %) and ended against the circle: LM pushed
         # towards the unstable optimum and the rejected steps held it inside
         assert run.fun < 0.9 * run.fun0 and cost(run.x0)[0] < cost.penalty

@@ -455,7 +455,9 @@ def test_a_run_that_still_descends_is_not_stopped_by_the_evaluation_budget() -> 
     assert not any("continued" in r.kind for r in hard.runs)
     # the continued run ends at an interior first-order minimum, well below the stopped one
     assert free.local_minimum and not free.on_cap and free.best_start >= 2
-    assert free.sse < 0.9 * hard.sse
+    # against the run the budget stopped (the hard budget's reference itself now reaches the
+    # same minimum: its Steiglitz-McBride run ends on the circle and is restarted pulled in)
+    assert free.sse < 0.9 * hard.runs[0].sse
 
 
 @pytest.mark.numerics
@@ -467,7 +469,8 @@ def test_box_jenkins_starts_from_the_output_error_model_on_the_robot_arm() -> No
     est, _ = _robot_arm().split(2 / 3)
     res = bj(est, nb=8, nc=2, nd=2, nf=8, nk=1)
     by_kind = {r.kind: r for r in res.runs}
-    assert res.runs[res.best_start].kind in ("output-error", "polish")
+    # the output-error run ends on the circle; its continuation along it may win
+    assert res.runs[res.best_start].kind in ("output-error", "polish", "along the cap")
     assert by_kind["output-error"].sse < by_kind["least-squares"].sse / 10
     assert res.stable and res.predictor_stable
 

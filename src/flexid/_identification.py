@@ -169,6 +169,8 @@ class Identification:
                     if oe.local_minimum
                     else ("on the pole-radius cap" if oe.on_cap else "not a local minimum")
                 )
+                if oe.on_cap and oe.get("cap_reason"):
+                    where += f": {oe.cap_reason}"
                 text += f"; first-order optimality {oe.optimality:.2g}: {where}"
             items.append(("search", text))
         if self.result is not None:

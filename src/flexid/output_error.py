@@ -64,9 +64,12 @@ from .errors import ConfigError, DataError
 from .kernels import ar_recursion
 from .reference import (
     CAP_TOLERANCE,
+    PULLED_TO,
     ReferenceResult,
     ReferenceRun,
+    along_the_cap,
     levenberg_marquardt,
+    restarts_on_the_cap,
 )
 from .stability import (
     is_stable,
@@ -364,6 +367,9 @@ def output_error(
             A pole within 1e-6 of ``r_max`` (``local_minimum`` is then False).
         ``max_radius`` : float
             The largest pole radius of ``x``.
+        ``cap_reason`` : str
+            Why ``x`` ends on the cap, ``""`` off it (a best run that ends on the cap is
+            restarted along it and pulled in, :func:`flexid.reference.restarts_on_the_cap`).
 
     Raises
     ------
@@ -404,8 +410,10 @@ def output_error(
     runs = [_run_lm(prob, th, kind, max_nfev, tol, r_max) for kind, th in start_list]
     best = int(np.argmin([r.fun for r in runs]))
     win = runs[best]
-    theta = win.x.copy()
     message = f"best of {len(runs)} start(s): {win.kind} ({win.message})"
+    best, note, cap_reason = _along_the_cap(prob, runs, best, max_nfev, tol, r_max)
+    theta = runs[best].x.copy()
+    message += note
     if not ls_stable:
         message += "; least squares was unstable, its start was mirrored to stable"
     # the end's diagnostics are not part of the search: not counted in nfev, njev
@@ -414,8 +422,75 @@ def output_error(
     jac = prob.jacobian(theta, ysim)
     max_radius = float(pole_radius_batched(theta[None, :na])[0]) if na else 0.0
     on_cap = bool(na) and max_radius >= r_max - CAP_TOLERANCE
+    cap_reason = cap_reason if on_cap else ""
+    if cap_reason:
+        message += f"; ends on the cap: {cap_reason}"
     return ReferenceResult.at(
         runs, best, e, jac, on_cap=on_cap, nfev=prob.nfev, njev=prob.njev, message=message,
         t_begin=t_begin, cost=float(cost(theta)[0]), cost_ls=float(cost.cost_ls),
         stable=bool(is_stable(theta[:na])[0]), ls_stable=ls_stable, max_radius=max_radius,
+        cap_reason=cap_reason,
     )
+
+
+def _along_the_cap(
+    prob: _Problem, runs: list[ReferenceRun], best: int, max_nfev: int | None, tol: float,
+    r_max: float,
+) -> tuple[int, str, str]:
+    """Restarts of a best run that ends on the cap, as :func:`flexid.prediction_error.pem`'s.
+
+    Along the cap and pulled in (:func:`flexid.reference.restarts_on_the_cap`), and below
+    the unit circle one more LM free to cross the cap, its end kept when it is back within
+    the cap and lower.  Returns the best run's index, the note for the message and why the
+    end is on the cap (``""`` when it was not).
+    """
+
+    na = prob.na
+
+    def on_cap(x: np.ndarray) -> bool:
+        return float(pole_radius_batched(x[None, :na])[0]) >= r_max - CAP_TOLERANCE
+
+    if not na or not on_cap(runs[best].x):
+        return best, "", ""
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return prob.target - prob.simulate(x[None, :])[0][prob.offset :]
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        prob.nfev += 1  # the simulation the Jacobian's formulas need
+        return prob.jacobian(x, prob.simulate(x[None, :])[0])
+
+    def along(theta: np.ndarray) -> ReferenceRun | None:
+        run = along_the_cap(
+            residuals, jacobian, theta, [slice(0, na)], r_max, within=within_radius,
+            energy=float(prob.target @ prob.target), max_nfev=max_nfev, tol=tol,
+        )
+        if run is not None:
+            prob.nfev += run.nfev
+            prob.njev += run.njev
+        return run
+
+    def pulled(theta: np.ndarray) -> list[ReferenceRun]:
+        out = []
+        for radius in PULLED_TO:
+            th = prob.refit_b(pull_inside(theta[:na], radius))
+            if within_radius(th[:na], r_max):
+                out.append(_run_lm(prob, th, f"pulled in to {radius:g}", max_nfev, tol, r_max))
+        return out
+
+    won, new, note = restarts_on_the_cap(
+        runs[best], on_cap=on_cap, along=along, pulled=pulled,
+        admissible=lambda x: within_radius(x[:na], r_max), cap=r_max,
+    )
+    runs += new
+    best = next((i for i, r in enumerate(runs) if r is won), best)
+    if r_max < 1.0 and on_cap(runs[best].x):
+        # the cap may also block the way to a lower point inside it
+        free = _run_lm(prob, runs[best].x, "across the cap", max_nfev, tol, 1.0)
+        runs.append(free)
+        if free.fun < runs[best].fun and within_radius(free.x[:na], r_max):
+            note += f"; across it to SSE {free.fun:.6g}"
+            best = len(runs) - 1
+    what = ("a pole on the unit circle (an undamped mode)" if r_max >= 1.0
+            else f"a pole of radius {r_max:g}")  # fmt: skip
+    return best, note, f"the SSE falls towards {what}; its minimum along the cap"

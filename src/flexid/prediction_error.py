@@ -68,7 +68,15 @@ Notes
 * **The cap.**  A cap is a safeguard, not a target: when the best point has a root within
   ``1e-6`` of ``r_max < 1``, LM continues from it with the cap lifted to
   ``1 - (1 - r_max)/100`` and then to the unit circle itself (roots strictly inside), and the
-  better stable point is kept.  The result reports whether its final point still sits on
+  better stable point is kept.  A best point still on the cap is continued with its roots
+  on the cap held at their radii (:func:`flexid.reference.along_the_cap`) and restarted with
+  them pulled in (:func:`flexid.reference.restarts_on_the_cap`): plain LM stops on the cap
+  short of the minimum along it, 2.5 % above it on the DaISy robot arm's OE(8,8,1) (first
+  two thirds, measured-output rule), and a lower basin may lie behind it (the dryer's
+  OE(6,6,3), mean removed, first two thirds, estimated initial state: 3.684 on the cap,
+  3.665 along it, 3.470 pulled in).
+  A minimum on the cap, where the SSE still falls towards it, is the estimate
+  (``cap_reason`` of the result says so).  The result reports whether its final point still sits on
   the cap in force (``on_cap`` of the result) and whether it is a first-order local minimum
   (``local_minimum``).
 * **Convergence.**  On a large-residual (misspecified) fit Gauss-Newton converges only
@@ -122,10 +130,13 @@ from .reference import (
     CHUNKS,
     OPTIMALITY_THRESHOLD,
     PROMISING,
+    PULLED_TO,
     ReferenceResult,
     ReferenceRun,
+    along_the_cap,
     levenberg_marquardt,
     optimality,
+    restarts_on_the_cap,
 )
 from .stability import (
     mirror_inside,
@@ -944,6 +955,8 @@ def pem(
             when the best point sat on ``r_max``.
         ``max_radius`` : float
             Largest root radius of ``A``, the ``F_j``, ``D`` and ``C``.
+        ``cap_reason`` : str
+            Why the estimate ends on the cap (module notes, "The cap"), ``""`` off it.
         ``stable``, ``predictor_stable`` : bool
             ``model.is_stable`` and ``model.predictor_stable``.
         ``cost`` : float
@@ -1010,16 +1023,20 @@ def pem(
     best = int(np.argmin([r.sse for r in runs]))
     message = f"best of {len(start_list)} start(s): {runs[best].kind} ({runs[best].message})"
     best, cap, note = _off_the_cap(prob, runs, best, r_max, max_nfev, tol)
+    best, note_along = _along_the_cap(prob, runs, best, cap, max_nfev, tol)
+    note += note_along
     e, jac = prob.errors(runs[best].theta, True)
     best, note_polish, e, jac = _polish(prob, runs, best, cap, max_nfev, tol, e, jac)
     message += note + note_polish
     theta = runs[best].theta
     max_radius = prob.max_radius(theta)
     on_cap = bool(prob.rooted) and max_radius >= cap - CAP_TOLERANCE
+    cap_reason = _cap_reason(cap) if on_cap and note_along else ""
     result = ReferenceResult.at(
-        runs, best, e, jac, on_cap=on_cap, nfev=prob.nfev, njev=prob.njev, message=message,
+        runs, best, e, jac, on_cap=on_cap, nfev=prob.nfev, njev=prob.njev,
+        message=message + (f"; ends on the cap: {cap_reason}" if cap_reason else ""),
         t_begin=t_begin, K=prob.K, initial=initial, r_cap=cap, max_radius=max_radius,
-        cost=float("nan"),
+        cost=float("nan"), cap_reason=cap_reason,
     )
     model = PolynomialModel(s, result.x, dt=dt, param_std=result.std,
                             noise_variance=result.noise_variance)  # fmt: skip
@@ -1077,6 +1094,59 @@ def _off_the_cap(
             best = len(runs) - 1
             message += f" (SSE {run.sse0:.6g} -> {run.sse:.6g})"
     return best, cap, message
+
+
+def _along_the_cap(
+    prob: _Problem, runs: list[ReferenceRun], best: int, cap: float, max_nfev: int | None,
+    tol: float,
+) -> tuple[int, str]:
+    """Restarts of a best run that ends on the cap (:func:`flexid.reference.restarts_on_the_cap`).
+
+    Along the cap (:func:`flexid.reference.along_the_cap`) and LM from the point with the
+    roots above each radius of :data:`PULLED_TO` pulled in to it (``B`` refitted).  Returns
+    the best run's index and the note for the message; the runs are appended to ``runs``.
+    """
+    if not prob.rooted or prob.max_radius(runs[best].theta) < cap - CAP_TOLERANCE:
+        return best, ""
+    chunks = CHUNKS if max_nfev is None else 1
+
+    def along(theta: np.ndarray) -> ReferenceRun | None:
+        run = along_the_cap(
+            lambda x: prob.errors(x, False)[0], lambda x: prob.errors(x, True)[1], theta,
+            [sl for sl, _ in prob.rooted], cap, within=within_radius, energy=prob.energy,
+            max_nfev=max_nfev, tol=tol,
+        )
+        if run is not None:
+            prob.nfev += run.nfev
+            prob.njev += run.njev
+        return run
+
+    def pulled(theta: np.ndarray) -> list[ReferenceRun]:
+        out = []
+        for radius in PULLED_TO:
+            th = theta.copy()
+            for sl, _ in prob.rooted:
+                if not within_radius(th[sl], radius):
+                    th[sl] = pull_inside(th[sl], radius)
+            th = prob.refit_b(th)
+            if prob.admissible(th, cap):
+                out.append(_run_lm(prob, th, f"pulled in to {radius:g}", max_nfev, tol, cap,
+                                   chunks))  # fmt: skip
+        return out
+
+    won, new, note = restarts_on_the_cap(
+        runs[best], on_cap=lambda x: prob.max_radius(x) >= cap - CAP_TOLERANCE, along=along,
+        pulled=pulled, admissible=lambda x: prob.admissible(x, cap), cap=cap,
+    )
+    runs += new
+    return next((i for i, r in enumerate(runs) if r is won), best), note
+
+
+def _cap_reason(cap: float) -> str:
+    """Why a reference ends on the cap ``cap`` after :func:`_along_the_cap`."""
+    what = ("a pole on the unit circle (an undamped mode)" if cap >= 1.0
+            else f"a root of radius {cap:g}")  # fmt: skip
+    return f"the SSE falls towards {what}; its minimum along the cap"
 
 
 def _polish(

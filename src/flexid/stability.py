@@ -19,6 +19,7 @@ from .errors import DataError
 _MAX_RADIUS = 1.0 - 1e-6
 
 __all__ = [
+    "UNDAMPED_TOLERANCE",
     "is_stable",
     "is_stable_reference",
     "max_pole_radius",
@@ -29,8 +30,37 @@ __all__ = [
     "pull_inside",
     "random_poles",
     "reflection_coefficients",
+    "stability_words",
     "within_radius",
 ]
+
+#: A pole whose radius is within this of 1 is an undamped mode: the model rings for ever (its
+#: damping prints as 0.0000), so it is reported as marginally stable, never as stable.
+UNDAMPED_TOLERANCE = 1e-6
+
+
+def stability_words(stable: bool, max_radius: float, digits: int = 6) -> str:
+    """What a model's largest pole radius says about its stability, in words.
+
+    Parameters
+    ----------
+    stable : bool
+        Whether every pole is strictly inside the unit circle.
+    max_radius : float
+        The largest pole radius.
+    digits : int, optional
+        Decimals of the radius printed.
+
+    Returns
+    -------
+    str
+        ``"stable: largest pole radius r"``, ``"UNSTABLE: largest pole radius r"``, or, for a
+        pole within :data:`UNDAMPED_TOLERANCE` of the circle,
+        ``"MARGINALLY STABLE: an undamped mode (pole radius r)"``.
+    """
+    if stable and max_radius >= 1.0 - UNDAMPED_TOLERANCE:
+        return f"MARGINALLY STABLE: an undamped mode (pole radius {max_radius:.{digits}f})"
+    return f"{'stable' if stable else 'UNSTABLE'}: largest pole radius {max_radius:.{digits}f}"
 
 
 def _as_population(a) -> np.ndarray:

@@ -53,6 +53,7 @@ from .families import family_of
 from .frequency import FrequencyAgreement, FrequencyResponseEstimate, frequency_agreement, frf
 from .models.polynomial import INITIAL_RULES, _check_initial
 from .portmanteau import KNOWN, ParameterEffect, describe
+from .stability import stability_words
 
 __all__ = [
     "INITIAL_RULES",
@@ -529,8 +530,7 @@ class ValidationReport:
         lines += [
             "",
             "Stability",
-            f"  {'stable' if st.stable else 'UNSTABLE'}: largest pole radius "
-            f"{st.max_pole_radius:.5f}",
+            f"  {stability_words(st.stable, st.max_pole_radius, 5)}",
             f"  zeros: largest radius {st.max_zero_radius:.5f}, "
             f"{'non-minimum phase' if st.non_minimum_phase else 'minimum phase'}",
         ]
