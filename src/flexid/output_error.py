@@ -68,6 +68,7 @@ from .reference import (
     ReferenceResult,
     ReferenceRun,
     along_the_cap,
+    cap_reason,
     levenberg_marquardt,
     restarts_on_the_cap,
 )
@@ -461,14 +462,10 @@ def _along_the_cap(
         return prob.jacobian(x, prob.simulate(x[None, :])[0])
 
     def along(theta: np.ndarray) -> ReferenceRun | None:
-        run = along_the_cap(
+        return along_the_cap(
             residuals, jacobian, theta, [slice(0, na)], r_max, within=within_radius,
-            energy=float(prob.target @ prob.target), max_nfev=max_nfev, tol=tol,
+            energy=float(prob.target @ prob.target), max_nfev=max_nfev, tol=tol, counter=prob,
         )
-        if run is not None:
-            prob.nfev += run.nfev
-            prob.njev += run.njev
-        return run
 
     def pulled(theta: np.ndarray) -> list[ReferenceRun]:
         out = []
@@ -491,6 +488,4 @@ def _along_the_cap(
         if free.fun < runs[best].fun and within_radius(free.x[:na], r_max):
             note += f"; across it to SSE {free.fun:.6g}"
             best = len(runs) - 1
-    what = ("a pole on the unit circle (an undamped mode)" if r_max >= 1.0
-            else f"a pole of radius {r_max:g}")  # fmt: skip
-    return best, note, f"the SSE falls towards {what}; its minimum along the cap"
+    return best, note, cap_reason(r_max, "pole")

@@ -134,6 +134,7 @@ from .reference import (
     ReferenceResult,
     ReferenceRun,
     along_the_cap,
+    cap_reason,
     levenberg_marquardt,
     optimality,
     restarts_on_the_cap,
@@ -1031,12 +1032,12 @@ def pem(
     theta = runs[best].theta
     max_radius = prob.max_radius(theta)
     on_cap = bool(prob.rooted) and max_radius >= cap - CAP_TOLERANCE
-    cap_reason = _cap_reason(cap) if on_cap and note_along else ""
+    why = cap_reason(cap) if on_cap and note_along else ""
     result = ReferenceResult.at(
         runs, best, e, jac, on_cap=on_cap, nfev=prob.nfev, njev=prob.njev,
-        message=message + (f"; ends on the cap: {cap_reason}" if cap_reason else ""),
+        message=message + (f"; ends on the cap: {why}" if why else ""),
         t_begin=t_begin, K=prob.K, initial=initial, r_cap=cap, max_radius=max_radius,
-        cost=float("nan"), cap_reason=cap_reason,
+        cost=float("nan"), cap_reason=why,
     )
     model = PolynomialModel(s, result.x, dt=dt, param_std=result.std,
                             noise_variance=result.noise_variance)  # fmt: skip
@@ -1111,15 +1112,11 @@ def _along_the_cap(
     chunks = CHUNKS if max_nfev is None else 1
 
     def along(theta: np.ndarray) -> ReferenceRun | None:
-        run = along_the_cap(
+        return along_the_cap(
             lambda x: prob.errors(x, False)[0], lambda x: prob.errors(x, True)[1], theta,
             [sl for sl, _ in prob.rooted], cap, within=within_radius, energy=prob.energy,
-            max_nfev=max_nfev, tol=tol,
+            max_nfev=max_nfev, tol=tol, counter=prob,
         )
-        if run is not None:
-            prob.nfev += run.nfev
-            prob.njev += run.njev
-        return run
 
     def pulled(theta: np.ndarray) -> list[ReferenceRun]:
         out = []
@@ -1140,13 +1137,6 @@ def _along_the_cap(
     )
     runs += new
     return next((i for i, r in enumerate(runs) if r is won), best), note
-
-
-def _cap_reason(cap: float) -> str:
-    """Why a reference ends on the cap ``cap`` after :func:`_along_the_cap`."""
-    what = ("a pole on the unit circle (an undamped mode)" if cap >= 1.0
-            else f"a root of radius {cap:g}")  # fmt: skip
-    return f"the SSE falls towards {what}; its minimum along the cap"
 
 
 def _polish(

@@ -62,6 +62,7 @@ __all__ = [
     "ReferenceRun",
     "StartOrReference",
     "along_the_cap",
+    "cap_reason",
     "levenberg_marquardt",
     "lower_of",
     "optimality",
@@ -615,6 +616,25 @@ class _OnTheCap:
 PULLED_TO = (0.998, 0.995, 0.99)
 
 
+def cap_reason(cap: float, kind: str = "root") -> str:
+    """Why a reference ends on the cap ``cap`` after :func:`along_the_cap`, in words.
+
+    Parameters
+    ----------
+    cap : float
+        The cap in force, in (0, 1].
+    kind : str, optional
+        What is capped: ``"root"`` (of any polynomial) or ``"pole"``.
+
+    Returns
+    -------
+    str
+    """
+    what = ("a pole on the unit circle (an undamped mode)" if cap >= 1.0
+            else f"a {kind} of radius {cap:g}")  # fmt: skip
+    return f"the SSE falls towards {what}; its minimum along the cap"
+
+
 def along_the_cap(
     residuals: Callable[[np.ndarray], np.ndarray],
     jacobian: Callable[[np.ndarray], np.ndarray],
@@ -626,6 +646,7 @@ def along_the_cap(
     energy: float = 0.0,
     max_nfev: int | None = None,
     tol: float = 1e-10,
+    counter: Any = None,
 ) -> ReferenceRun | None:
     """Levenberg-Marquardt from a point with roots on the cap, those roots held on it.
 
@@ -648,6 +669,9 @@ def along_the_cap(
         ``within(coefficients, cap) -> bool``, the cap's test of one polynomial.
     energy, max_nfev, tol
         As :func:`levenberg_marquardt` takes them (``chunks`` is :data:`CHUNKS`).
+    counter : object, optional
+        The reference's problem, whose ``nfev`` and ``njev`` the run's evaluations are added
+        to.
 
     Returns
     -------
@@ -683,6 +707,9 @@ def along_the_cap(
     if not inside(run.x):
         run.x, run.fun = run.x0.copy(), run.fun0
         run.message += "; its end rounds outside the cap, the start kept"
+    if counter is not None:
+        counter.nfev += run.nfev
+        counter.njev += run.njev
     return run
 
 

@@ -39,7 +39,7 @@ __all__ = [
 UNDAMPED_TOLERANCE = 1e-6
 
 
-def stability_words(stable: bool, max_radius: float, digits: int = 6) -> str:
+def stability_words(stable: bool, max_radius: float, digits: int = 6, sep: str = ": ") -> str:
     """What a model's largest pole radius says about its stability, in words.
 
     Parameters
@@ -50,6 +50,9 @@ def stability_words(stable: bool, max_radius: float, digits: int = 6) -> str:
         The largest pole radius.
     digits : int, optional
         Decimals of the radius printed.
+    sep : str, optional
+        Between the verdict and the radius of a stable or unstable model (a model's summary
+        writes ``", "``).
 
     Returns
     -------
@@ -60,7 +63,7 @@ def stability_words(stable: bool, max_radius: float, digits: int = 6) -> str:
     """
     if stable and max_radius >= 1.0 - UNDAMPED_TOLERANCE:
         return f"MARGINALLY STABLE: an undamped mode (pole radius {max_radius:.{digits}f})"
-    return f"{'stable' if stable else 'UNSTABLE'}: largest pole radius {max_radius:.{digits}f}"
+    return f"{'stable' if stable else 'UNSTABLE'}{sep}largest pole radius {max_radius:.{digits}f}"
 
 
 def _as_population(a) -> np.ndarray:

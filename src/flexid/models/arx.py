@@ -21,8 +21,8 @@ from .._json import jsonable
 from .._table import wrapped
 from .._validate import integer, positive_real
 from ..errors import DataError, ModelOrderError, check_finite
-from ..stability import UNDAMPED_TOLERANCE, stability_words
 from ..stability import is_stable as _is_stable
+from ..stability import stability_words
 
 if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on first use
     import control
@@ -741,13 +741,7 @@ class ARX(NamedChannels, PlantResponse):
         if p.size:
             poles = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
             lines.append(wrapped(f"poles: {poles}", indent="  ", hang="       "))
-        if self.is_stable and self.max_pole_radius >= 1.0 - UNDAMPED_TOLERANCE:
-            lines.append(f"  {stability_words(True, self.max_pole_radius)}")
-        else:
-            lines.append(
-                f"  {'stable' if self.is_stable else 'UNSTABLE'}, "
-                f"largest pole radius {self.max_pole_radius:.6f}"
-            )
+        lines.append(f"  {stability_words(self.is_stable, self.max_pole_radius, sep=', ')}")
         return "\n".join(lines)
 
     def __repr__(self) -> str:

@@ -67,7 +67,7 @@ from .._table import wrapped
 from .._validate import checked_keywords, integer, positive_real
 from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
-from ..stability import UNDAMPED_TOLERANCE, stability_words
+from ..stability import stability_words
 from .arx import (
     ARX,
     ARXStructure,
@@ -1200,13 +1200,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         if p.size:
             poles = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
             lines.append(wrapped(f"poles: {poles}", indent="  ", hang="       "))
-        if self.is_stable and self.max_pole_radius >= 1.0 - UNDAMPED_TOLERANCE:
-            lines.append(f"  {stability_words(True, self.max_pole_radius)}")
-        else:
-            lines.append(
-                f"  {'stable' if self.is_stable else 'UNSTABLE'}, "
-                f"largest pole radius {self.max_pole_radius:.6f}"
-            )
+        lines.append(f"  {stability_words(self.is_stable, self.max_pole_radius, sep=', ')}")
         if s.nc:
             r = np.abs(self.noise_zeros()).max()
             lines.append(
