@@ -23,7 +23,7 @@ import numpy as np
 import flexid
 from flexid.config import PAPER_SEARCH, CostSpec
 from flexid.data import prepare_data
-from flexid.estimation import build_problem, model_structure
+from flexid.fit.estimation import build_problem, model_structure
 from flexid.optimisers import Problem, minimize
 
 PAIRS = {

@@ -37,10 +37,10 @@ from flexid import kernels
 from flexid.config import CostSpec, SearchSpec
 from flexid.costs.arx import ARXCost
 from flexid.data import IOData
-from flexid.estimation import build_problem
+from flexid.fit.estimation import build_problem
 from flexid.models.arx import ARXStructure
+from flexid.models.stability import is_stable
 from flexid.optimisers import minimize
-from flexid.stability import is_stable
 
 
 def interleaved_medians(fns: dict, rounds: int = 15, budget: float = 0.02) -> dict:

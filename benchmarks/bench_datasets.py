@@ -18,9 +18,9 @@ import time
 
 import numpy as np
 
-from flexid.datasets import generate
+from flexid.data.datasets import generate
+from flexid.data.signals import make_signal
 from flexid.envs.twin_rotor import TwinRotorEnv, TwinRotorVectorEnv
-from flexid.signals import make_signal
 
 
 def timed(fn, repeat=5):

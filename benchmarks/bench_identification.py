@@ -26,9 +26,9 @@ import numpy as np
 import flexid
 from flexid.config import PAPER_SEARCH, CostSpec, SearchSpec
 from flexid.data import prepare_data
-from flexid.estimation import build_problem, model_structure
+from flexid.fit.estimation import build_problem, model_structure
+from flexid.models.stability import is_stable
 from flexid.optimisers import minimize
-from flexid.stability import is_stable
 
 ROBOT_ARM = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "robot_arm.csv"
 OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de", "cmaes", "random-search")

@@ -28,11 +28,11 @@ from bench_costs import interleaved_medians
 from flexid import kernels
 from flexid.config import CostSpec, SearchSpec
 from flexid.costs.modal import ModalCost
-from flexid.datasets import generate
-from flexid.estimation import build_problem
+from flexid.data.datasets import generate
+from flexid.fit.estimation import build_problem
+from flexid.fit.statespace_fit import ModalBox
 from flexid.models.arx import ARXStructure
 from flexid.models.statespace import StateSpaceStructure
-from flexid.statespace_fit import ModalBox
 
 N = 1500
 P = int(os.environ.get("BENCH_P", 50))

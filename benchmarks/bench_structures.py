@@ -35,9 +35,9 @@ from scipy import signal
 from flexid import kernels
 from flexid.costs.arx import ARXCost
 from flexid.costs.polynomial import PolynomialCost
+from flexid.fit.polynomial_space import PolynomialSpace
 from flexid.models.arx import ARXStructure
 from flexid.models.polynomial import structure
-from flexid.polynomial_space import PolynomialSpace
 
 N = 1500
 P = 50

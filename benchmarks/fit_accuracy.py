@@ -21,8 +21,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from flexid.diagnostics import fit_percent
 from flexid.models.polynomial import PolynomialStructure, run_predictor
+from flexid.validation.diagnostics import fit_percent
 from test_realisation import (
     exact_fit,
     exact_polynomials,

@@ -37,11 +37,11 @@ import numpy as np
 from scipy import signal
 
 import flexid
-from flexid._compare import build_data, frequency_views
 from flexid.config import default_spec
 from flexid.data import IOData
-from flexid.frequency import frf, mode_table, mode_table_text
-from flexid.plants import get_plant
+from flexid.data.plants import get_plant
+from flexid.jobs._compare import build_data, frequency_views
+from flexid.validation.frequency import frf, mode_table, mode_table_text
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 
@@ -57,7 +57,7 @@ def main_job() -> None:
 
 def suite() -> None:
     """The small suite's manipulator problems (both instances), the paper's optimisers."""
-    from flexid.suite import get_suite, run_suite
+    from flexid.jobs.suite import get_suite, run_suite
 
     chosen = get_suite("small").subset(["manipulator"])
     with tempfile.TemporaryDirectory() as folder:

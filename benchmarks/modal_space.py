@@ -6,7 +6,7 @@ point), the manipulator's are not (its torque and hub angle have a physical zero
 removed torque mean would be integrated twice by the rigid body).  Rows:
 
 * ``n4sid``: subspace identification (:func:`flexid.n4sid`), its own gains and initial state;
-* ``ssest``: the reference (:func:`flexid.statespace_fit.ssest`'s Levenberg-Marquardt from the
+* ``ssest``: the reference (:func:`flexid.fit.statespace_fit.ssest`'s Levenberg-Marquardt from the
   subspace poles and 3 random starts), one run;
 * every optimiser of ``--optimisers``, ``--runs`` runs (seeds 0, 1, ...) at ``--budget`` FE in
   the modal space (log frequency and damping of each mode, log corner of each real pole, the
@@ -52,11 +52,11 @@ import numpy as np
 
 from flexid import minimize, n4sid
 from flexid.config import CostSpec, SearchSpec
-from flexid.datasets import generate
+from flexid.data.datasets import generate
 from flexid.envs import beam
-from flexid.estimation import build_problem
+from flexid.fit.estimation import build_problem
+from flexid.fit.statespace_fit import ssest
 from flexid.models.statespace import StateSpaceStructure
-from flexid.statespace_fit import ssest
 from flexid.validation import validate
 
 OPTIMISERS = ("hbcsd", "bfa", "sda", "pso", "de", "cmaes", "lshade", "random-search")

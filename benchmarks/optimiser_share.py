@@ -22,7 +22,7 @@ import flexid
 from flexid import kernels
 from flexid.config import CostSpec, SearchSpec
 from flexid.data import prepare_data
-from flexid.estimation import build_problem
+from flexid.fit.estimation import build_problem
 from flexid.models.polynomial import structure
 from flexid.optimisers import minimize
 

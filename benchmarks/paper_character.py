@@ -9,7 +9,7 @@ Run with ``--sensors ideal`` for the plants read without their measurement chain
 ``--orders`` to see which structure would pass.
 
 ``--structure oe`` or ``bj`` fits an output-error or Box-Jenkins model instead
-(:func:`flexid.prediction_error.pem`, the prediction-error reference, from rest:
+(:func:`flexid.fit.prediction_error.pem`, the prediction-error reference, from rest:
 ``nb = nf = n``, ``nk = 1``, and ``nc``/``nd`` from ``--nc``/``--nd``).  Its held-out
 numbers are computed with the filters run from rest at the start of the record over the
 training two thirds into the held-out third (the model's state at the split is the one the
@@ -38,11 +38,11 @@ import time
 import numpy as np
 import scipy.signal
 
-from flexid.datasets import generate
-from flexid.diagnostics import fit_percent, residual_tests
+from flexid.data.datasets import generate
 from flexid.envs import beam, twin_rotor_physics
 from flexid.models.arx import ARXStructure
 from flexid.validation import validate
+from flexid.validation.diagnostics import fit_percent, residual_tests
 
 
 def peaks(
@@ -90,8 +90,8 @@ def run_pem(
     data, n: int, nc: int, nd: int, targets: np.ndarray, tol: float, band: tuple[float, float]
 ) -> dict:
     """One seed of an output-error / Box-Jenkins model: fit on 2/3, numbers on the last 1/3."""
+    from flexid.fit.prediction_error import pem
     from flexid.models.polynomial import structure
-    from flexid.prediction_error import pem
 
     train, _ = data.split(2 / 3)
     m = train.n_samples

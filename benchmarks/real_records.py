@@ -956,7 +956,8 @@ def observations(results: list[dict]) -> list[str]:
     if void:
         out.append("- **A flexid defect these records show**: `flexid.validate` reports the "
                    "correlation tests passed for models whose one-step residual diverges "
-                   f"({', '.join(void)}): the normalisation of `flexid.diagnostics.xcorr`, "
+                   f"({', '.join(void)}): the normalisation of "
+                   "`flexid.validation.diagnostics.xcorr`, "
                    "`math.sqrt(float(a @ a) * float(b @ b))`, overflows to inf, every "
                    "correlation then reads 0 and each test passes.  The tables mark those "
                    "verdicts void and count them as failures.")

@@ -21,7 +21,7 @@ from sphinx.util import logging
 
 import flexid
 
-# matplotlib without a display, before sphinx-gallery or flexid.plots import pyplot
+# matplotlib without a display, before sphinx-gallery or flexid.report.plots import pyplot
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 project = "flexid"

@@ -32,7 +32,7 @@ def main() -> None:
     result = compare(spec, store="flexid-results/example.sqlite", workers=1)
     print(result.summary())
     try:
-        from flexid.plots import comparison_figures
+        from flexid.report.plots import comparison_figures
 
         for path in comparison_figures(result, "flexid-results", prefix="example-"):
             print("figure:", path)

@@ -38,7 +38,7 @@ def main(path: str | None = None) -> None:
     hb = flexid.identify(data, na=8, nb=8, nk=1, optimiser="hbcsd", budget=30_000, seed=1)
     print(hb.summary())
     try:
-        from flexid.plots import identification_figures
+        from flexid.report.plots import identification_figures
 
         paths = identification_figures(hb, "flexid-figures", prefix=f"{name}-")
         print(f"\nfigures: {', '.join(p.name for p in paths)} in flexid-figures/")

@@ -9,7 +9,7 @@ simulation (an L1 output-error cost, robust to the record's outliers), written o
 population at once, checked against an independent computation (``scipy.signal.lfilter``
 per candidate) and minimised by two optimisers.  A new *named* metric of the built-in costs
 (used by ``identify``, ``compare`` and the command line) is one row of
-``flexid.metrics.METRIC_TABLE`` instead.
+``flexid.costs.metrics.METRIC_TABLE`` instead.
 """
 
 from __future__ import annotations

@@ -34,11 +34,11 @@ from scipy import signal
 
 import flexid
 from flexid.config import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec
+from flexid.costs.metrics import metric_from_sse
 from flexid.errors import ModelOrderError
-from flexid.families import Family, ReferenceFit, register_family
-from flexid.metrics import metric_from_sse
+from flexid.jobs.suite import Suite, SuiteProblem, run_suite
+from flexid.models.families import Family, ReferenceFit, register_family
 from flexid.optimisers import Problem
-from flexid.suite import Suite, SuiteProblem, run_suite
 from flexid.validation import ValidationReport, residual_report
 
 
@@ -422,7 +422,7 @@ class LaguerreFamily(Family):
 
     def pose(self, data: Any, structure: Any, cost: Any, search: Any, *,
              bounds: Any) -> LaguerreProblem:
-        """The coefficients' search problem (see :meth:`flexid.families.Family.pose`).
+        """The coefficients' search problem (see :meth:`flexid.models.families.Family.pose`).
 
         Parameters
         ----------

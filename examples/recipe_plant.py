@@ -25,7 +25,7 @@ import numpy as np
 
 import flexid
 from flexid.config import default_spec
-from flexid.plants import Plant, register_plant
+from flexid.data.plants import Plant, register_plant
 
 OUTPUT_NAMES = ("level",)
 OUTPUT_UNITS = ("m",)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import flexid.datasets
+import flexid.data.datasets
 from flexid import identify
 from flexid.cli import main
 from flexid.config import ComparisonSpec, DataSpec, ModelSpec, OptimiserSpec
@@ -147,7 +147,7 @@ def test_generate_checks_the_output_before_simulating(name, tmp_path, monkeypatc
         calls.append((args, kwargs))
         raise AssertionError("the plant was simulated before the output path was checked")
 
-    monkeypatch.setattr(flexid.datasets, "generate", spy)
+    monkeypatch.setattr(flexid.data.datasets, "generate", spy)
     status, _, err = _run(["generate", "manipulator", "--samples", "10", "--out", name], capsys)
     line = _one_line_error(status, err)
     assert "--out" in line and name in line, line
@@ -190,8 +190,8 @@ def test_load_of_a_folder_says_folder(name, tmp_path):
 
 # ------------------------------------------------------------------ 5. diverged fits
 def test_format_fit_is_shared_and_caps_diverged_fits():
-    from flexid import _comparison_result as compare_module
-    from flexid.diagnostics import format_fit
+    from flexid.jobs import _comparison_result as compare_module
+    from flexid.validation.diagnostics import format_fit
 
     assert format_fit(-1.4e113) == "< -999"
     assert format_fit(-math.inf) == "< -999"

@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from flexid import ComparisonResult, compare, load_result
-from flexid._compare import run_seed
 from flexid.config import OptimiserSpec
 from flexid.errors import ConfigError, HyperParameterError, UnknownOptimiserError
+from flexid.jobs._compare import run_seed
+from flexid.jobs.store import ResultStore
 from flexid.optimisers import Optimiser, Param, register, unregister
-from flexid.store import ResultStore
 from helpers import small_spec
 
 
@@ -159,7 +159,7 @@ def test_worker_processes_run_blas_on_one_thread(monkeypatch):
     and the parent's own environment is as before."""
     from multiprocessing import get_context
 
-    from flexid._compare import _worker_environment
+    from flexid.jobs._compare import _worker_environment
 
     monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
     monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)

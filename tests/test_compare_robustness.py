@@ -29,8 +29,8 @@ from flexid import compare
 from flexid.cli import main
 from flexid.config import ComparisonSpec, OptimiserSpec, load_config
 from flexid.errors import ConfigError
+from flexid.jobs.store import ResultStore
 from flexid.optimisers import reload_plugins, unregister
-from flexid.store import ResultStore
 from helpers import tiny_spec
 
 PLUGIN_MODULE = "flexid_robustness_plugins"

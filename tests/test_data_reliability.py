@@ -129,7 +129,7 @@ def test_compare_refuses_a_zero_input_in_one_line(tmp_path, capsys):
 def test_select_fails_the_candidates_the_input_cannot_determine():
     # a constant input fixes only the static gain b / (1 + f) of OE(1, 1): that candidate
     # fails with the reason, the others are still fitted and ranked
-    from flexid.selection import select
+    from flexid.jobs.selection import select
 
     data = IOData(CONSTANT, _response(CONSTANT))
     result = select(data, structures=("oe",), orders={"nb": [1], "nf": [0, 1]}, max_lag=10)
@@ -151,7 +151,7 @@ def test_select_fails_the_candidates_the_input_cannot_determine():
     ids=["zero ARX", "constant ARX", "sine ARX nb=3", "constant OE(1,1)", "sine BJ(2,1,1,1)"],
 )
 def test_check_excitation_names_the_order_found_and_needed(u, structure, found, need):
-    from flexid.estimation import check_excitation
+    from flexid.fit.estimation import check_excitation
     from flexid.models.polynomial import structure as named
 
     data = IOData(u, _response(u), input_names="torque")
@@ -161,7 +161,7 @@ def test_check_excitation_names_the_order_found_and_needed(u, structure, found, 
 
 def test_check_excitation_accepts_what_the_input_does_determine():
     from flexid.errors import FlexidWarning
-    from flexid.estimation import check_excitation
+    from flexid.fit.estimation import check_excitation
     from flexid.models.polynomial import structure as named
 
     cases = [
@@ -190,7 +190,7 @@ def test_an_ill_conditioned_input_warns_and_still_identifies():
 
 
 def test_dependent_inputs_are_refused_together():
-    from flexid.estimation import check_excitation, model_structure
+    from flexid.fit.estimation import check_excitation, model_structure
 
     # each input is white noise (exciting of any order) but the second is twice the first
     u = np.column_stack([WHITE, 2.0 * WHITE])
@@ -202,9 +202,9 @@ def test_dependent_inputs_are_refused_together():
 def test_the_records_of_the_paper_pass_without_warnings():
     # the check only raises or warns: on the paper's records (the golden experiments' data)
     # it must do neither, for the paper's ARX orders and the manipulator's OE(16, 16, 1)
-    from flexid.datasets import generate
+    from flexid.data.datasets import generate
     from flexid.errors import FlexidWarning
-    from flexid.estimation import check_excitation, model_structure
+    from flexid.fit.estimation import check_excitation, model_structure
     from flexid.models.polynomial import structure as named
 
     manipulator = generate("manipulator", preset="paper-manipulator", seed=0)
@@ -254,7 +254,7 @@ def test_a_large_csv_loads_in_a_bounded_multiple_of_its_arrays(tmp_path):
 
 
 def test_the_block_reader_keeps_the_row_by_row_values_and_errors(tmp_path):
-    import flexid._files
+    import flexid.data._files
 
     rng = np.random.default_rng(1)
     values = rng.standard_normal((30_000, 2))  # ~1.2 MB of text: several blocks
@@ -266,7 +266,7 @@ def test_the_block_reader_keeps_the_row_by_row_values_and_errors(tmp_path):
     lines.insert(25_001, ",")
     path = tmp_path / "mixed.csv"
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    assert path.stat().st_size > 2 * flexid._files._CSV_BLOCK_CHARS
+    assert path.stat().st_size > 2 * flexid.data._files._CSV_BLOCK_CHARS
     data = load(path)
     np.testing.assert_array_equal(np.column_stack([data.u[:, 0], data.y[:, 0]]), values)
 

@@ -1,4 +1,4 @@
-"""Tests of flexid.datasets: presets, reproducibility, metadata, noise, channel selection.
+"""Tests of flexid.data.datasets: presets, reproducibility, metadata, noise, channel selection.
 
 Noise levels are checked with statistical tolerances (15-20 %); everything else is the same
 computation repeated, hence exact.
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from flexid.data import IOData
-from flexid.datasets import PRESETS, generate
+from flexid.data.datasets import PRESETS, generate
 from flexid.envs import beam
 from flexid.errors import DataError, PlantParameterError, UnknownNameError
 
@@ -112,9 +112,9 @@ def test_bad_arguments():
 
 
 def test_sensors_reach_generate_from_a_comparison_spec_and_the_cli(tmp_path):
-    from flexid._compare import build_data
     from flexid.cli import main
     from flexid.config import ComparisonSpec, DataSpec
+    from flexid.jobs._compare import build_data
 
     options = {"preset": "paper-twin-rotor", "n_samples": 300, "seed": 2, "noise_std": "1%"}
     spec = ComparisonSpec(data=DataSpec(plant="twin-rotor", sensors="ideal", **options))

@@ -11,8 +11,8 @@ from scipy import signal
 import flexid
 from flexid.config import DataSpec
 from flexid.data import IOData, prepare_data
-from flexid.delay import estimate_delay
 from flexid.errors import ConfigError, DataError, DataWarning, UnknownNameError
+from flexid.fit.delay import estimate_delay
 
 
 def delayed_record(nk=3, n=1200, seed=0, n_inputs=1):

@@ -29,9 +29,9 @@ from flexid.errors import (
     ModelOrderError,
     UnknownNameError,
 )
-from flexid.estimation import build_problem, check_search, model_structure
+from flexid.fit.estimation import build_problem, check_search, model_structure
 from flexid.models.arx import ARXStructure
-from flexid.stability import is_stable, max_pole_radius, pole_radius_batched
+from flexid.models.stability import is_stable, max_pole_radius, pole_radius_batched
 
 A_TRUE = np.array([-1.5, 0.7])  # poles 0.75 +- 0.37j, radius 0.84
 B1, B2 = np.array([1.0, 0.5]), np.array([-0.4, 0.3])

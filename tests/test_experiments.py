@@ -11,15 +11,15 @@ import pytest
 from scipy import optimize, signal
 
 import flexid
-from flexid._compare import _Context
 from flexid.cli import main
 from flexid.config import load_config
 from flexid.costs.experiments import MultiExperimentCost
 from flexid.costs.polynomial import PolynomialCost
 from flexid.data import IOData, prepare_data
 from flexid.errors import ConfigError, DataError
+from flexid.fit.prediction_error import pem
+from flexid.jobs._compare import _Context
 from flexid.models.polynomial import PolynomialStructure
-from flexid.prediction_error import pem
 
 B_TRUE, F_TRUE = [0.0, 1.0, 0.5], [1.0, -1.5, 0.7]
 

@@ -1,7 +1,7 @@
 """The one model interface: every structure and model finds its family, and the jobs ask it.
 
 One test runs over every built-in structure kind and model; the others register a family of
-their own and check that :func:`flexid.estimation.build_problem` and :func:`flexid.validate`
+their own and check that :func:`flexid.fit.estimation.build_problem` and :func:`flexid.validate`
 dispatch to it, as they do to the built-in ones.
 """
 
@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 import flexid
-from flexid import families
 from flexid.config import CostSpec, SearchSpec
 from flexid.errors import ConfigError
-from flexid.estimation import build_problem
-from flexid.families import Family, family_of, register_family
-from flexid.greybox_family import GreyBoxFamily
+from flexid.fit.estimation import build_problem
+from flexid.fit.greybox_family import GreyBoxFamily
+from flexid.fit.polynomial_family import PolynomialFamily
+from flexid.models import families
 from flexid.models.arx import ARXStructure
+from flexid.models.families import Family, family_of, register_family
 from flexid.models.greybox_library import greybox_model
-from flexid.polynomial_family import PolynomialFamily
 
 
 @pytest.fixture
@@ -140,8 +140,8 @@ def test_a_later_registration_of_a_name_replaces_it(restore_registry):
 
 def test_structure_names_find_their_family_and_an_unknown_name_lists_them(restore_registry):
     from flexid.errors import UnknownNameError
-    from flexid.estimation import structure_of
-    from flexid.families import family_named, structure_names
+    from flexid.fit.estimation import structure_of
+    from flexid.models.families import family_named, structure_names
 
     assert set(structure_names()) == {"arx", "armax", "oe", "bj", "ss"}
     assert family_named("OE").name == "polynomial"
@@ -266,7 +266,7 @@ def test_the_built_in_specs_keep_their_keys_and_the_suite_its_versions():
     from dataclasses import replace
 
     from flexid.config import ModelSpec, default_spec
-    from flexid.suite import get_suite
+    from flexid.jobs.suite import get_suite
 
     m, t = default_spec(plant="manipulator"), default_spec(plant="twin-rotor")
     keys = [m.key, t.key, replace(m, model=ModelSpec(na=4, nb=4)).key,

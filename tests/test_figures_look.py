@@ -1,4 +1,5 @@
-"""Tests that look at every figure type of flexid.plots as a reader does, on the matplotlib objects.
+"""Tests that look at every figure type of flexid.report.plots as a reader does, on the
+matplotlib objects.
 
 Each figure is drawn (Agg) from a small real identification, comparison or selection, and
 checked for what an engineer reads at a glance: every axis labelled, physical quantities with
@@ -23,9 +24,9 @@ from matplotlib.image import AxesImage
 from matplotlib.patches import Rectangle
 
 import flexid
-from flexid import compare, identify, plots
-from flexid.report import comparison_ecdf
-from flexid.selection import select
+from flexid import compare, identify
+from flexid.jobs.selection import select
+from flexid.report import comparison_ecdf, plots
 from helpers import tiny_spec
 
 
@@ -368,9 +369,9 @@ def test_site_check_finds_scientific_log_ticks_and_cut_off_legends(tmp_path):
     assert len(problems) == 2
     assert "drawn beyond its edges" in problems[0] and "right" in problems[0]
     assert "y axis (log): tick labels in scientific form, e.g. 2x10^0" in problems[1]
-    # the same figure drawn by flexid.plots reads plainly and keeps its legend inside
+    # the same figure drawn by flexid.report.plots reads plainly and keeps its legend inside
     script.write_text(
-        "from flexid.plots import plot_convergence\n"
+        "from flexid.report.plots import plot_convergence\n"
         "plot_convergence({'a': {'fe': [1, 10, 100], 'best': [5.0, 2.0, 1.0]}})\n"
     )
     assert cs.check_figures([script]) == []

@@ -13,7 +13,7 @@ import flexid
 from flexid.cli import main
 from flexid.data import IOData
 from flexid.errors import DataError, UnknownNameError
-from flexid.frequency import frequency_agreement, frf
+from flexid.validation.frequency import frequency_agreement, frf
 
 # a known two-input system: one first-order and one second-order path (scipy's lfilter)
 B1, A1 = [0.0, 0.5], [1.0, -0.5]
@@ -163,7 +163,7 @@ def test_the_reference_oe_model_has_the_beam_s_first_three_modes():
     # and the anti-alias filter let the beam's modes at 11.8, 32.2 and 58.2 Hz through
     # (the fourth, 101.6 Hz, too; above it the 1 % sensor noise dominates); the reference
     # OE(16,16,1) model's modes lie within 1 % of the finite-difference beam's
-    from flexid.datasets import generate
+    from flexid.data.datasets import generate
     from flexid.envs import beam
     from flexid.models.modes import modes
 
@@ -262,7 +262,7 @@ def test_the_cli_refuses_bad_input_in_one_line_and_leaves_no_file(tmp_path, caps
 
 
 def test_identification_figures_include_the_bode_figure(tmp_path):
-    from flexid.plots import identification_figures
+    from flexid.report.plots import identification_figures
 
     data = IOData(*[two_input_record(1, n=3000).u[:, :1], two_input_record(1, n=3000).y],
                   dt=0.01)  # fmt: skip
@@ -275,8 +275,8 @@ def test_identification_figures_include_the_bode_figure(tmp_path):
 def test_the_beam_s_own_modes_are_its_finite_difference_frequencies_and_damping():
     # two routes: eig of the damped first-order A against eigh(K, M) and the modal damping
     # law (equal for modal damping: |s| = omega; rounding of eig on a 30-state A, 1e-9)
+    from flexid.data.plants import get_plant
     from flexid.envs import beam
-    from flexid.plants import get_plant
 
     params = beam.BeamParameters()
     f, zeta = get_plant("manipulator").true_modes()
@@ -290,8 +290,8 @@ def test_the_beam_s_own_modes_are_its_finite_difference_frequencies_and_damping(
 
 
 def test_a_mode_table_matches_model_modes_peaks_and_the_truth_one_to_one():
-    from flexid.frequency import mode_table, mode_table_text
     from flexid.models.statespace import StateSpaceModel
+    from flexid.validation.frequency import mode_table, mode_table_text
 
     dt = 0.01
     blocks = []
@@ -349,7 +349,7 @@ def test_select_from_a_flat_grid_over_arx_and_oe_writes_its_frequency_figures(tm
 
 
 def test_the_stabilisation_diagram_marks_a_mode_found_again_at_the_next_order():
-    from flexid.plots import stabilisation_diagram
+    from flexid.report.plots import stabilisation_diagram
 
     rng = np.random.default_rng(0)
     dt, n = 0.01, 6000
@@ -369,8 +369,8 @@ def test_the_twin_rotor_s_mode_at_an_operating_point_is_its_linearisation_s():
     # 0.6 V on the main rotor; the difference step 1e-6 leaves ~1e-8 relative error
     from dataclasses import replace
 
+    from flexid.data.plants import get_plant
     from flexid.envs import twin_rotor_physics as tr
-    from flexid.plants import get_plant
 
     p = tr.TwinRotorParameters(lock_yaw=True)  # the paper's preset: yaw held at rest
     f, zeta = get_plant("twin-rotor").true_modes(p, inputs={"main_rotor": 0.6})

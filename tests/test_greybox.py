@@ -18,7 +18,7 @@ from flexid.costs.greybox import GreyBoxCost
 from flexid.envs import twin_rotor_physics as trs
 from flexid.envs import twin_rotor_steppers
 from flexid.errors import ConfigError, DataError, UnknownNameError
-from flexid.greybox_fit import greyest
+from flexid.fit.greybox_fit import greyest
 from flexid.models.greybox import GreyBoxModel, GreyParameter
 from flexid.models.greybox_library import greybox_model, twin_rotor_coupled, twin_rotor_pitch
 from numerics import assert_close_to_terms
@@ -265,7 +265,7 @@ def test_wrong_shape_is_an_error_and_divergence_costs_inf():
 def test_validation_runs_the_model_on_from_the_record_start():
     # independent route: the model simulated over the whole record, its last third scored
     # by fit_percent and the correlation tests directly
-    from flexid.diagnostics import fit_percent, residual_tests
+    from flexid.validation.diagnostics import fit_percent, residual_tests
 
     data = _pitch_record(900, sensors="lab")
     model = twin_rotor_pitch()

@@ -17,7 +17,7 @@ import pytest
 
 import flexid
 from flexid.errors import ConfigError, UnknownNameError
-from flexid.greybox_fit import greyest
+from flexid.fit.greybox_fit import greyest
 from flexid.models.greybox import GreyBoxModel
 from flexid.models.greybox_library import greybox_model
 from test_greybox_integration import MODEL_FILE, TRUE

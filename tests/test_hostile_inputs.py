@@ -14,13 +14,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-import flexid.store
+import flexid.jobs.store
 from flexid import compare, identify, select
 from flexid._table import LINE_WIDTH
 from flexid.cli import main
 from flexid.data import IOData
 from flexid.errors import DataError, StoreError, check_finite, plain_number
-from flexid.store import ResultStore
+from flexid.jobs.store import ResultStore
 from helpers import tiny_spec
 
 
@@ -124,7 +124,9 @@ def test_a_full_disk_under_a_store_says_so_and_that_the_store_is_intact(
     tmp_path, monkeypatch, message, code, free
 ):
     path = tmp_path / "results.sqlite"
-    monkeypatch.setattr(flexid.store.sqlite3, "connect", lambda *a, **k: _FullDisk(message, code))
+    monkeypatch.setattr(
+        flexid.jobs.store.sqlite3, "connect", lambda *a, **k: _FullDisk(message, code)
+    )
     monkeypatch.setattr("shutil.disk_usage", lambda p: type("U", (), {"free": free})())
     with pytest.raises(StoreError) as caught:
         ResultStore(path)
@@ -133,7 +135,7 @@ def test_a_full_disk_under_a_store_says_so_and_that_the_store_is_intact(
 
 
 def test_a_disk_io_error_with_room_to_spare_is_not_called_a_full_disk(tmp_path, monkeypatch):
-    monkeypatch.setattr(flexid.store.sqlite3, "connect",
+    monkeypatch.setattr(flexid.jobs.store.sqlite3, "connect",
                         lambda *a, **k: _FullDisk("disk I/O error", 778))  # fmt: skip
     monkeypatch.setattr("shutil.disk_usage", lambda p: type("U", (), {"free": 10**9})())
     with pytest.raises(StoreError, match="not a readable flexid result store"):

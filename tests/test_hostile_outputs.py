@@ -32,7 +32,7 @@ import pytest
 
 from flexid import compare, load_result
 from flexid.cli import main
-from flexid.store import ResultStore
+from flexid.jobs.store import ResultStore
 from helpers import tiny_spec
 from test_cli import _record
 

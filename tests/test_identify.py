@@ -16,7 +16,7 @@ from flexid import identify, search_box
 from flexid.data import IOData
 from flexid.errors import ConfigError, DataError, ModelOrderError, UnknownNameError
 from flexid.models.arx import ARXStructure
-from flexid.stability import is_stable
+from flexid.models.stability import is_stable
 from numerics import EPS
 from route_bounds import recovery_error
 

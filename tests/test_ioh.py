@@ -18,8 +18,8 @@ from flexid import compare, load_result
 from flexid.cli import main
 from flexid.config import ComparisonSpec, SearchSpec
 from flexid.errors import ConfigError, StoreError
+from flexid.jobs.store import ResultStore
 from flexid.report import comparison_ecdf, ecdf_fraction, ecdf_targets, export_ioh, write_report
-from flexid.store import ResultStore
 from helpers import tiny_spec
 
 
@@ -172,7 +172,7 @@ def test_info_layout_reads_back_as_the_store(store, tmp_path):
 
 
 def test_reexport_replaces_and_a_failure_leaves_nothing(store, tmp_path, monkeypatch):
-    from flexid import _ioh
+    from flexid.jobs import _ioh
 
     folders = export_ioh(store, tmp_path)
     stale = folders[0] / "stale.dat"

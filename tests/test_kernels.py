@@ -20,7 +20,7 @@ from scipy import signal
 from flexid import kernels
 from flexid.costs.arx import ARXCost
 from flexid.models.arx import ARXStructure
-from flexid.stability import is_stable, is_stable_reference
+from flexid.models.stability import is_stable, is_stable_reference
 from numerics import EPS, assert_close_to_terms
 from route_bounds import ar_route_bound, sse_route_bound
 

@@ -27,7 +27,7 @@ from flexid import kernels
 from flexid.costs.arx import ARXCost
 from flexid.errors import FlexidError
 from flexid.models.arx import ARXStructure
-from flexid.stability import is_stable_reference
+from flexid.models.stability import is_stable_reference
 from numerics import EPS, assert_close_to_terms
 from route_bounds import ar_route_bound, lstsq_error, normal_equations_error, sse_route_bound
 from test_kernels import stable_denominators
@@ -291,7 +291,7 @@ def test_thread_environment_variable():
 
 def test_compare_worker_processes_use_one_thread(monkeypatch):
     # the worker processes of compare --workers share the cores already: one thread each
-    from flexid import _compare
+    from flexid.jobs import _compare
 
     sent = []
 

@@ -169,5 +169,5 @@ def test_the_import_graph_has_no_circle():
 def test_the_check_sees_a_lazy_upward_import(tmp_path):
     """The import reader finds an import inside a function, so the checks above can fail."""
     source = tmp_path / "mod.py"
-    source.write_text("def f():\n    from ._identify import identify\n    return identify\n")
-    assert imports("flexid.mod", source, {"flexid._identify"}) == {"flexid._identify"}
+    source.write_text("def f():\n    from .jobs._identify import identify\n    return identify\n")
+    assert imports("flexid.mod", source, {"flexid.jobs._identify"}) == {"flexid.jobs._identify"}

@@ -12,11 +12,11 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import flexid  # noqa: F401  (registers the environments)
+from flexid.data.plants import get_plant
 from flexid.envs import beam
 from flexid.envs._render import Canvas
 from flexid.envs.manipulator import FlexibleManipulatorEnv, FlexibleManipulatorVectorEnv
 from flexid.errors import ActionError, PlantParameterError
-from flexid.plants import get_plant
 from numerics import EPS, assert_close_to_terms, route_tolerance
 
 ENV_ID = "flexid/FlexibleManipulator-v0"

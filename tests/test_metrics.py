@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexid import metrics
 from flexid.config import CostSpec
+from flexid.costs import metrics
+from flexid.costs.metrics import METRIC_TABLE, METRICS, metric_from_sse
 from flexid.errors import UnknownNameError
-from flexid.metrics import METRIC_TABLE, METRICS, metric_from_sse
 
 
 def test_each_metric_is_its_formula_on_the_errors():

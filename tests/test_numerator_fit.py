@@ -15,11 +15,11 @@ from flexid import identify
 from flexid.config import CostSpec, SearchSpec
 from flexid.costs.arx import ARXCost
 from flexid.errors import ConfigError, DataError, UnknownNameError
-from flexid.estimation import build_problem, check_search
+from flexid.fit.estimation import build_problem, check_search
+from flexid.fit.output_error import output_error
 from flexid.models.arx import ARXStructure
+from flexid.models.stability import is_stable, pole_radius_batched
 from flexid.optimisers import minimize
-from flexid.output_error import output_error
-from flexid.stability import is_stable, pole_radius_batched
 from numerics import EPS
 from test_estimation import two_input_record
 

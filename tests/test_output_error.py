@@ -1,4 +1,4 @@
-"""Tests of the output-error reference (:mod:`flexid.output_error`).
+"""Tests of the output-error reference (:mod:`flexid.fit.output_error`).
 
 The plant is ``y = B(q)/A(q) u`` with ``A = 1 - 1.5 q^-1 + 0.7 q^-2`` (poles 0.75 +- 0.37j,
 radius 0.84) and ``B = q^-1 + 0.5 q^-2``, driven by white noise, all generated here.
@@ -12,14 +12,14 @@ from scipy import signal
 
 from flexid.costs.arx import METRICS, ARXCost
 from flexid.errors import ConfigError, DataError
-from flexid.models.arx import ARXStructure
-from flexid.output_error import (
+from flexid.fit.output_error import (
     OEResult,
     output_error,
     simulation_jacobian,
     simulation_residuals,
 )
-from flexid.stability import is_stable, max_pole_radius, mirror_inside
+from flexid.models.arx import ARXStructure
+from flexid.models.stability import is_stable, max_pole_radius, mirror_inside
 
 A_TRUE = np.array([1.0, -1.5, 0.7])
 B_TRUE = np.array([0.0, 1.0, 0.5])  # nk = 1

@@ -1,4 +1,4 @@
-"""Tests of flexid.parametrisation: stable images, round trips, known answers, shapes."""
+"""Tests of flexid.fit.parametrisation: stable images, round trips, known answers, shapes."""
 
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from flexid.errors import ConfigError, DataError, FlexidError, UnknownNameError
-from flexid.models.arx import ARXStructure
-from flexid.parametrisation import (
+from flexid.fit.parametrisation import (
     PARAMETRISATIONS,
     Parametrisation,
     make_parametrisation,
 )
-from flexid.stability import is_stable, reflection_coefficients
+from flexid.models.arx import ARXStructure
+from flexid.models.stability import is_stable, reflection_coefficients
 
 ORDERS = range(1, 11)  # odd and even na
 

@@ -1,4 +1,4 @@
-"""The plant registry (flexid.plants) is the one plant interface: ``generate``, the CLI and the
+"""The plant registry (flexid.data.plants) is the one plant interface: ``generate``, the CLI and the
 Gymnasium registration read it, and the environments take their names and units from it.
 
 A third plant is one physics module and one ``register_plant`` call: with its pure functions
@@ -23,9 +23,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import flexid  # also registers the environments
+from flexid.data.plants import PLANTS, Plant, check_plant, get_plant, register_plant
 from flexid.envs import MANIPULATOR_ID, TWIN_ROTOR_ID, manipulator, sensors, twin_rotor
 from flexid.errors import PlantParameterError, UnknownNameError
-from flexid.plants import PLANTS, Plant, check_plant, get_plant, register_plant
 
 # A toy plant: a first-order lag, its physics and a thin environment that reads its names
 # and units from the registry.
@@ -65,7 +65,7 @@ def noise_floor(params):
 
 class LagEnv(gymnasium.Env):
     def __init__(self):
-        from flexid.plants import get_plant
+        from flexid.data.plants import get_plant
 
         self.plant = get_plant("lag")
         self.params = LagParameters()
@@ -86,7 +86,7 @@ class LagEnv(gymnasium.Env):
 '''
 
 REGISTER = """
-from flexid.plants import Plant, register_plant
+from flexid.data.plants import Plant, register_plant
 
 register_plant(
     Plant(
@@ -196,8 +196,8 @@ def test_a_registered_plant_brings_its_presets_and_its_comparison(capsys):
 
     from flexid.cli import main
     from flexid.config import default_spec
-    from flexid.datasets import PRESETS
-    from flexid.plants import PLANTS
+    from flexid.data.datasets import PRESETS
+    from flexid.data.plants import PLANTS
 
     man = get_plant("manipulator")
     copy = dataclasses.replace(

@@ -1,4 +1,4 @@
-"""Tests of flexid.plots: every figure of an identification and a comparison is drawn."""
+"""Tests of flexid.report.plots: every figure of an identification and a comparison is drawn."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ pytest.importorskip("matplotlib")
 
 from flexid import compare, identify
 from flexid.data import IOData
-from flexid.plots import (
+from flexid.report.plots import (
     comparison_figures,
     identification_figures,
     plot_correlations,
@@ -72,7 +72,7 @@ def test_comparison_figures(tmp_path):
 
 
 def test_diverged_simulation_is_drawn_not_raised(tmp_path):
-    from flexid.plots import plot_spectra, plot_time_response
+    from flexid.report.plots import plot_spectra, plot_time_response
 
     t = np.arange(100) * 0.1
     y = np.sin(t)
@@ -97,7 +97,7 @@ def test_comparison_figures_read_at_a_glance():
     # the convergence and FE-to-target figures: log FE axis from 1 to the budget, the cost
     # relative to the named reference (the line at 1), a legend outside the data, one curve
     # per optimiser that runs to the budget; with no run at the target, a sentence says so
-    from flexid.plots import plot_comparison_convergence, plot_fe_to_target, reference_name
+    from flexid.report.plots import plot_comparison_convergence, plot_fe_to_target, reference_name
 
     result = compare(tiny_spec("glance"), progress=False)
     budget = result.spec.budget
@@ -121,7 +121,7 @@ def test_comparison_figures_read_at_a_glance():
 
 
 def test_fe_to_target_says_when_no_run_reached_it():
-    from flexid.plots import plot_fe_to_target
+    from flexid.report.plots import plot_fe_to_target
 
     result = compare(tiny_spec("none"), progress=False)
     target = result.spec.targets[0]
@@ -132,7 +132,7 @@ def test_fe_to_target_says_when_no_run_reached_it():
 
 
 def test_identification_figures_name_the_channel_and_its_unit():
-    from flexid.plots import plot_convergence, plot_spectra, plot_time_response
+    from flexid.report.plots import plot_convergence, plot_spectra, plot_time_response
 
     t = np.arange(50) * 0.01
     fig = plot_time_response(t, np.sin(t), np.sin(t), output="tip_acceleration", unit="m/s^2")

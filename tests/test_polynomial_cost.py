@@ -18,9 +18,9 @@ from scipy import signal
 
 from flexid.costs.polynomial import PolynomialCost, poly_mul_rows
 from flexid.errors import ConfigError, DataError
+from flexid.fit.polynomial_space import PolynomialSpace
 from flexid.models.polynomial import PolynomialStructure, run_predictor, structure
 from flexid.optimisers import Budget, available, minimize
-from flexid.polynomial_space import PolynomialSpace
 
 N = 600
 RTOL = 1e-9  # see the module docstring
@@ -245,7 +245,7 @@ def test_every_registered_optimiser_identifies_every_structure_with_valid_candid
     """Each optimiser searches the OE and BJ spaces; every candidate it asks for is valid."""
     from flexid.config import CostSpec, SearchSpec
     from flexid.data import IOData
-    from flexid.estimation import build_problem
+    from flexid.fit.estimation import build_problem
 
     u, y = _record(1)
     data = IOData(u, y[:, None], dt=0.01)

@@ -9,9 +9,9 @@ import pytest
 from scipy import linalg, signal
 
 import flexid
-from flexid.diagnostics import judged, residual_tests
 from flexid.errors import ConfigError, DataError
-from flexid.portmanteau import ParameterEffect, estimation_root, holm, portmanteau
+from flexid.validation.diagnostics import judged, residual_tests
+from flexid.validation.portmanteau import ParameterEffect, estimation_root, holm, portmanteau
 
 A, B = [1.0, -1.5, 0.7], [0.0, 1.0, 0.5]  # a lightly damped second-order ARX system
 

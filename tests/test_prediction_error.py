@@ -1,4 +1,4 @@
-"""Tests of the prediction-error reference (:mod:`flexid.prediction_error`).
+"""Tests of the prediction-error reference (:mod:`flexid.fit.prediction_error`).
 
 The known systems are simulated here with ``scipy.signal.lfilter`` from rest, driven by seeded
 white noise: ``A y = sum_j B_j/F_j u_j(t - nk_j) + C/D e`` with unit-variance inputs and an
@@ -18,12 +18,10 @@ from scipy import signal
 
 from flexid import IOData
 from flexid.costs.arx import ARXCost
-from flexid.datasets import generate
+from flexid.data.datasets import generate
 from flexid.errors import ConfigError, DataError, ModelOrderError
-from flexid.models.arx import ARXStructure
-from flexid.models.polynomial import PolynomialStructure, run_predictor, structure
-from flexid.output_error import output_error
-from flexid.prediction_error import (
+from flexid.fit.output_error import output_error
+from flexid.fit.prediction_error import (
     OPTIMALITY_THRESHOLD,
     PEMResult,
     armax,
@@ -33,7 +31,9 @@ from flexid.prediction_error import (
     prediction_errors,
     prediction_jacobian,
 )
-from flexid.stability import is_stable, pole_radius_batched
+from flexid.models.arx import ARXStructure
+from flexid.models.polynomial import PolynomialStructure, run_predictor, structure
+from flexid.models.stability import is_stable, pole_radius_batched
 
 ROBOT_ARM = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "robot_arm.csv"
 RULES = ("estimate", "zero", "measured")
@@ -479,7 +479,7 @@ def test_a_hopeless_run_is_abandoned_at_its_best_point(monkeypatch) -> None:
     # With the thresholds at their extremes (abandon at once, anything above the best run so
     # far is hopeless), every start that begins above the first run's minimum is abandoned
     # at its start; the minimum itself is unchanged, since the first run reaches it.
-    from flexid import reference
+    from flexid.fit import reference
 
     s, polys = SYSTEMS["oe"]
     u, y = _simulate(s, polys, n=800, seed=4)

@@ -1,4 +1,4 @@
-"""Tests of flexid.progress: a bar on a terminal, one plain line per step in a file or pipe."""
+"""Tests of flexid.jobs.progress: a bar on a terminal, one plain line per step in a file or pipe."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from flexid.progress import ProgressBar
+from flexid.jobs.progress import ProgressBar
 
 
 class _Terminal(io.StringIO):

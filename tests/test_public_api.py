@@ -19,6 +19,7 @@ import types
 import pytest
 
 import flexid
+from flexid._moved import MOVED
 from helpers import public_modules
 
 IDS = ("flexid/FlexibleManipulator-v0", "flexid/TwinRotor-v0")
@@ -43,13 +44,39 @@ PUBLIC_PACKAGES = public_modules(packages_only=True)
 
 # ------------------------------------------------------------------ __all__ is the contract
 def test_the_walk_finds_the_public_modules():
-    for name in ("flexid", "flexid.config", "flexid.envs", "flexid.optimisers", "flexid.signals"):
+    for name in ("flexid", "flexid.config", "flexid.envs", "flexid.optimisers", "flexid.data"):
         assert name in PUBLIC_MODULES
     assert PUBLIC_PACKAGES == [
-        "flexid", "flexid.costs", "flexid.envs", "flexid.kernels", "flexid.models",
-        "flexid.optimisers",
+        "flexid", "flexid.costs", "flexid.data", "flexid.envs", "flexid.fit", "flexid.jobs",
+        "flexid.kernels", "flexid.models", "flexid.optimisers", "flexid.report",
+        "flexid.validation",
     ]
     assert not any(part.startswith("_") for m in PUBLIC_MODULES for part in m.split("."))
+
+
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_a_public_module_imports_under_its_name_before_the_layers(old):
+    """``flexid.<old>`` is the module at its layer's home itself, with the home's own spec."""
+    home = importlib.import_module(f"flexid.{MOVED[old]}")
+    assert importlib.import_module(f"flexid.{old}") is home
+    assert home.__spec__.name == home.__name__ == f"flexid.{MOVED[old]}"
+    assert f"flexid.{MOVED[old]}" in PUBLIC_MODULES  # the old name of a public module only
+
+
+def test_the_old_import_paths_work_in_a_fresh_interpreter():
+    run = run_python(
+        """
+        import flexid.selection, flexid.plots
+        from flexid.datasets import generate
+        from flexid.stability import is_stable
+        import flexid.jobs.selection, flexid.report.plots
+        assert flexid.selection is flexid.jobs.selection
+        assert flexid.plots is flexid.report.plots
+        assert generate.__module__ == "flexid.data.datasets"
+        print(is_stable.__module__)
+        """
+    )
+    assert run.stdout.strip() == "flexid.models.stability"
 
 
 @pytest.mark.parametrize("name", PUBLIC_MODULES)
@@ -121,12 +148,12 @@ def test_no_module_shares_the_name_of_a_function(old):
 
 
 FIRST_IMPORTS = [
-    "flexid._identify",
-    "flexid._compare",
+    "flexid.jobs._identify",
+    "flexid.jobs._compare",
     "flexid.cli",
     "flexid.report",
-    "flexid.estimation",
-    "flexid.plots",
+    "flexid.fit.estimation",
+    "flexid.report.plots",
 ]
 
 
@@ -154,7 +181,7 @@ def test_identify_and_compare_stay_functions_when_their_modules_are_imported_aft
         import inspect
         import flexid
         assert inspect.isfunction(flexid.identify) and inspect.isfunction(flexid.compare)
-        import flexid._compare, flexid._identify, flexid.cli
+        import flexid.jobs._compare, flexid.jobs._identify, flexid.cli
         assert inspect.isfunction(flexid.identify) and inspect.isfunction(flexid.compare)
         """
     )

@@ -13,8 +13,8 @@ import pytest
 
 import flexid
 from flexid.data import prepare_data
-from flexid.delay import estimate_delay
 from flexid.errors import DataWarning
+from flexid.fit.delay import estimate_delay
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDS = Path(os.environ.get("FLEXID_REAL_RECORDS", ROOT.parent / "shared" / "data" / "real"))
@@ -91,7 +91,7 @@ def test_cd_player_arm_oe_reference_drops_crawling_extra_starts():
     the random and perturbed starts crawl (SSE 11.1 and 11.6 after 640 evaluations, 40 %
     above the best run's 7.58).  Run to their budgets they cost 6,400 of 7,200 evaluations
     and ended 40 % above; the reference drops them and ends at the same minimum."""
-    from flexid.prediction_error import oe
+    from flexid.fit.prediction_error import oe
 
     data = flexid.load(record("cd_player_arm"), inputs=["u1", "u2"], outputs=["y1"])
     est, _ = data.split(2 / 3)
@@ -138,7 +138,7 @@ def test_dryer_oe_reference_keeps_a_crawling_start_near_the_best():
     start whose budget stopped it at SSE 4.75, 1.01 times the best of the others (4.70),
     still crawling; continued, it ends at 3.83.  A rule that dropped every slow crawl lost
     that minimum (the reference printed 90.7 % instead of 91.7 %)."""
-    from flexid.prediction_error import oe
+    from flexid.fit.prediction_error import oe
 
     est, _ = prepare_data(record("dryer"), detrend="constant", load_options={"dt": 0.08})
     res = oe(est, 8, 8, 3, initial="estimate")

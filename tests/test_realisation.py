@@ -24,9 +24,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexid.diagnostics import fit_percent
 from flexid.models.polynomial import PolynomialStructure, run_predictor
 from flexid.models.realisation import accurate_roots
+from flexid.validation.diagnostics import fit_percent
 
 mp = pytest.importorskip("mpmath")
 
@@ -310,8 +310,8 @@ def test_a_final_model_is_rescored_where_the_search_direct_form_is_off():
     """The twin rotor's OE(16, 16, 1): the batched (direct-form) cost is off by orders of
     magnitude on this record, the realised one equals the exact model's to 1e-9, and
     ``rescored`` reports both."""
-    from flexid._identify import RESCORE_BOUND, rescored
     from flexid.costs.polynomial import PolynomialCost
+    from flexid.jobs._identify import RESCORE_BOUND, rescored
 
     model = PolynomialStructure.oe(16, 16, 1).model(np.concatenate([TWIN_ROTOR_B,
                                                                     TWIN_ROTOR_F[1:]]))

@@ -1,4 +1,4 @@
-"""The one gradient reference (:mod:`flexid.reference`): its run, its result type, and every
+"""The one gradient reference (:mod:`flexid.fit.reference`): its run, its result type, and every
 reference returning that type with the same keys."""
 
 from __future__ import annotations
@@ -9,13 +9,10 @@ from scipy import signal
 from scipy.optimize import OptimizeResult, least_squares
 
 from flexid.costs.arx import ARXCost
-from flexid.greybox_fit import greyest
-from flexid.models.arx import ARXStructure
-from flexid.models.greybox_library import greybox_model
-from flexid.models.polynomial import structure
-from flexid.output_error import output_error
-from flexid.prediction_error import pem
-from flexid.reference import (
+from flexid.fit.greybox_fit import greyest
+from flexid.fit.output_error import output_error
+from flexid.fit.prediction_error import pem
+from flexid.fit.reference import (
     STATUS,
     ReferenceResult,
     ReferenceRun,
@@ -23,6 +20,9 @@ from flexid.reference import (
     optimality,
     standard_errors,
 )
+from flexid.models.arx import ARXStructure
+from flexid.models.greybox_library import greybox_model
+from flexid.models.polynomial import structure
 
 COMMON = ("x", "fun", "status", "success", "message", "nfev", "njev", "nfev_equivalent", "std",
           "optimality", "local_minimum", "runs", "best_start", "wall_time", "cost", "stable",

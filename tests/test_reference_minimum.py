@@ -2,7 +2,7 @@
 
 A Levenberg-Marquardt run that rejects steps outside the stable set stops on the cap short
 of the minimum along it; the reference then continues with the capped roots held on the cap
-(:func:`flexid.reference.along_the_cap`).  Each case checks the reference against LM
+(:func:`flexid.fit.reference.along_the_cap`).  Each case checks the reference against LM
 restarts from its end (as it is, and with its poles pulled inside), accepted only when their
 end is stable: none may be lower by more than 0.1 %.
 """
@@ -17,9 +17,9 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from flexid.errors import DataError
+from flexid.fit.prediction_error import pem, prediction_jacobian
 from flexid.models.polynomial import PolynomialModel, structure
-from flexid.prediction_error import pem, prediction_jacobian
-from flexid.stability import is_stable, pull_inside
+from flexid.models.stability import is_stable, pull_inside
 from flexid.validation import validate
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"

@@ -6,8 +6,8 @@ import pytest
 
 from flexid import compare
 from flexid.errors import ConfigError, StoreError
+from flexid.jobs.store import ResultStore
 from flexid.report import write_report
-from flexid.store import ResultStore
 from helpers import tiny_spec
 
 

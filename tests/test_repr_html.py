@@ -212,7 +212,7 @@ def test_the_displays_show_the_held_out_bode_figure(identification, comparison):
 
 
 def test_the_displays_without_matplotlib_show_their_tables_alone(identification, monkeypatch):
-    from flexid import plots
+    from flexid.report import plots
 
     def unavailable():
         raise plots.PlottingUnavailable("figures need matplotlib")

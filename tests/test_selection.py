@@ -1,5 +1,5 @@
-"""Tests of flexid.selection: the criteria, the shared-regressor ARX grid, the recommendation on
-a known OE system and on the simulated manipulator, typed errors, and the figure."""
+"""Tests of flexid.jobs.selection: the criteria, the shared-regressor ARX grid, the recommendation
+on a known OE system and on the simulated manipulator, typed errors, and the figure."""
 
 from __future__ import annotations
 
@@ -14,10 +14,10 @@ from scipy import signal
 import flexid
 from flexid._table import LINE_WIDTH
 from flexid.errors import ConfigError, DataError, ModelOrderError, UnknownNameError
-from flexid.estimation import structure_of
+from flexid.fit.estimation import structure_of
+from flexid.jobs.selection import DEFAULT_GRIDS, Selection, arx_grid, select
 from flexid.models.arx import ARXStructure
 from flexid.models.polynomial import structure
-from flexid.selection import DEFAULT_GRIDS, Selection, arx_grid, select
 from numerics import EPS, route_tolerance
 
 # The known system: OE(2, 2, 1), y = (0.5 q^-1 + 0.3 q^-2) / (1 - 1.5 q^-1 + 0.7 q^-2) u + e,
@@ -259,8 +259,8 @@ def test_bad_input_is_a_typed_error_naming_the_argument(monkeypatch):
     def no_fit(*args, **kwargs):
         raise AssertionError("a fit ran before the grid was checked")
 
-    monkeypatch.setattr("flexid.prediction_error.pem", no_fit)
-    monkeypatch.setattr("flexid.selection._arx_fits", no_fit)
+    monkeypatch.setattr("flexid.fit.prediction_error.pem", no_fit)
+    monkeypatch.setattr("flexid.jobs.selection._arx_fits", no_fit)
     with pytest.raises(UnknownNameError, match=r"structures 'ox'; known: armax, arx, bj, oe"):
         select(data, ("arx", "ox"))
     with pytest.raises(UnknownNameError, match=r"criterion 'best'.*aic.*simulation"):
@@ -302,7 +302,7 @@ def test_bad_input_is_a_typed_error_naming_the_argument(monkeypatch):
 # ------------------------------------------------------------------ 6. the figure
 def test_selection_figure_writes_a_png(oe_selection, tmp_path):
     pytest.importorskip("matplotlib")
-    from flexid.plots import selection_figure
+    from flexid.report.plots import selection_figure
 
     path = selection_figure(oe_selection, tmp_path / "selection.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 20_000

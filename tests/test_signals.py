@@ -1,4 +1,4 @@
-"""Tests of flexid.signals: the defining property of each excitation signal.
+"""Tests of flexid.data.signals: the defining property of each excitation signal.
 
 Frequency and amplitude checks (10-15 %) are modelling tolerances; the multisine's
 out-of-band energy is rounding only and is bounded by the FFT's error analysis.
@@ -9,8 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexid.errors import DataError, UnknownNameError
-from flexid.signals import (
+from flexid.data.signals import (
     SIGNALS,
     aprbs,
     bang_bang,
@@ -23,6 +22,7 @@ from flexid.signals import (
     random_binary,
     uniform,
 )
+from flexid.errors import DataError, UnknownNameError
 from numerics import EPS
 
 

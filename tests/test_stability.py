@@ -1,4 +1,4 @@
-"""Tests of flexid.stability: the vectorised Schur-Cohn test against np.roots.
+"""Tests of flexid.models.stability: the vectorised Schur-Cohn test against np.roots.
 
 Decisions are compared exactly, so the tests keep only polynomials whose decision rounding
 cannot change: a root is kept away from the unit circle by more than rounding of the
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexid.stability import is_stable, max_pole_radius, reflection_coefficients
+from flexid.models.stability import is_stable, max_pole_radius, reflection_coefficients
 from numerics import EPS
 
 

@@ -11,9 +11,9 @@ from flexid import kernels
 from flexid.costs.modal import ModalCost
 from flexid.data import IOData
 from flexid.errors import ConfigError, DataError, ModelOrderError
-from flexid.estimation import build_problem
+from flexid.fit.estimation import build_problem
+from flexid.fit.statespace_fit import ModalBox, modal_start, ssest
 from flexid.models.statespace import StateSpaceStructure
-from flexid.statespace_fit import ModalBox, modal_start, ssest
 
 DT = 0.01
 
@@ -301,7 +301,7 @@ def test_the_manipulator_s_modes_are_the_simulated_beam_s_own():
     # 1 %; damping within the record's resolution: a mode's half-power bandwidth 2 zeta f is
     # known to about one frequency bin 1 / T of the record, so |zeta - zeta_true| <=
     # 1 / (2 f T) (for the first mode 0.028, for the fourth 0.0032)
-    from flexid.datasets import generate
+    from flexid.data.datasets import generate
     from flexid.envs import beam
 
     record = generate("manipulator", preset="paper-manipulator", seed=0,
@@ -343,7 +343,7 @@ def test_a_comparison_of_a_state_space_model_reports_every_output(two_sensor_rec
 
 
 def test_the_residuals_of_several_outputs_are_tested_against_each_other():
-    from flexid.diagnostics import output_cross_tests
+    from flexid.validation.diagnostics import output_cross_tests
 
     rng = np.random.default_rng(11)
     n = 2000
@@ -367,7 +367,7 @@ def test_the_residuals_of_several_outputs_are_tested_against_each_other():
 def test_the_figures_of_a_state_space_identification_show_every_output(two_sensor_record,
                                                                          tmp_path):  # fmt: skip
     pytest.importorskip("matplotlib")
-    from flexid.plots import identification_figures
+    from flexid.report.plots import identification_figures
 
     _, record = two_sensor_record
     ident = flexid.identify(record, structure="ss", order=4, optimiser="n4sid")

@@ -1,4 +1,4 @@
-"""Tests of flexid.statistics.
+"""Tests of flexid.jobs.statistics.
 
 Values are checked against scipy or hand computations to pytest's default 1e-6 (far above
 rounding of a few operations); the Holm p-value is the same product as the hand value.
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from flexid.statistics import (
+from flexid.jobs.statistics import (
     best_at,
     convergence_band,
     fe_to_target,

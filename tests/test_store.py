@@ -1,4 +1,4 @@
-"""Tests of flexid.store: the SQLite result store."""
+"""Tests of flexid.jobs.store: the SQLite result store."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import sqlite3
 import pytest
 
 from flexid.errors import StoreError
-from flexid.store import ResultStore
+from flexid.jobs.store import ResultStore
 
 
 def _record(label: str, run: int, status: str = "ok", **extra) -> dict:

@@ -29,8 +29,8 @@ from flexid import compare, load_result
 from flexid.cli import main
 from flexid.config import load_config
 from flexid.errors import ConfigError, StoreError, StoreWarning
+from flexid.jobs.store import ResultStore
 from flexid.report import write_report
-from flexid.store import ResultStore
 from helpers import small_spec, tiny_spec
 
 AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0

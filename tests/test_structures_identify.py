@@ -1,7 +1,7 @@
 """ARMAX, OE and BJ through identify, compare and the command line.
 
 Known systems are made with ``scipy.signal.lfilter`` from a seeded innovation sequence; the
-reference (Levenberg-Marquardt, :func:`flexid.prediction_error.pem`) must recover them within
+reference (Levenberg-Marquardt, :func:`flexid.fit.prediction_error.pem`) must recover them within
 4 of its own standard errors, and DE and CMA-ES, at an equal budget, must reach the
 reference's minimum (the prediction-error cost of these low orders has one basin in the
 stable set).

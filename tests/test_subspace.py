@@ -1,4 +1,4 @@
-"""Subspace identification (:func:`flexid.subspace.n4sid`) on a known two-input two-output
+"""Subspace identification (:func:`flexid.fit.subspace.n4sid`) on a known two-input two-output
 system made with ``scipy.signal``: its order read from the singular values, its frequency
 response (which does not depend on the state coordinates) and its modes recovered."""
 
@@ -9,7 +9,7 @@ import pytest
 
 import flexid
 from flexid.errors import ConfigError, DataError, ModelOrderError
-from flexid.subspace import n4sid
+from flexid.fit.subspace import n4sid
 from test_statespace_model import DT, MODES, _model
 
 F = np.linspace(0.2, 40.0, 80)  # Hz, below Nyquist (50 Hz)
@@ -74,7 +74,7 @@ def test_a_given_order_and_its_limits():
 
 def test_the_singular_value_figure_marks_the_order():
     pytest.importorskip("matplotlib")
-    from flexid.plots import plot_singular_values
+    from flexid.report.plots import plot_singular_values
 
     data, _ = _record(0, 0.0, n=1500)
     res = n4sid(data)

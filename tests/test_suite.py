@@ -17,9 +17,9 @@ import pytest
 from flexid.cli import main
 from flexid.config import DataSpec, ModelSpec
 from flexid.errors import DataError, UnknownNameError
-from flexid.statistics import fe_to_target
-from flexid.store import ResultStore
-from flexid.suite import (
+from flexid.jobs.statistics import fe_to_target
+from flexid.jobs.store import ResultStore
+from flexid.jobs.suite import (
     PRECISIONS,
     SETTINGS,
     Suite,
@@ -134,7 +134,7 @@ def test_one_pool_serves_every_problem_and_computes_the_references(ran, tmp_path
     """With workers, the suite's tasks share one pool (as many processes as workers, started
     once for every problem) and the references are tasks of it: the main process's route to
     a reference is made to fail, and the numbers are those of one process."""
-    from flexid import _compare
+    from flexid.jobs import _compare
 
     started = []
     real_init = _compare._Worker.__init__

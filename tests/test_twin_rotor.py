@@ -24,6 +24,7 @@ from gymnasium.utils.env_checker import check_env
 from scipy import signal
 
 import flexid  # noqa: F401  (registers the environments)
+from flexid.data.plants import get_plant
 from flexid.envs import twin_rotor_physics, twin_rotor_steppers
 from flexid.envs.twin_rotor import TwinRotorEnv, TwinRotorVectorEnv
 from flexid.envs.twin_rotor_physics import (
@@ -42,7 +43,6 @@ from flexid.envs.twin_rotor_steppers import (
     simulate,
 )
 from flexid.errors import ActionError, DataError, PlantParameterError
-from flexid.plants import get_plant
 from numerics import EPS, assert_close_to_terms
 
 PLANT_FUNCTIONS = get_plant("twin-rotor").functions()

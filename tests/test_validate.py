@@ -170,8 +170,8 @@ def test_real_none_only_when_allowed():
 
 # ---------------------------------------------------------------- through the public modules
 def test_the_modules_raise_their_own_error_types_through_the_validators():
+    from flexid.data.signals import prbs
     from flexid.optimisers import Budget
-    from flexid.signals import prbs
 
     with pytest.raises(DataError, match="n_samples"):
         prbs(True)

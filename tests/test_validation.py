@@ -21,7 +21,9 @@ from scipy import fft as sfft
 from scipy.signal import lfilter
 
 from flexid.data import IOData
-from flexid.diagnostics import (
+from flexid.errors import DataError, ModelOrderError
+from flexid.validation import stability_report, validate
+from flexid.validation.diagnostics import (
     billings_voon_tests,
     correlation_bound,
     error_range,
@@ -31,8 +33,6 @@ from flexid.diagnostics import (
     rmse,
     xcorr,
 )
-from flexid.errors import DataError, ModelOrderError
-from flexid.validation import stability_report, validate
 from numerics import EPS
 
 

@@ -20,11 +20,11 @@ import pytest
 from scipy.signal import lfilter
 
 from flexid.data import IOData
-from flexid.diagnostics import fit_percent
 from flexid.errors import DataError, UnknownNameError
 from flexid.models.arx import ARXStructure
 from flexid.models.polynomial import INITIAL_RULES, PolynomialModel, PolynomialStructure
 from flexid.validation import validate
+from flexid.validation.diagnostics import fit_percent
 from numerics import EPS, assert_close_to_terms, route_tolerance
 from route_bounds import ar_route_bound, lstsq_error
 

@@ -15,7 +15,7 @@ paper's budgets.
 
 # %%
 from flexid import ComparisonSpec, CostSpec, DataSpec, ModelSpec, OptimiserSpec, compare
-from flexid.plots import plot_comparison_convergence, plot_fe_to_target
+from flexid.report.plots import plot_comparison_convergence, plot_fe_to_target
 
 spec = ComparisonSpec(
     name="twin rotor ARX(5,5,1), 1,500 FE",

@@ -18,7 +18,7 @@ power spectra, the pole-zero map and the residual correlation tests with their 9
 # ``generate`` simulates the plant through its measurement chain (drive amplifier,
 # accelerometer, anti-aliasing filter); the same seed always gives the same record.
 import flexid
-from flexid.plots import (
+from flexid.report.plots import (
     plot_convergence,
     plot_correlations,
     plot_pole_zero,

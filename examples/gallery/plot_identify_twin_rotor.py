@@ -14,7 +14,7 @@ import numpy as np
 
 import flexid
 from flexid.envs.twin_rotor_physics import pitch_linear_mode
-from flexid.plots import plot_convergence, plot_pole_zero, plot_spectra, plot_time_response
+from flexid.report.plots import plot_convergence, plot_pole_zero, plot_spectra, plot_time_response
 
 data = flexid.generate("twin-rotor", preset="paper-twin-rotor", seed=0)
 fits = {

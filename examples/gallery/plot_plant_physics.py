@@ -20,9 +20,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import flexid
+from flexid.data.signals import bang_bang
 from flexid.envs import beam
 from flexid.envs.twin_rotor_physics import pitch_linear_mode
-from flexid.signals import bang_bang
 
 lab = beam.BeamParameters()
 ideal = beam.BeamParameters(**beam.IDEAL_SENSORS)

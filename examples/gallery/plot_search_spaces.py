@@ -18,7 +18,7 @@ under a flat penalty nothing tells it where the stable region lies.
 import matplotlib.pyplot as plt
 
 import flexid
-from flexid.plots import plot_convergence, plot_pole_zero
+from flexid.report.plots import plot_convergence, plot_pole_zero
 
 data = flexid.generate("manipulator", preset="paper-manipulator", seed=0, n_samples=1500)
 settings = {

@@ -40,7 +40,7 @@ Optimisers
     :func:`minimize`, :class:`Problem`, :class:`Budget`, :class:`AskTell`; writing one:
     :class:`Optimiser`, :class:`Param`, :func:`register`
 Modules
-    :mod:`flexid.signals`, :mod:`flexid.optimisers`, :mod:`flexid.envs`; errors from
+    :mod:`flexid.data.signals`, :mod:`flexid.optimisers`, :mod:`flexid.envs`; errors from
     :mod:`flexid.errors`
 
 The Gymnasium environments ``flexid/FlexibleManipulator-v0`` and ``flexid/TwinRotor-v0``
@@ -51,10 +51,12 @@ are registered once both flexid and Gymnasium are imported, in either order (see
 from __future__ import annotations
 
 import importlib
+import sys
 from collections.abc import Callable
 from typing import Any
 
 from ._gymnasium_hook import install as _install_gymnasium_hook
+from ._moved import FINDER as _MOVED_FINDER
 from .errors import (
     ActionError,
     BudgetError,
@@ -83,54 +85,54 @@ __version__ = "0.1.0"
 # public name -> module that defines it (imported on first use)
 _LAZY = {
     # data and models
-    "IOData": "data",
-    "load": "data",
-    "save": "data",
-    "generate": "datasets",
+    "IOData": "data.records",
+    "load": "data.records",
+    "save": "data.records",
+    "generate": "data.datasets",
     "ARX": "models.arx",
     "ARXStructure": "models.arx",
     "ARXCost": "costs.arx",
-    "is_stable": "stability",
-    "validate": "validation",
-    "ValidationReport": "validation",
+    "is_stable": "models.stability",
+    "validate": "validation.verdict",
+    "ValidationReport": "validation.verdict",
     "structure": "models.polynomial",
     "PolynomialStructure": "models.polynomial",
     "PolynomialModel": "models.polynomial",
     "PolynomialCost": "costs.polynomial",
-    "select": "selection",
-    "estimate_delay": "delay",
+    "select": "jobs.selection",
+    "estimate_delay": "fit.delay",
     # frequency responses
-    "frf": "frequency",
-    "FrequencyResponseEstimate": "frequency",
-    "frequency_agreement": "frequency",
+    "frf": "validation.frequency",
+    "FrequencyResponseEstimate": "validation.frequency",
+    "frequency_agreement": "validation.frequency",
     # grey-box models
     "GreyBoxModel": "models.greybox",
     "GreyParameter": "models.greybox",
     "GreyBoxCost": "costs.greybox",
     "greybox_model": "models.greybox_library",
     "register_greybox_model": "models.greybox_library",
-    "greyest": "greybox_fit",
-    "GreyBoxResult": "greybox_fit",
+    "greyest": "fit.greybox_fit",
+    "GreyBoxResult": "fit.greybox_fit",
     # references
-    "pem": "prediction_error",
-    "oe": "prediction_error",
-    "armax": "prediction_error",
-    "bj": "prediction_error",
-    "ReferenceResult": "reference",
-    "n4sid": "subspace",
-    "ssest": "statespace_fit",
+    "pem": "fit.prediction_error",
+    "oe": "fit.prediction_error",
+    "armax": "fit.prediction_error",
+    "bj": "fit.prediction_error",
+    "ReferenceResult": "fit.reference",
+    "n4sid": "fit.subspace",
+    "ssest": "fit.statespace_fit",
     "StateSpaceModel": "models.statespace",
     "StateSpaceStructure": "models.statespace",
     # identification (the function lives in a private module: no module shares its name)
-    "identify": "_identify",
-    "Identification": "_identification",
-    "SearchBox": "parametrisation",
-    "search_box": "estimation",
+    "identify": "jobs._identify",
+    "Identification": "jobs._identification",
+    "SearchBox": "fit.parametrisation",
+    "search_box": "fit.estimation",
     # comparison
-    "compare": "_compare",
-    "ComparisonResult": "_comparison_result",
-    "check_spec": "_compare",
-    "load_result": "_compare",
+    "compare": "jobs._compare",
+    "ComparisonResult": "jobs._comparison_result",
+    "check_spec": "jobs._compare",
+    "load_result": "jobs._compare",
     "ComparisonSpec": "config",
     "DataSpec": "config",
     "ModelSpec": "config",
@@ -203,7 +205,7 @@ def _register_notebook_figures() -> None:
 
     def drawer(kind: str) -> Callable[[Any], list[bytes]]:
         def draw(result: Any) -> list[bytes]:
-            from .plots import notebook_figures
+            from .report.plots import notebook_figures
 
             return notebook_figures(kind, result)
 
@@ -213,5 +215,7 @@ def _register_notebook_figures() -> None:
         _html.register_figures(kind, drawer(kind))
 
 
+if _MOVED_FINDER not in sys.meta_path:  # the public modules' import paths before the layers
+    sys.meta_path.append(_MOVED_FINDER)
 _install_gymnasium_hook()  # registers the environments once Gymnasium is imported
 _register_notebook_figures()

@@ -37,9 +37,9 @@ from .config import (
     VALIDATION_ALPHA,
     keyword,
 )
+from .costs.metrics import METRICS
+from .data.plants import PLANTS, all_presets
 from .errors import ConfigError, DataFileError, FlexidError, FlexidWarning
-from .metrics import METRICS
-from .plants import PLANTS, all_presets
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
 
@@ -268,7 +268,7 @@ def _bounds(text: str) -> Any:
 
 # ============================================================================ commands
 def _cmd_generate(args: argparse.Namespace) -> int:
-    from .datasets import generate
+    from .data.datasets import generate
 
     if args.out is None:
         raise ConfigError("give the file to write: -o/--out FILE (.csv or .npz)")
@@ -306,7 +306,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
-    from ._identify import identify
+    from .jobs._identify import identify
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.iterations, "--iterations")
@@ -365,7 +365,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     )
     unwritten = None
     if args.figures:
-        from .plots import identification_figures
+        from .report.plots import identification_figures
 
         try:
             paths = identification_figures(ident, args.figures)
@@ -396,7 +396,7 @@ def _optimiser_params(items: Sequence[str] | None) -> dict[str, Any]:
 def _identify_progress(args: argparse.Namespace):
     if args.json or args.no_progress or args.optimiser in REFERENCES or not sys.stderr.isatty():
         return None
-    from .progress import ProgressBar
+    from .jobs.progress import ProgressBar
 
     # a bar on a terminal only (checked above), and only for runs longer than a second
     bar = ProgressBar(args.budget, f"{args.optimiser}", unit="FE", delay=1.0)
@@ -446,8 +446,8 @@ def _add_alpha(p: argparse.ArgumentParser, config: bool = False) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from ._compare import check_spec, compare
     from .config import _check_run_timeout, command_specs
+    from .jobs._compare import check_spec, compare
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.runs, "--runs")
@@ -490,8 +490,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 f"({result.elapsed:.1f} s this time)"
             )
         if not args.no_figures:
-            from .plots import PlottingUnavailable, comparison_figures
-            from .report import figure_prefix
+            from .report.plots import PlottingUnavailable, comparison_figures
+            from .report.writer import figure_prefix
 
             figdir = Path(args.figures) if args.figures else store.parent
             prefix = figure_prefix(result)
@@ -537,8 +537,8 @@ def _add_detrend(parser: argparse.ArgumentParser) -> None:
 
 
 def _cmd_select(args: argparse.Namespace) -> int:
-    from .data import load
-    from .selection import select
+    from .data.records import load
+    from .jobs.selection import select
 
     if (args.file is None) == (args.plant is None):
         raise ConfigError("give a record file or --plant (a simulated record), not both")
@@ -546,7 +546,7 @@ def _cmd_select(args: argparse.Namespace) -> int:
     options = {k: v for k, v in (*given, ("dt", args.dt)) if v is not None}
     if args.plant is not None:
         from .config import default_spec
-        from .datasets import generate
+        from .data.datasets import generate
 
         builtin = default_spec(plant=args.plant)  # the built-in comparison's record
         data = generate(args.plant, preset=builtin.data.preset, seed=args.data_seed)
@@ -578,7 +578,7 @@ def _cmd_select(args: argparse.Namespace) -> int:
     )
     written = []
     if args.figure:
-        from .plots import _save, selection_bode, selection_figure, stabilisation_diagram
+        from .report.plots import _save, selection_bode, selection_figure, stabilisation_diagram
 
         written.append(selection_figure(result, args.figure))
         base = Path(args.figure)
@@ -655,13 +655,13 @@ def _greybox_name(args: argparse.Namespace) -> str | None:
 
 
 def _cmd_greybox(args: argparse.Namespace) -> int:
-    from ._identify import identify
+    from .jobs._identify import identify
 
     if (args.file is None) == (args.plant is None):
         raise ConfigError("give a record file or --plant (a simulated record), not both")
     model = _greybox_from_args(args, args.model)
     if args.plant is not None:
-        from .datasets import generate
+        from .data.datasets import generate
 
         if args.plant != "twin-rotor":
             raise ConfigError(
@@ -688,8 +688,8 @@ def _cmd_greybox(args: argparse.Namespace) -> int:
 
 
 def _cmd_frf(args: argparse.Namespace) -> int:
-    from .data import load
-    from .frequency import frf
+    from .data.records import load
+    from .validation.frequency import frf
 
     figure = Path(args.figure) if args.figure is not None else None
     if figure is not None:
@@ -711,8 +711,8 @@ def _cmd_frf(args: argparse.Namespace) -> int:
     if figure is not None:
         import io
 
-        from ._files import write_bytes
-        from .plots import _plt, plot_bode
+        from .data._files import write_bytes
+        from .report.plots import _plt, plot_bode
 
         fig = plot_bode(estimate, title=f"{Path(args.file).name}: frequency response")
         buffer = io.BytesIO()
@@ -729,13 +729,13 @@ def _cmd_frf(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from .report import write_report
+    from .report.writer import write_report
 
     outdir = (
         Path(args.out) if args.out else Path(args.store).with_suffix("").parent / "report"
     )
     if args.format in ("ioh", "ioh-info"):
-        from .report import export_ioh
+        from .report.writer import export_ioh
 
         layout = "json" if args.format == "ioh" else "info"
         folders = export_ioh(args.store, outdir, key=args.key, layout=layout)
@@ -784,7 +784,7 @@ def _list_optimisers(args: argparse.Namespace) -> None:
 
 
 def _list_signals(args: argparse.Namespace) -> None:
-    from .signals import describe_signals
+    from .data.signals import describe_signals
 
     print(describe_signals())
 
@@ -849,7 +849,7 @@ def _suite_of(args: argparse.Namespace) -> Any:
     """The suite (setting, records, subset, runs and budget) the options name."""
     from dataclasses import replace
 
-    from .suite import get_suite
+    from .jobs.suite import get_suite
 
     _check_positive(args.runs, "--runs")
     _check_positive(args.budget_per_dim, "--budget-per-dim")
@@ -862,7 +862,7 @@ def _suite_of(args: argparse.Namespace) -> Any:
 
 
 def _cmd_suite(args: argparse.Namespace) -> int:
-    from .suite import load_suite, run_suite
+    from .jobs.suite import load_suite, run_suite
 
     suite = _suite_of(args)
     store = Path(args.store) if args.store else _SUITE_STORE
@@ -907,7 +907,7 @@ def _write_suite_report(result: Any, out: Path, *, figures: bool, by: str) -> No
     import shutil
     import tempfile
 
-    from ._ioh import _replace_dir
+    from .jobs._ioh import _replace_dir
 
     if not result.results:
         raise ConfigError(f"no problem of {result.suite.label} has runs in the store")
@@ -929,7 +929,7 @@ def _write_suite_report(result: Any, out: Path, *, figures: bool, by: str) -> No
         (staged / "summary.txt").write_text(result.summary() + "\n", encoding="utf-8")
         result.export_ioh(staged / "ioh")
         if figures:
-            from .plots import PlottingUnavailable, suite_figure
+            from .report.plots import PlottingUnavailable, suite_figure
 
             try:
                 suite_figure(result, staged / "ecdf.png", by=by)
@@ -1058,7 +1058,7 @@ def _parameter_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-_COST_HELP = f"cost metric: {' | '.join(METRICS)} (default {METRICS[0]}; see flexid.metrics)"
+_COST_HELP = f"cost metric: {' | '.join(METRICS)} (default {METRICS[0]}; see flexid.costs.metrics)"
 
 
 def _compared() -> list[str]:

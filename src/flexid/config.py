@@ -123,7 +123,7 @@ LEAST_SQUARES = "ls"
 #: which is ``structure="oe"``); ``identify`` warns and runs ``"pem"``.
 OUTPUT_ERROR = "oe"
 #: The gradient reference of any structure's cost (Levenberg-Marquardt with analytic
-#: gradients, :func:`flexid.prediction_error.pem`): an ``optimiser`` name of ``identify``.
+#: gradients, :func:`flexid.fit.prediction_error.pem`): an ``optimiser`` name of ``identify``.
 PREDICTION_ERROR = "pem"
 #: Subspace identification of a state-space model (:func:`flexid.n4sid`): an ``optimiser``
 #: name of ``identify`` for ``structure="ss"``.
@@ -137,7 +137,7 @@ DEPRECATED_REFERENCES = {OUTPUT_ERROR: PREDICTION_ERROR}
 #: (least squares, Steiglitz-McBride, Hannan-Rissanen), in identify, compare and select alike,
 #: so one structure gives one model whichever job fits it.
 REFERENCE_STARTS = 4
-#: Starts of the grey-box reference (:func:`flexid.greybox_fit.greyest`).
+#: Starts of the grey-box reference (:func:`flexid.fit.greybox_fit.greyest`).
 GREYBOX_REFERENCE_STARTS = 3
 #: The named model structures (their orders: :data:`flexid.models.polynomial.STRUCTURES`).
 STRUCTURE_NAMES = ("arx", "armax", "oe", "bj")
@@ -148,7 +148,7 @@ GREYBOX = "greybox"
 #: its orders, ``order`` and ``modes``, in a :class:`ModelSpec`'s ``options``).
 STATE_SPACE = "ss"
 # Structure names of the model families registered beyond the built-in ones
-# (flexid.families.register_family adds theirs): a ModelSpec may name them.
+# (flexid.models.families.register_family adds theirs): a ModelSpec may name them.
 _REGISTERED_NAMES: set[str] = set()
 
 
@@ -165,7 +165,7 @@ def add_structure_names(names: Sequence[str]) -> None:
 #: MATLAB's ``resid`` and Ljung (System Identification, 2nd ed., sec. 16.6) use.
 CORRELATION_LAGS = 25
 #: Family-wise level of a validation verdict: the rate at which the residual tests together
-#: reject a true model (Holm's correction over the tests; see :mod:`flexid.diagnostics`).
+#: reject a true model (Holm's correction over the tests; see :mod:`flexid.validation.diagnostics`).
 VALIDATION_ALPHA = 0.05
 #: The guide's page on reading a validation verdict, named beside every FAIL.
 VALIDATION_GUIDE = "https://github.com/flexid/flexid/blob/main/docs/guide/validation.rst"
@@ -235,7 +235,7 @@ class DataSpec:
 
     Either ``plant`` (simulate; ``preset``, ``signal``, ``n_samples``, ``seed``,
     ``noise_std``, ``signal_options``, ``plant_params``, ``sensors`` as in
-    :func:`flexid.datasets.generate`) or ``file`` (a CSV/NPZ/DAT record; ``inputs``,
+    :func:`flexid.data.datasets.generate`) or ``file`` (a CSV/NPZ/DAT record; ``inputs``,
     ``outputs``, ``dt`` as in :func:`flexid.data.load`).  ``output`` picks the modelled
     output channel; ``split`` is the estimation share (or a sample index); ``detrend``
     removes the estimation means.
@@ -385,7 +385,7 @@ class ModelSpec:
         With ``structure = "greybox"``: parameter changes, ``name -> value`` (a new value)
         or ``name -> {"value": ..., "fixed": ..., "lower": ..., "upper": ...}``.
     options : dict
-        With the structure of a registered family (:func:`flexid.families.register_family`):
+        With the structure of a registered family (:func:`flexid.models.families.register_family`):
         its orders by name, as its ``structure`` method takes them (``{"n": 6, "pole":
         0.8}``); ``nk`` is passed on when it is not 1.
     """
@@ -537,7 +537,7 @@ class CostSpec:
     Attributes
     ----------
     metric : str
-        Error measure, a name of :data:`flexid.metrics.METRIC_TABLE`; ``"paper"`` (default)
+        Error measure, a name of :data:`flexid.costs.metrics.METRIC_TABLE`; ``"paper"`` (default)
         is ``weight * sqrt(SSE) / K``.
     predictor : {"one-step", "simulation"}
         Equation error (default) or output error.
@@ -549,7 +549,7 @@ class CostSpec:
     initial : {"auto", "estimate", "zero", "measured"}
         Initial-condition rule of the predictor (default ``"auto"``: ``"measured"`` for ARX,
         the paper's setting, and ``"estimate"`` for the other structures; see
-        :func:`flexid.estimation.resolve_initial`).
+        :func:`flexid.fit.estimation.resolve_initial`).
     """
 
     metric: str = "paper"
@@ -561,7 +561,7 @@ class CostSpec:
 
 @dataclass(frozen=True)
 class SearchSpec:
-    """How the search space is posed (see :func:`flexid.estimation.build_problem`).
+    """How the search space is posed (see :func:`flexid.fit.estimation.build_problem`).
 
     Attributes
     ----------
@@ -1573,7 +1573,7 @@ def default_spec(
     ----------
     plant : str
         A registered plant with a built-in comparison
-        (:attr:`flexid.plants.Plant.comparison`: its record and default model):
+        (:attr:`flexid.data.plants.Plant.comparison`: its record and default model):
         ``"manipulator"`` (the end-point acceleration, paper preset; by default output error
         OE(16,16,1), the structure that passes validation there) or ``"twin-rotor"`` (the
         pitch, vertical channel, paper preset; by default the paper's ARX(5,5,1)).
@@ -1627,7 +1627,7 @@ def default_spec(
     ConfigError
         For a plant without a built-in comparison.
     """
-    from .plants import get_plant
+    from .data.plants import get_plant
 
     built_in = get_plant(plant).comparison  # UnknownNameError for an unknown plant
     if not built_in:

@@ -16,7 +16,7 @@
     :class:`~flexid.costs.modal.ModalCost`: the modal state-space structure's simulation
     cost over every output, gains and initial state fitted for each candidate.
 
-The metrics a cost reports are :mod:`flexid.metrics`.
+The metrics a cost reports are :mod:`flexid.costs.metrics`.
 """
 
 from __future__ import annotations

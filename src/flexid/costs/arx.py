@@ -10,7 +10,7 @@ Two predictors:
   compiled batched recursion of :mod:`flexid.kernels` (or one ``lfilter`` per candidate
   without it; see :func:`simulate_population`); unstable candidates are never simulated.
 
-Metrics: those of :data:`flexid.metrics.METRIC_TABLE` (the paper's cost, eq. 5-6,
+Metrics: those of :data:`flexid.costs.metrics.METRIC_TABLE` (the paper's cost, eq. 5-6,
 ``w sqrt(SSE) / K``, plus a penalty when a pole has ``|p| >= 1``; RMSE, NRMSE, SSE, MSE).
 """
 
@@ -26,10 +26,10 @@ from .._validate import real
 from ..config import CostSpec
 from ..errors import DataError, UnknownNameError
 from ..kernels import ar_recursion, arx_recursion
-from ..metrics import METRICS, describe_cost, metric_from_sse
 from ..models.arx import ARXStructure, _io_arrays
 from ..models.polynomial import INITIAL_RULES
-from ..stability import is_stable, pole_radius_batched
+from ..models.stability import is_stable, pole_radius_batched
+from .metrics import METRICS, describe_cost, metric_from_sse
 
 __all__ = [
     "INITIAL",
@@ -163,7 +163,7 @@ class ErrorCost:
         The batched costs run each candidate in the direct form, which is fast and, for a
         lightly damped high-order candidate, can be far off the candidate's true cost (see
         :mod:`flexid.models.realisation`); a final model is rescored with this
-        (:func:`flexid._identify.rescored`).
+        (:func:`flexid.jobs._identify.rescored`).
 
         Parameters
         ----------
@@ -182,7 +182,7 @@ class ErrorCost:
         """The cost of an error of 1e-8 output standard deviations at every sample.
 
         Two routes to a cost that differ by less than this differ by rounding (a noise-free
-        record fitted exactly has a cost of that order); :func:`flexid._identify.rescored`
+        record fitted exactly has a cost of that order); :func:`flexid.jobs._identify.rescored`
         rescores only above it.
 
         Returns
@@ -614,7 +614,7 @@ class ARXCost(ErrorCost):
         Returns
         -------
         str
-            In plain words (:func:`flexid.metrics.describe_cost`), e.g. ``"1000 x the root
+            In plain words (:func:`flexid.costs.metrics.describe_cost`), e.g. ``"1000 x the root
             of the sum of squared one-step prediction errors of ARX(na=8, nb=8, nk=1),
             divided by their number (the paper's cost, eq. 5-6), over K = 997 samples; an
             unstable candidate costs the zero prediction's cost plus 1e+09"``.

@@ -135,7 +135,7 @@ def polynomial_cost(structure: PolynomialStructure, data: Any, **settings: Any) 
     -------
     PolynomialCost or MultiExperimentCost
     """
-    from ..data import is_records
+    from ..data.records import is_records
 
     if is_records(data):
         if len(data) == 1:

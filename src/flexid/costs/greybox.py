@@ -22,10 +22,10 @@ import numpy as np
 from .._validate import real
 from ..config import CostSpec
 from ..errors import DataError, UnknownNameError
-from ..metrics import describe_cost
 from ..models.greybox import GreyBoxModel
 from ..optimisers import Problem
 from .arx import METRICS, metric_from_sse, population
+from .metrics import describe_cost
 
 __all__ = ["GreyBoxCost", "record_for"]
 
@@ -58,7 +58,7 @@ def record_for(model: GreyBoxModel, data: Any, dt: float | None = None) -> tuple
         A channel the model reads that the record does not have (named), a pair with the
         wrong number of columns, non-finite samples, a missing sample time.
     """
-    from ..data import IOData
+    from ..data.records import IOData
 
     if isinstance(data, IOData):
         picked = []

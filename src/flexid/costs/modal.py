@@ -47,10 +47,10 @@ from typing import Any
 import numpy as np
 
 from .. import kernels
-from ..data import IOData
+from ..data.records import IOData
 from ..errors import DataError, ModelOrderError
-from ..metrics import metric_from_sse
 from ..models.statespace import StateSpaceModel, StateSpaceStructure
+from .metrics import metric_from_sse
 
 __all__ = ["ModalCost"]
 
@@ -85,7 +85,7 @@ class ModalCost:
         outputs.
     structure : StateSpaceStructure
     metric : str, optional
-        A metric of :mod:`flexid.metrics` (default ``"rmse"``).
+        A metric of :mod:`flexid.costs.metrics` (default ``"rmse"``).
     weight : float, optional
         ``w`` of the paper's metric.
     initial : {"estimate", "zero"}, optional

@@ -59,10 +59,10 @@ from .._validate import real
 from ..config import CostSpec
 from ..errors import ConfigError, DataError, UnknownNameError
 from ..kernels import ar_recursion, arx_recursion, initial_state_fit
-from ..metrics import describe_cost
 from ..models.polynomial import INITIAL_RULES, PolynomialStructure, _check_initial
-from ..stability import is_stable, pole_radius_batched
+from ..models.stability import is_stable, pole_radius_batched
 from .arx import METRICS, PENALTY_KINDS, PREDICTORS, ErrorCost, metric_from_sse, population
+from .metrics import describe_cost
 
 __all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows", "poly_mul_rows_reference"]
 

@@ -9,11 +9,11 @@
 
 A plant registered without an environment class of its own gets the generic
 :class:`~flexid.envs.plant_env.PlantEnv` (and :class:`~flexid.envs.plant_env.PlantVectorEnv`)
-built from its pure functions (:class:`flexid.plants.PlantFunctions`).
+built from its pure functions (:class:`flexid.data.plants.PlantFunctions`).
 
 Importing this module registers the environment of every plant in
-:data:`flexid.plants.PLANTS` (and imports Gymnasium); a plant registered later
-(:func:`flexid.plants.register_plant`) has its environment registered at once.  ``import
+:data:`flexid.data.plants.PLANTS` (and imports Gymnasium); a plant registered later
+(:func:`flexid.data.plants.register_plant`) has its environment registered at once.  ``import
 flexid`` does not import Gymnasium: it arranges for this module to be imported as soon as
 Gymnasium is (or at once if Gymnasium already is), so ``import flexid; import gymnasium;
 gymnasium.make(ID)`` works in either import order.  Gymnasium 1.x reads no plugin entry
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import gymnasium
 
-from ..plants import PLANTS, get_plant
+from ..data.plants import PLANTS, get_plant
 
 MANIPULATOR_ID = get_plant("manipulator").env_id
 TWIN_ROTOR_ID = get_plant("twin-rotor").env_id
@@ -38,7 +38,7 @@ _GENERIC_VECTOR_ENTRY_POINT = "flexid.envs.plant_env:PlantVectorEnv"
 
 
 def register_environments() -> None:
-    """Register the environment of every plant in :data:`flexid.plants.PLANTS` (idempotent).
+    """Register the environment of every plant in :data:`flexid.data.plants.PLANTS` (idempotent).
 
     A plant without an ``env_entry_point`` gets the generic
     :class:`~flexid.envs.plant_env.PlantEnv` when it gives a transition (its name is the

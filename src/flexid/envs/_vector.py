@@ -18,8 +18,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
 from flexid._validate import integer, positive_int
+from flexid.data.plants import Plant
 from flexid.errors import PlantParameterError
-from flexid.plants import Plant
 
 
 class BatchedVectorEnv(gymnasium.vector.VectorEnv):

@@ -25,7 +25,7 @@ model is cached per ``(params, dt)``.  The exact modal frequencies of the contin
 hub-beam (:func:`exact_frequencies`) are the validation reference for the finite-difference
 model (:func:`natural_frequencies`).
 
-The plant's pure functions (:class:`flexid.plants.PlantFunctions`) are :func:`step_states`
+The plant's pure functions (:class:`flexid.data.plants.PlantFunctions`) are :func:`step_states`
 (the exact discretisation of one sample, :class:`Stepper`'s step), :func:`outputs` and
 :func:`initial_state`; the environments step the same :class:`Stepper`.
 """

@@ -19,11 +19,11 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 
 from flexid._validate import real
+from flexid.data.plants import Plant, get_plant
 from flexid.envs import beam, sensors
 from flexid.envs._render import Canvas
 from flexid.envs._vector import BatchedVectorEnv
 from flexid.errors import ActionError, PlantParameterError, plain_number
-from flexid.plants import Plant, get_plant
 
 __all__ = ["OBSERVATION_NAMES", "PLANT", "FlexibleManipulatorEnv", "FlexibleManipulatorVectorEnv"]
 

@@ -1,7 +1,7 @@
 """The generic Gymnasium environment of a plant that gives its pure functions.
 
 A registered plant whose record gives a transition, an output and an initial state
-(:class:`flexid.plants.PlantFunctions`) and no ``env_entry_point`` gets :class:`PlantEnv` (and
+(:class:`flexid.data.plants.PlantFunctions`) and no ``env_entry_point`` gets :class:`PlantEnv` (and
 :class:`PlantVectorEnv` for ``gymnasium.make_vec``) under its ``env_id``: a thin shell that
 calls those functions and holds no equations, as Gymnasium's functional environments
 (``gymnasium.envs.phys2d``) are shells around one transition function.  The single
@@ -24,8 +24,8 @@ import numpy as np
 from gymnasium import spaces
 
 from .._validate import positive_real
+from ..data.plants import Plant, get_plant
 from ..errors import ActionError, PlantParameterError
-from ..plants import Plant, get_plant
 from ._vector import BatchedVectorEnv
 
 __all__ = ["PlantEnv", "PlantVectorEnv"]
@@ -101,14 +101,14 @@ class PlantEnv(gymnasium.Env):
     ----------
     plant : str or Plant
         The plant (its registry name, or its record); its record must give a transition
-        (:class:`flexid.plants.PlantFunctions`).
+        (:class:`flexid.data.plants.PlantFunctions`).
     render_mode : None
         The generic environment does not render.
     dt : float, optional
         Sample time [s], > 0; default the plant's ``dt``.
     sensors : {"lab", "ideal"}
         ``"ideal"`` switches the measurement chain off
-        (:meth:`flexid.plants.Plant.make_parameters`).
+        (:meth:`flexid.data.plants.Plant.make_parameters`).
     **parameters
         Fields of the plant's parameter dataclass that differ from its defaults.
 
@@ -120,11 +120,11 @@ class PlantEnv(gymnasium.Env):
     Notes
     -----
     Observation (float64, shape (n_y,)): the plant's outputs
-    (:attr:`~flexid.plants.Plant.output_names`, in its output units) at zero input, read
+    (:attr:`~flexid.data.plants.Plant.output_names`, in its output units) at zero input, read
     through its sensors (``measure``) with Gaussian noise of standard deviation
     ``noise_floor(params)`` drawn from the environment's generator.
 
-    Action (float64, shape (n_u,)): the inputs (:attr:`~flexid.plants.Plant.input_names`)
+    Action (float64, shape (n_u,)): the inputs (:attr:`~flexid.data.plants.Plant.input_names`)
     normalised to ``[-1, 1]`` over the plant's input limits, ``u = (low + high) / 2 + a (high
     - low) / 2``; finite out-of-range actions are clipped to the box, non-finite ones raise
     :class:`~flexid.errors.ActionError`.  The applied inputs are ``info["applied_input"]``.

@@ -20,8 +20,8 @@ import numpy as np
 from gymnasium import spaces
 
 from .._validate import positive_real, real
+from ..data.plants import Plant, get_plant
 from ..errors import ActionError, PlantParameterError, plain_number
-from ..plants import Plant, get_plant
 from . import sensors
 from ._vector import BatchedVectorEnv
 from .twin_rotor_physics import TwinRotorParameters

@@ -26,7 +26,7 @@ Notes
 axis.  :func:`step_states` (RK4 over one sample) and :func:`reference_trajectory` integrate
 it; they are the reference route.  With :func:`outputs`, :func:`initial_state` and
 :func:`input_limits`, :func:`step_states` is one of the plant's pure functions
-(:class:`flexid.plants.PlantFunctions`, its transition).  The faster routes that compute the
+(:class:`flexid.data.plants.PlantFunctions`, its transition).  The faster routes that compute the
 same RK4 samples, and that :func:`simulate` and the environments run, are in
 :mod:`flexid.envs.twin_rotor_steppers`; the tests hold them to :func:`step_states`.
 
@@ -448,7 +448,7 @@ def _rk4(x: np.ndarray, u: np.ndarray, p: TwinRotorParameters, dt: float, stages
 def step_states(x: np.ndarray, u: np.ndarray, p: TwinRotorParameters, dt: float) -> np.ndarray:
     """Reference route: advance a batch of states over one sample with the inputs held.
 
-    The plant's pure transition (:attr:`flexid.plants.PlantFunctions.transition`): the
+    The plant's pure transition (:attr:`flexid.data.plants.PlantFunctions.transition`): the
     steppers of :mod:`flexid.envs.twin_rotor_steppers` are held to it.
 
     Parameters

@@ -166,7 +166,8 @@ def compiled_available() -> bool:
 
 
 def schur_cohn_compiled(a: np.ndarray) -> np.ndarray:
-    """Compiled Schur-Cohn stability test (no checks; see :func:`flexid.stability.is_stable`).
+    """Compiled Schur-Cohn stability test (no checks; see
+    :func:`flexid.models.stability.is_stable`).
 
     Parameters
     ----------

@@ -21,8 +21,8 @@ from .._json import jsonable
 from .._table import wrapped
 from .._validate import integer, positive_real
 from ..errors import DataError, ModelOrderError, check_finite
-from ..stability import is_stable as _is_stable
-from ..stability import stability_words
+from .stability import is_stable as _is_stable
+from .stability import stability_words
 
 if TYPE_CHECKING:  # pragma: no cover - python-control and scipy.signal load on first use
     import control
@@ -45,7 +45,7 @@ def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
 
 def _io_arrays(u: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
     """``u`` (N, n_u) and ``y`` (N,) as checked float arrays; ``u`` may be an IOData."""
-    from ..data import IOData
+    from ..data.records import IOData
 
     if isinstance(u, IOData):
         if y is not None:
@@ -344,7 +344,7 @@ class ARXStructure:
             With ``param_std`` from ``sigma^2 (Phi' Phi)^-1`` and
             ``noise_variance = SSE / (K - n_params)``.
         """
-        from ..data import IOData
+        from ..data.records import IOData
 
         records = u if isinstance(u, list) and y is None else [u if y is None else (u, y)]
         if isinstance(records[0], IOData):
@@ -511,7 +511,7 @@ class ARX(NamedChannels, PlantResponse):
         """
         from scipy import signal
 
-        from ..data import IOData
+        from ..data.records import IOData
 
         if isinstance(u, IOData):
             y_meas = u.y[:, 0] if u.n_outputs == 1 else None

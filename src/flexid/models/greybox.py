@@ -32,7 +32,7 @@ semantics; :meth:`GreyBoxModel.simulate` uses it when flexid's compiled kernels 
 (:mod:`flexid.kernels`), and :meth:`GreyBoxModel.simulate_reference` is the NumPy route the
 tests hold it to.  The twin rotor's models are in :mod:`flexid.models.greybox_library`; the cost an
 optimiser minimises is :class:`flexid.costs.greybox.GreyBoxCost`, the gradient reference
-:func:`flexid.greybox_fit.greyest`.
+:func:`flexid.fit.greybox_fit.greyest`.
 """
 
 from __future__ import annotations

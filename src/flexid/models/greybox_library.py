@@ -16,7 +16,7 @@ rotor state ``tau1`` has no unit of its own (``tau1' = (k1 u1 - T10 tau1) / T11`
 shows only as ``T11/T10``.  So ``I1``, ``k1`` and ``T10`` are fixed at the manual's values
 and the other pitch parameters are estimated relative to them; the same holds for ``I2``,
 ``k2`` and ``T20`` of yaw.  Freeing one of them makes the problem singular, which
-:func:`flexid.greybox_fit.greyest` reports.
+:func:`flexid.fit.greybox_fit.greyest` reports.
 """
 
 from __future__ import annotations
@@ -34,10 +34,10 @@ import numpy as np
 
 from .. import kernels
 from .._validate import checked_keywords
+from ..data.plants import get_plant
 from ..envs import twin_rotor_physics as trs
 from ..envs import twin_rotor_steppers
 from ..errors import ConfigError, FlexidError, UnknownKeywordError
-from ..plants import get_plant
 from .greybox import GreyBoxModel, GreyParameter, ParameterSet
 
 __all__ = [

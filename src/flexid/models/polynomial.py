@@ -67,7 +67,6 @@ from .._table import wrapped
 from .._validate import checked_keywords, integer, positive_real
 from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
-from ..stability import stability_words
 from .arx import (
     ARX,
     ARXStructure,
@@ -77,6 +76,7 @@ from .arx import (
     channel_names,
 )
 from .realisation import Path, accurate_roots, run_paths
+from .stability import stability_words
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
     import control
@@ -742,7 +742,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         return den, num_y, nums_u
 
     def _signals(self, u: Any, y: Any, need_y: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        from ..data import IOData
+        from ..data.records import IOData
 
         if isinstance(u, IOData):
             if y is not None:
@@ -1008,14 +1008,14 @@ class PolynomialModel(NamedChannels, PlantResponse):
     @property
     def is_stable(self) -> bool:
         """True if every pole of the plant (``A`` and every ``F_j``) is inside the unit circle."""
-        from ..stability import is_stable
+        from .stability import is_stable
 
         return all(bool(is_stable(p[None, 1:])[0]) for p in (self.a, *self.f) if p.size > 1)
 
     @property
     def predictor_stable(self) -> bool:
         """True if the one-step predictor is stable: ``C`` and every ``F_j`` inside the circle."""
-        from ..stability import is_stable
+        from .stability import is_stable
 
         return all(bool(is_stable(p[None, 1:])[0]) for p in (self.c, *self.f) if p.size > 1)
 
