@@ -34,13 +34,13 @@ def record():
 
 @pytest.fixture
 def restore_registry():
-    from flexid import config
+    from flexid.models import vocabulary
 
-    before, names = list(families._FAMILIES), set(config._REGISTERED_NAMES)
+    before, names = list(families._FAMILIES), set(vocabulary._REGISTERED_NAMES)
     yield
     families._FAMILIES[:] = before
-    config._REGISTERED_NAMES.clear()
-    config._REGISTERED_NAMES.update(names)
+    vocabulary._REGISTERED_NAMES.clear()
+    vocabulary._REGISTERED_NAMES.update(names)
 
 
 def builtin_objects():

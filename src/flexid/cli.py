@@ -22,7 +22,11 @@ from typing import Any, NoReturn
 from . import __version__
 from ._table import wrapped
 from ._validate import integer
-from .config import (
+from .costs.metrics import METRICS
+from .data.plants import PLANTS, all_presets
+from .errors import ConfigError, DataFileError, FlexidError, FlexidWarning
+from .jobs.specs import keyword
+from .models.vocabulary import (
     COMPARE_BUDGET,
     COMPARE_RUNS,
     DEFAULT_OPTIMISERS,
@@ -35,11 +39,7 @@ from .config import (
     STRUCTURE_NAMES,
     SUBSPACE,
     VALIDATION_ALPHA,
-    keyword,
 )
-from .costs.metrics import METRICS
-from .data.plants import PLANTS, all_presets
-from .errors import ConfigError, DataFileError, FlexidError, FlexidWarning
 
 __all__ = ["DEFAULT_OUT", "build_parser", "main"]
 
@@ -446,8 +446,9 @@ def _add_alpha(p: argparse.ArgumentParser, config: bool = False) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from .config import _check_run_timeout, command_specs
     from .jobs._compare import check_spec, compare
+    from .jobs.config_file import command_specs
+    from .jobs.specs import _check_run_timeout
 
     _check_positive(args.budget, "--budget")
     _check_positive(args.runs, "--runs")
@@ -545,8 +546,8 @@ def _cmd_select(args: argparse.Namespace) -> int:
     given = (("inputs", _columns(args.inputs)), ("outputs", _columns(args.outputs)))
     options = {k: v for k, v in (*given, ("dt", args.dt)) if v is not None}
     if args.plant is not None:
-        from .config import default_spec
         from .data.datasets import generate
+        from .jobs.specs import default_spec
 
         builtin = default_spec(plant=args.plant)  # the built-in comparison's record
         data = generate(args.plant, preset=builtin.data.preset, seed=args.data_seed)

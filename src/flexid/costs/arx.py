@@ -23,11 +23,11 @@ from scipy import linalg
 
 from .. import kernels
 from .._validate import real
-from ..config import CostSpec
 from ..errors import DataError, UnknownNameError
 from ..kernels import ar_recursion, arx_recursion
 from ..models.arx import ARXStructure, _io_arrays
 from ..models.polynomial import INITIAL_RULES
+from ..models.specs import CostSpec
 from ..models.stability import is_stable, pole_radius_batched
 from .metrics import METRICS, describe_cost, metric_from_sse
 

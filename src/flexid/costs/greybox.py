@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from .._validate import real
-from ..config import CostSpec
 from ..errors import DataError, UnknownNameError
 from ..models.greybox import GreyBoxModel
+from ..models.specs import CostSpec
 from ..optimisers import Problem
 from .arx import METRICS, metric_from_sse, population
 from .metrics import describe_cost

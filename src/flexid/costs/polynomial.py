@@ -56,10 +56,10 @@ from scipy import linalg
 
 from .. import kernels
 from .._validate import real
-from ..config import CostSpec
 from ..errors import ConfigError, DataError, UnknownNameError
 from ..kernels import ar_recursion, arx_recursion, initial_state_fit
 from ..models.polynomial import INITIAL_RULES, PolynomialStructure, _check_initial
+from ..models.specs import CostSpec
 from ..models.stability import is_stable, pole_radius_batched
 from .arx import METRICS, PENALTY_KINDS, PREDICTORS, ErrorCost, metric_from_sse, population
 from .metrics import describe_cost

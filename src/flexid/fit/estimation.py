@@ -20,7 +20,6 @@ import numpy as np
 from scipy import linalg
 
 from .._validate import checked_keywords, is_integer, positive_real
-from ..config import REFERENCE_STARTS, CostSpec, SearchSpec, auto_initial
 from ..costs.arx import ARXCost
 from ..data.records import IOData
 from ..errors import (
@@ -33,7 +32,9 @@ from ..errors import (
 from ..models.arx import ARXStructure
 from ..models.families import family_named, family_of
 from ..models.polynomial import PolynomialStructure
+from ..models.specs import CostSpec, SearchSpec
 from ..models.stability import is_stable
+from ..models.vocabulary import REFERENCE_STARTS, auto_initial
 from ..optimisers import Problem
 from .parametrisation import PARAMETRISATIONS, Parametrisation, SearchBox
 

@@ -23,10 +23,11 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from ..config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
 from ..costs.greybox import GreyBoxCost
 from ..errors import ConfigError
 from ..models.greybox import GreyBoxModel
+from ..models.specs import CostSpec, SearchSpec
+from ..models.vocabulary import GREYBOX_REFERENCE_STARTS
 from ..optimisers import Problem
 from .parametrisation import SearchBox
 from .reference import StartOrReference

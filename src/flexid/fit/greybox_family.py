@@ -12,13 +12,14 @@ from typing import Any
 
 import numpy as np
 
-from ..config import GREYBOX_REFERENCE_STARTS, CostSpec, SearchSpec
 from ..costs.greybox import record_for
 from ..data.records import IOData
 from ..errors import ConfigError, DataError
 from ..models.families import Family
 from ..models.greybox import GreyBoxModel, ParameterSet
 from ..models.greybox_library import greybox_model
+from ..models.specs import CostSpec, SearchSpec
+from ..models.vocabulary import GREYBOX_REFERENCE_STARTS
 from ..validation.diagnostics import _check_max_lag
 from ..validation.verdict import (
     GREYBOX_ESTIMATED_RULE,

@@ -47,10 +47,10 @@ from typing import Any
 import numpy as np
 
 from .._validate import checked_keywords, integer, real
-from ..config import GREYBOX_REFERENCE_STARTS
 from ..costs.greybox import GreyBoxCost
 from ..errors import ConfigError
 from ..models.greybox import GreyBoxModel
+from ..models.vocabulary import GREYBOX_REFERENCE_STARTS
 from ..validation.diagnostics import fit_percent
 from .reference import ReferenceResult, ReferenceRun, levenberg_marquardt
 

@@ -59,7 +59,6 @@ from typing import Any
 import numpy as np
 
 from .._validate import integer, positive_int, real
-from ..config import REFERENCE_STARTS
 from ..costs.arx import ARXCost
 from ..errors import ConfigError, DataError
 from ..kernels import ar_recursion
@@ -72,6 +71,7 @@ from ..models.stability import (
     random_poles,
     within_radius,
 )
+from ..models.vocabulary import REFERENCE_STARTS
 from .reference import (
     CAP_TOLERANCE,
     PULLED_TO,

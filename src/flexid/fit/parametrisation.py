@@ -37,10 +37,10 @@ from typing import Any
 import numpy as np
 
 from .._validate import integer, real
-from ..config import REFLECTION_CAP
 from ..errors import ConfigError, DataError, UnknownNameError
 from ..models.arx import ARXStructure
 from ..models.stability import is_stable, poles_batched, reflection_coefficients
+from ..models.vocabulary import REFLECTION_CAP
 
 __all__ = [
     "PARAMETRISATIONS",

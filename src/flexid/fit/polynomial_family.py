@@ -16,14 +16,6 @@ from typing import Any
 import numpy as np
 
 from .._validate import is_integer
-from ..config import (
-    DEPRECATED_REFERENCES,
-    LEAST_SQUARES,
-    PREDICTION_ERROR,
-    REFERENCE_STARTS,
-    CostSpec,
-    SearchSpec,
-)
 from ..costs.arx import ARXCost
 from ..data.records import IOData, joined
 from ..errors import (
@@ -38,6 +30,13 @@ from ..models.arx import ARX, ARXStructure
 from ..models.families import Family, ReferenceFit
 from ..models.polynomial import STRUCTURES, PolynomialModel, PolynomialStructure
 from ..models.polynomial import structure as _named_structure
+from ..models.specs import CostSpec, SearchSpec
+from ..models.vocabulary import (
+    DEPRECATED_REFERENCES,
+    LEAST_SQUARES,
+    PREDICTION_ERROR,
+    REFERENCE_STARTS,
+)
 from ..optimisers import Problem
 from ..validation.diagnostics import _check_max_lag
 from ..validation.portmanteau import ParameterEffect, estimation_root

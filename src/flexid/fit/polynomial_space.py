@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from ..config import REFLECTION_CAP
 from ..errors import ConfigError
 from ..models.arx import ARXStructure
 from ..models.polynomial import PolynomialStructure
+from ..models.vocabulary import REFLECTION_CAP
 from .parametrisation import Parametrisation, make_parametrisation
 
 __all__ = ["PolynomialSpace"]

@@ -118,7 +118,6 @@ import numpy as np
 from scipy import linalg, signal
 
 from .._validate import checked_keywords, integer, real
-from ..config import REFERENCE_STARTS
 from ..costs.polynomial import orthogonal_numerators
 from ..errors import ConfigError, DataError
 from ..models.arx import _io_arrays
@@ -132,6 +131,7 @@ from ..models.stability import (
     random_poles,
     within_radius,
 )
+from ..models.vocabulary import REFERENCE_STARTS
 from .output_error import _SM_ITERATIONS
 from .reference import (
     CAP_TOLERANCE,

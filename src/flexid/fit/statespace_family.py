@@ -21,11 +21,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..config import CostSpec, SearchSpec
 from ..costs.modal import ModalCost
 from ..data.records import IOData
 from ..errors import ConfigError, DataError, ModelOrderError
 from ..models.families import Family, ReferenceFit
+from ..models.specs import CostSpec, SearchSpec
 from ..models.statespace import StateSpaceModel, StateSpaceStructure, state_sequence
 from ..optimisers import Problem
 from ..validation.verdict import ValidationReport, residual_report

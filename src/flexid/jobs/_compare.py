@@ -43,15 +43,16 @@ import numpy as np
 
 from .. import kernels
 from .._validate import checked_keywords, positive_int
-from ..config import GREYBOX, LEAST_SQUARES, ComparisonSpec, OptimiserSpec, _check_run_timeout
 from ..data.records import IOData, prepare_data, split_parts
 from ..errors import ConfigError, ModelOrderError
 from ..fit.estimation import build_problem, check_search, structure_of
 from ..models.families import family_named, family_of
+from ..models.vocabulary import GREYBOX, LEAST_SQUARES
 from ..optimisers import Budget, get, minimize
 from ..optimisers.registry import is_trusted
 from ..validation.verdict import between_outputs, joint_tests
 from ._comparison_result import ComparisonResult, _f
+from .specs import ComparisonSpec, OptimiserSpec, _check_run_timeout
 from .store import ResultStore
 
 __all__ = [

@@ -17,10 +17,11 @@ import numpy as np
 
 from .._json import jsonable
 from .._table import LINE_WIDTH, labelled, text_table, wrapped
-from ..config import GREYBOX, LEAST_SQUARES, VALIDATION_GUIDE, ComparisonSpec
 from ..errors import StoreError
 from ..fit.estimation import choose_reference
+from ..models.vocabulary import GREYBOX, LEAST_SQUARES, VALIDATION_GUIDE
 from ..validation.diagnostics import format_fit as _fit
+from .specs import ComparisonSpec
 from .statistics import rank_sum_against_best, summarise
 
 __all__ = ["ComparisonResult"]

@@ -13,12 +13,13 @@ from typing import Any
 
 from .._json import jsonable
 from .._table import labelled, wrapped
-from ..config import VALIDATION_GUIDE, SearchSpec
 from ..costs.arx import ARXCost
 from ..data.records import IOData
 from ..fit.parametrisation import SearchBox
 from ..models.arx import ARX
 from ..models.families import family_of
+from ..models.specs import SearchSpec
+from ..models.vocabulary import VALIDATION_GUIDE
 from ..optimisers import History
 from ..validation.diagnostics import format_fit
 from ..validation.frequency import mode_table_text

@@ -20,18 +20,6 @@ from typing import Any
 import numpy as np
 
 from .._validate import checked_keywords, integer
-from ..config import (
-    CORRELATION_LAGS,
-    IDENTIFY_BUDGET,
-    KEYWORDS,
-    PREDICTION_ERROR,
-    REFERENCES,
-    VALIDATION_ALPHA,
-    CostSpec,
-    SearchSpec,
-    current_reference,
-    specs_from_keywords,
-)
 from ..data.plants import PLANTS, get_plant
 from ..data.records import IOData, is_records, joined, prepare_data
 from ..errors import BudgetError, ConfigError, DataError, FlexidError, UnknownNameError
@@ -41,13 +29,23 @@ from ..fit.greybox_family import greybox_of
 from ..models.families import family_named, family_of
 from ..models.greybox import GreyBoxModel
 from ..models.polynomial import PolynomialStructure, _check_initial
+from ..models.specs import CostSpec, SearchSpec
 from ..models.statespace import StateSpaceStructure
+from ..models.vocabulary import (
+    CORRELATION_LAGS,
+    IDENTIFY_BUDGET,
+    PREDICTION_ERROR,
+    REFERENCES,
+    VALIDATION_ALPHA,
+    current_reference,
+)
 from ..optimisers import Budget, minimize
 from ..validation.diagnostics import check_level
 from ..validation.frequency import frf, mode_table
 from ..validation.verdict import between_outputs, validate
 from ._identification import Identification, data_info, timings
 from ._identify_greybox import identify_greybox
+from .specs import KEYWORDS, specs_from_keywords
 
 __all__ = ["Identification", "identify"]
 

@@ -16,22 +16,18 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from .._json import jsonable
-from ..config import (
-    GREYBOX_REFERENCE_STARTS,
-    VALIDATION_ALPHA,
-    CostSpec,
-    SearchSpec,
-    specs_from_keywords,
-)
 from ..data.records import ESTIMATION_SHARE, IOData, detrend_kind, detrend_pair, load
 from ..errors import ConfigError, DataError
 from ..fit.estimation import build_problem
 from ..fit.greybox_estimation import START_NAME
 from ..models.greybox import GreyBoxModel
+from ..models.specs import CostSpec, SearchSpec
+from ..models.vocabulary import GREYBOX_REFERENCE_STARTS, VALIDATION_ALPHA
 from ..optimisers import Budget, minimize
 from ..validation.diagnostics import format_fit
 from ..validation.verdict import ValidationReport, validate
 from ._identification import Identification, _indent, data_info, timings
+from .specs import specs_from_keywords
 
 __all__ = ["GreyBoxIdentification", "identify_greybox"]
 
@@ -280,7 +276,7 @@ def identify_greybox(
     detrend: bool | str | None = None,
 ) -> GreyBoxIdentification:
     """:func:`flexid.identify` for a grey-box model (called by it; see its parameters)."""
-    from ..config import LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR
+    from ..models.vocabulary import LEAST_SQUARES, OUTPUT_ERROR, PREDICTION_ERROR
 
     t_start = time.perf_counter()
     if optimiser == LEAST_SQUARES:

@@ -80,7 +80,6 @@ from scipy import linalg
 from .._json import jsonable
 from .._table import LINE_WIDTH, labelled, text_table, wrapped
 from .._validate import checked_keywords, integer, real
-from ..config import CORRELATION_LAGS, STATE_SPACE, VALIDATION_ALPHA, VALIDATION_GUIDE
 from ..errors import (
     ConfigError,
     DataError,
@@ -97,6 +96,7 @@ from ..models.polynomial import (
     _check_initial,
     structure,
 )
+from ..models.vocabulary import CORRELATION_LAGS, STATE_SPACE, VALIDATION_ALPHA, VALIDATION_GUIDE
 from ..validation.diagnostics import check_level, format_fit
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -44,17 +44,12 @@ from typing import Any
 import numpy as np
 
 from .._validate import checked_keywords, positive_int
-from ..config import (
-    LEAST_SQUARES,
-    ComparisonSpec,
-    CostSpec,
-    DataSpec,
-    ModelSpec,
-    OptimiserSpec,
-)
 from ..errors import ConfigError, DataError, StoreError, UnknownNameError
+from ..models.specs import CostSpec, DataSpec, ModelSpec
+from ..models.vocabulary import LEAST_SQUARES
 from ._compare import _checked_context, _compare_contexts
 from ._comparison_result import ComparisonResult
+from .specs import ComparisonSpec, OptimiserSpec
 from .statistics import fe_to_target
 from .store import ResultStore
 

@@ -38,8 +38,9 @@ import importlib
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from ..config import CostSpec, SearchSpec, add_structure_names
 from ..errors import ConfigError, ModelOrderError, UnknownNameError
+from .specs import CostSpec, SearchSpec
+from .vocabulary import add_structure_names
 
 __all__ = [
     "Family",

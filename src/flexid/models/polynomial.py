@@ -65,7 +65,6 @@ from scipy import linalg, signal
 from .._json import jsonable
 from .._table import wrapped
 from .._validate import checked_keywords, integer, positive_real
-from ..config import STRUCTURE_NAMES
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
 from .arx import (
     ARX,
@@ -77,6 +76,7 @@ from .arx import (
 )
 from .realisation import Path, accurate_roots, run_paths
 from .stability import stability_words
+from .vocabulary import STRUCTURE_NAMES
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
     import control

@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from .._html import escape, table
-from ..config import LEAST_SQUARES
 from ..data._files import write_files
 from ..errors import ConfigError, StoreError, StoreWarning
 from ..jobs._compare import load_result
@@ -35,6 +34,7 @@ from ..jobs._ioh import (
     export_ioh,
 )
 from ..jobs.store import ResultStore
+from ..models.vocabulary import LEAST_SQUARES
 
 __all__ = [
     "IOH_LAYOUTS",

@@ -83,8 +83,8 @@ from scipy import fft as sfft
 from scipy import signal, stats
 
 from .._validate import integer, level, positive_int, positive_real
-from ..config import CORRELATION_LAGS, VALIDATION_ALPHA
 from ..errors import DataError, FlexidError, check_finite
+from ..models.vocabulary import CORRELATION_LAGS, VALIDATION_ALPHA
 from .portmanteau import KNOWN, ParameterEffect, _unit, describe, holm, portmanteau
 
 __all__ = [

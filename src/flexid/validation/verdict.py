@@ -31,12 +31,12 @@ import numpy as np
 from .._json import jsonable
 from .._table import LINE_WIDTH, wrapped
 from .._validate import checked_keywords, positive_real
-from ..config import CORRELATION_LAGS, VALIDATION_ALPHA, VALIDATION_GUIDE
 from ..data.records import IOData
 from ..errors import DataError, check_finite
 from ..models.families import family_of
 from ..models.polynomial import INITIAL_RULES, _check_initial
 from ..models.stability import stability_words
+from ..models.vocabulary import CORRELATION_LAGS, VALIDATION_ALPHA, VALIDATION_GUIDE
 from .diagnostics import (
     CorrelationTest,
     _p_text,
