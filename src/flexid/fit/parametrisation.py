@@ -43,6 +43,7 @@ from ..models.stability import is_stable, poles_batched, reflection_coefficients
 from ..models.vocabulary import REFLECTION_CAP
 
 __all__ = [
+    "BOX_RADIUS",
     "PARAMETRISATIONS",
     "CoefficientParametrisation",
     "Parametrisation",
@@ -53,6 +54,13 @@ __all__ = [
 ]
 
 PARAMETRISATIONS: tuple[str, ...] = ("coefficients", "poles", "reflection")
+
+#: Default largest pole radius of a pole box built directly rather than from a
+#: :class:`~flexid.config.SearchSpec` (whose cap is :data:`~flexid.config.POLE_RADIUS_CAP`):
+#: the box's corners, where bound-clipping optimisers land, stack poles at this radius, and
+#: in float64 they stay stable up to ``na = 4`` here, against ``na = 2`` at 0.9999 (a quarter
+#: of the corners unstable from ``na = 3``; see :class:`PoleParametrisation`).
+BOX_RADIUS = 0.999
 
 
 # --------------------------------------------------------------------------- helpers
@@ -439,8 +447,8 @@ class PoleParametrisation(Parametrisation):
     structure : ARXStructure
     b_lower, b_upper : float or array_like, shape (n_b,)
     r_max : float, optional
-        Largest pole radius in the box, in (0, 1) (default 0.999): every image is stable
-        with margin ``1 - r_max``.
+        Largest pole radius in the box, in (0, 1) (default :data:`BOX_RADIUS`): every image is
+        stable with margin ``1 - r_max``.
     real_pairs : int, optional
         Number of pole pairs parametrised as two real poles, ``0 <= real_pairs <= na // 2``
         (default 0).
@@ -454,7 +462,7 @@ class PoleParametrisation(Parametrisation):
         *,
         b_lower: Any,
         b_upper: Any,
-        r_max: float = 0.999,
+        r_max: float = BOX_RADIUS,
         real_pairs: int = 0,
     ) -> None:
         self.r_max = _open_unit(r_max, "r_max")
@@ -699,7 +707,7 @@ def make_parametrisation(
     b_upper: Any,
     a_lower: Any = None,
     a_upper: Any = None,
-    r_max: float = 0.999,
+    r_max: float = BOX_RADIUS,
     real_pairs: int = 0,
     k_max: float = REFLECTION_CAP,
 ) -> Parametrisation:

@@ -21,7 +21,7 @@ from ..errors import ConfigError
 from ..models.arx import ARXStructure
 from ..models.polynomial import PolynomialStructure
 from ..models.vocabulary import REFLECTION_CAP
-from .parametrisation import Parametrisation, make_parametrisation
+from .parametrisation import BOX_RADIUS, Parametrisation, make_parametrisation
 
 __all__ = ["PolynomialSpace"]
 
@@ -58,7 +58,7 @@ class PolynomialSpace:
         *,
         b_lower: Any = None,
         b_upper: Any = None,
-        r_max: float = 0.999,
+        r_max: float = BOX_RADIUS,
         real_pairs: int = 0,
         k_max: float = REFLECTION_CAP,
     ) -> None:
