@@ -57,6 +57,7 @@ from typing import Any
 
 from ._gymnasium_hook import install as _install_gymnasium_hook
 from ._moved import FINDER as _MOVED_FINDER
+from ._version import __version__
 from .errors import (
     ActionError,
     BudgetError,
@@ -79,8 +80,6 @@ from .errors import (
     UnknownNameError,
     UnknownOptimiserError,
 )
-
-__version__ = "0.1.0"
 
 # public name -> module that defines it (imported on first use)
 _LAZY = {

@@ -19,9 +19,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from . import __version__
 from ._table import wrapped
 from ._validate import integer
+from ._version import __version__
 from .costs.metrics import METRICS
 from .data.plants import PLANTS, all_presets
 from .errors import ConfigError, DataFileError, FlexidError, FlexidWarning

@@ -204,7 +204,7 @@ def generate(
         u = u[:, excited]
         input_names = [input_names[i] for i in excited]
         input_units = [input_units[i] for i in excited]
-    from .. import __version__
+    from .._version import __version__
 
     metadata = {
         "plant": plant,

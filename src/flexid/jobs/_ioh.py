@@ -336,7 +336,7 @@ def _algorithm_info(result: ComparisonResult, label: str) -> str:
 
 
 def _attributes(result: ComparisonResult) -> list[tuple[str, str]]:
-    from .. import __version__
+    from .._version import __version__
 
     spec = result.spec
     return [
