@@ -42,98 +42,23 @@ Example (``experiments/paper-manipulator.toml`` is a complete one)::
 
 from __future__ import annotations
 
-from .jobs.config_file import (
-    command_specs,
-    load_config,
-    spec_from_mapping,
-)
-from .jobs.config_schema import (
-    CONFIG_SCHEMA,
-    ConfigKey,
-    check_config,
-)
-from .jobs.specs import (
-    KEYWORDS,
-    ComparisonSpec,
-    Keyword,
-    OptimiserSpec,
-    default_spec,
-    keyword,
-    specs_from_keywords,
-    with_optimiser_params,
-)
-from .models.specs import (
-    PAPER_SEARCH,
-    CostSpec,
-    DataSpec,
-    ModelSpec,
-    SearchSpec,
-)
-from .models.vocabulary import (
-    COMPARE_BUDGET,
-    COMPARE_RUNS,
-    CORRELATION_LAGS,
-    DEFAULT_OPTIMISERS,
-    DEPRECATED_REFERENCES,
-    GREYBOX,
-    IDENTIFY_BUDGET,
-    LEAST_SQUARES,
-    OUTPUT_ERROR,
-    POLE_RADIUS_CAP,
-    PREDICTION_ERROR,
-    REFERENCES,
-    REFLECTION_CAP,
-    SCHEDULE,
-    STATE_SPACE,
-    STRUCTURE_NAMES,
-    SUBSPACE,
-    VALIDATION_ALPHA,
-    VALIDATION_GUIDE,
-    add_structure_names,
-    auto_initial,
-    current_reference,
-)
+from .jobs import config_file as _jobs_config_file
+from .jobs import config_schema as _jobs_config_schema
+from .jobs import specs as _jobs_specs
 
-__all__ = [
-    "COMPARE_BUDGET",
-    "COMPARE_RUNS",
-    "CONFIG_SCHEMA",
-    "CORRELATION_LAGS",
-    "DEFAULT_OPTIMISERS",
-    "DEPRECATED_REFERENCES",
-    "GREYBOX",
-    "IDENTIFY_BUDGET",
-    "KEYWORDS",
-    "LEAST_SQUARES",
-    "OUTPUT_ERROR",
-    "PAPER_SEARCH",
-    "POLE_RADIUS_CAP",
-    "PREDICTION_ERROR",
-    "REFERENCES",
-    "REFLECTION_CAP",
-    "SCHEDULE",
-    "STATE_SPACE",
-    "STRUCTURE_NAMES",
-    "SUBSPACE",
-    "VALIDATION_ALPHA",
-    "VALIDATION_GUIDE",
-    "ComparisonSpec",
-    "ConfigKey",
-    "CostSpec",
-    "DataSpec",
-    "Keyword",
-    "ModelSpec",
-    "OptimiserSpec",
-    "SearchSpec",
-    "add_structure_names",
-    "auto_initial",
-    "check_config",
-    "command_specs",
-    "current_reference",
-    "default_spec",
-    "keyword",
-    "load_config",
-    "spec_from_mapping",
-    "specs_from_keywords",
-    "with_optimiser_params",
-]
+# every name each module lists in its __all__: the pieces live in their layers
+from .jobs.config_file import *  # noqa: F403
+from .jobs.config_schema import *  # noqa: F403
+from .jobs.specs import *  # noqa: F403
+from .models import specs as _models_specs
+from .models import vocabulary as _models_vocabulary
+from .models.specs import *  # noqa: F403
+from .models.vocabulary import *  # noqa: F403
+
+__all__ = sorted([
+    *_jobs_config_file.__all__,
+    *_jobs_config_schema.__all__,
+    *_jobs_specs.__all__,
+    *_models_specs.__all__,
+    *_models_vocabulary.__all__,
+])

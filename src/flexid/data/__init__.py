@@ -6,32 +6,7 @@ The names of :mod:`flexid.data.records` are importable from here (``flexid.data.
 :mod:`flexid.data.datasets` simulated records.
 """
 
-from .records import (
-    DETRENDS,
-    ESTIMATION_SHARE,
-    OFFSET_RATIO,
-    IOData,
-    detrend_kind,
-    detrend_pair,
-    is_records,
-    joined,
-    load,
-    prepare_data,
-    save,
-    split_parts,
-)
+from . import records as _records
+from .records import *  # noqa: F403  (its __all__ is the contract)
 
-__all__ = [
-    "DETRENDS",
-    "ESTIMATION_SHARE",
-    "OFFSET_RATIO",
-    "IOData",
-    "detrend_kind",
-    "detrend_pair",
-    "is_records",
-    "joined",
-    "load",
-    "prepare_data",
-    "save",
-    "split_parts",
-]
+__all__ = list(_records.__all__)

@@ -3,22 +3,7 @@
 (:mod:`flexid.report.plots`) and the IOHanalyzer export.
 """
 
-from .writer import (
-    IOH_LAYOUTS,
-    comparison_ecdf,
-    ecdf_fraction,
-    ecdf_targets,
-    export_ioh,
-    figure_prefix,
-    write_report,
-)
+from . import writer as _writer
+from .writer import *  # noqa: F403  (its __all__ is the contract)
 
-__all__ = [
-    "IOH_LAYOUTS",
-    "comparison_ecdf",
-    "ecdf_fraction",
-    "ecdf_targets",
-    "export_ioh",
-    "figure_prefix",
-    "write_report",
-]
+__all__ = list(_writer.__all__)

@@ -7,26 +7,7 @@ plain arrays, :mod:`flexid.validation.portmanteau` their statistics and
 :mod:`flexid.validation.frequency` the non-parametric frequency-response estimates.
 """
 
-from .verdict import (
-    INITIAL_RULES,
-    StabilityReport,
-    ValidationReport,
-    between_outputs,
-    joint_tests,
-    joint_verdict,
-    residual_report,
-    stability_report,
-    validate,
-)
+from . import verdict as _verdict
+from .verdict import *  # noqa: F403  (its __all__ is the contract)
 
-__all__ = [
-    "INITIAL_RULES",
-    "StabilityReport",
-    "ValidationReport",
-    "between_outputs",
-    "joint_tests",
-    "joint_verdict",
-    "residual_report",
-    "stability_report",
-    "validate",
-]
+__all__ = list(_verdict.__all__)
