@@ -40,6 +40,7 @@ class GreyBoxFamily(Family):
     structures = (GreyBoxModel,)
     models = (GreyBoxModel,)
     reads_channels = True
+    runs_on = True
     start_stop = "given values"
     predictors = ("simulation",)
 
@@ -87,6 +88,12 @@ class GreyBoxFamily(Family):
         )
 
     held_out.__doc__ = None  # Family.held_out's
+
+    def held_out_stable(self, model: Any, report: ValidationReport) -> bool:
+        # its linearisation at the initial state, and a finite simulation of the record
+        return bool(report.stability.stable and not report.simulation_diverged)
+
+    held_out_stable.__doc__ = None  # Family.held_out_stable's
 
     def model_numbers(self, model: Any, estimation: Any, records: Any) -> dict[str, Any]:
         # its simulation errors and the poles of its linearisation at the initial state

@@ -684,19 +684,7 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
     if isinstance(orders, Mapping) and orders:
         keys = [str(k).lower() if isinstance(k, str) else k for k in orders]
         if all(k in NAMES for k in keys):
-            per = dict(zip(keys, orders.values()))
-            extra = [k for k in per if k not in names]
-            if extra:
-                raise ModelOrderError(
-                    f"orders has a grid for {', '.join(map(repr, extra))}, which is not in "
-                    f"structures {tuple(names)}"
-                )
-            return {
-                name: _entries(per[name], f"orders[{name!r}]")
-                if name in per
-                else [dict(e) for e in DEFAULT_GRIDS[name]]
-                for name in names
-            }
+            return _grids_by_structure(names, dict(zip(keys, orders.values())))
         if any(k in NAMES for k in keys):
             raise ModelOrderError(
                 "orders mixes structure names and order names; give either a mapping "
@@ -706,6 +694,25 @@ def _grids(names: list[str], orders: Any) -> dict[str, list[dict[str, Any]]]:
         return {name: _own_grid(name, orders) for name in names}
     entries = _entries(orders, "orders")
     return {name: [dict(e) for e in entries] for name in names}
+
+
+def _grids_by_structure(
+    names: list[str], per: dict[str, Any]
+) -> dict[str, list[dict[str, Any]]]:
+    """:func:`_grids` of ``orders`` given as a mapping structure name -> grid; a structure
+    it leaves out takes its default grid."""
+    extra = [k for k in per if k not in names]
+    if extra:
+        raise ModelOrderError(
+            f"orders has a grid for {', '.join(map(repr, extra))}, which is not in "
+            f"structures {tuple(names)}"
+        )
+    return {
+        name: _entries(per[name], f"orders[{name!r}]")
+        if name in per
+        else [dict(e) for e in DEFAULT_GRIDS[name]]
+        for name in names
+    }
 
 
 #: An order a structure needs that a grid over several structures leaves out is tied to
@@ -1095,8 +1102,6 @@ def select(
     """
     t_begin = time.perf_counter()
     from ..data.records import prepare_data
-    from ..fit.delay import DELAY_METHODS, estimate_delay
-    from ..validation.verdict import joint_tests, validate
 
     criterion = _check_criterion(criterion)
     initial = _check_initial(initial)
@@ -1122,129 +1127,24 @@ def select(
         )
 
     # every grid entry is checked before any fit
-    delay_text = ""
     if isinstance(nk, str) and several:  # a state-space model's delays are in its states
         nk = 1
-    if isinstance(nk, str):
-        if nk != "auto":
-            raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
-        conventional = tuple([1] * est.n_inputs)
-        try:
-            found = [estimate_delay(est, method=m) for m in DELAY_METHODS]
-        except DataError as exc:  # e.g. a constant input: the candidates' own checks fail
-            delays = [conventional]
-            delay_text = f"nk = 1: the delay could not be estimated ({exc})"
-        else:
-            # the estimators find where the response becomes significant, which can be later
-            # than where it starts (the manipulator's: 10-11 samples, where OE(16,16,1) fits
-            # best): the conventional nk = 1 stays a candidate, the held-out fit decides
-            delays = list(dict.fromkeys([conventional, *(d.nk for d in found)]))
-            estimated = list(dict.fromkeys(d.nk for d in found))
-            lo, hi = found[0].nk_range
-            if len(estimated) == 1:
-                text = (f"nk = {', '.join(map(str, estimated[0]))} (MATLAB delayest and the "
-                        f"prewhitened cross-correlation agree, over nk = {lo} .. {hi})")
-            else:
-                text = "; ".join(d.describe() for d in found)
-            delay_text = f"{text}; the grid at each estimate and at nk = 1"
-        candidates_s = []
-        for d in delays:
-            for s in _candidate_structures(structures, orders, list(d), est.n_inputs,
-                                           est.n_outputs):  # fmt: skip
-                if s not in candidates_s:
-                    candidates_s.append(s)
-    else:
-        candidates_s = _candidate_structures(structures, orders, nk, est.n_inputs, est.n_outputs)
-    if est.n_outputs > 1:
-        single = [s for s in candidates_s if not family_of(s).several_outputs]
-        if single:
-            raise DataError(
-                f"the record has {est.n_outputs} outputs {list(est.output_names)}; {single[0]!r} "
-                "models one: select among state-space models ('ss') or give one output"
-            )
-    for s in candidates_s:
-        try:
-            s.check_samples(est.n_samples)
-        except ModelOrderError as exc:
-            raise ModelOrderError(f"the estimation part is too short: {exc}") from None
-        room = val.n_samples - s.start
-        if room < 2 * max_lag + 2:
-            raise ModelOrderError(
-                f"the validation part ({val.n_samples} samples) is too short for {s!r} with "
-                f"max_lag={max_lag}: it needs start + 2*max_lag + 2 = "
-                f"{s.start + 2 * max_lag + 2} samples; lower the orders or max_lag"
-            )
+    candidates_s, delay_text = _grid_with_delays(structures, orders, nk, est)
+    _check_candidates(candidates_s, est, val, max_lag)
 
     bar = _progress(progress, len(candidates_s))
-    u, y = est.u, est.y[:, 0]
     arx = [i for i, s in enumerate(candidates_s) if s.kind == "arx"]
-    fitted = (
-        dict(zip(arx, _arx_fits(u, y, [candidates_s[i] for i in arx], float(est.dt))))
-        if arx
-        else {}
-    )
-
+    grid = [candidates_s[i] for i in arx]
+    fitted = dict(zip(arx, _arx_fits(est.u, est.y[:, 0], grid, float(est.dt)))) if arx else {}
+    held_out = _HeldOut(est, val, record if validation is None else None, initial, max_lag,
+                        alpha, several)  # fmt: skip
     candidates: list[Candidate] = []
     try:
         for i, s in enumerate(candidates_s):
-            if i in fitted:
-                model, sse, fit_time = fitted[i]
-                local = True  # least squares: the global minimum
-            else:
-                t0 = time.perf_counter()
-                try:  # a candidate the input cannot determine fails, and the search goes on
-                    model, sse, local = family_of(s).reference(
-                        est, s, initial=initial, starts=starts, seed=seed
-                    )
-                except FlexidError as exc:
-                    model, sse, local = exc, math.nan, False
-                fit_time = time.perf_counter() - t0
-            c = Candidate(
-                structure=s,
-                n_params=s.n_params,
-                K=(est.n_samples - s.start) * est.n_outputs,
-                fit_time=fit_time,
-                local_minimum=bool(local),
-            )
-            outputs = list(est.output_names)
-            if isinstance(model, FlexidError):
-                c.error = str(model)
-            else:
-                named = getattr(model, "named", None)  # a grey-box model has its channels
-                model = named(est.input_names, outputs if several else outputs[0]) if named \
-                    else model  # fmt: skip
-                c.model, c.sse = model, float(sse)
-                t0 = time.perf_counter()
-                try:
-                    check = {"max_lag": max_lag, "alpha": alpha}
-                    if several:  # every output's held-out report; the first is the summary's
-                        c.stable = bool(model.is_stable)
-                        c.reports = tuple(validate(model, val, initial=initial, output=o,
-                                                   estimated_on=est, **check)
-                                          for o in outputs)  # fmt: skip
-                        rep = c.reports[0]
-                    elif s.kind != "greybox":
-                        c.stable = bool(model.is_stable)
-                        rep = validate(model, val, initial=initial, estimated_on=est, **check)
-                    elif validation is None:  # run on from the record's start
-                        rep = validate(model, record, split=est.n_samples, **check)
-                    else:
-                        rep = validate(model, val, **check)
-                    if s.kind == "greybox":  # its linearisation, and a finite simulation
-                        c.stable = bool(rep.stability.stable and not rep.simulation_diverged)
-                except FlexidError as exc:
-                    c.error = f"validation failed: {exc}"
-                else:
-                    c.report = rep
-                    each = c.reports or (rep,)  # several outputs: the weakest decides
-                    c.fit_simulation = float(min(r.fit_simulation for r in each))
-                    c.fit_one_step = float(min(r.fit_one_step for r in each))
-                    if several:  # one verdict at alpha over every output's tests
-                        c.passed = all(t.passed for t in joint_tests(each))
-                    else:
-                        c.passed = rep.passed
-                    c.linear_passed = all(r.linear_passed for r in each)
-                c.validation_time = time.perf_counter() - t0
+            c = _fitted_candidate(s, est, fitted.get(i), initial=initial, starts=starts,
+                                  seed=seed)  # fmt: skip
+            if c.model is not None:
+                held_out.judge(c)
             candidates.append(c)
             bar(c)
     finally:
@@ -1266,6 +1166,163 @@ def select(
         wall_time=time.perf_counter() - t_begin,
         delay=delay_text,
     )
+
+
+def _grid_with_delays(
+    structures: Any, orders: Any, nk: Any, est: IOData
+) -> tuple[list[Any], str]:
+    """The grid's structures at the given delays, or at each estimated delay and at
+    ``nk = 1`` (``nk="auto"``), and the line that says which delays were used."""
+    from ..fit.delay import DELAY_METHODS, estimate_delay
+
+    if not isinstance(nk, str):
+        return _candidate_structures(structures, orders, nk, est.n_inputs, est.n_outputs), ""
+    if nk != "auto":
+        raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
+    conventional = tuple([1] * est.n_inputs)
+    try:
+        found = [estimate_delay(est, method=m) for m in DELAY_METHODS]
+    except DataError as exc:  # e.g. a constant input: the candidates' own checks fail
+        delays = [conventional]
+        delay_text = f"nk = 1: the delay could not be estimated ({exc})"
+    else:
+        # the estimators find where the response becomes significant, which can be later
+        # than where it starts (the manipulator's: 10-11 samples, where OE(16,16,1) fits
+        # best): the conventional nk = 1 stays a candidate, the held-out fit decides
+        delays = list(dict.fromkeys([conventional, *(d.nk for d in found)]))
+        estimated = list(dict.fromkeys(d.nk for d in found))
+        lo, hi = found[0].nk_range
+        if len(estimated) == 1:
+            text = (f"nk = {', '.join(map(str, estimated[0]))} (MATLAB delayest and the "
+                    f"prewhitened cross-correlation agree, over nk = {lo} .. {hi})")
+        else:
+            text = "; ".join(d.describe() for d in found)
+        delay_text = f"{text}; the grid at each estimate and at nk = 1"
+    candidates_s: list[Any] = []
+    for d in delays:
+        for s in _candidate_structures(structures, orders, list(d), est.n_inputs,
+                                       est.n_outputs):  # fmt: skip
+            if s not in candidates_s:
+                candidates_s.append(s)
+    return candidates_s, delay_text
+
+
+def _check_candidates(candidates_s: list[Any], est: IOData, val: IOData, max_lag: int) -> None:
+    """Every candidate fits the record: its outputs, the estimation part's length, and room
+    in the validation part for the correlation tests."""
+    if est.n_outputs > 1:
+        single = [s for s in candidates_s if not family_of(s).several_outputs]
+        if single:
+            raise DataError(
+                f"the record has {est.n_outputs} outputs {list(est.output_names)}; {single[0]!r} "
+                "models one: select among state-space models ('ss') or give one output"
+            )
+    for s in candidates_s:
+        try:
+            s.check_samples(est.n_samples)
+        except ModelOrderError as exc:
+            raise ModelOrderError(f"the estimation part is too short: {exc}") from None
+        room = val.n_samples - s.start
+        if room < 2 * max_lag + 2:
+            raise ModelOrderError(
+                f"the validation part ({val.n_samples} samples) is too short for {s!r} with "
+                f"max_lag={max_lag}: it needs start + 2*max_lag + 2 = "
+                f"{s.start + 2 * max_lag + 2} samples; lower the orders or max_lag"
+            )
+
+
+def _fitted_candidate(
+    s: Any, est: IOData, least_squares: tuple | None, *, initial: str, starts: int | None,
+    seed: int,
+) -> Candidate:
+    """One candidate fitted on the estimation part: by its least-squares fit when it has one
+    (ARX: the global minimum), else by its family's reference; a candidate the input cannot
+    determine keeps its error, and the search goes on."""
+    if least_squares is not None:
+        model, sse, fit_time = least_squares
+        local = True
+    else:
+        t0 = time.perf_counter()
+        try:
+            model, sse, local = family_of(s).reference(
+                est, s, initial=initial, starts=starts, seed=seed
+            )
+        except FlexidError as exc:
+            model, sse, local = exc, math.nan, False
+        fit_time = time.perf_counter() - t0
+    c = Candidate(
+        structure=s,
+        n_params=s.n_params,
+        K=(est.n_samples - s.start) * est.n_outputs,
+        fit_time=fit_time,
+        local_minimum=bool(local),
+    )
+    if isinstance(model, FlexidError):
+        c.error = str(model)
+        return c
+    named = getattr(model, "named", None)  # a grey-box model has its channels
+    outputs = list(est.output_names)
+    several = family_of(s).several_outputs
+    c.model = named(est.input_names, outputs if several else outputs[0]) if named else model
+    c.sse = float(sse)
+    return c
+
+
+@dataclass
+class _HeldOut:
+    """How a selection judges each fitted candidate on the validation part.
+
+    ``whole`` is the record the estimation part was cut from when no validation record was
+    given: a family whose models run on from the record's start validates there.
+    """
+
+    est: IOData
+    val: IOData
+    whole: IOData | None
+    initial: str
+    max_lag: int
+    alpha: float
+    several: bool
+
+    def judge(self, c: Candidate) -> None:
+        """Validate ``c.model``: its report(s), fits, verdict and stability, in place."""
+        from ..validation.verdict import joint_tests
+
+        family = family_of(c.structure)
+        t0 = time.perf_counter()
+        try:
+            if not family.runs_on:  # a model whose poles tell, even if validation fails
+                c.stable = bool(c.model.is_stable)
+            each = self._reports(c.model, family)
+            if family.runs_on:
+                c.stable = family.held_out_stable(c.model, each[0])
+        except FlexidError as exc:
+            c.error = f"validation failed: {exc}"
+        else:
+            c.report = each[0]
+            if self.several:  # every output's held-out report; the first is the summary's
+                c.reports = each
+            c.fit_simulation = float(min(r.fit_simulation for r in each))  # the weakest
+            c.fit_one_step = float(min(r.fit_one_step for r in each))
+            if self.several:  # one verdict at alpha over every output's tests
+                c.passed = all(t.passed for t in joint_tests(each))
+            else:
+                c.passed = each[0].passed
+            c.linear_passed = all(r.linear_passed for r in each)
+        c.validation_time = time.perf_counter() - t0
+
+    def _reports(self, model: Any, family: Any) -> tuple[ValidationReport, ...]:
+        from ..validation.verdict import validate
+
+        check = {"max_lag": self.max_lag, "alpha": self.alpha}
+        if self.several:
+            return tuple(validate(model, self.val, initial=self.initial, output=o,
+                                  estimated_on=self.est, **check)
+                         for o in self.est.output_names)  # fmt: skip
+        if family.runs_on and self.whole is not None:  # run on from the record's start
+            return (validate(model, self.whole, split=self.est.n_samples, **check),)
+        return (validate(model, self.val, initial=self.initial, estimated_on=self.est,
+                         **check),)  # fmt: skip
 
 
 def _recommend(

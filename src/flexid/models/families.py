@@ -96,6 +96,11 @@ class Family(abc.ABC):
     reads_channels : bool
         Whether its models read a record's channels by their own names (a grey-box model),
         rather than take the record's inputs in order.
+    runs_on : bool
+        Whether its models' states run on from a record's start, so that a held-out part
+        cut from the estimation record is validated by running on through the estimation
+        part (a grey-box model), and whether a model's stability is read from that run
+        (:meth:`held_out_stable`) rather than from its poles.
     start_stop : str
         How a comparison's start row (the posed problem's ``theta_ls``) was reached, as its
         ``stop`` field says: ``"closed form"`` for least squares.
@@ -112,6 +117,7 @@ class Family(abc.ABC):
     models: ClassVar[tuple[type, ...]] = ()
     names: ClassVar[tuple[str, ...]] = ()
     reads_channels: ClassVar[bool] = False
+    runs_on: ClassVar[bool] = False
     start_stop: ClassVar[str] = "closed form"
     several_outputs: ClassVar[bool] = False
     predictors: ClassVar[tuple[str, ...]] = ("one-step", "simulation")
@@ -403,6 +409,23 @@ class Family(abc.ABC):
         """
         return self.validate(model, validation, max_lag=max_lag, initial=initial, split=None,
                              dt=None, output=None, estimated_on=estimation)  # fmt: skip
+
+    def held_out_stable(self, model: Any, report: Any) -> bool:
+        """Whether a model counts as stable in a selection, given its held-out report.
+
+        Parameters
+        ----------
+        model : object
+            A model of this family.
+        report : ValidationReport
+            Its report on the held-out part.
+
+        Returns
+        -------
+        bool
+            By default the model's own ``is_stable`` (its poles).
+        """
+        return bool(model.is_stable)
 
     def model_numbers(self, model: Any, estimation: Any, records: Any) -> dict[str, Any]:
         """What a comparison stores of each run's model, beside its held-out report.
