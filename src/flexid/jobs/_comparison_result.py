@@ -140,35 +140,10 @@ class ComparisonResult:
             )
         elif choice[1] == "least squares":
             self.reference_cost = choice[0]
-            if self.spec.model.structure == GREYBOX:
-                self.reference_note = "the parameters' given values (below the reference)"
-            elif self.spec.model.registered:
-                self.reference_note = str(ref.get("start_name", "least squares"))
-            elif self.spec.model.structure != "arx":
-                self.reference_note = "the ARX least-squares estimate read as the structure"
-            elif self.spec.cost.predictor == "one-step":
-                self.reference_note = "least squares (the exact optimum of the one-step cost)"
-            else:
-                self.reference_note = (
-                    "least squares (the one-step optimum; not the optimum of this cost)"
-                )
+            self.reference_note = self._start_note(ref)
         else:
             self.reference_cost = choice[0]
-            name = choice[1]
-            if self.spec.model.structure == GREYBOX:
-                self.reference_note = (
-                    "grey-box reference (Levenberg-Marquardt on the simulation residuals), "
-                    f"from the given values and random starts; given values {_f(ref['cost'])}"
-                )
-            elif self.spec.model.registered and oe.get("name"):  # a family's own words
-                self.reference_note = f"{oe['name']}; {self.start_label} {_f(ref['cost'])}"
-            else:
-                if self.spec.model.structure != "arx":
-                    name = "prediction-error reference (Levenberg-Marquardt, analytic gradients)"
-                self.reference_note = (
-                    f"{name}, from least squares and stable starts; least squares "
-                    f"{_f(ref['cost'])}"
-                )
+            self.reference_note = self._reference_note(choice[1], ref, oe)
         self.stats = {
             label: summarise(rs, self.reference_cost, self.spec.targets)
             for label, rs in self.records.items()
@@ -180,6 +155,33 @@ class ComparisonResult:
         tests = rank_sum_against_best(costs)
         for label, t in tests.items():
             self.stats[label]["test"] = t
+
+    def _start_note(self, ref: dict[str, Any]) -> str:
+        """What the reference row is when the start (least squares) is the reference."""
+        model = self.spec.model
+        if model.structure == GREYBOX:
+            return "the parameters' given values (below the reference)"
+        if model.registered:
+            return str(ref.get("start_name", "least squares"))
+        if model.structure != "arx":
+            return "the ARX least-squares estimate read as the structure"
+        if self.spec.cost.predictor == "one-step":
+            return "least squares (the exact optimum of the one-step cost)"
+        return "least squares (the one-step optimum; not the optimum of this cost)"
+
+    def _reference_note(self, name: str, ref: dict[str, Any], oe: dict[str, Any]) -> str:
+        """What the reference row is when the gradient reference reached it."""
+        model = self.spec.model
+        if model.structure == GREYBOX:
+            return (
+                "grey-box reference (Levenberg-Marquardt on the simulation residuals), "
+                f"from the given values and random starts; given values {_f(ref['cost'])}"
+            )
+        if model.registered and oe.get("name"):  # a family's own words
+            return f"{oe['name']}; {self.start_label} {_f(ref['cost'])}"
+        if model.structure != "arx":
+            name = "prediction-error reference (Levenberg-Marquardt, analytic gradients)"
+        return f"{name}, from least squares and stable starts; least squares {_f(ref['cost'])}"
 
     @property
     def reference_label(self) -> str:

@@ -215,24 +215,13 @@ def identify(
         budget = _budget(budget)
     model_gb = greybox_of(structure, greybox)
     if model_gb is not None:
-        given = {
+        _check_greybox_call(model_gb, data, {
             "na": na, "nb": nb, "nk": nk, "nc": nc, "nd": nd, "nf": nf, "output": output,
             "bounds": None if bounds == "auto" else bounds, "penalty": penalty,
             "parametrisation": parametrisation,
             "penalty_kind": penalty_kind, "init": init, "numerator": numerator,
             "search": search,
-        }
-        if is_records(data):
-            raise ConfigError(
-                f"grey-box model {model_gb.name!r}: several estimation records are not "
-                "supported (its states run on from one record's start); estimate on one"
-            )
-        extra = sorted(k for k, v in given.items() if v is not None)
-        if extra:
-            raise ConfigError(
-                f"grey-box model {model_gb.name!r} does not take {', '.join(extra)} (its "
-                "parameters, bounds and channels are set on the model)"
-            )
+        })  # fmt: skip
         return identify_greybox(
             data, model_gb, optimiser=optimiser, params=params, cost=cost,
             predictor=predictor, weight=weight, budget=budget, seed=seed, split=split,
@@ -251,13 +240,7 @@ def identify(
     )
     records = est if isinstance(est, tuple) else (est,)
     first = records[0]
-    delay_text = None
-    if isinstance(nk, str):
-        if nk != "auto":
-            raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
-        found = estimate_delay(first if len(records) == 1 else joined(records))
-        nk = list(found.nk) if first.n_inputs > 1 else found.nk[0]
-        delay_text = found.describe()
+    nk, delay_text = _delay(nk, records)
     extra = {k: v for k, v in (("order", order), ("modes", modes), ("frequency", frequency),
                                ("damping", damping), ("feedthrough", feedthrough))
              if v is not None}  # fmt: skip
@@ -291,20 +274,8 @@ def identify(
     model = model.named(first.input_names, outputs if len(outputs) > 1 else outputs[0])
     cost_value, cost_search = rescored(objective, model, cost_value)
     t_val = time.perf_counter()
-    by_output, between = (), ()
-    if len(outputs) > 1:  # every output's estimation and held-out reports (one record)
-        check = {"max_lag": max_lag, "initial": validate_initial, "alpha": alpha}
-        by_output = tuple(
-            (validate(model, first, output=o, estimated_on="same", **check),
-             validate(model, val, output=o, estimated_on=records, **check))
-            for o in outputs
-        )  # fmt: skip
-        (reports, report_val) = ((by_output[0][0],), by_output[0][1])  # the first's
-        between = tuple(between_outputs([v for _, v in by_output]))
-    else:
-        check = {"max_lag": max_lag, "initial": validate_initial, "alpha": alpha}
-        reports = tuple(validate(model, r, estimated_on="same", **check) for r in records)
-        report_val = validate(model, val, estimated_on=records, **check)
+    check = {"max_lag": max_lag, "initial": validate_initial, "alpha": alpha}
+    reports, report_val, by_output, between = _reports(model, records, val, outputs, check)
     t_end = time.perf_counter()
     info = data_info(
         records, val.n_samples, list(first.input_names), outputs,
@@ -334,6 +305,52 @@ def identify(
         output_tests=between,
         modes=_modes(model, val, first.metadata),
     )
+
+
+def _check_greybox_call(model: Any, data: Any, given: Mapping[str, Any]) -> None:
+    """A grey-box model is identified on one record, and takes none of the orders and
+    search settings of the other families (its parameters, bounds and channels are its own)."""
+    if is_records(data):
+        raise ConfigError(
+            f"grey-box model {model.name!r}: several estimation records are not "
+            "supported (its states run on from one record's start); estimate on one"
+        )
+    extra = sorted(k for k, v in given.items() if v is not None)
+    if extra:
+        raise ConfigError(
+            f"grey-box model {model.name!r} does not take {', '.join(extra)} (its "
+            "parameters, bounds and channels are set on the model)"
+        )
+
+
+def _delay(nk: Any, records: tuple[IOData, ...]) -> tuple[Any, str | None]:
+    """``nk`` as given, or estimated from the records for ``"auto"``, with the line that
+    says how (None when given)."""
+    if not isinstance(nk, str):
+        return nk, None
+    if nk != "auto":
+        raise ConfigError(f"nk must be a delay in samples (per input) or 'auto', got {nk!r}")
+    first = records[0]
+    found = estimate_delay(first if len(records) == 1 else joined(records))
+    return (list(found.nk) if first.n_inputs > 1 else found.nk[0]), found.describe()
+
+
+def _reports(
+    model: Any, records: tuple[IOData, ...], val: IOData, outputs: list[str],
+    check: Mapping[str, Any],
+) -> tuple[tuple, Any, tuple, tuple]:
+    """The estimation reports (one per record), the held-out report, and with several
+    outputs every output's pair of reports (one record) and the tests between outputs."""
+    if len(outputs) == 1:
+        reports = tuple(validate(model, r, estimated_on="same", **check) for r in records)
+        return reports, validate(model, val, estimated_on=records, **check), (), ()
+    by_output = tuple(
+        (validate(model, records[0], output=o, estimated_on="same", **check),
+         validate(model, val, output=o, estimated_on=records, **check))
+        for o in outputs
+    )  # fmt: skip
+    between = tuple(between_outputs([v for _, v in by_output]))
+    return (by_output[0][0],), by_output[0][1], by_output, between  # the first's
 
 
 def _modes(model: Any, val: IOData, metadata: Mapping[str, Any]) -> tuple:
