@@ -14,6 +14,7 @@ from flexid.errors import ConfigError, DataError, ModelOrderError
 from flexid.fit.estimation import build_problem
 from flexid.fit.statespace_fit import ModalBox, modal_start, ssest
 from flexid.models.statespace import StateSpaceStructure
+from flexid.validation.diagnostics import format_fit
 
 DT = 0.01
 
@@ -337,6 +338,16 @@ def test_a_comparison_of_a_state_space_model_reports_every_output(two_sensor_rec
     # the reference finds the known system: both held-out fits above 97 %
     per = result.reference["output_error"]["validation"]["outputs"]
     assert set(per) == {"hub", "tip"} and min(v["fit_simulation"] for v in per.values()) > 97
+    # the headline is the weakest output's fit, not the first output's; no one error range
+    # across outputs of different units, each output's range in its own table
+    rows = result._validation_rows()
+    ref_row = next(r for r in rows if r[0] == "reference (LM)")
+    assert ref_row[2] == format_fit(min(v["fit_simulation"] for v in per.values()))
+    assert ref_row[3] == "per output" and "error range hub" in text
+    for label, rs in result.records.items():
+        runs = [r["validation"] for r in rs if r["status"] == "ok"]
+        worst = [min(o["fit_simulation"] for o in v["outputs"].values()) for v in runs]
+        assert result.stats[label]["fit_simulation"] == pytest.approx(np.median(worst), abs=0)
     # read back from the store, the same tables
     (again,) = flexid.load_result(store, result.key)
     assert again.summary() == text

@@ -22,7 +22,7 @@ from ..fit.estimation import choose_reference
 from ..models.vocabulary import GREYBOX, LEAST_SQUARES, VALIDATION_GUIDE
 from ..validation.diagnostics import format_fit as _fit
 from .specs import ComparisonSpec
-from .statistics import rank_sum_against_best, summarise
+from .statistics import headline, rank_sum_against_best, summarise
 
 __all__ = ["ComparisonResult"]
 
@@ -281,13 +281,13 @@ class ComparisonResult:
             "stable",
         ]
         rows = [head]
-        v = self.reference["validation"]
+        v = headline(self.reference["validation"])
         rows.append(
             [
                 self.start_label,
                 _fit(v["fit_one_step"]),
                 _sim_fit(v["fit_simulation"], bool(self.reference.get("stable"))),
-                f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
+                _range(v["error_min"], v["error_max"]),
                 "yes" if v["correlation_passed"] else "no",
                 _share(v.get("frequency_share")),
                 "yes" if self.reference.get("stable") else "NO",
@@ -295,13 +295,13 @@ class ComparisonResult:
         )
         oe = self.reference.get("output_error")
         if oe and "validation" in oe:
-            v = oe["validation"]
+            v = headline(oe["validation"])
             rows.append(
                 [
                     _REFERENCE_ROW,
                     _fit(v["fit_one_step"]),
                     _sim_fit(v["fit_simulation"], bool(oe.get("stable"))),
-                    f"[{v['error_min']:.4g}, {v['error_max']:.4g}]",
+                    _range(v["error_min"], v["error_max"]),
                     "yes" if v["correlation_passed"] else "no",
                     _share(v.get("frequency_share")),
                     "yes" if oe.get("stable") else "NO",
@@ -316,7 +316,7 @@ class ComparisonResult:
                     label,
                     _fit(s["fit_one_step"]),
                     _sim_fit(s["fit_simulation"], s["stable_rate"] == 1.0),
-                    f"[{s['error_min']:.4g}, {s['error_max']:.4g}]",
+                    _range(s["error_min"], s["error_max"]),
                     f"{s['correlation_pass_rate'] * 100:.0f}%",
                     _share(s.get("frequency_share")),
                     f"{s['stable_rate'] * 100:.0f}%",
@@ -395,8 +395,8 @@ class ComparisonResult:
         names = list(self.reference["validation"].get("outputs", {}))
         if not names:
             return []
-        head = ["optimiser"] + [f"{h} {o}" for o in names
-                                for h in ("fit sim %", "pass", "in band")]  # fmt: skip
+        columns = ("fit sim %", "error range", "pass", "in band")
+        head = ["optimiser"] + [f"{h} {o}" for o in names for h in columns]
         rows = [head]
 
         def row(label: str, validations: list[dict]) -> list[str]:
@@ -404,9 +404,11 @@ class ComparisonResult:
             for o in names:
                 each = [v["outputs"][o] for v in validations if o in v.get("outputs", {})]
                 if not each:
-                    cells += ["-", "-", "-"]
+                    cells += ["-", "-", "-", "-"]
                     continue
                 cells.append(_fit(float(np.median([e["fit_simulation"] for e in each]))))
+                cells.append(_range(float(np.median([e["error_min"] for e in each])),
+                                    float(np.median([e["error_max"] for e in each]))))  # fmt: skip
                 share = np.mean([e["correlation_passed"] for e in each])
                 cells.append(f"{share * 100:.0f}%")
                 bands = [e["frequency_share"] for e in each
@@ -499,7 +501,10 @@ class ComparisonResult:
         )
 
 
-_VALIDATION_CAPTION = "Validation on the held-out record (medians over runs)"
+_VALIDATION_CAPTION = (
+    "Validation on the held-out record (medians over runs; with several outputs the weakest "
+    "output's fits and the joint verdict)"
+)
 _OUTPUTS_CAPTION = "Each output on the held-out record (medians and shares over runs)"
 
 
@@ -535,6 +540,13 @@ def _p(value: float | None) -> str:
     if value is None or math.isnan(value):
         return "-"
     return f"{value:.2g}" + ("*" if value < 0.05 else "")
+
+
+def _range(low: float, high: float) -> str:
+    """An error range; ``"per output"`` where the outputs' units differ (no one range)."""
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return "per output"
+    return f"[{low:.4g}, {high:.4g}]"
 
 
 def _share(value: Any) -> str:

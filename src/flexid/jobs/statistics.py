@@ -19,6 +19,7 @@ __all__ = [
     "best_at",
     "convergence_band",
     "fe_to_target",
+    "headline",
     "holm",
     "rank_sum_against_best",
     "summarise",
@@ -175,15 +176,50 @@ def _reach(ok: list[Mapping[str, Any]], reference: float, targets: Sequence[floa
     return reach
 
 
+def headline(validation: Mapping[str, Any]) -> dict[str, Any]:
+    """A run's held-out numbers as a comparison's headline tables show them.
+
+    With several outputs the weakest output's: the lowest fits and share inside the
+    frequency band over the outputs (a model is as good as its worst sensor), no error range
+    (the outputs' units differ), and the joint verdict over every output's tests; with one
+    output the numbers as stored.
+
+    Parameters
+    ----------
+    validation : mapping
+        A run's stored ``validation`` record (``fit_one_step``, ``fit_simulation``,
+        ``error_min``, ``error_max``, ``correlation_passed``, ``frequency_share``, and
+        ``outputs``: each output's numbers, with several).
+
+    Returns
+    -------
+    dict
+        The same keys.
+    """
+    outputs = list((validation.get("outputs") or {}).values())
+    if len(outputs) < 2:
+        return dict(validation)
+    shares = [o["frequency_share"] for o in outputs if o.get("frequency_share") is not None]
+    return {
+        **validation,
+        "fit_one_step": min(float(o["fit_one_step"]) for o in outputs),
+        "fit_simulation": min(float(o["fit_simulation"]) for o in outputs),
+        "error_min": math.nan,
+        "error_max": math.nan,
+        "frequency_share": min(shares) if shares else None,
+    }
+
+
 def _validation_medians(ok: list[Mapping[str, Any]]) -> dict[str, float]:
     """Medians of the runs' validation figures (NaN where no run has one; None, a model
     without a frequency verdict, counts as none) and the share of runs whose correlation
     tests pass."""
     out = {}
+    numbers = [headline(r.get("validation", {})) for r in ok]
     for key in ("fit_one_step", "fit_simulation", "error_min", "error_max", "frequency_share"):
-        values = np.array([_number(r.get("validation", {}).get(key)) for r in ok], dtype=float)
+        values = np.array([_number(v.get(key)) for v in numbers], dtype=float)
         out[key] = float(np.nanmedian(values)) if np.isfinite(values).any() else math.nan
-    passes = [r.get("validation", {}).get("correlation_passed") for r in ok]
+    passes = [v.get("correlation_passed") for v in numbers]
     passes = [p for p in passes if p is not None]
     out["correlation_pass_rate"] = float(np.mean(passes)) if passes else math.nan
     return out
