@@ -333,6 +333,19 @@ def test_select_ranks_a_greybox_model_beside_polynomial_ones(model_file):
     assert "grey-box" in sel.summary()
 
 
+def test_a_greybox_candidate_is_fitted_once_over_a_grid_of_delays():
+    # nk="auto" repeats the polynomial grid at each estimated delay and at nk = 1 (here three:
+    # the twin rotor's two inputs act on the pitch with different delays); a grey-box
+    # model's delays are its own equations', so it is one candidate however many delays
+    record = flexid.generate("twin-rotor", seed=0, n_samples=1000).select(outputs=["pitch"])
+    sel = flexid.select(
+        record, structures=["arx", "greybox:twin-rotor-pitch"], orders=[{"na": 2, "nb": 2}],
+        nk="auto", starts=0, progress=False,
+    )
+    kinds = [c.kind for c in sel.candidates]
+    assert kinds.count("arx") == 3 and kinds.count("greybox") == 1
+
+
 def test_cli_select_takes_a_greybox_candidate(model_file, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _record(model_file, n=600).to_csv(tmp_path / "spring.csv")

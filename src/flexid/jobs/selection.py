@@ -1199,9 +1199,11 @@ def _grid_with_delays(
             text = "; ".join(d.describe() for d in found)
         delay_text = f"{text}; the grid at each estimate and at nk = 1"
     candidates_s: list[Any] = []
-    for d in delays:
+    for k, d in enumerate(delays):
         for s in _candidate_structures(structures, orders, list(d), est.n_inputs,
                                        est.n_outputs):  # fmt: skip
+            if k and not hasattr(s, "nk"):  # its delays are its own equations': once
+                continue
             if s not in candidates_s:
                 candidates_s.append(s)
     return candidates_s, delay_text
