@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import DataError
 
-__all__ = ["Mode", "modes"]
+__all__ = ["Mode", "model_modes", "modes"]
 
 # A pole's imaginary part below this (relative to its magnitude, at least 1) is a real pole:
 # the conjugate pairs np.linalg.eig and np.roots return are exact mirror images, and the
@@ -128,6 +128,26 @@ def modes(poles: Any, dt: float) -> list[Mode]:
             kind = "integrator"
         out.append(_mode(complex(z, 0.0), dt, kind))
     return sorted(out, key=lambda m: (m.frequency, m.kind))
+
+
+def model_modes(model: Any) -> list[Mode]:
+    """The modes of a model: its own list where it keeps one (a modal state-space model lists
+    each mode once, however many inputs its realisation repeats it for), else those of its
+    poles.
+
+    Parameters
+    ----------
+    model : object
+        A model with ``modes()``, or with ``poles()`` and ``dt`` (s).
+
+    Returns
+    -------
+    list of Mode
+        By increasing natural frequency.
+    """
+    if hasattr(model, "modes"):
+        return list(model.modes())
+    return modes(model.poles(), model.dt)
 
 
 def _mode(z: complex, dt: float, kind: str) -> Mode:

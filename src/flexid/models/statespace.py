@@ -276,9 +276,28 @@ class StateSpaceModel:
         Returns
         -------
         list of Mode
-            By increasing frequency (:func:`flexid.models.modes.modes`).
+            By increasing frequency (:func:`flexid.models.modes.modes`); a model realised
+            from its modal structure lists the structure's modes, each once.
         """
-        return modes(self.poles(), self.dt)
+        if not self._realised():
+            return modes(self.poles(), self.dt)
+        # the structure's own modes: (frequency, damping) as searched, even a critically
+        # damped one (a double real root of its block, two "real" poles to ``modes``)
+        s = self.structure
+        modal = self._theta[: s.n_search]
+        a, p = s.denominators(modal[None], self.dt)
+        out = []
+        for k in range(s.n_modes):
+            pole = complex(np.roots([1.0, *a[0, k]])[0])
+            out.append(Mode(float(modal[2 * k]), float(np.clip(modal[2 * k + 1], 0.0, 1.0)),
+                            complex(pole.real, abs(pole.imag)), "pair"))  # fmt: skip
+        out += modes(p[0], self.dt)
+        return sorted(out, key=lambda m: (m.frequency, m.kind))
+
+    def _realised(self) -> bool:
+        """Whether ``A`` is its modal structure's realisation of ``theta``: each mode and real
+        pole a block once per input (with several inputs every pole of ``A`` repeats)."""
+        return self._theta is not None and self.order == self.structure.n_states
 
     # ------------------------------------------------------------------ time responses
     def _inputs(self, u: Any) -> np.ndarray:
@@ -405,6 +424,11 @@ class StateSpaceModel:
             "modes": [m.to_dict() for m in self.modes()],
         }  # fmt: skip
 
+    def _order_text(self) -> str:
+        if not self._realised() or self.n_inputs == 1:
+            return str(self.order)
+        return f"{self.structure.order} ({self.order} states: each mode once per input)"
+
     def summary(self) -> str:
         """The sizes and the table of modes.
 
@@ -413,7 +437,7 @@ class StateSpaceModel:
         str
         """
         lines = [
-            wrapped(f"state-space model: order {self.order}, {self.n_inputs} input(s) "
+            wrapped(f"state-space model: order {self._order_text()}, {self.n_inputs} input(s) "
                     f"({', '.join(self.input_names)}), {self.n_outputs} output(s) "
                     f"({', '.join(self.output_names)}), dt {self.dt:g} s, "
                     f"{'stable' if self.is_stable else 'UNSTABLE'}"),

@@ -47,7 +47,7 @@ from scipy import ndimage, signal, stats
 from .._validate import checked_keywords, integer, real
 from ..data.records import IOData, load
 from ..errors import DataError, UnknownNameError
-from ..models.modes import modes as modes_of
+from ..models.modes import model_modes
 
 __all__ = [
     "COHERENCE_LEVEL",
@@ -692,7 +692,7 @@ def mode_table(
         The model's modes by frequency, then the missed plant modes.
     """
     tol = real(tolerance, "tolerance", error=DataError, minimum=0.0, low_open=True)
-    found = [m for m in modes_of(model.poles(), model.dt) if m.kind == "pair"
+    found = [m for m in model_modes(model) if m.kind == "pair"
              and 0.0 < m.damping < 1.0]  # fmt: skip
     f = np.array([m.frequency for m in found])
     zeta = np.array([m.damping for m in found])
