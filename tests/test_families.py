@@ -36,6 +36,8 @@ def record():
 def restore_registry():
     from flexid.models import vocabulary
 
+    families._load_builtins()  # else a first lookup during the test loads them, and the
+    # restore below would empty the registry for every later test of this process
     before, names = list(families._FAMILIES), set(vocabulary._REGISTERED_NAMES)
     yield
     families._FAMILIES[:] = before

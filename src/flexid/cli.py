@@ -537,14 +537,16 @@ def _add_detrend(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _cmd_select(args: argparse.Namespace) -> int:
+def _select_records(args: argparse.Namespace) -> tuple[Any, Any, Any]:
+    """The estimation and validation records of ``select`` and, for a simulated plant, its
+    known delay (None for a record file)."""
     from .data.records import load
-    from .jobs.selection import select
 
     if (args.file is None) == (args.plant is None):
         raise ConfigError("give a record file or --plant (a simulated record), not both")
     given = (("inputs", _columns(args.inputs)), ("outputs", _columns(args.outputs)))
     options = {k: v for k, v in (*given, ("dt", args.dt)) if v is not None}
+    plant_nk = None
     if args.plant is not None:
         from .data.datasets import generate
         from .jobs.specs import default_spec
@@ -560,14 +562,40 @@ def _cmd_select(args: argparse.Namespace) -> int:
         data = data.select(outputs=[_columns(args.output)[0]])
         if validation is not None:
             validation = validation.select(outputs=[_columns(args.output)[0]])
+    return data, validation, plant_nk
+
+
+def _select_nk(args: argparse.Namespace, plant_nk: Any) -> Any:
+    """``--nk``, else a simulated plant's known delay, else ``"auto"``."""
+    if args.nk is not None:
+        return _delays(args.nk, "--nk")
+    return "auto" if args.plant is None else plant_nk
+
+
+def _select_figures(result: Any, figure: str) -> list:
+    """Write the selection's figure, Bode figure and stabilisation diagram (those it has)
+    beside ``figure``; the paths written."""
+    from .report.plots import _save, selection_bode, selection_figure, stabilisation_diagram
+
+    written = [selection_figure(result, figure)]
+    base = Path(figure)
+    for name, fig in (("bode", selection_bode(result)),
+                      ("stabilisation", stabilisation_diagram(result))):  # fmt: skip
+        if fig is not None:
+            written.append(_save(fig, base.with_name(f"{base.stem}_{name}{base.suffix}")))
+    return written
+
+
+def _cmd_select(args: argparse.Namespace) -> int:
+    from .jobs.selection import select
+
+    data, validation, plant_nk = _select_records(args)
     grid = _order_grid(args.orders)
     result = select(
         data,
         structures=tuple(_names(args.structures) or ("arx", "oe")),
         orders=grid,
-        nk=_delays(args.nk, "--nk") if args.nk is not None else (
-            "auto" if args.plant is None else plant_nk
-        ),
+        nk=_select_nk(args, plant_nk),
         initial=args.initial,
         criterion=args.criterion,
         max_lag=args.max_lag,
@@ -577,16 +605,7 @@ def _cmd_select(args: argparse.Namespace) -> int:
         validation=validation,
         progress=not (args.json or args.no_progress) and sys.stderr.isatty(),
     )
-    written = []
-    if args.figure:
-        from .report.plots import _save, selection_bode, selection_figure, stabilisation_diagram
-
-        written.append(selection_figure(result, args.figure))
-        base = Path(args.figure)
-        for name, fig in (("bode", selection_bode(result)),
-                          ("stabilisation", stabilisation_diagram(result))):  # fmt: skip
-            if fig is not None:
-                written.append(_save(fig, base.with_name(f"{base.stem}_{name}{base.suffix}")))
+    written = _select_figures(result, args.figure) if args.figure else []
     if args.json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
     else:

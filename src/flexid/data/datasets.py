@@ -32,7 +32,7 @@ import numpy as np
 from .._json import jsonable
 from .._validate import checked_keywords, integer, positive_real
 from ..errors import DataError, UnknownNameError, plain_number
-from .plants import PLANTS, all_presets, get_plant
+from .plants import PLANTS, Plant, all_presets, get_plant
 from .records import IOData
 from .signals import SIGNALS, make_signal
 
@@ -87,6 +87,29 @@ def _noise_levels(noise_std: Any, clean: np.ndarray) -> np.ndarray:
     if not np.all(np.isfinite(levels) & (levels >= 0)):
         raise DataError(f"noise_std must be finite and >= 0, got {plain_number(noise_std)}")
     return levels
+
+
+def _preset_settings(preset: str | None, plant: str) -> dict[str, Any]:
+    """The settings of ``preset`` (none without one), checked to be for ``plant``."""
+    settings: dict[str, Any] = {}
+    if preset is not None:
+        if preset not in PRESETS:
+            raise UnknownNameError("preset", preset, PRESETS)
+        settings = {k: v for k, v in PRESETS[preset].items() if k != "description"}
+        if plant != settings["plant"]:
+            raise DataError(f"preset {preset!r} is for the {settings['plant']}, not {plant!r}")
+    return settings
+
+
+def _signal_options(spec: Plant, preset: str | None, signal: str) -> dict[str, Any]:
+    """The default options of ``signal``: the preset's for its own signal, the plant's
+    levels for a level signal, none otherwise."""
+    level_signals = ("uniform", "random", "prbs", "aprbs")
+    if preset is not None and signal == PRESETS[preset]["signal"]:
+        return dict(PRESETS[preset].get("signal_options", {}))
+    if signal in level_signals:
+        return dict(spec.signal_options)  # +-0.3 N m or +-1 V
+    return {}
 
 
 @checked_keywords
@@ -145,13 +168,7 @@ def generate(
     IOData
         Inputs (N, n_u) and outputs (N, n_y) with names, units and the metadata above.
     """
-    settings: dict[str, Any] = {}
-    if preset is not None:
-        if preset not in PRESETS:
-            raise UnknownNameError("preset", preset, PRESETS)
-        settings = {k: v for k, v in PRESETS[preset].items() if k != "description"}
-        if plant != settings["plant"]:
-            raise DataError(f"preset {preset!r} is for the {settings['plant']}, not {plant!r}")
+    settings = _preset_settings(preset, plant)
     spec = get_plant(plant)
     explicit = {
         "signal": signal,
@@ -167,13 +184,7 @@ def generate(
     signal = settings.get("signal", "uniform")
     if signal.replace("-", "_") not in SIGNALS:
         raise UnknownNameError("signal", signal, SIGNALS)
-    level_signals = ("uniform", "random", "prbs", "aprbs")
-    if preset is not None and signal == PRESETS[preset]["signal"]:
-        options = dict(PRESETS[preset].get("signal_options", {}))
-    elif signal in level_signals:
-        options = dict(spec.signal_options)  # +-0.3 N m or +-1 V
-    else:
-        options = {}
+    options = _signal_options(spec, preset, signal)
     options.update(signal_options or {})
     params_over = dict(settings.get("plant_params", {}))
     params_over.update(plant_params or {})

@@ -9,7 +9,7 @@ model or a model duck-typed to one, in a well-conditioned realisation.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, replace
 from typing import Any
 
@@ -200,12 +200,7 @@ class PolynomialFamily(Family):
     ) -> ValidationReport:
         if output is not None:
             raise DataError("output= selects a grey-box model's output; this model has one")
-        record = _as_record(data, dt if dt is not None else _model_dt(model))
-        if split is not None:
-            if isinstance(split, float):
-                record = record.split(split)[1]
-            else:
-                record = record.split(index=split)[1]
+        record = _validation_record(data, dt if dt is not None else _model_dt(model), split)
         if record.n_outputs != 1:
             raise DataError(
                 f"validate() takes a single-output record, got {record.n_outputs} outputs "
@@ -238,35 +233,13 @@ class PolynomialFamily(Family):
         first = start if initial == "measured" else 0  # MATLAB counts every sample
         if isinstance(model, PolynomialModel):
             predictor_stable = model.predictor_stable
-            y1 = _free_run(
-                lambda: model.predict(u_model, y_full, initial=initial), n, not predictor_stable
+            y1, ysim, initial_one_step = _polynomial_outputs(
+                model, u_model, y_full, initial, predictor_stable
             )
-            ysim = _free_run(
-                lambda: model.simulate(u_model, y_full, initial=initial), n, not model.is_stable
-            )
-            initial_one_step = initial if model.structure.n_state else None
         else:
-            poly = None  # its polynomial form, in a well-conditioned realisation, where it has one
-            if initial != "measured":
-                try:
-                    poly = _as_polynomial(model)
-                except DataError:
-                    if initial == "estimate":
-                        raise
-            if poly is None:  # ARX-like by its own routes: its one-step predictor has no state
-                first = start
-                y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
-                initial_one_step = None
-                own = model.simulate(u_model, y_init=y_full[:start]) if initial == "measured" else (
-                    model.simulate(u_model)
-                )
-                ysim = np.asarray(own, dtype=float).reshape(-1)
-            else:
-                y1 = _free_run(lambda: poly.predict(u_model, y_full, initial=initial), n, False)
-                initial_one_step = initial
-                ysim = _free_run(
-                    lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
-                )
+            y1, ysim, initial_one_step, first = _other_outputs(
+                model, u_model, y_full, initial, start, first
+            )
         for arr, what in ((y1, "one-step prediction"), (ysim, "simulated output")):
             if arr.size != n:
                 raise DataError(f"the model's {what} has {arr.size} samples, the record {n}")
@@ -285,6 +258,61 @@ class PolynomialFamily(Family):
         )
 
     validate.__doc__ = None  # Family.validate's
+
+
+def _validation_record(data: Any, dt: float | None, split: float | int | None) -> IOData:
+    """The record :meth:`PolynomialFamily.validate` tests on: ``data``, or the part after
+    ``split`` (a fraction or a sample index)."""
+    record = _as_record(data, dt)
+    if split is not None:
+        if isinstance(split, float):
+            record = record.split(split)[1]
+        else:
+            record = record.split(index=split)[1]
+    return record
+
+
+def _polynomial_outputs(
+    model: PolynomialModel, u_model: np.ndarray, y_full: np.ndarray, initial: str,
+    predictor_stable: bool,
+) -> tuple[np.ndarray, np.ndarray, str | None]:
+    """A polynomial model's one-step prediction, simulated output and the initial-condition
+    rule of its one-step prediction (None when its predictor has no state)."""
+    n = y_full.size
+    y1 = _free_run(
+        lambda: model.predict(u_model, y_full, initial=initial), n, not predictor_stable
+    )
+    ysim = _free_run(
+        lambda: model.simulate(u_model, y_full, initial=initial), n, not model.is_stable
+    )
+    return y1, ysim, initial if model.structure.n_state else None
+
+
+def _other_outputs(
+    model: Any, u_model: np.ndarray, y_full: np.ndarray, initial: str, start: int, first: int
+) -> tuple[np.ndarray, np.ndarray, str | None, int]:
+    """An ARX-like model's one-step prediction, simulated output, the initial-condition rule
+    of its one-step prediction and the first sample the residual tests count."""
+    n = y_full.size
+    poly = None  # its polynomial form, in a well-conditioned realisation, where it has one
+    if initial != "measured":
+        try:
+            poly = _as_polynomial(model)
+        except DataError:
+            if initial == "estimate":
+                raise
+    if poly is None:  # ARX-like by its own routes: its one-step predictor has no state
+        y1 = np.asarray(model.predict(u_model, y_full), dtype=float).reshape(-1)
+        own = model.simulate(u_model, y_init=y_full[:start]) if initial == "measured" else (
+            model.simulate(u_model)
+        )
+        ysim = np.asarray(own, dtype=float).reshape(-1)
+        return y1, ysim, None, start
+    y1 = _free_run(lambda: poly.predict(u_model, y_full, initial=initial), n, False)
+    ysim = _free_run(
+        lambda: poly.simulate(u_model, y_full, initial=initial), n, not poly.is_stable
+    )
+    return y1, ysim, initial, first
 
 
 def _parameter_effect(
@@ -378,14 +406,7 @@ def pose_polynomial(
         if structure.kind != "arx" or cost.initial == "estimate" or several:
             return _build_polynomial(est, structure, cost, search, bounds=bounds)
         structure = structure.arx_structure()
-    try:
-        objective = ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
-    except np.linalg.LinAlgError as exc:  # exactly singular regressors with exciting inputs
-        raise DataError(
-            f"the regressors of {structure!r} are singular on the estimation record ({exc}): "
-            "an output that is zero or constant, or orders the data cannot determine; use "
-            "lower orders or other data"
-        ) from None
+    objective = _arx_cost(structure, est, cost, search)
     box = search_box(structure, bounds, objective.theta_ls)
     na = structure.na
     b_lo, b_hi = box.lower[na:], box.upper[na:]
@@ -407,21 +428,63 @@ def pose_polynomial(
             "is the optimum"
         )
     keep = slice(0, na) if fit else slice(None)
-    sampler = None
-    if search.init == "stable" and search.parametrisation == "coefficients" and na:
-        # stable denominators drawn uniformly in the pole-pair space, b uniform in its box
-        poles = make_parametrisation(
-            "poles", structure, b_lower=b_lo, b_upper=b_hi, r_max=search.r_max
-        )
+    sampler = _stable_sampler(structure, search, b_lo, b_hi, param, keep)
+    evaluate = _arx_evaluate(objective, param, search, fit)
+    problem = Problem(evaluate, param.lower[keep], param.upper[keep], name="arx", sampler=sampler)
+    rule = _arx_box_rule(box.rule, search.parametrisation, fit)
+    return EstimationProblem(
+        structure=structure,
+        cost=objective,
+        parametrisation=param,
+        problem=problem,
+        search=search,
+        box=box,
+        box_rule=rule,
+    )
 
-        def sampler(size: int, rng: np.random.Generator) -> np.ndarray:
-            Z = poles.lower + (poles.upper - poles.lower) * rng.random((size, poles.n_search))
-            X = np.clip(poles.to_coefficients(Z), param.lower, param.upper)
-            return X[:, keep]
 
+def _arx_cost(
+    structure: ARXStructure, est: Any, cost: CostSpec, search: SearchSpec
+) -> ARXCost:
+    """The one-step least-squares cost of an ARX problem, singular regressors refused."""
+    try:
+        return ARXCost(structure, est, **asdict(cost), penalty_kind=search.penalty)
+    except np.linalg.LinAlgError as exc:  # exactly singular regressors with exciting inputs
+        raise DataError(
+            f"the regressors of {structure!r} are singular on the estimation record ({exc}): "
+            "an output that is zero or constant, or orders the data cannot determine; use "
+            "lower orders or other data"
+        ) from None
+
+
+def _stable_sampler(
+    structure: ARXStructure, search: SearchSpec, b_lo: np.ndarray, b_hi: np.ndarray,
+    param: Any, keep: slice,
+) -> Callable[[int, np.random.Generator], np.ndarray] | None:
+    """The initial-population sampler of ``init = "stable"`` over coefficients, None for the
+    problem's own uniform draws."""
+    if search.init != "stable" or search.parametrisation != "coefficients" or not structure.na:
+        return None
+    # stable denominators drawn uniformly in the pole-pair space, b uniform in its box
+    poles = make_parametrisation(
+        "poles", structure, b_lower=b_lo, b_upper=b_hi, r_max=search.r_max
+    )
+
+    def sampler(size: int, rng: np.random.Generator) -> np.ndarray:
+        Z = poles.lower + (poles.upper - poles.lower) * rng.random((size, poles.n_search))
+        X = np.clip(poles.to_coefficients(Z), param.lower, param.upper)
+        return X[:, keep]
+
+    return sampler
+
+
+def _arx_evaluate(
+    objective: ARXCost, param: Any, search: SearchSpec, fit: bool
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The cost of a batch of search vectors of an ARX problem."""
     if search.parametrisation == "coefficients" and not fit:
-        evaluate = objective  # the search vector is theta
-    elif fit:
+        return objective  # the search vector is theta
+    if fit:
 
         def evaluate(Z: np.ndarray) -> np.ndarray:
             # the fit and the cost at it in one pass (ARXCost.fitted): the costs of
@@ -433,26 +496,21 @@ def pose_polynomial(
         def evaluate(Z: np.ndarray) -> np.ndarray:
             return objective(_coefficients_of(Z, param, objective, search.numerator))
 
-    problem = Problem(evaluate, param.lower[keep], param.upper[keep], name="arx", sampler=sampler)
+    return evaluate
+
+
+def _arx_box_rule(box_rule: str, parametrisation: str, fit: bool) -> str:
+    """How an ARX problem's search box was chosen, for the reports."""
     if fit:
         rule = "b fitted (unbounded)"
-        if search.parametrisation == "coefficients":
-            rule = f"a box: {box.rule}; {rule}"
-    elif search.parametrisation == "coefficients":
-        rule = box.rule
-    else:
-        # the b part of the automatic rule (its a part, "C(na, k) (...)", has commas too)
-        rule = box.rule.split("stable A), ", 1)[-1] if box.rule.startswith("auto") else box.rule
-        rule = f"b box: {rule}"
-    return EstimationProblem(
-        structure=structure,
-        cost=objective,
-        parametrisation=param,
-        problem=problem,
-        search=search,
-        box=box,
-        box_rule=rule,
-    )
+        if parametrisation == "coefficients":
+            rule = f"a box: {box_rule}; {rule}"
+        return rule
+    if parametrisation == "coefficients":
+        return box_rule
+    # the b part of the automatic rule (its a part, "C(na, k) (...)", has commas too)
+    rule = box_rule.split("stable A), ", 1)[-1] if box_rule.startswith("auto") else box_rule
+    return f"b box: {rule}"
 
 
 def _as_polynomial(model: Any) -> PolynomialModel:

@@ -982,23 +982,11 @@ def pem(
     t_begin = time.perf_counter()
     s = _check_structure(structure)
     initial = _check_initial(initial)
-    starts = integer(starts, "starts", error=ConfigError, minimum=0)
-    if not isinstance(seed, np.random.Generator):
-        seed = integer(seed, "seed", error=ConfigError, minimum=0)
-    r_max = real(r_max, "r_max", error=ConfigError, minimum=0, maximum=1, low_open=True)
-    max_nfev = integer(max_nfev, "max_nfev", error=ConfigError, minimum=1, none_ok=True)
-    tol = real(tol, "tol", error=ConfigError, minimum=0, maximum=1, low_open=True, high_open=True)
+    starts, seed, r_max, max_nfev, tol = _check_pem_options(starts, seed, r_max, max_nfev, tol)
     records, dt = _records(data, s)
     x0 = None if x0 is None else _theta(x0, s, "x0")
     rng = np.random.default_rng(seed)
-    if len(records) == 1:
-        prob = first = _Problem(s, *records[0], initial)
-    else:
-        # the starts are fitted on the records joined end to end: the junctions perturb a
-        # start, not the minimum Levenberg-Marquardt then finds on the records apart
-        prob = _Problems(s, records, initial)
-        first = _Problem(s, np.vstack([r[0] for r in records]),
-                         np.concatenate([r[1] for r in records]), initial)  # fmt: skip
+    prob, first = _pem_problems(s, records, initial)
     start_list = _starts(first, records if len(records) > 1 else records[0], initial, tol,
                          starts, rng, r_max, x0)  # fmt: skip
     if first is not prob:
@@ -1009,18 +997,7 @@ def pem(
         extra = kind in _EXTRA_KINDS
         runs.append(_run_lm(prob, th, kind, max_nfev, tol, r_max, target=floor, crawl=extra))
     if max_nfev is None:  # a budget the caller gives is a hard one
-        floor = min(r.sse for r in runs)
-        # the most promising first, so that each later one must catch up with it
-        for run in sorted(runs, key=lambda r: r.sse):
-            if run.out_of_budget and run.sse <= PROMISING * floor:
-                target = min(r.sse for r in runs if r is not run)
-                kind = f"{run.kind}, continued"
-                runs.append(
-                    _run_lm(
-                        prob, run.theta, kind, None, tol, r_max, CHUNKS - 1, target=target,
-                        crawl=run.kind in _EXTRA_KINDS,
-                    )
-                )
+        _continue_promising(prob, runs, tol, r_max)
     best = int(np.argmin([r.sse for r in runs]))
     message = f"best of {len(start_list)} start(s): {runs[best].kind} ({runs[best].message})"
     best, cap, note = _off_the_cap(prob, runs, best, r_max, max_nfev, tol)
@@ -1043,6 +1020,53 @@ def pem(
                             noise_variance=result.noise_variance)  # fmt: skip
     result.update(model=model, stable=model.is_stable, predictor_stable=model.predictor_stable)
     return result
+
+
+def _check_pem_options(
+    starts: Any, seed: Any, r_max: Any, max_nfev: Any, tol: Any
+) -> tuple[int, int | np.random.Generator, float, int | None, float]:
+    """``starts``, ``seed``, ``r_max``, ``max_nfev`` and ``tol`` of :func:`pem`, checked."""
+    starts = integer(starts, "starts", error=ConfigError, minimum=0)
+    if not isinstance(seed, np.random.Generator):
+        seed = integer(seed, "seed", error=ConfigError, minimum=0)
+    r_max = real(r_max, "r_max", error=ConfigError, minimum=0, maximum=1, low_open=True)
+    max_nfev = integer(max_nfev, "max_nfev", error=ConfigError, minimum=1, none_ok=True)
+    tol = real(tol, "tol", error=ConfigError, minimum=0, maximum=1, low_open=True, high_open=True)
+    return starts, seed, r_max, max_nfev, tol
+
+
+def _pem_problems(
+    s: PolynomialStructure, records: list[tuple[np.ndarray, np.ndarray]], initial: str
+) -> tuple[_Problem | _Problems, _Problem]:
+    """The problem :func:`pem` minimises and the one its starts are fitted on (the same one
+    for a single record)."""
+    if len(records) == 1:
+        prob = first = _Problem(s, *records[0], initial)
+    else:
+        # the starts are fitted on the records joined end to end: the junctions perturb a
+        # start, not the minimum Levenberg-Marquardt then finds on the records apart
+        prob = _Problems(s, records, initial)
+        first = _Problem(s, np.vstack([r[0] for r in records]),
+                         np.concatenate([r[1] for r in records]), initial)  # fmt: skip
+    return prob, first
+
+
+def _continue_promising(
+    prob: _Problem | _Problems, runs: list[ReferenceRun], tol: float, r_max: float
+) -> None:
+    """Append to ``runs`` the continuation of each promising run that ran out of budget."""
+    floor = min(r.sse for r in runs)
+    # the most promising first, so that each later one must catch up with it
+    for run in sorted(runs, key=lambda r: r.sse):
+        if run.out_of_budget and run.sse <= PROMISING * floor:
+            target = min(r.sse for r in runs if r is not run)
+            kind = f"{run.kind}, continued"
+            runs.append(
+                _run_lm(
+                    prob, run.theta, kind, None, tol, r_max, CHUNKS - 1, target=target,
+                    crawl=run.kind in _EXTRA_KINDS,
+                )
+            )
 
 
 def _starts(

@@ -658,6 +658,16 @@ def _signal_name(signum: int) -> str:
         return f"signal {signum}"
 
 
+def _wait_timeout(pool: Sequence[_Worker], run_timeout: float | None) -> float:
+    """How long to wait for the pool: the poll interval, or less when a run's time limit
+    falls due sooner."""
+    deadlines = [d for w in pool if (d := w.deadline(run_timeout)) is not None]
+    timeout = _POLL
+    if deadlines:
+        timeout = min(timeout, max(0.0, min(deadlines) - time.monotonic()))
+    return timeout
+
+
 def _execute_processes(
     jobs: Sequence[_Job], items: Sequence[tuple[int, tuple | None]], workers: int,
     run_timeout: float | None, what: str = "worker process",
@@ -697,10 +707,7 @@ def _execute_processes(
                     job, task = queue.popleft()
                     if not w.assign(job, jobs[job].key, payload_of(job), task):
                         queue.appendleft((job, task))  # the worker is gone: check() replaces it
-            deadlines = [d for w in pool if (d := w.deadline(run_timeout)) is not None]
-            timeout = _POLL
-            if deadlines:
-                timeout = min(timeout, max(0.0, min(deadlines) - time.monotonic()))
+            timeout = _wait_timeout(pool, run_timeout)
             wait([w.conn for w in pool] + [w.process.sentinel for w in pool], timeout)
             for w in list(pool):
                 done, alive = w.check(run_timeout)

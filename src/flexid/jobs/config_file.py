@@ -214,6 +214,52 @@ def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
     return out
 
 
+def _check_file_options(
+    plant: str | None, model: Mapping[str, Any], data_seed: int | None
+) -> None:
+    """Refuse the options of :func:`command_specs` that only the built-in comparison takes."""
+    if plant:
+        raise ConfigError("give either a CONFIG file or --plant, not both")
+    if model:
+        raise ConfigError(
+            f"{', '.join(sorted(model))} set the built-in comparison's model; a CONFIG "
+            "file names its structure, orders, grey-box model and parameters in its "
+            "[model] table"
+        )
+    if data_seed is not None:
+        raise ConfigError(
+            "--data-seed applies to the built-in comparison (--plant); a CONFIG file sets "
+            "its record's seed in its [data] table"
+        )
+
+
+def _file_specs(
+    config: str | os.PathLike,
+    optimisers: Sequence[str] | None,
+    runs: int | None,
+    budget: int | None,
+    seed: int | None,
+    cost: Mapping[str, Any],
+    search: Mapping[str, Any],
+) -> list[ComparisonSpec]:
+    """A configuration file's comparisons with the options of :func:`command_specs` that
+    were given."""
+    changes: dict[str, Any] = {
+        k: v for k, v in (("runs", runs), ("budget", budget), ("seed", seed)) if v is not None
+    }
+    if optimisers:
+        changes["optimisers"] = tuple(OptimiserSpec(n) for n in optimisers)
+    return [
+        replace(
+            s,
+            **changes,
+            **({"search": replace(s.search, **search)} if search else {}),
+            **({"cost": replace(s.cost, **cost)} if cost else {}),
+        )
+        for s in load_config(config)
+    ]
+
+
 def command_specs(
     config: str | os.PathLike | None = None,
     *,
@@ -269,33 +315,8 @@ def command_specs(
     model = {k: v for k, v in (model or {}).items() if v not in (None, {}, [])}
     cost, search = dict(cost or {}), dict(search or {})
     if config is not None:
-        if plant:
-            raise ConfigError("give either a CONFIG file or --plant, not both")
-        if model:
-            raise ConfigError(
-                f"{', '.join(sorted(model))} set the built-in comparison's model; a CONFIG "
-                "file names its structure, orders, grey-box model and parameters in its "
-                "[model] table"
-            )
-        if data_seed is not None:
-            raise ConfigError(
-                "--data-seed applies to the built-in comparison (--plant); a CONFIG file sets "
-                "its record's seed in its [data] table"
-            )
-        changes: dict[str, Any] = {
-            k: v for k, v in (("runs", runs), ("budget", budget), ("seed", seed)) if v is not None
-        }
-        if optimisers:
-            changes["optimisers"] = tuple(OptimiserSpec(n) for n in optimisers)
-        specs = [
-            replace(
-                s,
-                **changes,
-                **({"search": replace(s.search, **search)} if search else {}),
-                **({"cost": replace(s.cost, **cost)} if cost else {}),
-            )
-            for s in load_config(config)
-        ]
+        _check_file_options(plant, model, data_seed)
+        specs = _file_specs(config, optimisers, runs, budget, seed, cost, search)
     else:
         given = {
             "plant": plant, "optimisers": optimisers, "runs": runs, "budget": budget,

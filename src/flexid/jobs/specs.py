@@ -558,30 +558,14 @@ def default_spec(
     orders = {"na": na, "nb": nb, "nc": nc, "nd": nd, "nf": nf}
     data = DataSpec(plant=plant, preset=preset, seed=data_seed)
     if greybox is not None and structure in (None, GREYBOX):
-        given = sorted(k for k, v in orders.items() if v is not None)
-        if given or nk != 1:
-            raise ConfigError(f"a grey-box model has no orders; remove {given or ['nk']}")
-        spec_model = ModelSpec(
-            structure=GREYBOX, greybox=greybox, parameters=dict(parameters or {})
-        )
-        outputs = spec_model.greybox_model().outputs
-        if len(outputs) > 1:  # the paper presets record one output
-            data = DataSpec(plant=plant, seed=data_seed, outputs=list(outputs))
+        spec_model, data = _default_greybox(plant, greybox, parameters, orders, nk, data,
+                                            data_seed)  # fmt: skip
     elif structure == GREYBOX or parameters:
         raise ConfigError("structure 'greybox' takes the model's name (greybox=...), and "
                           "parameters belong to it")
-    elif structure is None and all(v is None for v in orders.values()):
-        spec_model = model  # the plant's own default: a structure that passes validation
     else:
-        structure = structure or "arx"  # orders without a structure are ARX's, as in identify
-        if structure == "arx" and na is None:
-            orders["na"] = order
-        spec_model = ModelSpec(structure=structure, nk=nk, **orders)
-    cost = cost or CostSpec()
-    if cost.initial == "auto" and spec_model.structure != "arx":
-        # the built-in plants' records start at rest, so "zero" is their exact initial state
-        # (and the cheapest rule: no initial state to fit per candidate)
-        cost = replace(cost, initial="zero")
+        spec_model = _default_black_box(model, structure, orders, nk, order)
+    cost = _default_cost(cost, spec_model)
     names = list(optimisers) if optimisers else list(DEFAULT_OPTIMISERS)
     return ComparisonSpec(
         name=f"{plant}-default",
@@ -594,6 +578,48 @@ def default_spec(
         seed=seed,
         budget=budget,
     )
+
+
+def _default_greybox(
+    plant: str, greybox: str, parameters: Mapping[str, Any] | None,
+    orders: Mapping[str, Any], nk: Any, data: DataSpec, data_seed: int,
+) -> tuple[ModelSpec, DataSpec]:
+    """The grey-box model of :func:`default_spec` and its record (the plant's own record
+    with the model's outputs when it has more than one)."""
+    given = sorted(k for k, v in orders.items() if v is not None)
+    if given or nk != 1:
+        raise ConfigError(f"a grey-box model has no orders; remove {given or ['nk']}")
+    spec_model = ModelSpec(
+        structure=GREYBOX, greybox=greybox, parameters=dict(parameters or {})
+    )
+    outputs = spec_model.greybox_model().outputs
+    if len(outputs) > 1:  # the paper presets record one output
+        data = DataSpec(plant=plant, seed=data_seed, outputs=list(outputs))
+    return spec_model, data
+
+
+def _default_black_box(
+    model: ModelSpec, structure: str | None, orders: dict[str, Any], nk: Any, order: int,
+) -> ModelSpec:
+    """The black-box model of :func:`default_spec`: the plant's own, or the structure and
+    orders given."""
+    if structure is None and all(v is None for v in orders.values()):
+        return model  # the plant's own default: a structure that passes validation
+    structure = structure or "arx"  # orders without a structure are ARX's, as in identify
+    if structure == "arx" and orders["na"] is None:
+        orders["na"] = order
+    return ModelSpec(structure=structure, nk=nk, **orders)
+
+
+def _default_cost(cost: CostSpec | None, spec_model: ModelSpec) -> CostSpec:
+    """The cost of :func:`default_spec`, with ``"auto"`` initial conditions made ``"zero"``
+    for structures other than ARX."""
+    cost = cost or CostSpec()
+    if cost.initial == "auto" and spec_model.structure != "arx":
+        # the built-in plants' records start at rest, so "zero" is their exact initial state
+        # (and the cheapest rule: no initial state to fit per candidate)
+        cost = replace(cost, initial="zero")
+    return cost
 
 
 def with_optimiser_params(spec: ComparisonSpec, params: Mapping[str, Any]) -> ComparisonSpec:

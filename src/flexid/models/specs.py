@@ -217,12 +217,7 @@ class ModelSpec:
             raise ConfigError("[model] options must be a table: name = value")
         object.__setattr__(self, "options", dict(self.options))
         if self.registered:
-            given = [k for k in ("na", "nb", "nc", "nd", "nf", "greybox") if getattr(self, k)]
-            if given or self.parameters:
-                raise ConfigError(
-                    f"[model] structure {self.structure!r} takes its orders in options = "
-                    f"{{...}}, not {', '.join(given or ['parameters'])}"
-                )
+            self._check_registered()
             return
         if self.options:
             raise ConfigError(
@@ -230,19 +225,7 @@ class ModelSpec:
                 f"{self.structure!r}: give its orders as na, nb, nc, nd, nf, nk"
             )
         if self.structure == GREYBOX:
-            if not isinstance(self.greybox, str) or not self.greybox:
-                raise ConfigError(
-                    "[model] structure 'greybox' needs greybox = the model's name (e.g. "
-                    "'twin-rotor-pitch', or 'path/to/file.py:NAME')"
-                )
-            orders = [k for k in ("na", "nb", "nc", "nd", "nf") if getattr(self, k) is not None]
-            if orders or self.nk != 1:
-                raise ConfigError(
-                    f"[model] a grey-box model has no orders; remove {', '.join(orders or ['nk'])}"
-                )
-            if not isinstance(self.parameters, Mapping):
-                raise ConfigError("[model] parameters must be a table: name = value or {...}")
-            object.__setattr__(self, "parameters", dict(self.parameters))
+            self._check_greybox()
             return
         if self.greybox is not None or self.parameters:
             raise ConfigError(
@@ -251,6 +234,32 @@ class ModelSpec:
             )
         if self.structure == "arx" and self.na is None:
             object.__setattr__(self, "na", 8)  # the paper's order
+
+    def _check_registered(self) -> None:
+        """A registered family's structure takes its orders in options only."""
+        given = [k for k in ("na", "nb", "nc", "nd", "nf", "greybox") if getattr(self, k)]
+        if given or self.parameters:
+            raise ConfigError(
+                f"[model] structure {self.structure!r} takes its orders in options = "
+                f"{{...}}, not {', '.join(given or ['parameters'])}"
+            )
+
+    def _check_greybox(self) -> None:
+        """A grey-box structure names its model, has no orders and a table of parameter
+        changes (stored as a dict)."""
+        if not isinstance(self.greybox, str) or not self.greybox:
+            raise ConfigError(
+                "[model] structure 'greybox' needs greybox = the model's name (e.g. "
+                "'twin-rotor-pitch', or 'path/to/file.py:NAME')"
+            )
+        orders = [k for k in ("na", "nb", "nc", "nd", "nf") if getattr(self, k) is not None]
+        if orders or self.nk != 1:
+            raise ConfigError(
+                f"[model] a grey-box model has no orders; remove {', '.join(orders or ['nk'])}"
+            )
+        if not isinstance(self.parameters, Mapping):
+            raise ConfigError("[model] parameters must be a table: name = value or {...}")
+        object.__setattr__(self, "parameters", dict(self.parameters))
 
     def greybox_model(self) -> Any:
         """The grey-box model this spec names, with its parameter changes.

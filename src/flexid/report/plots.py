@@ -307,10 +307,10 @@ def _model_modes(model: Any) -> list[float]:
     """The natural frequencies (Hz) of a model's lightly damped pairs, for marking."""
     if not hasattr(model, "poles") or not hasattr(model, "dt"):
         return []
-    from ..models.modes import modes
+    from ..models.modes import model_modes
 
     try:
-        found = modes(model.poles(), model.dt)
+        found = model_modes(model)
     except FlexidError:
         return []
     return [m.frequency for m in found if m.kind == "pair" and 0 < m.damping < 1]
@@ -373,18 +373,7 @@ def plot_bode(
     )  # fmt: skip
     # a model is drawn on a fine grid of its own: its resonances sharper than the estimate's
     dense = np.geomspace(f[0], f[-1], _BODE_POINTS)
-    curves = []
-    for i, (label, model) in enumerate((models or {}).items()):
-        if hasattr(model, "frequency_response"):
-            grid, g = dense, model.frequency_response(dense)
-        elif callable(model):
-            grid, g = dense, model(dense)
-        else:
-            grid, g = f, model
-        marked = (modes or {}).get(label)
-        curves.append((label, grid, np.asarray(g, dtype=complex).reshape(grid.size, ny, nu),
-                       _model_modes(model) if marked is None else list(marked),
-                       _style(i)))  # fmt: skip
+    curves = _bode_curves(models, modes, f, dense, ny, nu)
     mag_db = estimate.magnitude_db()
     phase = estimate.phase_deg()
     lower, upper = estimate.band()
@@ -409,37 +398,12 @@ def plot_bode(
                               color="0.6", alpha=0.3, lw=0)  # fmt: skip
             ax_p.plot(f, phase[:, j, i], color="0.7", lw=1)
             ax_p.plot(f, np.where(trusted, phase[:, j, i], np.nan), color="k", lw=1.0, zorder=3)
-            for label, grid, g, mode_f, style in curves:
-                gji = g[:, j, i]
-                with np.errstate(divide="ignore"):
-                    ax_m.plot(grid, 20 * np.log10(np.abs(gji)), lw=1.2, label=label, **style)
-                ph = np.degrees(np.unwrap(np.angle(gji)))
-                # the same branch as the estimate's phase where the record is trusted
-                at = int(np.argmax(trusted)) if trusted.any() else 0
-                near = int(np.argmin(np.abs(grid - f[at])))
-                ph -= 360.0 * np.round((ph[near] - phase[at, j, i]) / 360.0)
-                ax_p.plot(grid, ph, lw=1.2, **style)
-                shown = [m for m in mode_f if f[0] <= m <= f[-1]]
-                if shown:  # an empty line off the axes' clip box collapses the layout
-                    ax_m.plot(shown, np.ones(len(shown)), ls="none", marker="v", ms=7,
-                              color=style["color"], transform=ax_m.get_xaxis_transform(),
-                              clip_on=False)  # fmt: skip
+            for curve in curves:
+                _bode_model_lines(ax_m, ax_p, curve, j, i, f, trusted, phase)
             ax_c.plot(f, estimate.coherence[:, j], color="k", lw=1)
             ax_c.axhline(level, color="0.4", ls=":", lw=1)
             ax_c.set_ylim(0.0, 1.05)
-            unit_in = estimate.input_units[i] if estimate.input_units else ""
-            unit_out = estimate.output_units[j] if estimate.output_units else ""
-            gain_unit = f"{unit_out or '1'}/{unit_in or '1'}" if unit_in or unit_out else ""
-            ax_m.set_title(f"{estimate.input_names[i]} \u2192 {estimate.output_names[j]}",
-                           pad=12)  # fmt: skip
-            ax_m.set_ylabel(_with_unit("magnitude", f"dB re 1 {gain_unit}" if gain_unit
-                                       else "dB"))  # fmt: skip
-            ax_p.set_ylabel("phase [deg]")
-            ax_c.set_ylabel("coherence [-]")
-            for ax in (ax_m, ax_p, ax_c):
-                ax.set_xscale("log")
-                ax.grid(True, which="both", alpha=0.3)
-            _readable_log_ticks(ax_c)
+            _bode_labels(ax_m, ax_p, ax_c, estimate, j, i)
             if j == ny - 1:
                 ax_c.set_xlabel("frequency [Hz]")
     axes[0, 0].set_xlim(f[0], f[-1])
@@ -447,6 +411,66 @@ def plot_bode(
     if title:
         fig.suptitle(title)
     return fig
+
+
+def _bode_curves(
+    models: Mapping[str, Any] | None, modes: Mapping[str, Sequence[float]] | None,
+    f: np.ndarray, dense: np.ndarray, ny: int, nu: int,
+) -> list[tuple[str, np.ndarray, np.ndarray, list, dict]]:
+    """The models of :func:`plot_bode` as ``(label, grid, response, modes, style)``: a model
+    or a function on the fine grid ``dense``, a response at the estimate's frequencies."""
+    curves = []
+    for i, (label, model) in enumerate((models or {}).items()):
+        if hasattr(model, "frequency_response"):
+            grid, g = dense, model.frequency_response(dense)
+        elif callable(model):
+            grid, g = dense, model(dense)
+        else:
+            grid, g = f, model
+        marked = (modes or {}).get(label)
+        curves.append((label, grid, np.asarray(g, dtype=complex).reshape(grid.size, ny, nu),
+                       _model_modes(model) if marked is None else list(marked),
+                       _style(i)))  # fmt: skip
+    return curves
+
+
+def _bode_model_lines(
+    ax_m: Any, ax_p: Any, curve: tuple[str, np.ndarray, np.ndarray, list, dict], j: int, i: int,
+    f: np.ndarray, trusted: np.ndarray, phase: np.ndarray,
+) -> None:
+    """One model's magnitude, phase and marked modes on the panels of pair ``(j, i)``."""
+    label, grid, g, mode_f, style = curve
+    gji = g[:, j, i]
+    with np.errstate(divide="ignore"):
+        ax_m.plot(grid, 20 * np.log10(np.abs(gji)), lw=1.2, label=label, **style)
+    ph = np.degrees(np.unwrap(np.angle(gji)))
+    # the same branch as the estimate's phase where the record is trusted
+    at = int(np.argmax(trusted)) if trusted.any() else 0
+    near = int(np.argmin(np.abs(grid - f[at])))
+    ph -= 360.0 * np.round((ph[near] - phase[at, j, i]) / 360.0)
+    ax_p.plot(grid, ph, lw=1.2, **style)
+    shown = [m for m in mode_f if f[0] <= m <= f[-1]]
+    if shown:  # an empty line off the axes' clip box collapses the layout
+        ax_m.plot(shown, np.ones(len(shown)), ls="none", marker="v", ms=7,
+                  color=style["color"], transform=ax_m.get_xaxis_transform(),
+                  clip_on=False)  # fmt: skip
+
+
+def _bode_labels(ax_m: Any, ax_p: Any, ax_c: Any, estimate: Any, j: int, i: int) -> None:
+    """Titles, axis labels, log scales and grids of the panels of pair ``(j, i)``."""
+    unit_in = estimate.input_units[i] if estimate.input_units else ""
+    unit_out = estimate.output_units[j] if estimate.output_units else ""
+    gain_unit = f"{unit_out or '1'}/{unit_in or '1'}" if unit_in or unit_out else ""
+    ax_m.set_title(f"{estimate.input_names[i]} \u2192 {estimate.output_names[j]}",
+                   pad=12)  # fmt: skip
+    ax_m.set_ylabel(_with_unit("magnitude", f"dB re 1 {gain_unit}" if gain_unit
+                               else "dB"))  # fmt: skip
+    ax_p.set_ylabel("phase [deg]")
+    ax_c.set_ylabel("coherence [-]")
+    for ax in (ax_m, ax_p, ax_c):
+        ax.set_xscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    _readable_log_ticks(ax_c)
 
 
 # Roots closer than this (relative to max(1, |root|)) are drawn as one repeated root: a root
@@ -1162,53 +1186,19 @@ def stabilisation_diagram(selection: Selection) -> Figure | None:
     matplotlib.figure.Figure or None
         None with fewer than two orders of one linear structure.
     """
-    from ..models.modes import modes
-
     linear = [c for c in selection.candidates
               if c.ok and hasattr(c.model, "frequency_response")]  # fmt: skip
     if not linear:
         return None
     kind = selection.best.kind if selection.best in linear else linear[0].kind
-    # one candidate per order: the best ranked of those with that many poles
-    per_order: dict[int, Any] = {}
-    for c in selection.ranked():
-        if c in linear and c.kind == kind:
-            per_order.setdefault(len(c.model.poles()), c)
-    group = [per_order[n] for n in sorted(per_order)]
-    rows = []
-    for c in group:
-        pairs = [m for m in modes(c.model.poles(), c.model.dt)
-                 if m.kind == "pair" and 0 < m.damping < 1]  # fmt: skip
-        rows.append((len(c.model.poles()), np.array([m.frequency for m in pairs]),
-                     np.array([m.damping for m in pairs])))  # fmt: skip
+    rows = _stabilisation_rows(selection, linear, kind)
     if len({order for order, _, _ in rows}) < 2:
         return None
     fig, ax = _axes(None, figsize=(8.0, 4.8))
     estimate = _held_out_estimate(selection)
     if estimate is not None:
-        back = ax.twinx()
-        power = np.sqrt(np.sum(np.abs(estimate.response) ** 2, axis=(1, 2)))
-        back.plot(estimate.frequency, 20 * np.log10(np.maximum(power, 1e-300)), color="0.75",
-                  lw=1, zorder=0)  # fmt: skip
-        back.set_ylabel("held-out record's magnitude [dB]", color="0.5")
-        back.tick_params(axis="y", colors="0.5")
-        ax.set_zorder(back.get_zorder() + 1)
-        ax.patch.set_visible(False)
-    seen = set()
-    for k, (order, f, zeta) in enumerate(rows):
-        lower = [r for r in rows[:k] if r[0] < order]
-        prev_f, prev_z = (lower[-1][1], lower[-1][2]) if lower else (np.zeros(0), np.zeros(0))
-        for fi, zi in zip(f, zeta):
-            near = np.abs(prev_f - fi) <= _STABLE_FREQUENCY * fi
-            if near.any() and np.any(np.abs(prev_z[near] - zi) <= _STABLE_DAMPING * zi):
-                style, label = {"marker": "o", "mfc": "k", "mec": "k"}, "stable"
-            elif near.any():
-                style, label = ({"marker": "o", "mfc": "white", "mec": "k"},
-                                "stable in frequency")  # fmt: skip
-            else:
-                style, label = {"marker": "x", "color": "0.45"}, "new"
-            ax.plot(fi, order, ls="none", ms=6, label=None if label in seen else label, **style)
-            seen.add(label)
+        _draw_held_out_magnitude(ax, estimate)
+    _draw_stabilisation_modes(ax, rows)
     ax.set_xscale("log")
     ax.set_xlabel("natural frequency [Hz]")
     ax.set_ylabel("model order (poles) [-]")
@@ -1225,6 +1215,66 @@ def stabilisation_diagram(selection: Selection) -> Figure | None:
     ax.legend([handles[i] for i in order], [labels[i] for i in order], loc="upper left",
               bbox_to_anchor=(1.12, 1.0), frameon=False)  # fmt: skip
     return fig
+
+
+def _stabilisation_rows(
+    selection: Selection, linear: list, kind: str
+) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """``(order, natural frequencies, damping ratios)`` of the oscillating modes of one
+    candidate of ``kind`` per order: the best ranked of those with that many poles."""
+    from ..models.modes import model_modes
+
+    def order(found: list) -> int:  # each mode once, however many inputs repeat it
+        return sum(2 if m.kind == "pair" else 1 for m in found)
+
+    per_order: dict[int, tuple] = {}
+    for c in selection.ranked():
+        if c in linear and c.kind == kind:
+            found = model_modes(c.model)
+            per_order.setdefault(order(found), (c, found))
+    rows = []
+    for n in sorted(per_order):
+        pairs = [m for m in per_order[n][1] if m.kind == "pair" and 0 < m.damping < 1]
+        rows.append((n, np.array([m.frequency for m in pairs]),
+                     np.array([m.damping for m in pairs])))  # fmt: skip
+    return rows
+
+
+def _draw_held_out_magnitude(ax: Any, estimate: Any) -> None:
+    """The held-out record's estimated magnitude behind ``ax``, on an axis of its own."""
+    back = ax.twinx()
+    power = np.sqrt(np.sum(np.abs(estimate.response) ** 2, axis=(1, 2)))
+    back.plot(estimate.frequency, 20 * np.log10(np.maximum(power, 1e-300)), color="0.75",
+              lw=1, zorder=0)  # fmt: skip
+    back.set_ylabel("held-out record's magnitude [dB]", color="0.5")
+    back.tick_params(axis="y", colors="0.5")
+    ax.set_zorder(back.get_zorder() + 1)
+    ax.patch.set_visible(False)
+
+
+def _mode_marker(
+    prev_f: np.ndarray, prev_z: np.ndarray, fi: float, zi: float
+) -> tuple[dict[str, str], str]:
+    """The marker style and legend label of a mode against the modes of the next lower
+    order: stable, stable in frequency only, or new."""
+    near = np.abs(prev_f - fi) <= _STABLE_FREQUENCY * fi
+    if near.any() and np.any(np.abs(prev_z[near] - zi) <= _STABLE_DAMPING * zi):
+        return {"marker": "o", "mfc": "k", "mec": "k"}, "stable"
+    if near.any():
+        return {"marker": "o", "mfc": "white", "mec": "k"}, "stable in frequency"
+    return {"marker": "x", "color": "0.45"}, "new"
+
+
+def _draw_stabilisation_modes(ax: Any, rows: list[tuple[int, np.ndarray, np.ndarray]]) -> None:
+    """One marker per mode and order, each label in the legend once."""
+    seen = set()
+    for k, (order, f, zeta) in enumerate(rows):
+        lower = [r for r in rows[:k] if r[0] < order]
+        prev_f, prev_z = (lower[-1][1], lower[-1][2]) if lower else (np.zeros(0), np.zeros(0))
+        for fi, zi in zip(f, zeta):
+            style, label = _mode_marker(prev_f, prev_z, fi, zi)
+            ax.plot(fi, order, ls="none", ms=6, label=None if label in seen else label, **style)
+            seen.add(label)
 
 
 def _draw_candidates(ax, drawn, kinds, value, low: float, floor: float) -> None:
