@@ -502,8 +502,7 @@ class ComparisonResult:
 
 
 _VALIDATION_CAPTION = (
-    "Validation on the held-out record (medians over runs; with several outputs the weakest "
-    "output's fits and the joint verdict)"
+    "Validation on the held-out record (medians over runs; with several outputs the weakest's)"
 )
 _OUTPUTS_CAPTION = "Each output on the held-out record (medians and shares over runs)"
 
