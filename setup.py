@@ -12,9 +12,9 @@ import os
 from setuptools import Extension, setup
 
 _SOURCES = ["module", "pool", "polynomial", "recursion", "numerator", "initial_state",
-            "twin_rotor", "modal"]  # fmt: skip
+            "twin_rotor", "modal", "flagged"]  # fmt: skip
 _HEADERS = ["simd", "pool", "polynomial", "recursion", "numerator", "initial_state",
-            "twin_rotor", "modal"]  # fmt: skip
+            "twin_rotor", "modal", "flagged", "flagged_lanes"]  # fmt: skip
 
 setup(
     ext_modules=[

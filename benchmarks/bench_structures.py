@@ -89,7 +89,7 @@ def main() -> None:
     oe = cases["OE(16,16,1)"]
     X = np.zeros((P, oe.n_params))
     X[:, 16:] = A_TRUE[1:] + 1e-7 * rng.standard_normal((P, 16))
-    for rule in ("zero", "estimate"):
+    for rule in ("zero", "estimate", "measured"):
         cost = PolynomialCost(oe, (u, y), metric="rmse", initial=rule)
         ok = cost._admissible(X)
         near = X[ok]

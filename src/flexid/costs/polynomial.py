@@ -43,7 +43,11 @@ Variable projection (:meth:`PolynomialCost.fit_numerator`)
     (the inputs before ``start`` then enter only through the state).  Otherwise, and for the
     rows that kernel flags, each regressor is the response to one orthogonal numerator (one
     recursion per coefficient of ``B``, plus the ``n`` free responses under ``"estimate"``)
-    and a small least-squares solve per candidate.
+    and a small least-squares solve per candidate.  With one input and the compiled kernels
+    that problem is solved by :func:`flexid.kernels.flagged_fit` (the same regressors and
+    solve: one recursion of ``1/den`` and FIR filters of it, each regressor's own recursion
+    under ``"measured"``, the Gram matrix summed directly, no ``(P, nb, K)`` arrays); the
+    recursions remain the reference route and take the rows it cannot solve.
 """
 
 from __future__ import annotations
@@ -780,7 +784,67 @@ class PolynomialCost(ErrorCost):
                 return self._fitted_b_lag_sums(X)
             if self._lag_sum_fit_filtered:
                 return self._fitted_b_lag_sums_filtered(X)
+            if self._compiled_fit:
+                # one input but no lag sums (BJ and ARMAX from the measured outputs, or with
+                # the state estimated where nb - 1 > deg C F): the compiled orthogonal route
+                b, sse, ok = self._fitted_b_compiled(X)
+                if not ok.all():
+                    b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
+                return b, sse
         return self._fitted_b_recursions(X)
+
+    @property
+    def _compiled_fit(self) -> bool:
+        """Whether :meth:`_fitted_b_compiled` applies (one input, orders the kernel takes)."""
+        s = self.structure
+        one_step = self.predictor == "one-step"
+        n = (self._nc if one_step else s.na) + (s.nf[0] if s.n_inputs == 1 else 0)
+        return s.n_inputs == 1 and kernels.flagged_fit_compiled(n, s.nb[0], self._nd + 1)
+
+    def _fitted_b_compiled(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_fitted_b_recursions` of one input by :func:`flexid.kernels.flagged_fit`.
+
+        The same least-squares problem (:meth:`b_regressors`: the regressors in the
+        orthogonal numerators' basis, the free responses under ``"estimate"``, the target of
+        the predictor) and the same solve, compiled: one recursion of ``1/den`` and FIR
+        filters of it in place of one recursion per coefficient (each regressor's own
+        recursion from ``start`` under ``"measured"``), and no ``(P, nb, K)`` arrays.
+
+        Returns
+        -------
+        b : ndarray, shape (P, nb)
+        sse : ndarray, shape (P,)
+        ok : ndarray of bool, shape (P,)
+            False for the rows the kernel could not solve (the caller takes the recursions).
+        """
+        s = self.structure
+        p = self._parts(X)
+        one_step = self.predictor == "one-step"
+        den = poly_mul_rows(p["c"] if one_step else p["a"], p["f"][0])
+        n, nb = den.shape[1] - 1, s.nb[0]
+        basis = orthogonal_numerators(den, nb)
+        free = None
+        if self.initial == "estimate":  # the same call when nb = n (the same array)
+            free = basis if nb == n else orthogonal_numerators(den, n)
+        target = targets = None
+        if self.initial == "measured":
+            # the free part: the predictor with B = 0 from the measured outputs (its input
+            # part is zero, so only num_y y is formed)
+            num_y = self._predictor(p)[1]
+            forced = num_y @ self._ylags[: num_y.shape[1]]
+            y0, _ = ar_recursion(den[:, 1:], forced, self._state[:n])
+            targets = self._target - y0
+        elif one_step and self._deg_y:
+            targets = self._filtered_target(p)
+        else:
+            target = self._target
+        nk = s.nk[0]
+        sig = np.concatenate([np.zeros(nk), self.u[: self.N - nk, 0]])
+        coef, sse, ok = kernels.flagged_fit(
+            den[:, 1:], basis, sig, target, targets, lead=p["d"] if self._nd else None,
+            free_basis=free, restart=self.initial == "measured", tol=_REFINE_TOL,
+        )  # fmt: skip
+        return self._b_of(coef, [basis]), sse, ok
 
     def _filtered_target(self, p: dict[str, Any]) -> np.ndarray:
         """``z = (D A / C) y`` (P, K) of the one-step predictor, from rest at ``t = 0``."""
@@ -821,7 +885,12 @@ class PolynomialCost(ErrorCost):
                 theta[:, self.structure.b_columns] = b[ok]
                 sse[ok] = self.sse(theta)
         if not ok.all():
-            b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
+            bad = np.flatnonzero(~ok)
+            if self._compiled_fit:  # the compiled orthogonal route, the recursions for its flags
+                b[bad], sse[bad], fine = self._fitted_b_compiled(X[bad])
+                bad = bad[~fine]
+            if bad.size:
+                b[bad], sse[bad] = self._fitted_b_recursions(X[bad])
         return b, sse
 
     def _fitted_b_lag_sums(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -26,11 +26,11 @@ blocks of 4 candidates and computes them exactly as one thread would, so the res
 depend on the thread count.
 
 The compiled least-squares fits (:func:`arx_fit`, :func:`arx_fit_shifted`,
-:func:`initial_state_fit`) run with subnormal numbers flushed to zero (x86-64's FTZ and DAZ,
-set for each block and restored after it): the impulse and free responses of a fast
-denominator decay through the subnormal range, where every operation costs some hundred
-cycles.  Only values below 2.3e-308 in magnitude change; the plain recursions of the costs
-(:func:`ar_recursion`, :func:`arx_recursion`) keep IEEE arithmetic.
+:func:`initial_state_fit`, :func:`flagged_fit`) run with subnormal numbers flushed to zero
+(x86-64's FTZ and DAZ, set for each block and restored after it): the impulse and free
+responses of a fast denominator decay through the subnormal range, where every operation
+costs some hundred cycles.  Only values below 2.3e-308 in magnitude change; the plain
+recursions of the costs (:func:`ar_recursion`, :func:`arx_recursion`) keep IEEE arithmetic.
 """
 
 from __future__ import annotations
@@ -51,6 +51,8 @@ __all__ = [
     "arx_fit_shifted_reference",
     "arx_recursion",
     "compiled_available",
+    "flagged_fit",
+    "flagged_fit_compiled",
     "free_fit_compiled",
     "initial_state_fit",
     "initial_state_fit_reference",
@@ -1086,3 +1088,116 @@ def arx_fit_shifted(
     _c.arx_fit_shifted(a, reg, state0, target, int(offset), big_l, FIT_SHIFTED_TOL, b, ok, sse,
                        _threads_for(work), int(free_state), num, targets)  # fmt: skip
     return b, ok.view(bool), sse
+
+
+def flagged_fit_compiled(n: int, nb: int, nl: int = 1) -> bool:
+    """Whether :func:`flagged_fit` runs compiled for these orders.
+
+    Parameters
+    ----------
+    n : int
+        Order of ``den``.
+    nb : int
+        Terms of the numerator.
+    nl : int
+        Terms of the lead numerator (``D``; 1 without one).
+
+    Returns
+    -------
+    bool
+        True when the compiled kernels are in use and ``1 <= n <= 24``, ``1 <= nb <= 16``
+        and ``1 <= nl <= 8``.
+    """
+    return (BACKEND == "c" and hasattr(_c, "flagged_fit") and 1 <= n <= 24 and 1 <= nb <= 16
+            and 1 <= nl <= 8)  # fmt: skip
+
+
+def flagged_fit(
+    a: np.ndarray,
+    basis: np.ndarray,
+    sig: np.ndarray,
+    target: np.ndarray | None,
+    targets: np.ndarray | None = None,
+    *,
+    lead: np.ndarray | None = None,
+    free_basis: np.ndarray | None = None,
+    restart: bool = False,
+    tol: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The least-squares numerator of one input in the orthogonal numerators' basis, compiled.
+
+    The problem of :meth:`flexid.costs.polynomial.PolynomialCost.b_regressors` for one
+    input, solved as :func:`flexid.costs.polynomial._least_squares_rows` solves it (normal
+    equations of the column-scaled regressors, up to two refinement steps with the residual
+    formed from the regressors), without ``(P, nb, K)`` arrays.  With ``w = lead sig`` and
+    ``start = N - K``, regressor ``m`` over ``t >= start`` is ``P_m(q)/den(q) w`` from rest
+    at ``t = 0`` (one recursion of ``1/den`` and ``nb`` FIR filters of it, where the route of
+    one recursion per coefficient runs ``nb`` recursions: the same signals), or with
+    ``restart`` the response of ``1/den`` to ``P_m(q) w`` from rest at ``t = start`` (the
+    rule ``"measured"``: each regressor's own recursion, since their transients differ);
+    with ``free_basis`` the ``n`` free responses ``Q_k(q)/den(q) delta`` from ``t = start``
+    are unknowns too (FIR filters of one impulse response).  Its rounding errors are those of
+    the recursions' route, a few ``eps`` times the gain of ``1/den``
+    (``tests/test_flagged_fit.py`` measures them).  The compiled kernels only: the route of
+    one recursion per coefficient is the reference.
+
+    Parameters
+    ----------
+    a : ndarray, shape (P, n)
+        ``a_1 .. a_n`` of each ``den``, stable.
+    basis : ndarray, shape (P, nb, nb)
+        The numerators ``P_m`` (:func:`~flexid.costs.polynomial.orthogonal_numerators`).
+    sig : ndarray, shape (N,)
+        The input delayed by ``nk`` (zeros before it).
+    target : ndarray, shape (K,), or None
+        Shared target over ``t >= start``.
+    targets : ndarray, shape (P, K), optional
+        Per-candidate targets in place of ``target`` (give exactly one of them).
+    lead : ndarray, shape (P, nl), optional
+        A numerator on the input (``D`` of a one-step predictor); None: 1.
+    free_basis : ndarray, shape (P, n, n), optional
+        The free responses' numerators (``orthogonal_numerators(den, n)``); None: no free
+        response.
+    restart : bool
+        The regressors from rest at ``t = start`` (the rule ``"measured"``).
+    tol : float
+        Refinement tolerance (relative step below which a row has converged).
+
+    Returns
+    -------
+    coef : ndarray, shape (P, nb)
+        The coefficients of the ``P_m``.
+    sse : ndarray, shape (P,)
+        Sums of squares of the residual at ``coef`` (and the fitted free responses): that of
+        the last residual formed, less the last refinement step's share
+        (``|e - R s|^2 = |e|^2 - 2 s.R'e + s'Gs``, a correction far below ``|e|^2``).
+    ok : ndarray of bool, shape (P,)
+        False where the factorisation broke down, the refinement still moved after two
+        steps (where :func:`~flexid.costs.polynomial._least_squares_rows` solves again by
+        SVD) or a result is not finite: solve those rows another way.
+    """
+    a = _rows(np.atleast_2d(np.asarray(a, dtype=float)))
+    p, n = a.shape
+    nb = basis.shape[1]
+    nl = 1 if lead is None else np.shape(lead)[-1]
+    if not flagged_fit_compiled(n, nb, nl):
+        raise FlexidError(
+            "flagged_fit: the compiled kernels are not in use or the orders are out of range "
+            "(the reference route is PolynomialCost._fitted_b_recursions)"
+        )
+    if (target is None) == (targets is None):
+        raise FlexidError("flagged_fit: give target or targets, not both")
+    coef = np.empty((p, nb))
+    sse = np.empty(p)
+    ok = np.empty(p, dtype=np.uint8)
+    k = (target if target is not None else targets).shape[-1]
+    nr = nb + (n if free_basis is not None else 0)
+    work = p * k * (nr * (nr + 1) // 2 + nb * (nb + 1) // 2 + 4 * nr)
+    _c.flagged_fit(a, np.ascontiguousarray(basis, dtype=float),
+                   None if lead is None else _rows(np.asarray(lead, dtype=float)),
+                   None if free_basis is None else np.ascontiguousarray(free_basis, dtype=float),
+                   np.ascontiguousarray(sig, dtype=float),
+                   None if target is None else np.ascontiguousarray(target, dtype=float),
+                   None if targets is None else np.ascontiguousarray(targets, dtype=float),
+                   bool(restart), float(tol), coef, sse, ok, _threads_for(work))  # fmt: skip
+    return coef, sse, ok.view(bool)

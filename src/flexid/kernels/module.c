@@ -18,6 +18,8 @@
  *                   [, threads[, free_state[, d, targets]]])              numerator.c
  *   free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out,
  *            coef_out[, threads[, first, noise]])                         initial_state.c
+ *   flagged_fit(a, basis, lead, fbasis, sig, target, targets, restart, tol, coef_out,
+ *               sse_out, ok_out[, threads])                               flagged.c
  *   modal_regressors(poles, u, phi, m, feedthrough, free_response[, threads])
  *   modal_normal(poles, u, target, gram, rhs, m, feedthrough, free_response[, threads])
  *   modal_residual(poles, u, target, coef, residual, sse, m, feedthrough, free_response
@@ -37,6 +39,7 @@
  * population between (pool.c); the results do not depend on it.
  */
 #include "simd.h"
+#include "flagged.h"
 #include "initial_state.h"
 #include "modal.h"
 #include "numerator.h"
@@ -109,6 +112,7 @@ typedef struct {
 #define OUT(name) {name, 'd', 'w', 0}
 #define OUT_OPT(name) {name, 'd', 'w', 1}
 #define OUT_U8(name) {name, 'B', 'w', 0}
+#define ROWS_OPT(name) {name, 'd', 's', 1}
 
 /* rc of an entry point: an exception is set (0: the kernel ran, -1: it ran out of memory) */
 #define RAISED (-2)
@@ -606,6 +610,45 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
     if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_free_fit(&job, n_threads));
     return finish(v, N, rc);
 }
+static PyObject *py_flagged_fit(PyObject *self, PyObject *args)
+{
+    enum { A, BASIS, LEAD, FBASIS, SIG, TARGET, TARGETS, COEF, SSE, OK, N };
+    static const arg_spec spec[N] = {
+        ROWS("a"),     IN("basis"),      ROWS_OPT("lead"), IN_OPT("fbasis"), IN("sig"),
+        IN_OPT("target"), IN_OPT("targets"), OUT("coef_out"), OUT("sse_out"), OUT_U8("ok_out"),
+    };
+    PyObject *o[N] = {NULL};
+    arg v[N] = {0};
+    int n_threads = 1, restart;
+    double tol;
+    if (!PyArg_ParseTuple(args, "OOOOOOOpdOOO|i", &o[A], &o[BASIS], &o[LEAD], &o[FBASIS],
+                          &o[SIG], &o[TARGET], &o[TARGETS], &restart, &tol, &o[COEF], &o[SSE],
+                          &o[OK], &n_threads))
+        return NULL;
+    int rc = get_args("flagged_fit", spec, N, o, v);
+    const Py_ssize_t P = dim(&v[A], 0), n = dim(&v[A], 1), nb = dim(&v[BASIS], 1),
+                     Ns = dim(&v[SIG], 0), nl = v[LEAD].have ? dim(&v[LEAD], 1) : 1,
+                     K = v[TARGET].have ? dim(&v[TARGET], 0) : dim(&v[TARGETS], 1);
+    if (rc == 0 &&
+        (n < 1 || n > FL_MAXN || nb < 1 || nb > FL_MAXNB || !SHAPE(&v[BASIS], P, nb, nb) ||
+         (v[LEAD].have && (dim(&v[LEAD], 0) != P || nl < 1 || nl > FL_MAXNL)) ||
+         !OPT_SHAPE(&v[FBASIS], P, n, n) || !SHAPE(&v[SIG], Ns) ||
+         v[TARGET].have == v[TARGETS].have || !OPT_SHAPE(&v[TARGET], K) ||
+         !OPT_SHAPE(&v[TARGETS], P, K) || K < 1 || K > Ns || !SHAPE(&v[COEF], P, nb) ||
+         !SHAPE(&v[SSE], P) || !SHAPE(&v[OK], P)))
+        rc = invalid("flagged_fit: a (P, n) with 1 <= n <= 24, basis (P, nb, nb) with 1 <= nb "
+                     "<= 16, lead (P, nl) with 1 <= nl <= 8 or None, fbasis (P, n, n) or "
+                     "None, sig (N,), target (K,) or targets (P, K) (one of them) with 1 <= K "
+                     "<= N, coef_out (P, nb), sse_out (P,), ok_out (P,)");
+    const fl_ctx problem = {
+        DATA(&v[A]), DATA(&v[BASIS]), DATA(&v[LEAD]), DATA(&v[FBASIS]), DATA(&v[SIG]),
+        DATA(&v[TARGET]), DATA(&v[TARGETS]), P, n, nb, nl, Ns, K, v[A].stride,
+        v[LEAD].have ? v[LEAD].stride : 0, restart, tol, DATA(&v[COEF]), DATA(&v[SSE]),
+        (unsigned char *)v[OK].view.buf,
+    };
+    if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_flagged_fit(&problem, n_threads));
+    return finish(v, N, rc);
+}
 #endif
 
 /* ------------------------------------------------------------------ the module */
@@ -646,6 +689,10 @@ static PyMethodDef methods[] = {
      "free_fit(a, num, reg, target, basis, energies, window, cancel, errors_out, sse_out, "
      "coef_out[, threads[, first, noise]]): errors of 1/den filters with the initial state "
      "fitted (see initial_state.c)."},
+    {"flagged_fit", py_flagged_fit, METH_VARARGS,
+     "flagged_fit(a, basis, lead, fbasis, sig, target, targets, restart, tol, coef_out, "
+     "sse_out, ok_out[, threads]): the fitted numerator in the orthogonal numerators' basis "
+     "(see flagged.c)."},
 #endif
     {"simd", py_simd, METH_VARARGS,
      "simd([name]): (in use, best) instruction sets of the kernels; with a name ('generic', "

@@ -1,0 +1,318 @@
+/*
+ * flagged_lanes.h: the kernel of flagged.c for one vector type, included by flagged.c once
+ * per width (FLV the vector of FLW candidates, FLN(name) the name of its copy): 4 lanes, and
+ * 8 for the AVX-512 copy of the rule "measured", whose nb recursions are chains of dependent
+ * steps that 8 lanes run at the cost of 4.  Not a header of its own job: it is flagged.c's
+ * code, written once for both widths.
+ */
+typedef void (*FLN(fl_rec_fn))(const FLV *A, const FLV *f, FLV *y, Py_ssize_t len, FLV *Z0);
+
+/* y(t) = f(t) + Z_0, Z_k <- Z_(k+1) - a_(k+1) y(t): the transposed direct form with the state
+ * in registers (n a constant), from the state Z0 (f NULL: no input) */
+static inline __attribute__((always_inline)) void
+FLN(fl_rec_impl)(const FLV *A, const FLV *f, FLV *y, Py_ssize_t len, FLV *Z0, const int n)
+{
+    const FLV zero = {0};
+    FLV Z[FL_MAXN], Av[FL_MAXN];
+    for (int k = 0; k < n; ++k) {
+        Z[k] = Z0[k];
+        Av[k] = A[k];
+    }
+#define FL_STEP(ft)                                                                           \
+    do {                                                                                      \
+        const FLV yt_ = (ft) + Z[0];                                                          \
+        _Pragma("GCC unroll 24") for (int k_ = 0; k_ < n - 1; ++k_)                           \
+            Z[k_] = Z[k_ + 1] - Av[k_] * yt_;                                                 \
+        Z[n - 1] = zero - Av[n - 1] * yt_;                                                    \
+        y[t] = yt_;                                                                           \
+    } while (0)
+    if (f)
+        for (Py_ssize_t t = 0; t < len; ++t) FL_STEP(f[t]);
+    else
+        for (Py_ssize_t t = 0; t < len; ++t) FL_STEP(zero);
+#undef FL_STEP
+}
+
+/* dst[t] = sum_(i = lo .. hi) c[i] src[t - i], t = 0 .. len - 1, each sum in the order of i,
+ * 8 samples side by side (independent chains) */
+static inline __attribute__((always_inline)) void
+FLN(fl_fir)(const FLV *c, int lo, int hi, const FLV *src, FLV *dst, Py_ssize_t len)
+{
+    const FLV zero = {0};
+    Py_ssize_t t = 0;
+    for (; t + 8 <= len; t += 8) {
+        FLV s[8];
+        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) s[r] = zero;
+        for (int i = lo; i <= hi; ++i) {
+            const FLV ci = c[i];
+            const FLV *x = src + t - i;
+            _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) s[r] += ci * x[r];
+        }
+        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) dst[t + r] = s[r];
+    }
+    for (; t < len; ++t) {
+        FLV s = zero;
+        for (int i = lo; i <= hi; ++i) s += c[i] * src[t - i];
+        dst[t] = s;
+    }
+}
+
+/* out[i * ros + j * cos] += sum_k X[i * len + k] Y[j * len + k], k = k0 .. k1 - 1 in order,
+ * for a tile of tr x tc entries, their sums in registers */
+static inline __attribute__((always_inline)) void
+FLN(fl_tile)(const FLV *X, const FLV *Y, const Py_ssize_t len, const int i0, const int j0,
+        const int tr, const int tc, FLV *out, const Py_ssize_t ros, const Py_ssize_t cos,
+        const Py_ssize_t k0, const Py_ssize_t k1)
+{
+    FLV s[4][4];
+    _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
+        _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b)
+            s[a][b] = out[(i0 + a) * ros + (j0 + b) * cos];
+    for (Py_ssize_t k = k0; k < k1; ++k) {
+        FLV x[4], y[4];
+        _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a) x[a] = X[(i0 + a) * len + k];
+        _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b) y[b] = Y[(j0 + b) * len + k];
+        _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
+            _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b) s[a][b] += x[a] * y[b];
+    }
+    _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
+        _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b)
+            out[(i0 + a) * ros + (j0 + b) * cos] = s[a][b];
+}
+
+/* out = the nx x ny products of fl_tile (with lower, only the tiles that reach j <= i), in
+ * tiles of t x t (t = 4 with 32 registers, 3 with 16), the edges in 1 x t, t x 1 and 1 x 1.
+ * The samples run in chunks of FL_CHUNK, every tile over one chunk before the next: a chunk
+ * of the rows stays in the first-level cache for all its tiles, where tile after tile over
+ * the whole record would stream the rows (a megabyte and more) from further out each time.
+ * Each sum still adds its products in the order of k. */
+static inline __attribute__((always_inline)) void
+FLN(fl_products)(const FLV *X, const int nx, const FLV *Y, const int ny, const Py_ssize_t len,
+            FLV *out, const Py_ssize_t ros, const Py_ssize_t cos, const int lower, const int t)
+{
+    const FLV zero = {0};
+    const int mx = nx - nx % t, my = ny - ny % t;
+    for (int i = 0; i < nx; ++i)
+        for (int j = 0; j < ny; ++j) out[i * ros + j * cos] = zero;
+    for (Py_ssize_t k0 = 0; k0 < len; k0 += FL_CHUNK) {
+        const Py_ssize_t k1 = k0 + FL_CHUNK < len ? k0 + FL_CHUNK : len;
+        for (int i = 0; i < mx; i += t)
+            for (int j = 0; j < my && (!lower || j <= i + t - 1); j += t)
+                FLN(fl_tile)(X, Y, len, i, j, t, t, out, ros, cos, k0, k1);
+        for (int i = mx; i < nx; ++i)
+            for (int j = 0; j < my && (!lower || j <= i); j += t)
+                FLN(fl_tile)(X, Y, len, i, j, 1, t, out, ros, cos, k0, k1);
+        for (int j = my; j < ny; ++j)
+            for (int i = lower ? j - j % t : 0; i < mx; i += t)
+                FLN(fl_tile)(X, Y, len, i, j, t, 1, out, ros, cos, k0, k1);
+        for (int i = mx; i < nx; ++i)
+            for (int j = my; j < ny && (!lower || j <= i); ++j)
+                FLN(fl_tile)(X, Y, len, i, j, 1, 1, out, ros, cos, k0, k1);
+    }
+}
+
+/* e = z - sum_j c_j R_j over the len samples (R rows of len, z the row after the last), 8
+ * samples side by side; returns sum e^2 */
+static inline __attribute__((always_inline)) FLV
+FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len, FLV *e)
+{
+    const FLV zero = {0};
+    const FLV *z = R + nr * len;
+    FLV ee[8];
+    _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) ee[r] = zero;
+    Py_ssize_t t = 0;
+    for (; t + 8 <= len; t += 8) {
+        FLV s[8];
+        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) s[r] = z[t + r];
+        for (int j = 0; j < nr; ++j) {
+            const FLV cj = c[j], *x = R + j * len + t;
+            _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) s[r] -= cj * x[r];
+        }
+        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) {
+            e[t + r] = s[r];
+            ee[r] += s[r] * s[r];
+        }
+    }
+    for (; t < len; ++t) {
+        FLV s = z[t];
+        for (int j = 0; j < nr; ++j) s -= c[j] * R[j * len + t];
+        e[t] = s;
+        ee[0] += s * s;
+    }
+    return ((ee[0] + ee[1]) + (ee[2] + ee[3])) + ((ee[4] + ee[5]) + (ee[6] + ee[7]));
+}
+
+/* Cholesky of the n x n G (lower triangle read and written) on the 4 lanes at once, the
+ * reciprocals of the pivots into Rp; good[l] = 0 where a pivot is not positive and finite
+ * (that lane goes on with 1, its results discarded) */
+static inline __attribute__((always_inline)) void FLN(fl_cholesky)(FLV *G, FLV *Rp, const int n,
+                                                              int good[FLW])
+{
+    const FLV one = (FLV){0} + 1.0;
+    for (int j = 0; j < n; ++j) {
+        FLV d = G[j * n + j];
+        for (int l = 0; l < FLW; ++l)
+            if (!(d[l] > 0) || !isfinite(d[l])) {
+                good[l] = 0;
+                d[l] = 1.0;
+            }
+        for (int l = 0; l < FLW; ++l) d[l] = sqrt(d[l]);
+        const FLV r = one / d;
+        G[j * n + j] = d;
+        Rp[j] = r;
+        for (int i = j + 1; i < n; ++i) G[i * n + j] *= r;
+        for (int i = j + 1; i < n; ++i) {
+            const FLV gij = G[i * n + j];
+            for (int k = j + 1; k <= i; ++k) G[i * n + k] -= gij * G[k * n + j];
+        }
+    }
+}
+
+/* v <- L^-T L^-1 v, L and Rp from fl_cholesky */
+static inline __attribute__((always_inline)) void FLN(fl_solve)(const FLV *L, const FLV *Rp, FLV *v,
+                                                           const int n)
+{
+    for (int i = 0; i < n; ++i) {
+        FLV s = v[i];
+        for (int k = 0; k < i; ++k) s -= L[i * n + k] * v[k];
+        v[i] = s * Rp[i];
+    }
+    for (int i = n - 1; i >= 0; --i) {
+        FLV s = v[i];
+        for (int k = i + 1; k < n; ++k) s -= L[k * n + i] * v[k];
+        v[i] = s * Rp[i];
+    }
+}
+
+/* The block of candidates q .. q + FLW - 1 (lanes past P repeat candidate q; their results are not
+ * written), its signals in buf (see fl_unit) */
+static inline __attribute__((always_inline)) void
+FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const FLN(fl_rec_fn) rec)
+{
+    const Py_ssize_t P = c->P, N = c->N, K = c->K, start = N - K;
+    const int n = (int)c->n, nb = (int)c->nb, nl = (int)c->nl, free_ = c->fbasis != NULL;
+    const int nr = nb + (free_ ? n : 0), tile = wide ? 4 : 3;
+    const Py_ssize_t w = P - q < FLW ? P - q : FLW;
+    const FLV zero = {0};
+    Py_ssize_t row[FLW];
+    for (int l = 0; l < FLW; ++l) row[l] = q + (l < w ? l : 0);
+    FLV A[FL_MAXN], Tv[FL_MAXNB * FL_MAXNB], Lv[FL_MAXNL], Z[FL_MAXN];
+    for (int k = 0; k < n; ++k)
+        for (int l = 0; l < FLW; ++l) A[k][l] = c->a[row[l] * c->a_stride + k];
+    for (int i = 0; i < nb * nb; ++i)
+        for (int l = 0; l < FLW; ++l) Tv[i][l] = c->basis[row[l] * nb * nb + i];
+    for (int k = 0; k < nl && c->lead; ++k)
+        for (int l = 0; l < FLW; ++l) Lv[k][l] = c->lead[row[l] * c->lead_stride + k];
+    /* the scratch: w and x (or one forcing) with FL_PAD zeros before each, h, the regressors
+     * and the target (rows of K), the residual, the Gram matrix and its factor */
+    FLV *wv = buf + FL_PAD, *xv = wv + N + FL_PAD, *hv = xv + N + FL_PAD;
+    FLV *R = hv + K, *e = R + (Py_ssize_t)(nr + 1) * K, *G = e + K;
+    FLV *Lc = G + (nr + 1) * (nr + 1);
+    /* w(t) = sum_k lead_k sig(t - k) over t = 0 .. N - 1 (zeros before) */
+    for (Py_ssize_t t = 0; t < N; ++t) {
+        if (!c->lead) {
+            wv[t] = zero + c->sig[t];
+            continue;
+        }
+        FLV s = zero;
+        for (int k = 0; k < nl && k <= t; ++k) s += Lv[k] * c->sig[t - k];
+        wv[t] = s;
+    }
+    for (int k = 0; k < n; ++k) Z[k] = zero;
+    if (!c->restart) {
+        rec(A, wv, xv, N, Z);
+        for (int m = 0; m < nb; ++m) /* P_m has the terms max(0, m - n) .. m */
+            FLN(fl_fir)(Tv + m * nb, m - n > 0 ? m - n : 0, m, xv + start, R + m * K, K);
+    } else {
+        for (int m = 0; m < nb; ++m) {
+            FLN(fl_fir)(Tv + m * nb, m - n > 0 ? m - n : 0, m, wv + start, xv, K);
+            rec(A, xv, R + m * K, K, Z);
+        }
+    }
+    if (free_) {
+        FLV Tf[FL_MAXN * FL_MAXN];
+        for (int i = 0; i < n * n; ++i)
+            for (int l = 0; l < FLW; ++l) Tf[i][l] = c->fbasis[row[l] * n * n + i];
+        Z[0] = zero + 1.0; /* the impulse response: y(0) = 1 */
+        rec(A, NULL, hv, K, Z);
+        Z[0] = zero;
+        for (int k = 0; k < n; ++k) FLN(fl_fir)(Tf + k * n, 0, k, hv, R + (nb + k) * K, K);
+    }
+    FLV *zt = R + (Py_ssize_t)nr * K;
+    for (Py_ssize_t t = 0; t < K; ++t) {
+        if (c->target) {
+            zt[t] = zero + c->target[t];
+        } else {
+            for (int l = 0; l < FLW; ++l) zt[t][l] = c->targets[row[l] * K + t];
+        }
+    }
+    /* G (nr + 1 rows of nr + 1): the Gram matrix, its last row the products with z */
+    const int ld = nr + 1;
+    FLN(fl_products)(R, nr + 1, R, nr, K, G, ld, 1, 1, tile);
+    FLV sc[FL_MAXR], inv[FL_MAXR], Rp[FL_MAXR], cf[FL_MAXR], st[FL_MAXR];
+    for (int i = 0; i < nr; ++i)
+        for (int l = 0; l < FLW; ++l) {
+            const double d = sqrt(G[i * ld + i][l]);
+            sc[i][l] = d == 0 ? 1.0 : d;
+            inv[i][l] = 1.0 / sc[i][l];
+        }
+    for (int i = 0; i < nr; ++i)
+        for (int j = 0; j <= i; ++j) Lc[i * nr + j] = G[i * ld + j] * inv[i] * inv[j];
+    int good[FLW];
+    for (int l = 0; l < FLW; ++l) good[l] = 1;
+    FLN(fl_cholesky)(Lc, Rp, nr, good);
+    for (int i = 0; i < nr; ++i) cf[i] = G[nr * ld + i] * inv[i];
+    FLN(fl_solve)(Lc, Rp, cf, nr);
+    for (int i = 0; i < nr; ++i) cf[i] *= inv[i];
+    /* refinement: a lane stops once its step is below tol relative to the solution.  The
+     * sum of squares at the solution: that of the residual where the lane did not move since
+     * it was formed, else from it and the step s, |e - R s|^2 = |e|^2 - 2 s.R'e + s'Gs (s is
+     * below 1e-9 of the solution once it stops: the correction is far smaller than |e|^2, so
+     * nothing cancels, and no pass over the regressors is left for it) */
+    int moving[FLW], any = 1;
+    for (int l = 0; l < FLW; ++l) moving[l] = l < w;
+    FLV sse = zero, raw[FL_MAXR];
+    for (int it = 0; it < 2 && any; ++it) {
+        const FLV ee = FLN(fl_residual)(R, nr, cf, K, e);
+        FLN(fl_products)(R, nr, e, 1, K, st, 1, 1, 0, tile);
+        for (int i = 0; i < nr; ++i) {
+            raw[i] = st[i];
+            st[i] *= inv[i];
+        }
+        FLN(fl_solve)(Lc, Rp, st, nr);
+        for (int l = 0; l < FLW; ++l) {
+            if (!moving[l]) {
+                sse[l] = ee[l];
+                continue;
+            }
+            double big = 0.0, size = 0.0, sr = 0.0, sgs = 0.0;
+            for (int i = 0; i < nr; ++i) {
+                const double si = st[i][l] * inv[i][l];
+                st[i][l] = si;
+                cf[i][l] += si;
+                big = fabs(si) > big || isnan(si) ? fabs(si) : big;
+                size = fabs(cf[i][l]) > size || isnan(cf[i][l]) ? fabs(cf[i][l]) : size;
+                sr += si * raw[i][l];
+            }
+            for (int i = 0; i < nr; ++i) {
+                double gs = 0.0;
+                for (int j = 0; j < nr; ++j)
+                    gs += (j <= i ? G[i * ld + j][l] : G[j * ld + i][l]) * st[j][l];
+                sgs += st[i][l] * gs;
+            }
+            sse[l] = ee[l] - 2.0 * sr + sgs;
+            moving[l] = !(big <= c->tol * (size > 0 ? size : 1.0));
+        }
+        any = 0;
+        for (int l = 0; l < FLW; ++l) any |= moving[l];
+    }
+    for (Py_ssize_t l = 0; l < w; ++l) {
+        int fine = good[l] && !moving[l] && isfinite(sse[l]);
+        for (int i = 0; i < nb; ++i) {
+            c->coef[(q + l) * nb + i] = cf[i][l];
+            fine = fine && isfinite(cf[i][l]);
+        }
+        c->sse[q + l] = sse[l];
+        c->ok[q + l] = (unsigned char)fine;
+    }
+}
