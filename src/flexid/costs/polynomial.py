@@ -270,6 +270,32 @@ def _lags(x: np.ndarray, n_lags: int, t0: int, n: int) -> np.ndarray:
     return np.stack([pad[n_lags + t0 - lag : n_lags + n - lag] for lag in range(n_lags)])
 
 
+def _check_cost_options(
+    structure: Any, metric: str, predictor: str, penalty_kind: str, initial: str,
+    weight: float, penalty: float,
+) -> None:
+    """:class:`PolynomialCost`'s arguments other than the record, each with its own error."""
+    if not isinstance(structure, PolynomialStructure):
+        raise ConfigError(
+            f"structure must be a PolynomialStructure, got {type(structure).__name__}"
+        )
+    if metric not in METRICS:
+        raise UnknownNameError("cost metric", metric, METRICS)
+    if predictor not in PREDICTORS:
+        raise UnknownNameError("predictor", predictor, PREDICTORS)
+    if penalty_kind not in PENALTY_KINDS:
+        raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
+    _check_initial(initial)
+    if predictor == "simulation" and structure.has_noise_model:
+        raise ConfigError(
+            f"{structure!r} has a noise model (nc or nd > 0), which the simulation "
+            "predictor ignores: use predictor='one-step' (its own prediction error), or a "
+            "structure without C and D (oe)"
+        )
+    for name, value in (("weight", weight), ("penalty", penalty)):
+        real(value, name, error=DataError, minimum=0)
+
+
 class PolynomialCost(ErrorCost):
     """The cost an optimiser minimises to identify a polynomial model.
 
@@ -320,25 +346,8 @@ class PolynomialCost(ErrorCost):
     ) -> None:
         from ..models.arx import _io_arrays
 
-        if not isinstance(structure, PolynomialStructure):
-            raise ConfigError(
-                f"structure must be a PolynomialStructure, got {type(structure).__name__}"
-            )
-        if metric not in METRICS:
-            raise UnknownNameError("cost metric", metric, METRICS)
-        if predictor not in PREDICTORS:
-            raise UnknownNameError("predictor", predictor, PREDICTORS)
-        if penalty_kind not in PENALTY_KINDS:
-            raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
-        _check_initial(initial)
-        if predictor == "simulation" and structure.has_noise_model:
-            raise ConfigError(
-                f"{structure!r} has a noise model (nc or nd > 0), which the simulation "
-                "predictor ignores: use predictor='one-step' (its own prediction error), or a "
-                "structure without C and D (oe)"
-            )
-        for name, value in (("weight", weight), ("penalty", penalty)):
-            real(value, name, error=DataError, minimum=0)
+        _check_cost_options(structure, metric, predictor, penalty_kind, initial, weight,
+                            penalty)  # fmt: skip
         u, y = _io_arrays(*data) if isinstance(data, tuple) else _io_arrays(data, None)
         if u.shape[1] != structure.n_inputs:
             raise DataError(
@@ -359,11 +368,21 @@ class PolynomialCost(ErrorCost):
         self._std_y = float(np.std(self._target))
         self._sse_zero = float(self._target @ self._target)
         self._slices = s.slices()
-        one_step = predictor == "one-step"
+        self._degrees()
+        self._record_lags()
+        self._routes()
+        self.theta_ls = self._least_squares_start()
+        finite = bool(np.isfinite(self.theta_ls).all())
+        self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
+
+    def _degrees(self) -> None:
+        """The predictor's orders: its noise filter, denominator and numerators' degrees."""
+        s = self.structure
+        one_step = self.predictor == "one-step"
         # the noise filter only exists for the one-step predictor
         self._nc, self._nd = (s.nc, s.nd) if one_step else (0, 0)
         # first sample of the recursion: 0 from rest, start otherwise
-        self._t0 = 0 if initial == "zero" else s.start
+        self._t0 = 0 if self.initial == "zero" else s.start
         sf = sum(s.nf)
         self._deg_den = (self._nc if one_step else s.na) + sf
         # num_y = C F - D A F vanishes for output error (and for the simulation)
@@ -372,7 +391,10 @@ class PolynomialCost(ErrorCost):
         self._deg_u = [
             self._nd + sf - nf + nk + nb - 1 for nb, nf, nk in zip(s.nb, s.nf, s.nk)
         ]
-        t0 = self._t0
+
+    def _record_lags(self) -> None:
+        """The record's lags, the measured state at ``start`` and the numerators' regressors."""
+        s, y, u, t0 = self.structure, self.y, self.u, self._t0
         self._ylags = _lags(y, self._deg_y + 1, t0, self.N)
         self._ulags = [_lags(u[:, j], d + 1, t0, self.N) for j, d in enumerate(self._deg_u)]
         self._state = y[s.start - self._deg_den : s.start][::-1].copy()
@@ -382,6 +404,11 @@ class PolynomialCost(ErrorCost):
         self._reg = np.ascontiguousarray(
             np.concatenate([self._ylags[1:], *(x[nk:] for x, nk in zip(self._ulags, s.nk))]).T
         )
+
+    def _routes(self) -> None:
+        """Which fast routes the structure, predictor and rule take (see the module notes)."""
+        s, initial = self.structure, self.initial
+        one_step = self.predictor == "one-step"
         # Box-Jenkins' one-step predictor (no A; D of order at most that of C, at most two)
         # with the state estimated: its error from rest as the cascade D/C (y - B/F u), fewer
         # multiply-adds than the one filter (see kernels.initial_state_fit).  What the
@@ -394,11 +421,17 @@ class PolynomialCost(ErrorCost):
             and s.nd <= s.nc <= 2 and self._deg_den >= 1
         )  # fmt: skip
         if self._cascade:
-            blocks, col = [], self._deg_y
+            blocks, col, sf = [], self._deg_y, sum(s.nf)
             for nb, nf, nk, deg in zip(s.nb, s.nf, s.nk, self._deg_u):
                 blocks.append(self._reg[:, col : col + nb + sf - nf])
                 col += deg + 1 - nk
             self._reg_cascade = np.ascontiguousarray(np.concatenate(blocks, axis=1))
+        self._lag_sum_routes()
+
+    def _lag_sum_routes(self) -> None:
+        """Whether the numerator is fitted by the lag-sum kernel, plain or filtered."""
+        s, initial = self.structure, self.initial
+        one_step = self.predictor == "one-step"
         # one input whose predictor is B / (A F) u (the simulation, or output error): the
         # numerator's regressors are delays of one signal, fitted by lag sums
         # (kernels.arx_fit_shifted)
@@ -419,9 +452,6 @@ class PolynomialCost(ErrorCost):
         if self._lag_sum_fit_filtered:
             nk = s.nk[0]
             self._u_reg = np.ascontiguousarray(self._ulags[0][nk : nk + s.nb[0]].T)
-        self.theta_ls = self._least_squares_start()
-        finite = bool(np.isfinite(self.theta_ls).all())
-        self.cost_ls = float(self(self.theta_ls)[0]) if finite else float("nan")
 
     # ------------------------------------------------------------------ parts of theta
     def _parts(self, X: np.ndarray) -> dict[str, Any]:
