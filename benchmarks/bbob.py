@@ -135,13 +135,18 @@ def _run_peer(name: str, counted: Counted, dim: int, budget: int, seed: int) -> 
         options = {"bounds": [-HALF, HALF], "maxfevals": budget, "verbose": -9, "seed": seed}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            cma.fmin2(counted.single, lambda: rng.uniform(-HALF, HALF, dim), 0.3 * 2 * HALF,
-                      options, restarts=9, bipop=True)
+            cma.fmin2(
+                counted.single,
+                lambda: rng.uniform(-HALF, HALF, dim),
+                0.3 * 2 * HALF,
+                options,
+                restarts=9,
+                bipop=True,
+            )
     elif name == "scipy-de":
         from scipy.optimize import differential_evolution
 
-        differential_evolution(counted.single, list(zip(lo, hi)), maxiter=10**9, tol=0,
-                               seed=seed)
+        differential_evolution(counted.single, list(zip(lo, hi)), maxiter=10**9, tol=0, seed=seed)
     elif name.startswith("ng-"):
         import nevergrad as ng
 
@@ -156,7 +161,13 @@ def _run_peer(name: str, counted: Counted, dim: int, budget: int, seed: int) -> 
 
 
 def run_one(
-    name: str, fid: int, instance: int, dim: int, budget: int, logger=None
+    name: str,
+    fid: int,
+    instance: int,
+    dim: int,
+    budget: int,
+    logger=None,
+    seed: int | None = None,
 ) -> dict:
     """One run of optimiser or peer ``name`` on BBOB ``fid`` (instance, dimension).
 
@@ -170,6 +181,8 @@ def run_one(
         FE budget.
     logger : ioh logger, optional
         Attached to the problem for this run (IOHprofiler data).
+    seed : int, optional
+        The run's seed (default: the instance number).
 
     Returns
     -------
@@ -186,19 +199,27 @@ def run_one(
     t = time.perf_counter()
     try:
         if name in PEERS or name.startswith(("ng-", "pycma", "scipy")):
-            _run_peer(name, counted, dim, budget, instance)
+            _run_peer(name, counted, dim, budget, instance if seed is None else seed)
         else:
             box = Problem(counted.batch, -HALF * np.ones(dim), HALF * np.ones(dim))
-            minimize(name, box, budget, seed=instance)
+            minimize(name, box, budget, seed=instance if seed is None else seed)
     except _Spent:
         pass
     wall = time.perf_counter() - t
     if logger is not None:
         problem.reset()
         problem.detach_logger()
-    return {"optimiser": name, "fid": fid, "instance": instance, "dim": dim, "budget": budget,
-            "error": counted.error, "nfev": counted.nfev, "outside": counted.outside,
-            "overhead": wall - counted.seconds}
+    return {
+        "optimiser": name,
+        "fid": fid,
+        "instance": instance,
+        "dim": dim,
+        "budget": budget,
+        "error": counted.error,
+        "nfev": counted.nfev,
+        "outside": counted.outside,
+        "overhead": wall - counted.seconds,
+    }
 
 
 # ------------------------------------------------------------------------------- summary
@@ -233,9 +254,7 @@ def head_to_head(mine: dict, ref: dict) -> tuple[int, int, int]:
     return w, t, lo
 
 
-def summary_rows(
-    records: list[dict], dim: int, names: list[str], against: list[str]
-) -> list[dict]:
+def summary_rows(records: list[dict], dim: int, names: list[str], against: list[str]) -> list[dict]:
     """Median log10 error, solved, W/T/L against each peer, overhead and the fraction of
     evaluations outside the box, per optimiser."""
     err: dict[str, dict] = {}
@@ -304,8 +323,10 @@ def check_ioh(folder: Path) -> str:
     manager = iohinspector.DataManager()
     manager.add_folder(str(folder))
     data = manager.load(monotonic=True, include_meta_data=True)
-    return (f"{folder}: iohinspector read {data.height} rows, "
-            f"{manager.overview.height} runs of {sorted(set(manager.overview['algorithm_name']))}")
+    return (
+        f"{folder}: iohinspector read {data.height} rows, "
+        f"{manager.overview.height} runs of {sorted(set(manager.overview['algorithm_name']))}"
+    )
 
 
 def run_suite(
@@ -317,8 +338,11 @@ def run_suite(
     results: Path | None = None,
     ioh_dir: Path | None = None,
     verbose: bool = True,
+    seed: int | None = None,
 ) -> list[dict]:
     """Run every optimiser on every problem (skipping runs already in ``results``).
+
+    ``seed`` is every run's seed (default: the instance number, see :func:`run_one`).
 
     Returns
     -------
@@ -342,19 +366,24 @@ def run_suite(
                         if ioh_dir is not None:
                             if name not in loggers:
                                 loggers[name] = ioh.logger.Analyzer(
-                                    root=str(ioh_dir), folder_name=name, algorithm_name=name,
+                                    root=str(ioh_dir),
+                                    folder_name=name,
+                                    algorithm_name=name,
                                     algorithm_info=f"flexid benchmarks/bbob.py, "
-                                    f"{budget_per_dim} x d FE")
+                                    f"{budget_per_dim} x d FE",
+                                )
                             logger = loggers[name]
-                        rec = run_one(name, fid, inst, dim, budget, logger)
+                        rec = run_one(name, fid, inst, dim, budget, logger, seed)
                         records.append(rec)
                         if results is not None:
                             with results.open("a") as fh:
                                 fh.write(json.dumps(rec) + "\n")
                         if verbose:
-                            print(f"d={dim} {name:<16} f{fid:<2} i{inst}: "
-                                  f"{log_error(rec['error']):6.2f}  outside {rec['outside']}",
-                                  flush=True)
+                            print(
+                                f"d={dim} {name:<16} f{fid:<2} i{inst}: "
+                                f"{log_error(rec['error']):6.2f}  outside {rec['outside']}",
+                                flush=True,
+                            )
     finally:
         for logger in loggers.values():
             logger.close()
@@ -363,29 +392,48 @@ def run_suite(
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--optimisers", default="lshade",
-                        help="comma-separated flexid optimisers; 'builtins' for all of "
-                        "flexid's own (default lshade)")
-    parser.add_argument("--peers", default=",".join(PEERS),
-                        help=f"comma-separated peers (default {','.join(PEERS)}; '' for none)")
-    parser.add_argument("--against", default="pycma-bipop",
-                        help="comma-separated peers for the head-to-head columns")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"f{','.join(map(str, QUICK))}, instance 1, d = 5")
+    parser.add_argument(
+        "--optimisers",
+        default="lshade",
+        help="comma-separated flexid optimisers; 'builtins' for all of "
+        "flexid's own (default lshade)",
+    )
+    parser.add_argument(
+        "--peers",
+        default=",".join(PEERS),
+        help=f"comma-separated peers (default {','.join(PEERS)}; '' for none)",
+    )
+    parser.add_argument(
+        "--against",
+        default="pycma-bipop",
+        help="comma-separated peers for the head-to-head columns",
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help=f"f{','.join(map(str, QUICK))}, instance 1, d = 5"
+    )
     parser.add_argument("--functions", default=None, help="comma-separated BBOB ids (1-24)")
     parser.add_argument("--instances", default=None, help="comma-separated (default 1,2,3)")
     parser.add_argument("--dims", default=None, help="comma-separated (default 5,20)")
     parser.add_argument("--budget-per-dim", type=int, default=1000)
     parser.add_argument("--results", type=Path, default=None, help="JSON-lines file of runs")
-    parser.add_argument("--ioh-dir", type=Path, default=None,
-                        help="write IOHprofiler data (one folder per optimiser) here")
-    parser.add_argument("--check-ioh", action="store_true",
-                        help="read the IOHprofiler folders back with iohinspector")
-    parser.add_argument("--table-only", action="store_true",
-                        help="print the table of --results without running")
+    parser.add_argument(
+        "--ioh-dir",
+        type=Path,
+        default=None,
+        help="write IOHprofiler data (one folder per optimiser) here",
+    )
+    parser.add_argument(
+        "--check-ioh",
+        action="store_true",
+        help="read the IOHprofiler folders back with iohinspector",
+    )
+    parser.add_argument(
+        "--table-only", action="store_true", help="print the table of --results without running"
+    )
     parser.add_argument("--overhead", action="store_true", help="add the overhead column")
-    parser.add_argument("--outside", action="store_true",
-                        help="add the column of evaluations outside the box")
+    parser.add_argument(
+        "--outside", action="store_true", help="add the column of evaluations outside the box"
+    )
     args = parser.parse_args(argv)
 
     def split(text: str | None, default, kind=str) -> list:
@@ -403,14 +451,22 @@ def main(argv: list[str] | None = None) -> None:
     if args.table_only:
         records = load(args.results)
     else:
-        records = run_suite(everyone, fids, instances, dims, args.budget_per_dim,
-                            args.results, args.ioh_dir)
+        records = run_suite(
+            everyone, fids, instances, dims, args.budget_per_dim, args.results, args.ioh_dir
+        )
     keep = set(fids), set(instances)
-    records = [r for r in records if r["fid"] in keep[0] and r["instance"] in keep[1]
-               and r["budget"] == args.budget_per_dim * r["dim"]]
-    print(f"\nBBOB f{min(fids)}-f{max(fids)} ({len(fids)} functions), instances "
-          f"{','.join(map(str, instances))}, {args.budget_per_dim} x d FE; error floored at "
-          f"{SOLVED:g}")
+    records = [
+        r
+        for r in records
+        if r["fid"] in keep[0]
+        and r["instance"] in keep[1]
+        and r["budget"] == args.budget_per_dim * r["dim"]
+    ]
+    print(
+        f"\nBBOB f{min(fids)}-f{max(fids)} ({len(fids)} functions), instances "
+        f"{','.join(map(str, instances))}, {args.budget_per_dim} x d FE; error floored at "
+        f"{SOLVED:g}"
+    )
     for dim in dims:
         rows = summary_rows(records, dim, everyone, against)
         if rows:

@@ -10,7 +10,8 @@ last batch; pycma (``cma.fmin2`` with ``restarts=9, bipop=True``, ``bounds`` [-5
 ``maxfevals`` = budget, ``sigma0`` = 0.3 x 10 like flexid's, ``x0`` uniform in the box at
 every restart, seeded) evaluates through a wrapper that raises once the budget is spent, so
 its last population is cut where flexid's is.  The run's seed is the instance number for
-every optimiser.
+every optimiser, or ``--seed N`` for every run (a replicate with other random numbers);
+``--optimisers`` restricts flexid's variants (``cmaes-bipop`` for a quick replicate).
 
 Reported per dimension and optimiser: the median over the (function, instance) runs of
 ``log10(f_best - f_opt)`` with the error floored at 1e-8 (the "solved" target: pycma stops a
@@ -39,18 +40,36 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--instances", default="1,2", help="instances (the subset's default)")
     parser.add_argument("--functions", default=None, help="comma-separated BBOB function ids")
     parser.add_argument("--budget-per-dim", type=int, default=1000)
+    parser.add_argument(
+        "--seed", type=int, default=None, help="every run's seed (default: the instance number)"
+    )
+    parser.add_argument(
+        "--optimisers",
+        default=",".join(FLEXID),
+        help="comma-separated flexid variants (default all three)",
+    )
     args = parser.parse_args(argv)
-    fids = (list(range(1, 25)) if args.full else
-            [int(f) for f in args.functions.split(",")] if args.functions else list(SUBSET))
+    fids = (
+        list(range(1, 25))
+        if args.full
+        else [int(f) for f in args.functions.split(",")]
+        if args.functions
+        else list(SUBSET)
+    )
     instances = [1, 2, 3] if args.full else [int(i) for i in args.instances.split(",")]
     dims = [int(d) for d in args.dims.split(",")]
-    names = [*FLEXID, PYCMA]
-    print(f"BBOB f{','.join(map(str, fids))}, instances {instances}, budget "
-          f"{args.budget_per_dim} x d; error floored at {SOLVED:g}")
-    records = run_suite(names, fids, instances, dims, args.budget_per_dim)
+    names = [*args.optimisers.split(","), PYCMA]
+    print(
+        f"BBOB f{','.join(map(str, fids))}, instances {instances}, budget "
+        f"{args.budget_per_dim} x d; error floored at {SOLVED:g}; seed "
+        f"{'the instance number' if args.seed is None else args.seed}"
+    )
+    records = run_suite(names, fids, instances, dims, args.budget_per_dim, seed=args.seed)
     for dim in dims:
-        print(f"\nd = {dim}, budget {args.budget_per_dim * dim} FE, "
-              f"{len(fids) * len(instances)} runs each\n")
+        print(
+            f"\nd = {dim}, budget {args.budget_per_dim * dim} FE, "
+            f"{len(fids) * len(instances)} runs each\n"
+        )
         print(markdown_table(summary_rows(records, dim, names, [PYCMA]), [PYCMA], overhead=True))
 
 
