@@ -60,12 +60,12 @@ def test_the_built_in_settings_hold_every_structure_and_cost():
         suite = get_suite(setting)
         names = [p.name for p in suite.problems]
         assert len(names) == len(set(names))
-        assert {p.structure for p in suite.problems} == {"arx", "oe", "bj", "greybox"}
+        assert {p.structure for p in suite.problems} == {"arx", "oe", "bj", "greybox", "ss"}
         assert {p.cost for p in suite.problems} == {"one-step", "simulation"}
         assert {p.plant for p in suite.problems} == {"manipulator", "twin-rotor"}
         assert len(suite.version) == 12
     small, full = get_suite("small"), get_suite("full")
-    assert len(small.problems) == 14 and len(full.problems) == 70
+    assert len(small.problems) == 18 and len(full.problems) == 90
     assert (small.budget_per_dim, small.runs) == (500, 3)
     # the small setting's instances are the full one's at the preset's noise
     assert {p.name for p in small.problems} <= {p.name for p in full.problems}
@@ -266,7 +266,7 @@ def test_the_command_line_lists_runs_and_reports(tmp_path, capsys):
     store, out = tmp_path / "s.sqlite", tmp_path / "report"
     assert main(["suite", "list", "--json"]) == 0
     listed = json.loads(capsys.readouterr().out)
-    assert listed["version"] == get_suite("small").version and len(listed["problems"]) == 14
+    assert listed["version"] == get_suite("small").version and len(listed["problems"]) == 18
     one = "twin-rotor/arx(5,5,1)/one-step/seed0"
     common = ["--problems", one, "--runs", "1", "--budget-per-dim", "3", "--store", str(store)]
     ran = ["suite", "run", "--optimisers", "random-search", "--no-progress", "-o", str(out)]

@@ -235,6 +235,8 @@ def _problem(
     kind = model.structure
     if kind == "greybox":
         shape = model.greybox
+    elif kind == "ss":  # its order and modes
+        shape = f"ss({model.options['order']},{model.options.get('modes', '')})".replace(",)", ")")
     else:
         orders = [v for v in (model.na, model.nb, model.nc, model.nd, model.nf, model.nk)
                   if v is not None and v != 0]  # fmt: skip
@@ -250,16 +252,24 @@ def _problem(
     return SuiteProblem(name, plant, kind, predictor, instance, spec)
 
 
-#: The simulated plants' models in a suite: (plant, model, predictor of the cost).
+#: The simulated plants' models in a suite: (plant, model, predictor of the cost, what its
+#: record has beyond the plant's own).  The state-space models take several sensors at once:
+#: the manipulator's hub angle and end-point acceleration (order 16: its four flexible modes
+#: among 7, the rigid body and the hub friction as 2 real poles), the twin rotor's pitch and
+#: yaw driven by both rotors (its yaw free: the plant's default record, means removed).
 _PLANT_MODELS = (
-    ("manipulator", ModelSpec(na=8, nb=8, nk=1), "one-step"),
-    ("manipulator", ModelSpec(na=8, nb=8, nk=1), "simulation"),
-    ("manipulator", ModelSpec(structure="oe", nb=8, nf=8, nk=1), "simulation"),
-    ("manipulator", ModelSpec(structure="bj", nb=8, nc=2, nd=2, nf=8, nk=1), "one-step"),
-    ("twin-rotor", ModelSpec(na=5, nb=5, nk=1), "one-step"),
-    ("twin-rotor", ModelSpec(structure="oe", nb=4, nf=4, nk=1), "simulation"),
-    ("twin-rotor", ModelSpec(structure="greybox", greybox="twin-rotor-pitch"), "simulation"),
-)
+    ("manipulator", ModelSpec(na=8, nb=8, nk=1), "one-step", {}),
+    ("manipulator", ModelSpec(na=8, nb=8, nk=1), "simulation", {}),
+    ("manipulator", ModelSpec(structure="oe", nb=8, nf=8, nk=1), "simulation", {}),
+    ("manipulator", ModelSpec(structure="bj", nb=8, nc=2, nd=2, nf=8, nk=1), "one-step", {}),
+    ("manipulator", ModelSpec(structure="ss", options={"order": 16, "modes": 7}), "simulation",
+     {"outputs": ["hub_angle", "tip_acceleration"]}),
+    ("twin-rotor", ModelSpec(na=5, nb=5, nk=1), "one-step", {}),
+    ("twin-rotor", ModelSpec(structure="oe", nb=4, nf=4, nk=1), "simulation", {}),
+    ("twin-rotor", ModelSpec(structure="greybox", greybox="twin-rotor-pitch"), "simulation", {}),
+    ("twin-rotor", ModelSpec(structure="ss", options={"order": 6, "modes": 1}), "simulation",
+     {"preset": None, "outputs": ["pitch", "yaw"], "detrend": True}),
+)  # fmt: skip
 #: Each plant's record: its lab preset (the twin rotor's cut to 3,000 samples, 5 minutes).
 _PLANT_DATA = {
     "manipulator": {"plant": "manipulator", "preset": "paper-manipulator"},
@@ -273,8 +283,8 @@ def _plant_problems(seeds: Sequence[int], noise: Sequence[Any]) -> list[SuitePro
     for seed in seeds:
         for level in noise:
             instance = f"seed{seed}" + ("" if level is None else f"-noise{level}")
-            for plant, model, predictor in _PLANT_MODELS:
-                data = DataSpec(**_PLANT_DATA[plant], seed=seed, noise_std=level)
+            for plant, model, predictor, record in _PLANT_MODELS:
+                data = DataSpec(**{**_PLANT_DATA[plant], **record}, seed=seed, noise_std=level)
                 out.append(_problem(plant, model, predictor, data, instance))
     return out
 
@@ -317,9 +327,11 @@ def _record_problems(records: str | os.PathLike) -> list[SuiteProblem]:
 def get_suite(setting: str = "small", *, records: str | os.PathLike | None = None) -> Suite:
     """The suite of a setting.
 
-    ``"small"``: the manipulator (ARX(8,8,1) one-step and simulation, OE(8,8,1), BJ(8,2,2,8,1))
-    and the twin rotor (ARX(5,5,1), OE(4,4,1), the pitch grey-box model) of their lab presets,
-    data seeds 0 and 1, 3 runs at 500 FE per dimension.  ``"full"``: data seeds 0-4, each at
+    ``"small"``: the manipulator (ARX(8,8,1) one-step and simulation, OE(8,8,1), BJ(8,2,2,8,1),
+    and a state-space model of order 16 of its hub angle and end-point acceleration) and the
+    twin rotor (ARX(5,5,1), OE(4,4,1), the pitch grey-box model, and a state-space model of
+    order 6 of its pitch and yaw) of their lab presets, data seeds 0 and 1, 3 runs at 500 FE
+    per dimension.  ``"full"``: data seeds 0-4, each at
     the preset's noise and at 5 %, 5 runs at 2,000 FE per dimension.
 
     Parameters
