@@ -412,7 +412,17 @@ class _Stop:
         coordinate scaling ``sv`` (n,) the state after the update (a step is ``sigma sv y``
         with ``y ~ N(0, C)``).
         """
-        n, lam = self.n, self.lam
+        threshold = self._record(g, used, mean, Fs)
+        if g >= self.max_iter:
+            return "maxiter"
+        stds = sigma * sv * np.sqrt(np.diag(C))
+        return (self._spread_stop(g, used, stds, sigma, sv, pc, Fs, threshold)
+                or self._effect_stop(g, mean, stds, sigma, D, B, sv, Fs))  # fmt: skip
+
+    def _record(self, g: int, used: int, mean: np.ndarray, Fs: np.ndarray) -> float:
+        """The histories of generation ``g``; the mean's reference point of tolxstagnation
+        moved where the mean moved more than delta; that test's generation threshold."""
+        lam = self.lam
         if Fs[0] < self.best:
             self.best, self.best_fe = float(Fs[0]), used
         self.hist.append(float(Fs[0]))
@@ -429,9 +439,13 @@ class _Stop:
         delta = self.TOLXSTAG * max(1.0, (g - self.g_ref) / threshold) ** 0.5
         if np.linalg.norm(self.x_ref - mean) > delta:
             self.x_ref, self.g_ref = np.array(mean, dtype=float), g
-        if g >= self.max_iter:
-            return "maxiter"
-        stds = sigma * sv * np.sqrt(np.diag(C))
+        return threshold
+
+    def _spread_stop(
+        self, g: int, used: int, stds: np.ndarray, sigma: float, sv: np.ndarray,
+        pc: np.ndarray, Fs: np.ndarray, threshold: float,
+    ) -> str:
+        """The tests on the search's spread and the costs' progress, in pycma's order."""
         if np.any(stds > self.sigma0 * self.TOLFACUPX):
             return "tolfacupx"
         if np.all(stds < self.TOLX) and np.all(np.abs(sigma * sv * pc) < self.TOLX):
@@ -445,16 +459,23 @@ class _Stop:
             return "tolstagnation"
         if g - self.g_ref > threshold:
             return "tolxstagnation"
+        return ""
+
+    def _effect_stop(
+        self, g: int, mean: np.ndarray, stds: np.ndarray, sigma: float, D: np.ndarray,
+        B: np.ndarray, sv: np.ndarray, Fs: np.ndarray,
+    ) -> str:
+        """The tests on the step's effect, the covariance's condition and flat costs."""
         if sigma / D.max() > self.sigma0 * self.TOLUPSIGMA:
             return "tolupsigma"
         if np.any(mean == mean + 0.2 * stds):
             return "noeffectcoord"
-        i = g % n
+        i = g % self.n
         if np.all(mean == mean + 0.1 * sigma * D[i] * sv * B[:, i]):
             return "noeffectaxis"
         if D[-1] > self.TOLCONDITIONCOV**0.5 * D[0]:
             return "tolconditioncov"
-        self.flat = self.flat + 1 if not Fs[0] < Fs[int(0.75 * lam)] else 0
+        self.flat = self.flat + 1 if not Fs[0] < Fs[int(0.75 * self.lam)] else 0
         if self.flat > 1:
             return "tolflatfitness"
         return ""
