@@ -35,17 +35,11 @@ def room_of(path: Path) -> str:
 
 
 def layers() -> dict[str, int]:
-    """Room -> layer number (0 = the foundation) from the drawing's ```text block."""
-    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
-    block = re.search(r"```text\n(.*?)```", text, re.S).group(1)
-    found: list[list[str]] = []
-    for line in block.splitlines():
-        entries = re.findall(r"(?<![\w/.])(\w+(?:\.py|/))(?=\s|$)", line)
-        head = line.strip()
-        if head and head[0].isalpha() and not line.startswith(" " * 10):
-            found.append([])
-        if entries:
-            found[-1].extend(entries)
+    """Room -> layer number (0 = the foundation), read by the layers test's own reader."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_layers import layers as drawing
+
+    found = [entries for _, entries in drawing()]
     return {room: len(found) - 1 - i for i, rooms in enumerate(found) for room in rooms}
 
 

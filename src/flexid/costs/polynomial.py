@@ -817,11 +817,18 @@ class PolynomialCost(ErrorCost):
             if self._compiled_fit:
                 # one input but no lag sums (BJ and ARMAX from the measured outputs, or with
                 # the state estimated where nb - 1 > deg C F): the compiled orthogonal route
-                b, sse, ok = self._fitted_b_compiled(X)
-                if not ok.all():
-                    b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
-                return b, sse
+                return self._fitted_b_orthogonal(X)
         return self._fitted_b_recursions(X)
+
+    def _fitted_b_orthogonal(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_fitted_b_recursions`' problem: compiled where the structure allows it,
+        the recursions for every row the compiled route cannot solve."""
+        if not self._compiled_fit:
+            return self._fitted_b_recursions(X)
+        b, sse, ok = self._fitted_b_compiled(X)
+        if not ok.all():
+            b[~ok], sse[~ok] = self._fitted_b_recursions(X[~ok])
+        return b, sse
 
     @property
     def _compiled_fit(self) -> bool:
@@ -907,7 +914,7 @@ class PolynomialCost(ErrorCost):
         self, X: np.ndarray, b: np.ndarray, ok: np.ndarray, sse: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """A lag-sum fit's ``B`` and SSE: the SSE of its rows at their ``B`` where not given,
-        the recursions for the rows the kernel flagged (``ok`` False)."""
+        the orthogonal route for the rows the kernel flagged (``ok`` False)."""
         if sse is None:
             sse = np.empty(X.shape[0])
             if ok.any():
@@ -915,12 +922,7 @@ class PolynomialCost(ErrorCost):
                 theta[:, self.structure.b_columns] = b[ok]
                 sse[ok] = self.sse(theta)
         if not ok.all():
-            bad = np.flatnonzero(~ok)
-            if self._compiled_fit:  # the compiled orthogonal route, the recursions for its flags
-                b[bad], sse[bad], fine = self._fitted_b_compiled(X[bad])
-                bad = bad[~fine]
-            if bad.size:
-                b[bad], sse[bad] = self._fitted_b_recursions(X[bad])
+            b[~ok], sse[~ok] = self._fitted_b_orthogonal(X[~ok])
         return b, sse
 
     def _fitted_b_lag_sums(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
