@@ -144,3 +144,18 @@ def test_the_detrend_rule_reaches_identify_select_and_the_configs():
     for bad in ("quadratic", 3, 1.5):
         with pytest.raises(ConfigError, match="detrend"):
             DataSpec(file="x.csv", detrend=bad)
+
+
+def test_a_drift_the_input_drives_is_the_plants_and_is_not_detrended():
+    # a hub angle: a double integrator of a zero-mean torque drifts as a random walk's sum
+    rng = np.random.default_rng(3)
+    torque = rng.standard_normal(2000)
+    angle = signal.lfilter([0.0, 1e-4], [1.0, -2.0, 1.0], torque)
+    with pytest.warns(DataWarning, match=r"output 'y' drifts by .*the plant's own motion") as got:
+        prepare_data(IOData(torque, angle, dt=0.01))
+    assert not any("--detrend linear" in str(w.message) for w in got)
+    # the same plant's stable response under a sensor's drift: the line is the advice
+    response = signal.lfilter([0.0, 0.5], [1.0, -0.8], torque)
+    with pytest.warns(DataWarning, match=r"output 'y' drifts by .*--detrend linear") as got:
+        prepare_data(IOData(torque, response + 0.01 * np.arange(2000), dt=0.01))
+    assert not any("plant's own motion" in str(w.message) for w in got)

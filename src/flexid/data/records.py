@@ -1109,7 +1109,8 @@ def prepare_data(
         a split record's validation part too (the line extended over its samples); a
         separate validation record loses its own line (its time axis is its own).  Without
         it, a :class:`~flexid.errors.DataWarning` says when a channel's offset or drift
-        dwarfs its variation (:data:`OFFSET_RATIO`).
+        dwarfs its variation (:data:`OFFSET_RATIO`), and tells an output's drift that the
+        input's running sums follow (an integrator's, to be modelled) from a sensor's.
     load_options : mapping, optional
         Options of :func:`load` for a path (``inputs``, ``outputs``, ``dt``, ...).
     several : bool, optional
@@ -1456,6 +1457,34 @@ def _line_values(line: tuple[np.ndarray, np.ndarray], first: int, n: int) -> np.
     return line[0][None, :] + line[1][None, :] * t
 
 
+def _running_sums(u: np.ndarray) -> np.ndarray:
+    """A constant, a line and each input's first and second running sums, shape (N, 2 + 2 m):
+    a line plus what a plant's single and double integrators (a rigid-body velocity and
+    angle) make of the input."""
+    n = u.shape[0]
+    first = np.cumsum(u, axis=0)
+    regressors = np.column_stack(
+        [np.ones(n), np.arange(n, dtype=float), first, np.cumsum(first, axis=0)]
+    )
+    # scaled columns: the running sums grow as N and N**2, the least squares stays conditioned
+    scale = np.abs(regressors).max(axis=0)
+    return regressors / np.where(scale > 0, scale, 1.0)
+
+
+def _residual_spread(regressors: np.ndarray, x: np.ndarray) -> float:
+    """The standard deviation of what the least-squares fit of ``x`` by ``regressors``
+    leaves."""
+    coef, *_ = np.linalg.lstsq(regressors, x, rcond=None)
+    return float((x - regressors @ coef).std())
+
+
+#: A drift about which the input's running sums leave less than this share of what the line
+#: leaves is the plant's: an integrator's answer to the input. A sensor's drift under a stable
+#: plant keeps about all of it (0.975 to 1.0 measured), the manipulator's hub angle 0.41, a pure
+#: integrator none.
+PLANT_DRIFT_SHARE = 0.5
+
+
 def _warn_offsets(record: IOData) -> None:
     """A DataWarning naming each channel whose offset or drift dwarfs its variation.
 
@@ -1465,7 +1494,8 @@ def _warn_offsets(record: IOData) -> None:
     u_spread, u_mean = record.u.std(axis=0), np.abs(record.u.mean(axis=0))
     if np.any(u_spread <= 1e-8 * (u_mean + u_spread)):
         return
-    found = []
+    found, plant = [], []
+    sums = _running_sums(record.u)
     for kind, x, names in (("output", record.y, record.output_names),
                            ("input", record.u, record.input_names)):  # fmt: skip
         if x.shape[0] < 3:
@@ -1480,9 +1510,21 @@ def _warn_offsets(record: IOData) -> None:
                 found.append(f"{kind} {name!r} has mean {mean[i]:.4g} and standard deviation "
                              f"{spread[i]:.4g}: detrend='constant' (--detrend constant)")
             elif left[i] > 0 and rise[i] > OFFSET_RATIO * left[i]:
-                found.append(f"{kind} {name!r} drifts by {rise[i]:.4g} over the estimation "
-                             f"record against a variation of {left[i]:.4g} about the line: "
-                             "detrend='linear' (--detrend linear)")
+                drift = (f"{kind} {name!r} drifts by {rise[i]:.4g} over the estimation "
+                         f"record against a variation of {left[i]:.4g} about the line")
+                if (kind == "output"
+                        and _residual_spread(sums, x[:, i]) < PLANT_DRIFT_SHARE * left[i]):
+                    plant.append(drift)
+                else:
+                    found.append(f"{drift}: detrend='linear' (--detrend linear)")
+    if plant:
+        warnings.warn(
+            "; ".join(plant) + ": the input's running sums follow the drift, so it is "
+            "the plant's own motion (an integrator, as a rigid-body angle "
+            "driven by torque), not a sensor's: keep it (detrending removes the motion) "
+            "and use a structure with poles at z = 1 (--structure ss reaches them)",
+            DataWarning, stacklevel=3,
+        )
     if found:
         warnings.warn(
             "a linear model has no offset term, so it fits an offset or drift with its "
