@@ -528,6 +528,16 @@ def _order_grid(items: Sequence[str] | None) -> dict[str, list[int]] | None:
     return grid
 
 
+def _add_record_or_plant(parser: argparse.ArgumentParser, plant_help: str) -> None:
+    """The record a command reads, or a plant whose simulated record of a seed it reads."""
+    parser.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
+    parser.add_argument("--plant", help=f"{plant_help} instead (default: none, the FILE)")
+    parser.add_argument(
+        "--data-seed", type=int, default=0,
+        help="seed of the simulated record (default 0)",
+    )
+
+
 def _add_detrend(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--detrend", nargs="?", const="constant", choices=("constant", "linear"),
@@ -1280,15 +1290,7 @@ def build_parser() -> argparse.ArgumentParser:
     se = sub.add_parser(
         "select", help="choose a structure and its orders (AIC, FPE, MDL, held-out tests)"
     )
-    se.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
-    se.add_argument(
-        "--plant",
-        help="select on a simulated record of this plant instead (default: none, the FILE)",
-    )
-    se.add_argument(
-        "--data-seed", type=int, default=0,
-        help="seed of the simulated record (default 0)",
-    )
+    _add_record_or_plant(se, "select on a simulated record of this plant")
     se.add_argument(
         "--structures",
         help=f"comma-separated: {', '.join(STRUCTURE_NAMES)}, greybox:NAME (default arx,oe)",
@@ -1342,16 +1344,7 @@ def build_parser() -> argparse.ArgumentParser:
     gb = sub.add_parser(
         "greybox", help="fit a grey-box model (a plant's own physics) and validate it"
     )
-    gb.add_argument("file", nargs="?", help="record: .csv, .npz, .dat or .mat")
-    gb.add_argument(
-        "--plant",
-        help="fit a simulated record of this plant (twin-rotor) instead (default: none, the "
-        "FILE)",
-    )
-    gb.add_argument(
-        "--data-seed", type=int, default=0,
-        help="seed of the simulated record (default 0)",
-    )
+    _add_record_or_plant(gb, "fit a simulated record of this plant (twin-rotor)")
     gb.add_argument(
         "--model", default="twin-rotor-pitch",
         help="built-in grey-box model: twin-rotor-pitch (default) | twin-rotor-coupled",

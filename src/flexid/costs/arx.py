@@ -103,6 +103,38 @@ def population(X: Any, n_params: int) -> np.ndarray:
     return X
 
 
+def _check_names(metric: str, predictor: str, penalty_kind: str) -> None:
+    """An error cost's metric, predictor and stability penalty, each a name it knows.
+
+    Raises
+    ------
+    UnknownNameError
+        For the first that is not.
+    """
+    if metric not in METRICS:
+        raise UnknownNameError("cost metric", metric, METRICS)
+    if predictor not in PREDICTORS:
+        raise UnknownNameError("predictor", predictor, PREDICTORS)
+    if penalty_kind not in PENALTY_KINDS:
+        raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
+
+
+def _record(structure: Any, data: Any) -> tuple[np.ndarray, np.ndarray]:
+    """An error cost's record ``data`` (an IOData or ``(u, y)``) as ``u`` (N, n_u), ``y`` (N,).
+
+    Raises
+    ------
+    DataError
+        For bad signals, or other than ``structure.n_inputs`` inputs.
+    """
+    u, y = _io_arrays(*data) if isinstance(data, tuple) else _io_arrays(data, None)
+    if u.shape[1] != structure.n_inputs:
+        raise DataError(
+            f"the model has {structure.n_inputs} input(s) but the data have {u.shape[1]}"
+        )
+    return u, y
+
+
 def simulate_population(a: np.ndarray, forced: np.ndarray, state: np.ndarray) -> np.ndarray:
     """Run ``y(t) = f(t) - sum_i a_i y(t - i)`` for every candidate of a population.
 
@@ -249,26 +281,14 @@ class ARXCost(ErrorCost):
         initial: str = _DEFAULT.initial,
         penalty_kind: str = "flat",
     ) -> None:
-        if metric not in METRICS:
-            raise UnknownNameError("cost metric", metric, METRICS)
-        if predictor not in PREDICTORS:
-            raise UnknownNameError("predictor", predictor, PREDICTORS)
-        if penalty_kind not in PENALTY_KINDS:
-            raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
+        _check_names(metric, predictor, penalty_kind)
         if initial == "auto":  # CostSpec's default: ARX's rule is "measured"
             initial = "measured"
         if initial not in INITIAL:
             raise UnknownNameError("initial condition rule", initial, INITIAL)
         for name, value in (("weight", weight), ("penalty", penalty)):
             real(value, name, error=DataError, minimum=0)
-        if isinstance(data, tuple):
-            u, y = _io_arrays(*data)
-        else:
-            u, y = _io_arrays(data, None)
-        if u.shape[1] != structure.n_inputs:
-            raise DataError(
-                f"the model has {structure.n_inputs} input(s) but the data have {u.shape[1]}"
-            )
+        u, y = _record(structure, data)
         self.structure = structure
         self.metric = metric
         self.predictor = predictor

@@ -60,12 +60,12 @@ from scipy import linalg
 
 from .. import kernels
 from .._validate import real
-from ..errors import ConfigError, DataError, UnknownNameError
+from ..errors import ConfigError, DataError
 from ..kernels import ar_recursion, arx_recursion, initial_state_fit
 from ..models.polynomial import INITIAL_RULES, PolynomialStructure, _check_initial
 from ..models.specs import CostSpec
 from ..models.stability import is_stable, pole_radius_batched
-from .arx import METRICS, PENALTY_KINDS, PREDICTORS, ErrorCost, metric_from_sse, population
+from .arx import ErrorCost, _check_names, _record, metric_from_sse, population
 from .metrics import describe_cost
 
 __all__ = ["PolynomialCost", "orthogonal_numerators", "poly_mul_rows", "poly_mul_rows_reference"]
@@ -279,12 +279,7 @@ def _check_cost_options(
         raise ConfigError(
             f"structure must be a PolynomialStructure, got {type(structure).__name__}"
         )
-    if metric not in METRICS:
-        raise UnknownNameError("cost metric", metric, METRICS)
-    if predictor not in PREDICTORS:
-        raise UnknownNameError("predictor", predictor, PREDICTORS)
-    if penalty_kind not in PENALTY_KINDS:
-        raise UnknownNameError("stability penalty", penalty_kind, PENALTY_KINDS)
+    _check_names(metric, predictor, penalty_kind)
     _check_initial(initial)
     if predictor == "simulation" and structure.has_noise_model:
         raise ConfigError(
@@ -344,15 +339,9 @@ class PolynomialCost(ErrorCost):
         initial: str = "estimate",
         penalty_kind: str = "flat",
     ) -> None:
-        from ..models.arx import _io_arrays
-
         _check_cost_options(structure, metric, predictor, penalty_kind, initial, weight,
                             penalty)  # fmt: skip
-        u, y = _io_arrays(*data) if isinstance(data, tuple) else _io_arrays(data, None)
-        if u.shape[1] != structure.n_inputs:
-            raise DataError(
-                f"the model has {structure.n_inputs} input(s) but the data have {u.shape[1]}"
-            )
+        u, y = _record(structure, data)
         structure.check_samples(y.size)
         self.structure = structure
         self.metric, self.predictor, self.initial = metric, predictor, initial

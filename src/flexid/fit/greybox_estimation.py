@@ -30,7 +30,7 @@ from ..models.specs import CostSpec, SearchSpec
 from ..models.vocabulary import GREYBOX_REFERENCE_STARTS
 from ..optimisers import Problem
 from .parametrisation import SearchBox
-from .reference import StartOrReference
+from .reference import StartOrReference, _simulation_in_own_bounds
 
 if TYPE_CHECKING:
     from .greybox_fit import GreyBoxResult
@@ -190,16 +190,13 @@ def build_greybox_problem(
     DataError
         A record without the model's channels.
     """
-    if cost.predictor != "simulation":
-        raise ConfigError(
-            f"grey-box model {model.name!r} is fitted on the simulation cost (it has no "
-            f"one-step predictor): use predictor='simulation', not {cost.predictor!r}"
-        )
-    if not (isinstance(bounds, str) and bounds == "auto"):
-        raise ConfigError(
-            f"grey-box model {model.name!r} is searched in its parameters' own bounds: set "
-            f"them on the model (--set NAME=VALUE, with_parameters), not bounds={bounds!r}"
-        )
+    _simulation_in_own_bounds(
+        cost, bounds,
+        f"grey-box model {model.name!r} is fitted on the simulation cost (it has no one-step "
+        "predictor):",
+        f"grey-box model {model.name!r} is searched in its parameters' own bounds: set them on "
+        "the model (--set NAME=VALUE, with_parameters)",
+    )  # fmt: skip
     if model.n_free == 0:
         raise ConfigError(f"grey-box model {model.name!r} has no estimated parameter")
     objective = GreyBoxCost(model, est, metric=cost.metric, weight=cost.weight)

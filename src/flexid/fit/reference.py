@@ -54,6 +54,8 @@ import numpy as np
 from scipy import linalg
 from scipy.optimize import OptimizeResult, least_squares
 
+from ..errors import ConfigError
+
 __all__ = [
     "OPTIMALITY_THRESHOLD",
     "PULLED_TO",
@@ -338,6 +340,24 @@ class StartOrReference:
         return lower_of(self.cost_ls, self.start_name,  # type: ignore[attr-defined]
                         self.output_error_reference().cost,  # type: ignore[attr-defined]
                         self.reference_name)  # fmt: skip
+
+
+def _simulation_in_own_bounds(cost: Any, bounds: Any, why: str, where: str) -> None:
+    """Refuse what a :class:`StartOrReference` problem is not posed on: the one-step predictor
+    (its cost is the simulation error) and bounds other than ``"auto"`` (it is searched in the
+    bounds its model or structure carries).
+
+    ``why`` is the first error message up to its ``use predictor='simulation', not ...``,
+    ``where`` the second up to its ``, not bounds=...``.
+
+    Raises
+    ------
+    ConfigError
+    """
+    if cost.predictor != "simulation":
+        raise ConfigError(f"{why} use predictor='simulation', not {cost.predictor!r}")
+    if not (isinstance(bounds, str) and bounds == "auto"):
+        raise ConfigError(f"{where}, not bounds={bounds!r}")
 
 
 def status_of(local_minimum: bool, on_cap: bool, out_of_budget: bool) -> int:

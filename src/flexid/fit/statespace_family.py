@@ -30,7 +30,7 @@ from ..models.statespace import StateSpaceModel, StateSpaceStructure, state_sequ
 from ..optimisers import Problem
 from ..validation.verdict import ValidationReport, residual_report
 from .parametrisation import SearchBox
-from .reference import StartOrReference
+from .reference import StartOrReference, _simulation_in_own_bounds
 from .statespace_fit import SSEST_STARTS, ModalBox, StateSpaceResult, modal_start, refine
 from .subspace import SubspaceResult, n4sid
 
@@ -247,16 +247,12 @@ class StateSpaceFamily(Family):
         if isinstance(data, (list, tuple)):
             raise ConfigError(f"{structure!r}: several estimation records are not supported; "
                               "estimate on one")  # fmt: skip
-        if cost.predictor != "simulation":
-            raise ConfigError(
-                f"{structure!r} is an output-error model (K = 0): its cost is the simulation "
-                f"error; use predictor='simulation', not {cost.predictor!r}"
-            )
-        if not (isinstance(bounds, str) and bounds == "auto"):
-            raise ConfigError(
-                f"{structure!r} is searched in its frequency and damping bounds: set them on "
-                f"the structure (frequency=, damping=), not bounds={bounds!r}"
-            )
+        _simulation_in_own_bounds(
+            cost, bounds,
+            f"{structure!r} is an output-error model (K = 0): its cost is the simulation error;",
+            f"{structure!r} is searched in its frequency and damping bounds: set them on the "
+            "structure (frequency=, damping=)",
+        )  # fmt: skip
         initial = "estimate" if cost.initial == "auto" else cost.initial
         objective = ModalCost(data, structure, metric=cost.metric, weight=cost.weight,
                               initial=initial)  # fmt: skip

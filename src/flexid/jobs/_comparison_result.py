@@ -223,18 +223,11 @@ class ComparisonResult:
         head += [f"FE to {t:g} (ok)" for t in targets]
         head += ["p (Holm)", "time s"]
         rows = [head]
-        ref = self.reference
-        rows.append(
-            [self.start_label, "-", _f(ref["cost"]), "-", _f(ref["cost"])]
-            + ["-"] * len(targets)
-            + ["-", f"{ref.get('wall_time', 0):.3f}"]
-        )
-        oe = ref.get("output_error")
-        if oe:
+        for label, ref in self._reference_rows():
             rows.append(
-                [_REFERENCE_ROW, "-", _f(oe["cost"]), "-", _f(oe["cost"])]
+                [label, "-", _f(ref["cost"]), "-", _f(ref["cost"])]
                 + ["-"] * len(targets)
-                + ["-", f"{oe.get('wall_time', 0):.3f}"]
+                + ["-", f"{ref.get('wall_time', 0):.3f}"]
             )
         for label, s in self.stats.items():
             runs = f"{s['ok']}" + (f" ({s['failed']} failed)" if s["failed"] else "")
@@ -281,30 +274,19 @@ class ComparisonResult:
             "stable",
         ]
         rows = [head]
-        v = headline(self.reference["validation"])
-        rows.append(
-            [
-                self.start_label,
-                _fit(v["fit_one_step"]),
-                _sim_fit(v["fit_simulation"], bool(self.reference.get("stable"))),
-                _range(v["error_min"], v["error_max"]),
-                "yes" if v["correlation_passed"] else "no",
-                _share(v.get("frequency_share")),
-                "yes" if self.reference.get("stable") else "NO",
-            ]
-        )
-        oe = self.reference.get("output_error")
-        if oe and "validation" in oe:
-            v = headline(oe["validation"])
+        for label, ref in self._reference_rows():
+            if "validation" not in ref:
+                continue
+            v = headline(ref["validation"])
             rows.append(
                 [
-                    _REFERENCE_ROW,
+                    label,
                     _fit(v["fit_one_step"]),
-                    _sim_fit(v["fit_simulation"], bool(oe.get("stable"))),
+                    _sim_fit(v["fit_simulation"], bool(ref.get("stable"))),
                     _range(v["error_min"], v["error_max"]),
                     "yes" if v["correlation_passed"] else "no",
                     _share(v.get("frequency_share")),
-                    "yes" if oe.get("stable") else "NO",
+                    "yes" if ref.get("stable") else "NO",
                 ]
             )
         for label, s in self.stats.items():
@@ -322,6 +304,15 @@ class ComparisonResult:
                     f"{s['stable_rate'] * 100:.0f}%",
                 ]
             )
+        return rows
+
+    def _reference_rows(self) -> list[tuple[str, dict[str, Any]]]:
+        """The rows above the optimisers': the start (least squares, n4sid or the nominal
+        values), then the gradient reference when it was run."""
+        rows = [(self.start_label, self.reference)]
+        oe = self.reference.get("output_error")
+        if oe:
+            rows.append((_REFERENCE_ROW, oe))
         return rows
 
     def _any_unstable(self) -> bool:

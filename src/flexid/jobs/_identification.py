@@ -141,10 +141,38 @@ class Identification:
             return int(self.output_error.nfev_equivalent)
         return 0 if self.result is None else int(self.result.nfev)
 
+    def _name(self) -> str:
+        """What was identified, for the summary's first line."""
+        return family_of(self.model.structure).title(self.model.structure)
+
+    def _start_name(self) -> str:
+        """The start the final cost is compared with (least squares, n4sid, ...)."""
+        return family_of(self.model.structure).start_name(self.model.structure)
+
+    def _reference_text(self) -> str:
+        """The gradient reference's search line: its runs, evaluations and where it ended."""
+        oe = self.output_error
+        text = (
+            f"Levenberg-Marquardt, {len(oe.runs)} runs (starts and continuations), "
+            f"{oe.nfev} residual + {oe.njev} Jacobian evaluations"
+        )
+        if hasattr(oe, "optimality"):
+            where = (
+                "a local minimum"
+                if oe.local_minimum
+                else ("on the pole-radius cap" if oe.on_cap else "not a local minimum")
+            )
+            if oe.on_cap and oe.get("cap_reason"):
+                where += f": {oe.cap_reason}"
+            text += f"; first-order optimality {oe.optimality:.2g}: {where}"
+        return text
+
+    def _box_items(self) -> list[tuple[str, str]]:
+        """The search box's line (a family whose bounds are its parameters' has none)."""
+        return [("search box", self.search.get("box_rule", self.box.rule))]
+
     def _title(self) -> str:
-        s = self.model.structure
-        name = family_of(s).title(s)
-        return f"{name} identified by {self.optimiser}" + (
+        return f"{self._name()} identified by {self.optimiser}" + (
             f" (seed {self.seed})" if self.seed is not None else ""
         )
 
@@ -154,26 +182,12 @@ class Identification:
             ("data", self.data_info.get("description", "")),
             *([("delay", self.data_info["delay"])] if "delay" in self.data_info else []),
             ("cost", self.cost.describe()),
-            ("search box", self.search.get("box_rule", self.box.rule)),
+            *self._box_items(),
         ]
         if self.search:
             items.append(("search space", self.search.get("description", "")))
         if self.output_error is not None:
-            oe = self.output_error
-            text = (
-                f"Levenberg-Marquardt, {len(oe.runs)} runs (starts and continuations), "
-                f"{oe.nfev} residual + {oe.njev} Jacobian evaluations"
-            )
-            if hasattr(oe, "optimality"):
-                where = (
-                    "a local minimum"
-                    if oe.local_minimum
-                    else ("on the pole-radius cap" if oe.on_cap else "not a local minimum")
-                )
-                if oe.on_cap and oe.get("cap_reason"):
-                    where += f": {oe.cap_reason}"
-                text += f"; first-order optimality {oe.optimality:.2g}: {where}"
-            items.append(("search", text))
+            items.append(("search", self._reference_text()))
         if self.result is not None:
             items.append(
                 (
@@ -182,11 +196,11 @@ class Identification:
                 )
             )
         ratio = self.cost_value / self.cost_ls if self.cost_ls > 0 else float("nan")
-        ls_name = family_of(self.model.structure).start_name(self.model.structure)
         items.append(
             (
                 "final cost",
-                f"{self.cost_value:.6g}  ({ls_name} {self.cost_ls:.6g}, ratio {ratio:.4g})",
+                f"{self.cost_value:.6g}  ({self._start_name()} {self.cost_ls:.6g}, "
+                f"ratio {ratio:.4g})",
             )
         )
         if self.cost_search is not None:

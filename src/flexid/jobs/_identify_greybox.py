@@ -8,7 +8,6 @@ held-out part (or from its initial state at the start of a separate validation r
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections.abc import Callable, Mapping
@@ -51,41 +50,22 @@ class GreyBoxIdentification(Identification):
 
     outputs: dict = field(default_factory=dict)
 
-    def _title(self) -> str:
-        return f"grey-box model {self.model.name} identified by {self.optimiser}" + (
-            f" (seed {self.seed})" if self.seed is not None else ""
+    def _name(self) -> str:
+        return f"grey-box model {self.model.name}"
+
+    def _start_name(self) -> str:
+        return START_NAME
+
+    def _reference_text(self) -> str:
+        ref = self.output_error
+        where = "a local minimum" if ref.local_minimum else "NOT a verified local minimum"
+        return (
+            f"Levenberg-Marquardt, {len(ref.runs)} start(s), {ref.simulations} simulations; "
+            f"first-order optimality {ref.optimality:.2g}: {where}"
         )
 
-    def _items(self) -> list[tuple[str, str]]:
-        items = [
-            ("data", self.data_info.get("description", "")),
-            ("cost", self.cost.describe()),
-            ("search space", self.search.get("description", "")),
-        ]
-        ref = self.output_error
-        if ref is not None:
-            where = "a local minimum" if ref.local_minimum else "NOT a verified local minimum"
-            items.append((
-                "search",
-                f"Levenberg-Marquardt, {len(ref.runs)} start(s), {ref.simulations} simulations; "
-                f"first-order optimality {ref.optimality:.2g}: {where}",
-            ))
-        if self.result is not None:
-            items.append((
-                "search",
-                f"{self.result.nfev} FE, {self.result.nit} iterations, {self.result.message}",
-            ))
-        ratio = self.cost_value / self.cost_ls if self.cost_ls > 0 else math.nan
-        items.append((
-            "final cost",
-            f"{self.cost_value:.6g}  ({START_NAME} {self.cost_ls:.6g}, ratio {ratio:.4g})",
-        ))
-        items.append((
-            "time",
-            f"optimise {self.timings.get('optimise_s', 0):.3f} s, "
-            f"validate {self.timings.get('validate_s', 0):.3f} s",
-        ))
-        return items
+    def _box_items(self) -> list[tuple[str, str]]:
+        return []  # the bounds are the parameters', listed in the parameter table
 
     def _parameter_table(self) -> str:
         ref = self.output_error
