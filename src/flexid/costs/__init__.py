@@ -21,8 +21,7 @@ The metrics a cost reports are :mod:`flexid.costs.metrics`.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from ..models._lazy import lazy_exports
 
 # public name -> submodule that defines it (imported on first use, so importing one
 # submodule does not import the others)
@@ -36,14 +35,4 @@ _LAZY = {
 
 __all__ = sorted(_LAZY)
 
-
-def __getattr__(name: str) -> Any:
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

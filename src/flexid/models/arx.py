@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import copy
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -184,6 +184,132 @@ class NamedChannels:
             input_names, output_name, self.structure.n_inputs
         )
         return out
+
+
+def _equal_lengths(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``num`` and ``den`` zero-padded at the end to one length: coefficients in powers of
+    ``q^-1`` read as the same polynomials in positive powers of ``z``."""
+    n = max(num.size, den.size)
+    return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
+
+
+class _TransferModel(NamedChannels, PlantResponse):
+    """What the ARX and polynomial models share: their constructor, delayed numerators,
+    exports and summary (each class keeps its own public methods and their docstrings)."""
+
+    structure: Any
+    theta: np.ndarray
+    param_std: np.ndarray | None
+    noise_variance: float | None
+    b: list[np.ndarray]
+    is_stable: bool
+    max_pole_radius: float
+
+    def __init__(
+        self,
+        structure: Any,
+        theta: Any,
+        dt: float = 1.0,
+        param_std: Any = None,
+        noise_variance: float | None = None,
+        input_names: Sequence[str] | None = None,
+        output_name: str | None = None,
+    ) -> None:
+        """Check and keep the arguments (the subclasses' docstrings say what they are)."""
+        self._check_structure(structure)
+        theta = np.array(theta, dtype=float).reshape(-1)
+        if theta.shape != (structure.n_params,):
+            raise DataError(
+                f"theta has {theta.size} values but {structure!r} has {structure.n_params}"
+            )
+        check_finite(theta, "theta", DataError)
+        dt = positive_real(dt, "dt", error=DataError, unit="s")
+        self.structure = structure
+        self.theta = theta
+        self.theta.setflags(write=False)
+        self.dt = dt
+        self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
+        self.noise_variance = None if noise_variance is None else float(noise_variance)
+        self.input_names, self.output_name = channel_names(
+            input_names, output_name, structure.n_inputs
+        )
+
+    @staticmethod
+    def _check_structure(structure: Any) -> None:
+        """Refuse a structure of another class (none is refused here)."""
+
+    def _b_delayed(self, j: int) -> np.ndarray:
+        """``B_j`` including the delay, in powers of ``q^-1``: ``[0]*nk + b``."""
+        return np.concatenate([np.zeros(self.structure.nk[j]), self.b[j]])
+
+    def _plant_control(self) -> control.TransferFunction:
+        """The plant of every input (:meth:`_plant_tf`) as a python-control system."""
+        import control
+
+        parts = [self._plant_tf(j) for j in range(self.structure.n_inputs)]
+        names = {"inputs": list(self.input_names), "outputs": [self.output_name]}
+        if len(parts) == 1:
+            return control.tf(*parts[0], self.dt, **names)
+        return control.tf([[p[0] for p in parts]], [[p[1] for p in parts]], self.dt, **names)
+
+    def _dlti(self, num: np.ndarray, den: np.ndarray) -> signal.dlti:
+        """``num / den`` (equal lengths, positive powers of ``z``) as a SciPy ``dlti``."""
+        from scipy import signal
+
+        num = np.trim_zeros(num, "f")  # leading zeros are the delay; scipy warns about them
+        return signal.dlti(num if num.size else [0.0], den, dt=self.dt)
+
+    def _parameters_dict(self) -> dict[str, Any]:
+        """The dictionary entries after the structure's orders (see ``to_dict``)."""
+        return {
+            "theta": self.theta.tolist(),
+            "param_names": self.structure.param_names,
+            "dt": self.dt,
+            "param_std": None if self.param_std is None else self.param_std.tolist(),
+            "noise_variance": self.noise_variance,
+            "stable": self.is_stable,
+            "max_pole_radius": self.max_pole_radius,
+            "input_names": list(self.input_names),
+            "output_name": self.output_name,
+        }
+
+    @classmethod
+    def _from_entries(cls, structure: Any, d: Mapping[str, Any]) -> Any:
+        """A model of ``structure`` with the parameters and names of a ``to_dict`` mapping
+        (``theta`` required: a KeyError without it)."""
+        return cls(
+            structure,
+            d["theta"],
+            dt=d.get("dt", 1.0),
+            param_std=d.get("param_std"),
+            noise_variance=d.get("noise_variance"),
+            input_names=d.get("input_names"),
+            output_name=d.get("output_name"),
+        )
+
+    @classmethod
+    def _read_json(cls, text: str, what: str) -> Any:
+        """``from_dict`` of JSON text; a DataError naming ``what`` for text that is not JSON."""
+        try:
+            return cls.from_dict(json.loads(text))
+        except json.JSONDecodeError as exc:
+            raise DataError(f"not {what} in JSON: {exc}") from None
+
+    def _summary_lines(self, title: str) -> list[str]:
+        """The summary's lines: ``title``, the parameters, noise variance, poles, stability."""
+        lines = [title]
+        std = self.param_std
+        for i, name in enumerate(self.structure.param_names):
+            extra = f"  +- {std[i]:.3g}" if std is not None else ""
+            lines.append(f"  {name:>8} = {self.theta[i]: .6g}{extra}")
+        if self.noise_variance is not None:
+            lines.append(f"  noise variance = {self.noise_variance:.4g}")
+        p = self.poles()
+        if p.size:
+            poles = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
+            lines.append(wrapped(f"poles: {poles}", indent="  ", hang="       "))
+        lines.append(f"  {stability_words(self.is_stable, self.max_pole_radius, sep=', ')}")
+        return lines
 
 
 class ARXStructure:
@@ -386,7 +512,7 @@ class ARXStructure:
         return ARX(self, theta, dt=dt)
 
 
-class ARX(NamedChannels, PlantResponse):
+class ARX(_TransferModel):
     """An ARX model with its parameters.
 
     Parameters
@@ -404,33 +530,6 @@ class ARX(NamedChannels, PlantResponse):
         The output's channel name (default ``y``).
     """
 
-    def __init__(
-        self,
-        structure: ARXStructure,
-        theta: Any,
-        dt: float = 1.0,
-        param_std: Any = None,
-        noise_variance: float | None = None,
-        input_names: Sequence[str] | None = None,
-        output_name: str | None = None,
-    ) -> None:
-        theta = np.array(theta, dtype=float).reshape(-1)
-        if theta.shape != (structure.n_params,):
-            raise DataError(
-                f"theta has {theta.size} values but {structure!r} has {structure.n_params}"
-            )
-        check_finite(theta, "theta", DataError)
-        dt = positive_real(dt, "dt", error=DataError, unit="s")
-        self.structure = structure
-        self.theta = theta
-        self.theta.setflags(write=False)
-        self.dt = dt
-        self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
-        self.noise_variance = None if noise_variance is None else float(noise_variance)
-        self.input_names, self.output_name = channel_names(
-            input_names, output_name, structure.n_inputs
-        )
-
     # ------------------------------------------------------------------ polynomials
     @property
     def a(self) -> np.ndarray:
@@ -446,16 +545,9 @@ class ARX(NamedChannels, PlantResponse):
             i += nb
         return out
 
-    def _b_delayed(self, j: int) -> np.ndarray:
-        """``B_j`` including the delay, in powers of ``q^-1``: ``[0]*nk + b``."""
-        return np.concatenate([np.zeros(self.structure.nk[j]), self.b[j]])
-
     def _plant_tf(self, j: int) -> tuple[np.ndarray, np.ndarray]:
         """Numerator and denominator in positive powers of z (equal lengths)."""
-        num = self._b_delayed(j)
-        den = self.a
-        n = max(num.size, den.size)
-        return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
+        return _equal_lengths(self._b_delayed(j), self.a)
 
     # ------------------------------------------------------------------ prediction
     def predict(self, u: Any, y: Any = None) -> np.ndarray:
@@ -596,17 +688,7 @@ class ARX(NamedChannels, PlantResponse):
             Discrete-time, 1 output x n_inputs, with sample time ``dt`` (s); the numerators
             include the input delays.
         """
-        import control
-
-        nums, dens = [], []
-        for j in range(self.structure.n_inputs):
-            num, den = self._plant_tf(j)
-            nums.append(num)
-            dens.append(den)
-        names = {"inputs": list(self.input_names), "outputs": [self.output_name]}
-        if self.structure.n_inputs == 1:
-            return control.tf(nums[0], dens[0], self.dt, **names)
-        return control.tf([nums], [dens], self.dt, **names)
+        return self._plant_control()
 
     def to_dlti(self, input: int = 0) -> signal.dlti:
         """One input's transfer function as a SciPy discrete-time system.
@@ -621,11 +703,7 @@ class ARX(NamedChannels, PlantResponse):
         scipy.signal.dlti
             ``B_input(z) / A(z)`` with sample time ``dt`` (s).
         """
-        from scipy import signal
-
-        num, den = self._plant_tf(input)
-        num = np.trim_zeros(num, "f")  # leading zeros are the delay; scipy warns about them
-        return signal.dlti(num if num.size else [0.0], den, dt=self.dt)
+        return self._dlti(*self._plant_tf(input))
 
     def to_dict(self) -> dict[str, Any]:
         """The model as a JSON-safe dictionary; :meth:`from_dict` restores it exactly.
@@ -641,15 +719,7 @@ class ARX(NamedChannels, PlantResponse):
             "na": self.structure.na,
             "nb": list(self.structure.nb),
             "nk": list(self.structure.nk),
-            "theta": self.theta.tolist(),
-            "param_names": self.structure.param_names,
-            "dt": self.dt,
-            "param_std": None if self.param_std is None else self.param_std.tolist(),
-            "noise_variance": self.noise_variance,
-            "stable": self.is_stable,
-            "max_pole_radius": self.max_pole_radius,
-            "input_names": list(self.input_names),
-            "output_name": self.output_name,
+            **self._parameters_dict(),
         }
 
     @classmethod
@@ -673,16 +743,7 @@ class ARX(NamedChannels, PlantResponse):
             If a required key is missing or ``theta`` does not fit the orders.
         """
         try:
-            structure = ARXStructure(d["na"], d["nb"], d["nk"])
-            return cls(
-                structure,
-                d["theta"],
-                dt=d.get("dt", 1.0),
-                param_std=d.get("param_std"),
-                noise_variance=d.get("noise_variance"),
-                input_names=d.get("input_names"),
-                output_name=d.get("output_name"),
-            )
+            return cls._from_entries(ARXStructure(d["na"], d["nb"], d["nk"]), d)
         except KeyError as exc:
             raise DataError(f"ARX dictionary lacks the key {exc.args[0]!r}") from None
 
@@ -715,10 +776,7 @@ class ARX(NamedChannels, PlantResponse):
         DataError
             If the text is not JSON or lacks a required key.
         """
-        try:
-            return cls.from_dict(json.loads(text))
-        except json.JSONDecodeError as exc:
-            raise DataError(f"not an ARX model in JSON: {exc}") from None
+        return cls._read_json(text, "an ARX model")
 
     def summary(self) -> str:
         """A multi-line, human-readable description of the model.
@@ -729,20 +787,8 @@ class ARX(NamedChannels, PlantResponse):
             The orders and ``dt``, each parameter (with its standard deviation when known),
             the noise variance, the poles and whether the model is stable.
         """
-        s = self.structure
-        lines = [f"ARX model {s!r}, dt = {self.dt:g} s"]
-        std = self.param_std
-        for i, name in enumerate(s.param_names):
-            extra = f"  +- {std[i]:.3g}" if std is not None else ""
-            lines.append(f"  {name:>8} = {self.theta[i]: .6g}{extra}")
-        if self.noise_variance is not None:
-            lines.append(f"  noise variance = {self.noise_variance:.4g}")
-        p = self.poles()
-        if p.size:
-            poles = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
-            lines.append(wrapped(f"poles: {poles}", indent="  ", hang="       "))
-        lines.append(f"  {stability_words(self.is_stable, self.max_pole_radius, sep=', ')}")
-        return "\n".join(lines)
+        title = f"ARX model {self.structure!r}, dt = {self.dt:g} s"
+        return "\n".join(self._summary_lines(title))
 
     def __repr__(self) -> str:
         return f"ARX({self.structure!r}, theta={np.array2string(self.theta, precision=4)})"

@@ -619,6 +619,15 @@ class GreyBoxModel:
     def _free_params(self) -> list[GreyParameter]:
         return [p for p in self.parameters if not p.fixed]
 
+    def _on_log_columns(self, values: Any, transform: Callable[[np.ndarray], Any]) -> np.ndarray:
+        """``values`` (estimated parameters in the last axis) as floats, ``transform`` applied
+        to the columns of the log-scaled ones."""
+        values = np.asarray(values, dtype=float)
+        logs = np.array([p.log for p in self._free_params()], dtype=bool)
+        out = values.copy()
+        out[..., logs] = transform(values[..., logs])
+        return out
+
     def search_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The search box of the estimated parameters: ``log10`` bounds for log-scaled ones.
 
@@ -641,11 +650,7 @@ class GreyBoxModel:
         -------
         ndarray, same shape
         """
-        Z = np.asarray(Z, dtype=float)
-        logs = np.array([p.log for p in self._free_params()], dtype=bool)
-        out = Z.copy()
-        out[..., logs] = 10.0 ** Z[..., logs]
-        return out
+        return self._on_log_columns(Z, lambda z: 10.0**z)
 
     def to_search(self, values: Any) -> np.ndarray:
         """Search coordinates of estimated parameters' values (the inverse of :meth:`from_search`).
@@ -658,12 +663,12 @@ class GreyBoxModel:
         -------
         ndarray, same shape
         """
-        values = np.asarray(values, dtype=float)
-        logs = np.array([p.log for p in self._free_params()], dtype=bool)
-        out = values.copy()
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out[..., logs] = np.log10(values[..., logs])
-        return out
+
+        def log10(v: np.ndarray) -> np.ndarray:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.log10(v)
+
+        return self._on_log_columns(values, log10)
 
     def full(self, free_values: Any) -> np.ndarray:
         """Every parameter's value, the estimated ones from ``free_values``.

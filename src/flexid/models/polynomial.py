@@ -63,19 +63,10 @@ import numpy as np
 from scipy import linalg, signal
 
 from .._json import jsonable
-from .._table import wrapped
-from .._validate import checked_keywords, integer, positive_real
+from .._validate import checked_keywords, integer
 from ..errors import ConfigError, DataError, ModelOrderError, UnknownNameError, check_finite
-from .arx import (
-    ARX,
-    ARXStructure,
-    NamedChannels,
-    PlantResponse,
-    _check_samples,
-    channel_names,
-)
+from .arx import ARX, ARXStructure, _check_samples, _equal_lengths, _orders, _TransferModel
 from .realisation import Path, accurate_roots, run_paths
-from .stability import stability_words
 from .vocabulary import STRUCTURE_NAMES
 
 if TYPE_CHECKING:  # pragma: no cover - python-control loads on first use
@@ -126,16 +117,6 @@ def _check_initial(initial: Any, what: str = "initial-condition rule") -> str:
     if not isinstance(initial, str) or initial not in INITIAL_RULES:
         raise _UnknownInitialRule(what, str(initial), tuple(INITIAL_RULES))
     return initial
-
-
-def _orders(value: Any, what: str, low: int) -> tuple[int, ...]:
-    items = [value] if np.isscalar(value) else list(value)
-    if not items:
-        raise ModelOrderError(f"{what} needs at least one value (one per input)")
-    return tuple(
-        integer(v, f"model order {what}", error=ModelOrderError, minimum=low, integral_float=True)
-        for v in items
-    )
 
 
 def _poly_mul(*polys: np.ndarray) -> np.ndarray:
@@ -618,7 +599,7 @@ def run_predictor(
 
 
 # ================================================================================ model
-class PolynomialModel(NamedChannels, PlantResponse):
+class PolynomialModel(_TransferModel):
     """A polynomial model (ARX, ARMAX, OE, BJ or general) with its parameters.
 
     Parameters
@@ -638,35 +619,13 @@ class PolynomialModel(NamedChannels, PlantResponse):
         The output's channel name (default ``y``).
     """
 
-    def __init__(
-        self,
-        structure: PolynomialStructure,
-        theta: Any,
-        dt: float = 1.0,
-        param_std: Any = None,
-        noise_variance: float | None = None,
-        input_names: Sequence[str] | None = None,
-        output_name: str | None = None,
-    ) -> None:
+    @staticmethod
+    def _check_structure(structure: Any) -> None:
+        """Refuse a structure that is not a :class:`PolynomialStructure`."""
         if not isinstance(structure, PolynomialStructure):
             raise DataError(
                 f"structure must be a PolynomialStructure, got {type(structure).__name__}"
             )
-        theta = np.array(theta, dtype=float).reshape(-1)
-        if theta.shape != (structure.n_params,):
-            raise DataError(
-                f"theta has {theta.size} values but {structure!r} has {structure.n_params}"
-            )
-        check_finite(theta, "theta", DataError)
-        self.structure = structure
-        self.theta = theta
-        self.theta.setflags(write=False)
-        self.dt = positive_real(dt, "dt", error=DataError, unit="s")
-        self.param_std = None if param_std is None else np.asarray(param_std, dtype=float)
-        self.noise_variance = None if noise_variance is None else float(noise_variance)
-        self.input_names, self.output_name = channel_names(
-            input_names, output_name, structure.n_inputs
-        )
 
     # ------------------------------------------------------------------ polynomials
     def _part(self, key: str) -> np.ndarray:
@@ -696,9 +655,6 @@ class PolynomialModel(NamedChannels, PlantResponse):
     def f(self) -> list[np.ndarray]:
         """Per input ``[1, f_1, .., f_nf]``."""
         return [_monic(self.theta[s]) for s in self.structure.slices()["f"]]
-
-    def _b_delayed(self, j: int) -> np.ndarray:
-        return np.concatenate([np.zeros(self.structure.nk[j]), self.b[j]])
 
     # ------------------------------------------------------------------ predictors
     def predictor_polynomials(
@@ -812,10 +768,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         """
         initial = _check_initial(initial)
         u, y = self._signals(u, y, need_y=True)
-        if k in (1, np.inf) and initial != "measured":
-            return self._run_realised(k, u, y, initial, from_start)
-        den, num_y, nums = self.predictor_polynomials(k)
-        return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
+        return self._run(k, u, y, initial, from_start)
 
     def residuals(
         self, u: Any, y: Any = None, *, initial: str = "estimate", from_start: bool = False
@@ -858,9 +811,17 @@ class PolynomialModel(NamedChannels, PlantResponse):
         """
         initial = _check_initial(initial)
         u, y = self._signals(u, y, need_y=initial != "zero")
-        if initial != "measured":
-            return self._run_realised(np.inf, u, y, initial, from_start)
-        den, num_y, nums = self.predictor_polynomials(np.inf)
+        return self._run(np.inf, u, y, initial, from_start)
+
+    def _run(
+        self, k: float, u: np.ndarray, y: np.ndarray | None, initial: str, from_start: bool
+    ) -> np.ndarray:
+        """The ``k``-step prediction (``inf``: the simulation) of checked signals: in the
+        realisation for ``k`` 1 or ``inf`` under ``"zero"`` and ``"estimate"``, else in the
+        direct form (see :meth:`predict`)."""
+        if k in (1, np.inf) and initial != "measured":
+            return self._run_realised(k, u, y, initial, from_start)
+        den, num_y, nums = self.predictor_polynomials(k)
         return run_predictor(den, num_y, nums, u, y, self.structure.start, initial)[0]
 
     # ------------------------------------------------------------------ realisation
@@ -1021,15 +982,12 @@ class PolynomialModel(NamedChannels, PlantResponse):
 
     # ------------------------------------------------------------------ export
     def _plant_tf(self, j: int) -> tuple[np.ndarray, np.ndarray]:
-        num = self._b_delayed(j)
-        den = _poly_mul(self.a, self.f[j])
-        n = max(num.size, den.size)
-        return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
+        """Input ``j``'s ``B_j q^-nk_j / (A F_j)`` in positive powers of z (equal lengths)."""
+        return _equal_lengths(self._b_delayed(j), _poly_mul(self.a, self.f[j]))
 
     def _noise_tf(self) -> tuple[np.ndarray, np.ndarray]:
-        num, den = self.c, _poly_mul(self.a, self.d)
-        n = max(num.size, den.size)
-        return np.pad(num, (0, n - num.size)), np.pad(den, (0, n - den.size))
+        """The noise model ``C / (A D)`` in positive powers of z (equal lengths)."""
+        return _equal_lengths(self.c, _poly_mul(self.a, self.d))
 
     def to_control(self, *, noise: bool = False) -> control.TransferFunction:
         """The plant ``B/(A F)`` (or the noise model ``C/(A D)``) as a python-control system.
@@ -1045,16 +1003,12 @@ class PolynomialModel(NamedChannels, PlantResponse):
         control.TransferFunction
             Discrete time with sample time ``dt`` (s); 1 output x n_inputs for the plant.
         """
-        import control
-
-        outputs = [self.output_name]
         if noise:
+            import control
+
+            outputs = [self.output_name]
             return control.tf(*self._noise_tf(), self.dt, inputs=["e"], outputs=outputs)
-        parts = [self._plant_tf(j) for j in range(self.structure.n_inputs)]
-        names = {"inputs": list(self.input_names), "outputs": outputs}
-        if len(parts) == 1:
-            return control.tf(*parts[0], self.dt, **names)
-        return control.tf([[p[0] for p in parts]], [[p[1] for p in parts]], self.dt, **names)
+        return self._plant_control()
 
     def to_dlti(self, input: int = 0, *, noise: bool = False) -> signal.dlti:
         """One input's plant ``B/(A F)`` (or the noise model) as a SciPy ``dlti``.
@@ -1071,9 +1025,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         scipy.signal.dlti
             With sample time ``dt`` (s).
         """
-        num, den = self._noise_tf() if noise else self._plant_tf(input)
-        num = np.trim_zeros(num, "f")
-        return signal.dlti(num if num.size else [0.0], den, dt=self.dt)
+        return self._dlti(*(self._noise_tf() if noise else self._plant_tf(input)))
 
     def to_dict(self) -> dict[str, Any]:
         """The model as a JSON-safe dictionary; :meth:`from_dict` restores it.
@@ -1088,15 +1040,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         """
         return {
             **self.structure.to_dict(),
-            "theta": self.theta.tolist(),
-            "param_names": self.structure.param_names,
-            "dt": self.dt,
-            "param_std": None if self.param_std is None else self.param_std.tolist(),
-            "noise_variance": self.noise_variance,
-            "stable": self.is_stable,
-            "max_pole_radius": self.max_pole_radius,
-            "input_names": list(self.input_names),
-            "output_name": self.output_name,
+            **self._parameters_dict(),
         }
 
     @classmethod
@@ -1145,15 +1089,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         """
         if "theta" not in d:
             raise DataError("a model dictionary needs the key 'theta'")
-        return cls(
-            PolynomialStructure.from_dict(d),
-            d["theta"],
-            dt=d.get("dt", 1.0),
-            param_std=d.get("param_std"),
-            noise_variance=d.get("noise_variance"),
-            input_names=d.get("input_names"),
-            output_name=d.get("output_name"),
-        )
+        return cls._from_entries(PolynomialStructure.from_dict(d), d)
 
     def to_json(self) -> str:
         """:meth:`to_dict` as JSON text (no NaN or infinity).
@@ -1176,10 +1112,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         -------
         PolynomialModel
         """
-        try:
-            return cls.from_dict(json.loads(text))
-        except json.JSONDecodeError as exc:
-            raise DataError(f"not a polynomial model in JSON: {exc}") from None
+        return cls._read_json(text, "a polynomial model")
 
     def summary(self) -> str:
         """A readable account: structure, parameters with standard errors, poles, stability.
@@ -1189,18 +1122,7 @@ class PolynomialModel(NamedChannels, PlantResponse):
         str
         """
         s = self.structure
-        lines = [f"{s!r} model, dt = {self.dt:g} s"]
-        std = self.param_std
-        for i, name in enumerate(s.param_names):
-            extra = f"  +- {std[i]:.3g}" if std is not None else ""
-            lines.append(f"  {name:>8} = {self.theta[i]: .6g}{extra}")
-        if self.noise_variance is not None:
-            lines.append(f"  noise variance = {self.noise_variance:.4g}")
-        p = self.poles()
-        if p.size:
-            poles = ", ".join(f"{z.real:.4f}{z.imag:+.4f}j" for z in p)
-            lines.append(wrapped(f"poles: {poles}", indent="  ", hang="       "))
-        lines.append(f"  {stability_words(self.is_stable, self.max_pole_radius, sep=', ')}")
+        lines = self._summary_lines(f"{s!r} model, dt = {self.dt:g} s")
         if s.nc:
             r = np.abs(self.noise_zeros()).max()
             lines.append(

@@ -1,0 +1,37 @@
+"""A package's names imported from its submodules on first use (:pep:`562`).
+
+:mod:`flexid.models` and :mod:`flexid.costs` export their classes this way, so importing one
+submodule does not import the others.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Callable, Mapping
+from typing import Any
+
+__all__: list[str] = []
+
+
+def lazy_exports(
+    package: str, table: Mapping[str, str]
+) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
+    """The module ``__getattr__`` and ``__dir__`` of ``package`` for the names of ``table``.
+
+    ``__getattr__`` imports a name from its submodule (``table``: public name -> submodule
+    of ``package``) and keeps it in the package's namespace, so it is imported once.
+    """
+    namespace = sys.modules[package].__dict__
+
+    def __getattr__(name: str) -> Any:
+        if name not in table:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        value = getattr(importlib.import_module(f".{table[name]}", package), name)
+        namespace[name] = value
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted(set(namespace) | set(table))
+
+    return __getattr__, __dir__
