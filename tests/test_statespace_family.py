@@ -420,3 +420,35 @@ def test_select_ranks_state_space_orders_on_the_joint_cost(two_sensor_record):
     grids = {"ss": [{"order": 4}], "oe": [{"nb": 2, "nf": 2}]}
     with pytest.raises(DataError, match="models one: select among state-space"):
         flexid.select(record, structures=("ss", "oe"), orders=grids)
+
+
+def test_the_orthogonal_route_solves_the_same_fit_with_the_rounding_of_a_qr():
+    # a rigid body (two real poles at 1e-5 and 2e-5 Hz, about z = 1) and two lightly damped
+    # modes: scaled regressors of condition about 6e3, whose normal equations may lose
+    # cond**2 eps, about 1e-8, of the fit and QR factors cond eps, about 1e-12. The orthogonal
+    # route against an independent one: an SVD least squares of the same regressors with the
+    # same scaled ridge
+    rng = np.random.default_rng(5)
+    s = StateSpaceStructure(6, 1, 2, n_modes=2)
+    record = IOData(rng.standard_normal((1200, 1)), rng.standard_normal((1200, 2)), dt=DT)
+    cost = ModalCost(record, s, initial="zero")
+    modal = np.array([[3.0, 0.02, 11.0, 0.05, 1e-5, 2e-5]])
+    _, normal = cost.residuals(modal)
+    _, orthogonal = cost.residuals_orthogonal(modal)
+    a, p = s.denominators(modal, DT)
+    phi = kernels.modal_regressors(np.concatenate([a.reshape(1, -1), p], axis=1),
+                                   record.u, s.n_modes, False, False)[0]  # fmt: skip
+    norms = np.linalg.norm(phi, axis=0)
+    ridge = np.sqrt(flexid.costs.modal.RIDGE) * np.eye(phi.shape[1])
+    coef = np.linalg.lstsq(np.vstack([phi / norms, ridge]),
+                           np.vstack([cost._target, np.zeros((phi.shape[1], 2))]),
+                           rcond=None)[0]  # fmt: skip
+    svd = cost._target - phi @ (coef / norms[:, None])
+    scale = np.linalg.norm(svd)
+    assert np.linalg.cond(phi / norms) > 1e3
+    assert np.linalg.norm(orthogonal[0] - svd) < 1e-11 * scale
+    assert np.linalg.norm(normal[0] - svd) < 1e-6 * scale  # the same fit, coarser rounding
+    # with the initial state estimated the two routes still agree to the normal one's rounding
+    est = ModalCost(record, s, initial="estimate")
+    np.testing.assert_allclose(est.residuals_orthogonal(modal)[1], est.residuals(modal)[1],
+                               rtol=0, atol=1e-6 * np.abs(record.y).max())  # fmt: skip

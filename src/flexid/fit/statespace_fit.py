@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -45,6 +45,9 @@ _STEP = 1e-6
 #: polynomial references: the cosine between the residual and the Jacobian's span; the
 #: finite-difference Jacobian is good to about 1e-10, far below it).
 OPTIMALITY = 1e-6
+#: Residual evaluations of the best run's last steps on the orthogonal route (it starts at
+#: the normal equations' minimum, where a few steps settle it).
+POLISH_NFEV = 50
 #: A coordinate within this distance of a face of the unit cube is held by that bound.
 _ON_BOUND = 1e-9
 
@@ -251,25 +254,37 @@ def refine(
     def physical(v: np.ndarray) -> np.ndarray:
         return box.physical(box.lower + np.atleast_2d(v) * width)
 
+    def errors(v: np.ndarray) -> np.ndarray:
+        count["points"] += np.atleast_2d(v).shape[0]
+        return route[0](physical(v))[1].reshape(np.atleast_2d(v).shape[0], -1)
+
     def residual(v: np.ndarray) -> np.ndarray:
-        count["points"] += 1
-        return cost.residuals(physical(v))[1].reshape(-1)
+        return errors(v)[0]
 
     def jacobian(v: np.ndarray) -> np.ndarray:
         up = np.where(v + _STEP > 1.0, 0.0, _STEP)
         down = np.where(v - _STEP < 0.0, 0.0, _STEP)
-        points = np.vstack([v + np.diag(up), v - np.diag(down)])
-        count["points"] += points.shape[0]
-        e = cost.residuals(physical(points))[1].reshape(2 * k, -1)
+        e = errors(np.vstack([v + np.diag(up), v - np.diag(down)]))
         return ((e[:k] - e[k:]) / (up + down)[:, None]).T
 
     budget = max_nfev or 100 * k
+    route = [cost.residuals]
     runs = []
     for name, x in starts:
         v0 = np.clip((box.coordinates(x) - box.lower) / width, 0.0, 1.0)
         runs.append(levenberg_marquardt(residual, jacobian, v0, name, bounds=(0.0, 1.0),
                                         max_nfev=budget, tol=tol))  # fmt: skip
     best = int(np.argmin([run.fun for run in runs]))
+    # the normal equations' rounding (about 1e-9 of the residual) is, through the
+    # finite-difference Jacobian, a gradient noise above the optimality test's 1e-6: the best
+    # run goes on from its end on the orthogonal route, and is judged there
+    route[0] = cost.residuals_orthogonal
+    polish = levenberg_marquardt(residual, jacobian, runs[best].x, runs[best].kind,
+                                 bounds=(0.0, 1.0), max_nfev=POLISH_NFEV, tol=tol)  # fmt: skip
+    first = runs[best]
+    runs[best] = replace(first, x=polish.x, fun=polish.fun, nfev=first.nfev + polish.nfev,
+                         njev=first.njev + polish.njev,
+                         message=f"{first.message.rstrip('.')}; then {polish.message}")  # fmt: skip
     v = runs[best].x
     e, J = residual(v), jacobian(v)
     for run in runs:  # starts and ends in physical units
@@ -288,7 +303,7 @@ def refine(
     order = _by_frequency(cost.structure.n_modes, modal)  # the same model, modes in order
     modal, std = modal[order], std[order]
     on_bound = sorted(int(i) for i in np.flatnonzero(held[order]))
-    theta = cost.fit(modal[None])[0][0]
+    theta = cost.residuals_orthogonal(modal[None])[0][0]
     model = cost.structure.model(theta, cost.dt)
     where = f"; held by a bound in coordinate(s) {on_bound}" if on_bound else ""
     return StateSpaceResult.assemble(
