@@ -198,9 +198,10 @@ def test_truncated_and_missing_files(tmp_path, signals):
     full = tmp_path / "full.mat"
     savemat(full, {"u": u, "y": y})
     cut = tmp_path / "cut.mat"
-    cut.write_bytes(full.read_bytes()[:300])
-    with pytest.raises(DataFileError, match=r"cut\.mat"):
-        load(cut)
+    for size in (300, 3, 10):  # inside the data, and inside the header
+        cut.write_bytes(full.read_bytes()[:size])
+        with pytest.raises(DataFileError, match=r"cut\.mat"):
+            load(cut)
     with pytest.raises(DataFileError, match="no such file"):
         load(tmp_path / "missing.mat")
 

@@ -9,6 +9,7 @@ for unreadable files), so generic handlers keep working.  The command line turns
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # pragma: no cover - NumPy is imported on first use: `import flexid` stays light
@@ -226,3 +227,21 @@ def plain_number(value: object) -> str:
         real = number.real
         return str(value) if isinstance(value, int) else f"{real:g}"
     return str(number)
+
+
+def _unreadable(
+    path: str | os.PathLike,
+    exc: OSError,
+    *,
+    error: type[FlexidError] = DataFileError,
+    kind: str = "data file",
+    missing: str = "file",
+) -> FlexidError:
+    """The one-line error of a file that could not be opened or read, for the modules that
+    read files: ``"PATH: no such {missing}"``, ``"PATH: is a directory, not a {kind}"`` or
+    ``"PATH: cannot read (REASON)"``, as an ``error`` to raise ``from None``."""
+    if isinstance(exc, FileNotFoundError):
+        return error(f"{path}: no such {missing}")
+    if isinstance(exc, IsADirectoryError):
+        return error(f"{path}: is a directory, not a {kind}")
+    return error(f"{path}: cannot read ({exc.strerror or exc})")

@@ -38,7 +38,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .._validate import is_integer
-from ..errors import DataError, DataFileError, check_finite
+from ..errors import DataError, DataFileError, _unreadable, check_finite
 
 __all__ = [
     "CSV_MAGIC",
@@ -147,17 +147,13 @@ def read_mat(
 def _load(path: Path) -> tuple[dict[str, Any], str]:
     """The file's variables (structs as dicts, cells as lists/object arrays) and format."""
     from scipy.io import loadmat
-    from scipy.io.matlab import matfile_version
+    from scipy.io.matlab import MatReadError, matfile_version
 
     try:
         with open(path, "rb") as handle:
             head = handle.read(_V73_USERBLOCK + len(_HDF5_SIGNATURE))
-    except FileNotFoundError:
-        raise DataFileError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise DataFileError(f"{path}: is a directory, not a data file") from None
     except OSError as exc:
-        raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        raise _unreadable(path, exc) from None
     if head.startswith(_HDF5_SIGNATURE) or head[_V73_USERBLOCK:].startswith(_HDF5_SIGNATURE):
         raise DataFileError(f"{path}: a MATLAB v7.3 (HDF5) file; {_V73_FIX}")
     if not head:
@@ -170,8 +166,8 @@ def _load(path: Path) -> tuple[dict[str, Any], str]:
         contents = loadmat(path, simplify_cells=True, chars_as_strings=True)
     except NotImplementedError:
         raise DataFileError(f"{path}: a MATLAB v7.3 (HDF5) file; {_V73_FIX}") from None
-    except (ValueError, TypeError, OSError, EOFError, KeyError, IndexError) as exc:
-        # scipy's MatReadError is a ValueError subclass; a truncated file also ends here.
+    except (MatReadError, ValueError, TypeError, OSError, EOFError, KeyError, IndexError) as exc:
+        # MatReadError (a file cut inside its header) derives from Exception alone
         raise DataFileError(f"{path}: not a readable MAT file ({exc})") from None
     variables = {k: v for k, v in contents.items() if not k.startswith("__")}
     return variables, "4" if major == 0 else "5"
@@ -578,14 +574,10 @@ def _text_file(path: Path) -> Iterator[None]:
         yield
     except DataFileError:  # an OSError too: already said in one line
         raise
-    except FileNotFoundError:
-        raise DataFileError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise DataFileError(f"{path}: is a directory, not a data file") from None
     except UnicodeDecodeError:
         raise DataFileError(f"{path}: not a text file (cannot decode as UTF-8)") from None
     except OSError as exc:
-        raise DataFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        raise _unreadable(path, exc) from None
 
 
 def _read_text(path: Path) -> str:

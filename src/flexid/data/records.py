@@ -47,6 +47,7 @@ from ..errors import (
     DataWarning,
     UnknownKeywordError,
     UnknownNameError,
+    _unreadable,
     check_finite,
 )
 from ._files import (
@@ -617,10 +618,8 @@ class IOData:
                 header = json.loads(str(archive["meta"]))
         except DataFileError:
             raise
-        except FileNotFoundError:
-            raise DataFileError(f"{path}: no such file") from None
-        except IsADirectoryError:
-            raise DataFileError(f"{path}: is a directory, not a data file") from None
+        except (FileNotFoundError, IsADirectoryError) as exc:
+            raise _unreadable(path, exc) from None
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             # EOFError and BadZipFile: a truncated or damaged archive
             raise DataFileError(f"{path}: not a readable flexid NPZ file ({exc})") from None

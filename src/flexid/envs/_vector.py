@@ -105,6 +105,14 @@ class BatchedVectorEnv(gymnasium.vector.VectorEnv):
         self._rngs = [seeding.np_random(s)[0] for s in seeds]
         return seeds
 
+    def _restart(self, seed: int | list[int] | None) -> list[int] | None:
+        """Seed the sub-environments (:meth:`_seed`) and start their episodes afresh: no step
+        taken, none done.  Returns the seeds used; the subclass resets the states."""
+        seeds = self._seed(seed)
+        self.steps[:] = 0
+        self.prev_done[:] = False
+        return seeds
+
     def _end_step(
         self, done: np.ndarray, reward: np.ndarray, terminated: np.ndarray
     ) -> np.ndarray:

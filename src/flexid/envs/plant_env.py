@@ -224,10 +224,8 @@ class PlantVectorEnv(BatchedVectorEnv, single_env=PlantEnv, config_type=_Config)
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        self._seed(seed)
+        self._restart(seed)
         self.state = np.tile(self._cfg.x0, (self.num_envs, 1))
-        self.steps[:] = 0
-        self.prev_done[:] = False
         return self._cfg.observe(self.state, self._rngs), {}
 
     def step(

@@ -337,10 +337,8 @@ class TwinRotorVectorEnv(BatchedVectorEnv, single_env=TwinRotorEnv, config_type=
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        self._seed(seed)
+        self._restart(seed)
         self._stepper.reset(np.ones(self.num_envs, dtype=bool))
-        self.steps[:] = 0
-        self.prev_done[:] = False
         return self._observe(), {}
 
     def step(

@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError
+from ..errors import ConfigError, _unreadable
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -180,12 +180,9 @@ def load_config(path: str | os.PathLike) -> list[ComparisonSpec]:
     path = Path(path)
     try:
         raw = path.read_bytes()
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such configuration file") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: is a directory, not a configuration file") from None
     except OSError as exc:
-        raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        kind = "configuration file"
+        raise _unreadable(path, exc, error=ConfigError, kind=kind, missing=kind) from None
     try:
         config = tomllib.loads(_toml_text(raw, path))
     except tomllib.TOMLDecodeError as exc:

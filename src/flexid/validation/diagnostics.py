@@ -551,6 +551,17 @@ def _input_names(names: Sequence[str] | None, n_u: int) -> list[str]:
     return [str(n) for n in names]
 
 
+def _residual_and_inputs(
+    e: Any, u: Any, max_lag: Any, input_names: Sequence[str] | None
+) -> tuple[np.ndarray, np.ndarray, int, list[str]]:
+    """The checked arguments of the tests of a residual against the inputs: the residual
+    (N,), the inputs (N, n_u), the largest lag and the input names."""
+    e = _vector(e, "residual e")
+    max_lag = _check_max_lag(max_lag, e.size, "residual")
+    u = _inputs_2d(u, e.size)
+    return e, u, max_lag, _input_names(input_names, u.shape[1])
+
+
 def residual_tests(
     e: Any, u: Any, max_lag: int = CORRELATION_LAGS, input_names: Sequence[str] | None = None,
     *, effect: ParameterEffect | None = None, alpha: float = VALIDATION_ALPHA,
@@ -580,11 +591,7 @@ def residual_tests(
         ``auto e`` (lags ``-L..L`` stored, ``1..L`` tested) and one ``cross <input>-e`` per
         input (``corr(e(t), u(t - tau))``, lags ``-L..L`` all tested).
     """
-    e = _vector(e, "residual e")
-    n = e.size
-    max_lag = _check_max_lag(max_lag, n, "residual")
-    u = _inputs_2d(u, n)
-    names = _input_names(input_names, u.shape[1])
+    e, u, max_lag, names = _residual_and_inputs(e, u, max_lag, input_names)
     tests = [
         _test("auto e", "phi_ee(tau) = corr(e(t), e(t-tau))", e, e, max_lag,
               lambda lags: lags > 0, effect=effect, alpha=alpha)
@@ -678,11 +685,7 @@ def billings_voon_tests(
         (stored at lags ``tau``); ``BV u2'-e``, ``corr(u^2'(t-tau), e(t))`` for
         ``tau = -L..L``; ``BV u2'-e2'``, ``corr(u^2'(t-tau), e^2'(t))`` for ``tau = -L..L``.
     """
-    e = _vector(e, "residual e")
-    n = e.size
-    max_lag = _check_max_lag(max_lag, n, "residual")
-    u = _inputs_2d(u, n)
-    names = _input_names(input_names, u.shape[1])
+    e, u, max_lag, names = _residual_and_inputs(e, u, max_lag, input_names)
     e2 = e * e
     tests = []
     for j, name in enumerate(names):
