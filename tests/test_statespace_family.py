@@ -36,14 +36,18 @@ def _true_model(rng, *, n_outputs=2):
     return s.model(theta, DT)
 
 
-@pytest.fixture(scope="module")
-def two_sensor_record():
-    rng = np.random.default_rng(1)
+def _two_sensor(seed):
+    rng = np.random.default_rng(seed)
     true = _true_model(rng)
     u = rng.standard_normal((1500, 1))
     y = true.simulate(u)
     y += 0.02 * np.std(y, axis=0) * rng.standard_normal(y.shape)  # 2 % noise per sensor
     return true, IOData(u, y, dt=DT, output_names=["hub", "tip"])
+
+
+@pytest.fixture(scope="module")
+def two_sensor_record():
+    return _two_sensor(1)
 
 
 @pytest.mark.parametrize(
@@ -406,10 +410,12 @@ def test_the_figures_of_a_state_space_identification_show_every_output(two_senso
     np.testing.assert_allclose(by_value(m.zeros()), by_value(want), rtol=1e-6)
 
 
-def test_select_ranks_state_space_orders_on_the_joint_cost(two_sensor_record):
+def test_select_ranks_state_space_orders_on_the_joint_cost():
     # the known system has two modes (order 4): the criteria on the joint cost and the
-    # held-out fits agree on it, every output's tests are kept
-    _, record = two_sensor_record
+    # held-out fits agree on it, every output's tests are kept. Not the record of seed 1: there
+    # the true order's held-out residuals fail the test between the outputs by chance
+    # (p = 0.0004; 1 of the records of seeds 1-20 at 5 %, identify's verdict alike)
+    _, record = _two_sensor(2)
     sel = flexid.select(record, structures="ss", orders={"order": [2, 3, 4, 5, 6]})
     assert sel.best.structure.order == 4
     assert min(sel.candidates, key=lambda c: c.mdl_normalized).structure.order == 4
@@ -420,6 +426,28 @@ def test_select_ranks_state_space_orders_on_the_joint_cost(two_sensor_record):
     grids = {"ss": [{"order": 4}], "oe": [{"nb": 2, "nf": 2}]}
     with pytest.raises(DataError, match="models one: select among state-space"):
         flexid.select(record, structures=("ss", "oe"), orders=grids)
+
+
+def test_select_judges_the_outputs_residuals_against_each_other():
+    # the hub's noise reaches the tip two samples later (a disturbance the inputs do not
+    # explain): each output's residual alone is white and independent of the input, and only
+    # the test between the two outputs' residuals sees it. select's verdict is identify's
+    rng = np.random.default_rng(4)
+    true = _true_model(rng)
+    u = rng.standard_normal((1500, 1))
+    y = true.simulate(u)
+    hub = 0.05 * np.std(y[:, 0]) * rng.standard_normal(1500)
+    y[:, 0] += hub
+    y[2:, 1] += 0.5 * np.std(y[:, 1]) / np.std(y[:, 0]) * hub[:-2]
+    y[:, 1] += 0.02 * np.std(y[:, 1]) * rng.standard_normal(1500)
+    record = IOData(u, y, dt=DT, output_names=["hub", "tip"])
+    sel = flexid.select(record, structures="ss", orders={"order": [4]})
+    (c,) = sel.candidates
+    assert all(r.passed for r in c.reports)  # each output alone
+    assert not c.passed
+    ident = flexid.identify(record, structure="ss", order=4, optimiser="pem")
+    assert not ident.passed and any(not t.passed for t in ident.output_tests)
+    assert "predict each other (cross hub-tip)" in sel.note
 
 
 def test_the_orthogonal_route_solves_the_same_fit_with_the_rounding_of_a_qr():

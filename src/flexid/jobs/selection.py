@@ -1288,7 +1288,7 @@ class _HeldOut:
 
     def judge(self, c: Candidate) -> None:
         """Validate ``c.model``: its report(s), fits, verdict and stability, in place."""
-        from ..validation.verdict import joint_tests
+        from ..validation.verdict import between_outputs, joint_tests
 
         family = family_of(c.structure)
         t0 = time.perf_counter()
@@ -1306,8 +1306,10 @@ class _HeldOut:
                 c.reports = each
             c.fit_simulation = float(min(r.fit_simulation for r in each))  # the weakest
             c.fit_one_step = float(min(r.fit_one_step for r in each))
-            if self.several:  # one verdict at alpha over every output's tests
-                c.passed = all(t.passed for t in joint_tests(each))
+            if self.several:  # one verdict at alpha over every output's tests and the
+                # tests between their residuals, as identify and compare judge
+                between = between_outputs(each) if len(each) > 1 else ()
+                c.passed = all(t.passed for t in joint_tests(each, between))
             else:
                 c.passed = each[0].passed
             c.linear_passed = all(r.linear_passed for r in each)
@@ -1388,8 +1390,16 @@ def _fallback(ok: list[Candidate], criterion: str) -> tuple[Candidate, str]:
         f"{best.label}, held-out simulation fit {format_fit(best.fit_simulation)} %"
         f"{'' if best.stable else ' (UNSTABLE)'}.  "
     )
-    failed = [t.name for t in best.report.all_tests if not t.passed] if best.report else []
-    if best.linear_passed:
+    within, across = _failed_tests(best)
+    failed = within + across
+    if across and not within:
+        note += (
+            "Each output's residuals pass alone, but they predict each other "
+            f"({', '.join(across)}): a disturbance or a mode the model misses reaches several "
+            "sensors (try a higher order), or the sensors' noise is correlated at nonzero "
+            "lags; check it on another record."
+        )
+    elif best.linear_passed:
         note += (
             "Its residuals are white and independent of the input, but fail the "
             f"Billings-Voon test(s) {', '.join(failed) or '-'}: a nonlinear effect the "
@@ -1412,6 +1422,19 @@ def _fallback(ok: list[Candidate], criterion: str) -> tuple[Candidate, str]:
             f"({format_fit(lin.fit_simulation)} %)."
         )
     return best, note
+
+
+def _failed_tests(c: Candidate) -> tuple[list[str], list[str]]:
+    """The names of the failing tests of ``c``'s verdict: those of its outputs, and those
+    between its outputs' residuals (none with one output)."""
+    from ..validation.verdict import between_outputs, joint_tests
+
+    if len(c.reports) < 2:
+        return ([t.name for t in c.report.all_tests if not t.passed] if c.report else []), []
+    between = between_outputs(c.reports)
+    names = {t.name for t in between}
+    failed = [t.name for t in joint_tests(c.reports, between) if not t.passed]
+    return [n for n in failed if n not in names], [n for n in failed if n in names]
 
 
 def _band(c: Candidate) -> str:
