@@ -462,7 +462,7 @@ def test_the_orthogonal_route_solves_the_same_fit_with_the_rounding_of_a_qr():
     cost = ModalCost(record, s, initial="zero")
     modal = np.array([[3.0, 0.02, 11.0, 0.05, 1e-5, 2e-5]])
     _, normal = cost.residuals(modal)
-    _, orthogonal = cost.residuals_orthogonal(modal)
+    _, orthogonal = cost.residuals(modal, orthogonal=True)
     a, p = s.denominators(modal, DT)
     phi = kernels.modal_regressors(np.concatenate([a.reshape(1, -1), p], axis=1),
                                    record.u, s.n_modes, False, False)[0]  # fmt: skip
@@ -478,5 +478,5 @@ def test_the_orthogonal_route_solves_the_same_fit_with_the_rounding_of_a_qr():
     assert np.linalg.norm(normal[0] - svd) < 1e-6 * scale  # the same fit, coarser rounding
     # with the initial state estimated the two routes still agree to the normal one's rounding
     est = ModalCost(record, s, initial="estimate")
-    np.testing.assert_allclose(est.residuals_orthogonal(modal)[1], est.residuals(modal)[1],
+    np.testing.assert_allclose(est.residuals(modal, orthogonal=True)[1], est.residuals(modal)[1],
                                rtol=0, atol=1e-6 * np.abs(record.y).max())  # fmt: skip

@@ -37,7 +37,10 @@ thread small products (which OpenBLAS would, at a large cost, on a busy machine)
 
 Each least-squares problem is solved by its normal equations, scaled to a unit diagonal
 with a ridge of ``1e-10`` (:data:`RIDGE`): a damping ratio of 1 makes a mode's two columns
-nearly collinear, and the fit then takes the well-determined part.
+nearly collinear, and the fit then takes the well-determined part.  The normal equations
+square the regressors' condition number; ``residuals(..., orthogonal=True)`` solves the same
+problems by QR factors of the stored regressors, for the reference's last steps and its
+optimality test (:func:`flexid.fit.statespace_fit.refine`).
 """
 
 from __future__ import annotations
@@ -213,13 +216,22 @@ class ModalCost:
         theta, _, sse = self._fit(modal, want_residual=False)
         return theta, sse
 
-    def residuals(self, modal: Any) -> tuple[np.ndarray, np.ndarray]:
+    def residuals(
+        self, modal: Any, *, orthogonal: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The fitted parameters of every candidate and its simulation errors.
 
         Parameters
         ----------
         modal : array_like, shape (P, 2 m + r)
             Physical modal parameters.
+        orthogonal : bool, optional
+            Solve each least-squares problem by QR factors of the stored regressors instead
+            of their normal equations: the same fit (the same ridge), with rounding errors
+            that grow as the regressors' condition number instead of its square (about 1e-11
+            of the residual instead of 1e-9 on the manipulator's order-16 model, which a
+            first-order optimality test of 1e-6 from finite differences needs), about ten
+            times slower. For a reference's last steps; default False.
 
         Returns
         -------
@@ -227,29 +239,7 @@ class ModalCost:
         residual : ndarray, shape (P, N, ny)
             ``y - y_sim`` of each output, divided by :attr:`scale`.
         """
-        theta, residual, _ = self._fit(modal, want_residual=True)
-        return theta, residual
-
-    def residuals_orthogonal(self, modal: Any) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`residuals` with each least-squares problem solved by QR factors of the
-        stored regressors instead of their normal equations.
-
-        The same fit (the same ridge), with rounding errors that grow as the regressors'
-        condition number instead of its square: about 1e-11 of the residual instead of 1e-9
-        on the manipulator's order-16 model, which a first-order optimality test of 1e-6
-        from finite differences needs. About ten times slower: the reference's last steps.
-
-        Parameters
-        ----------
-        modal : array_like, shape (P, 2 m + r)
-            Physical modal parameters.
-
-        Returns
-        -------
-        theta : ndarray, shape (P, n_params)
-        residual : ndarray, shape (P, N, ny)
-        """
-        theta, residual, _ = self._fit(modal, want_residual=True, orthogonal=True)
+        theta, residual, _ = self._fit(modal, want_residual=True, orthogonal=orthogonal)
         return theta, residual
 
     def _fit(self, modal: Any, *, want_residual: bool, orthogonal: bool = False) -> tuple:

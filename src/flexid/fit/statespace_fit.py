@@ -19,6 +19,7 @@ run stays in the box (the bounded trust-region variant), so every model it visit
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, replace
@@ -278,7 +279,7 @@ def refine(
     # the normal equations' rounding (about 1e-9 of the residual) is, through the
     # finite-difference Jacobian, a gradient noise above the optimality test's 1e-6: the best
     # run goes on from its end on the orthogonal route, and is judged there
-    route[0] = cost.residuals_orthogonal
+    route[0] = functools.partial(cost.residuals, orthogonal=True)
     polish = levenberg_marquardt(residual, jacobian, runs[best].x, runs[best].kind,
                                  bounds=(0.0, 1.0), max_nfev=POLISH_NFEV, tol=tol)  # fmt: skip
     first = runs[best]
@@ -303,7 +304,7 @@ def refine(
     order = _by_frequency(cost.structure.n_modes, modal)  # the same model, modes in order
     modal, std = modal[order], std[order]
     on_bound = sorted(int(i) for i in np.flatnonzero(held[order]))
-    theta = cost.residuals_orthogonal(modal[None])[0][0]
+    theta = cost.residuals(modal[None], orthogonal=True)[0][0]
     model = cost.structure.model(theta, cost.dt)
     where = f"; held by a bound in coordinate(s) {on_bound}" if on_bound else ""
     return StateSpaceResult.assemble(
