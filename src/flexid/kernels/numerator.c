@@ -125,7 +125,10 @@ fit_quad_impl(const double *a, Py_ssize_t a_stride, Py_ssize_t P, Py_ssize_t na,
         for (Py_ssize_t i = 0; i < nb; ++i)
             for (Py_ssize_t j = 0; j <= i; ++j) G[i][j][l] = good[l] ? L[i][j] : (i == j);
     }
-    /* solve L L^T x = v in place, every lane */
+    /* solve L L^T x = v in place, every lane.  The backward pass counts i_ down as i_-- > 0,
+     * not i_ >= 0; --i_: all indices stay below nb <= FIT_MAXNB either way, but with -fwrapv
+     * (Python's build flags) GCC 12 warns "iteration 13 invokes undefined behavior" about
+     * the copy of the inner loop for i_ = nb - 1, which never runs */
 #define FIT_SOLVE(v)                                                                          \
     do {                                                                                      \
         for (Py_ssize_t i_ = 0; i_ < nb; ++i_) {                                              \
@@ -133,7 +136,7 @@ fit_quad_impl(const double *a, Py_ssize_t a_stride, Py_ssize_t P, Py_ssize_t na,
             for (Py_ssize_t k_ = 0; k_ < i_; ++k_) s_ -= G[i_][k_] * (v)[k_];                 \
             (v)[i_] = s_ / G[i_][i_];                                                         \
         }                                                                                     \
-        for (Py_ssize_t i_ = nb - 1; i_ >= 0; --i_) {                                         \
+        for (Py_ssize_t i_ = nb; i_-- > 0;) {                                                 \
             v4d s_ = (v)[i_];                                                                 \
             for (Py_ssize_t k_ = i_ + 1; k_ < nb; ++k_) s_ -= G[k_][i_] * (v)[k_];            \
             (v)[i_] = s_ / G[i_][i_];                                                         \
