@@ -11,11 +11,13 @@ timed in turn (``bench_costs.interleaved_medians``), on one thread and on every 
 Also timed: the modal cost under ``initial="zero"`` (no free response, no shared initial
 state) and with one output, to show what each part costs.
 
-Run:  python benchmarks/bench_modal.py
+Run:  python benchmarks/bench_modal.py [--simd avx2]
+(``--simd``: the compiled kernels' instruction set, default the best this CPU has.)
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only cost
@@ -39,6 +41,16 @@ P = int(os.environ.get("BENCH_P", 50))
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--simd", choices=["generic", "avx2", "avx512"], default=None)
+    args = parser.parse_args()
+    simd = "none"
+    if kernels.BACKEND == "c":
+        from flexid import _kernels
+
+        if args.simd:
+            _kernels.simd(args.simd)
+        simd = _kernels.simd()[0]
     record = generate("manipulator", preset="paper-manipulator", seed=0,
                       outputs=["hub_angle", "tip_acceleration"])  # fmt: skip
     record = record.split(index=N)[0]
@@ -68,8 +80,9 @@ def main() -> None:
         "modal, 4 modes, 2 outputs, from rest": lambda: zero(X),
         "modal, 4 modes, 1 output, x0 estimated": lambda: one(X),
     }
-    print(f"flexid modal cost benchmark: N = {N}, population {P}, kernels {kernels.BACKEND}, "
-          f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores")  # fmt: skip
+    machine = platform.processor() or platform.machine()
+    print(f"flexid modal cost benchmark: N = {N}, population {P}, kernels {kernels.BACKEND} "
+          f"({simd}), {machine}, {os.cpu_count()} cores")  # fmt: skip
     for threads in (1, None):
         kernels.set_threads(threads)
         times = interleaved_medians(fns)

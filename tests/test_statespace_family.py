@@ -123,6 +123,117 @@ def test_the_compiled_regressors_equal_the_reference_path(feedthrough, free):
                                   want_residual=False)[0] is None  # fmt: skip
 
 
+def _simd_levels():
+    """The compiled kernels' instruction sets this CPU runs (all, not only the best)."""
+    from flexid import _kernels
+
+    order = ["generic", "avx2", "avx512"]
+    best = _kernels.simd()[1]
+    return order[: order.index(best) + 1] if best in order else [best]
+
+
+def test_every_instruction_set_sums_the_same_normal_equations():
+    # each copy (baseline, AVX2/FMA, AVX-512) against the products of the reference
+    # regressors, with feedthrough, two inputs, a real pole and free responses: sums of 700
+    # terms in other orders (blocks, interleaved partial sums, fused multiply-adds), within
+    # 1e-12 of the largest entry
+    if kernels.BACKEND != "c":
+        pytest.skip("the compiled kernels are not in use")
+    from flexid import _kernels
+
+    rng = np.random.default_rng(8)
+    s = StateSpaceStructure(7, 2, 3, feedthrough=True)
+    a, p = s.denominators(np.vstack([_modal(s, rng) for _ in range(5)]), DT)
+    poles = np.concatenate([a.reshape(5, -1), p], axis=1)
+    u, y = rng.standard_normal((700, 2)), rng.standard_normal((700, 3))
+    phi = kernels.modal_regressors_reference(poles, u, 3, True, True)
+    G, R = np.swapaxes(phi, 1, 2) @ phi, np.swapaxes(phi, 1, 2) @ y
+    before = _kernels.simd()[0]
+    try:
+        for level in _simd_levels():
+            _kernels.simd(level)
+            gram, rhs = kernels.modal_normal(poles, u, y, 3, True, True)
+            np.testing.assert_allclose(gram, G, rtol=0, atol=1e-12 * np.max(np.abs(G)))
+            np.testing.assert_allclose(rhs, R, rtol=0, atol=1e-12 * np.max(np.abs(R)))
+    finally:
+        _kernels.simd(before)
+
+
+@pytest.mark.parametrize(
+    "nu, ny, order, feedthrough, initial",
+    [(1, 2, 8, False, "estimate"), (1, 1, 5, True, "estimate"), (2, 3, 5, False, "estimate"),
+     (2, 2, 4, True, "zero")],
+)  # fmt: skip
+def test_the_compiled_fit_is_the_numpy_steps(nu, ny, order, feedthrough, initial):
+    # modal_fit's Cholesky factors and the NumPy steps' LU solves of the same scaled, ridged
+    # normal equations: on candidates damped 1-90 % (scaled condition below about 1e6) the
+    # same coefficients to 1e-9 of the largest; on lightly damped ones (0.01-1 %) the same
+    # fitted outputs (the directions the rounding moves the gains in are the ones the data
+    # do not see) and sums of squares within the expansion's own tolerance
+    if kernels.BACKEND != "c":
+        pytest.skip("the compiled kernels are not in use")
+    rng = np.random.default_rng(order + 7 * nu + ny)
+    s = StateSpaceStructure(order, nu, ny, feedthrough=feedthrough)
+    N = 900
+    record = IOData(rng.standard_normal((N, nu)), rng.standard_normal((N, ny)), dt=DT)
+    cost = ModalCost(record, s, initial=initial)
+    damped = np.vstack([_modal(s, rng) for _ in range(6)])
+    light = damped.copy()
+    light[:, 1 : 2 * s.n_modes : 2] = rng.uniform(1e-4, 1e-2, (6, s.n_modes))
+    estimate = initial == "estimate"
+    for modal, exact in ((damped, True), (light, False)):
+        a, p = s.denominators(modal, DT)
+        poles = np.concatenate([a.reshape(len(modal), -1), p], axis=1)
+        gram, rhs, coef, used, x0, sse, ok = kernels.modal_fit(
+            poles, cost.u, cost._target, s.n_modes, feedthrough, estimate,
+            ridge=flexid.costs.modal.RIDGE, rounding=flexid.costs.modal.SUM_ROUNDING,
+            tolerance=flexid.costs.modal.EXPANSION_TOLERANCE,
+        )  # fmt: skip
+        assert ok.all()
+        k_in = s.n_states + (nu if feedthrough else 0)
+        want_coef, want_used, want_x0 = cost._steps(a, k_in, gram, rhs)
+        phi = kernels.modal_regressors_reference(poles, cost.u, s.n_modes, feedthrough, estimate)
+        if exact:
+            for got, want in ((coef, want_coef), (used, want_used), (x0, want_x0)):
+                np.testing.assert_allclose(got, want, rtol=0, atol=1e-9 * np.max(np.abs(want)))
+        fitted, want_fitted = phi @ used, phi @ want_used
+        assert np.max(np.abs(fitted - want_fitted)) < 1e-7 * np.max(np.abs(want_fitted))
+        errors = cost._target - phi @ used
+        direct = np.einsum("pno,pno->p", errors, errors)
+        here = ~np.isnan(sse)
+        assert here.any()
+        np.testing.assert_allclose(sse[here], direct[here],
+                                   rtol=flexid.costs.modal.EXPANSION_TOLERANCE)  # fmt: skip
+        if not estimate:
+            assert np.all(x0 == 0.0)
+
+
+def test_a_near_perfect_fit_is_summed_from_its_errors():
+    # noise-free outputs of a model in the structure: at its own modes the errors are about
+    # 1e-19 of the outputs' energy (the ridge and the normal equations' rounding of the
+    # gains), below what the expansion y'y - 2 c'b + c'Gc can resolve (rounding of about
+    # 1e-14 of the energy), so the cost sums the errors themselves there; a population
+    # around the modes is read from the expansion within its tolerance
+    rng = np.random.default_rng(4)
+    true = _true_model(rng)
+    u = rng.standard_normal((1500, 1))
+    record = IOData(u, true.simulate(u), dt=DT)
+    cost = ModalCost(record, true_structure := StateSpaceStructure(4, 1, 2), metric="sse")
+    modal = np.array([[3.0, 0.02, 11.0, 0.05]])
+    theta, sse = cost.fit(modal)
+    energy = float(np.sum(cost._target**2))
+    assert sse[0] < 1e-16 * energy
+    m = true_structure.model(theta[0], DT)
+    _, y_sim, _ = signal.dlsim((m.A, m.B, m.C, m.D, DT), u, x0=m.x0)
+    e = (record.y - y_sim.reshape(-1, 2)) / cost.scale
+    assert np.sum(e * e) < 1e-16 * energy  # the realised model is the true one
+    near = modal * (1 + 0.05 * rng.standard_normal((20, 4)))
+    _, sse = cost.fit(near)
+    _, residual = cost.residuals(near)
+    direct = np.einsum("pno,pno->p", residual, residual)
+    np.testing.assert_allclose(sse, direct, rtol=flexid.costs.modal.EXPANSION_TOLERANCE)
+
+
 def test_the_structure_refuses_what_it_cannot_hold():
     with pytest.raises(ModelOrderError, match="3 modes need order >= 6"):
         StateSpaceStructure(4, n_modes=3)

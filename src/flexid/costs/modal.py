@@ -31,9 +31,15 @@ to rounding.  With several outputs each output's errors are divided by its stand
 deviation before they are summed (its fit's denominator), so that the outputs count alike
 whatever their units.
 
-The compiled route never stores the regressors: each candidate's rows are made, summed into
-its normal equations and dropped, and made again for its errors; no BLAS call is left to
-thread small products (which OpenBLAS would, at a large cost, on a busy machine).
+The compiled route never stores the regressors: each candidate's rows are made a block at a
+time, summed into its normal equations and dropped, and its fit (both steps) is solved in the
+same call (:func:`flexid.kernels.modal_fit`); no BLAS call is left to thread small products
+(which OpenBLAS would, at a large cost, on a busy machine).  The cost's sum of squares is read
+from the normal equations, ``|y|^2 - 2 c' phi'y + c' G c``, where its rounding bound allows
+(:meth:`ModalCost._expanded_sse`: within :data:`EXPANSION_TOLERANCE` of the errors' own sum,
+about 1e-10 at worst as measured), and summed from the errors themselves elsewhere (a
+near-perfect fit, or gains that cancel on nearly collinear columns); :meth:`residuals`
+always makes the errors.
 
 Each least-squares problem is solved by its normal equations, scaled to a unit diagonal
 with a ridge of ``1e-10`` (:data:`RIDGE`): a damping ratio of 1 makes a mode's two columns
@@ -62,6 +68,19 @@ __all__ = ["ModalCost"]
 #: damped poles, a mode at the record's lowest frequency) and changes a well-posed fit by a
 #: relative ``RIDGE``, far below the noise of any record.
 RIDGE = 1e-10
+
+#: A bound on the rounding error of one entry of the normal equations, relative to
+#: ``sqrt(G_ii G_jj)``: ``(64 + N / 64)`` roundings of a sum over blocks of 64 rows, for
+#: records of up to about 100,000 samples (``2^-53 (64 + 1600)``).
+SUM_ROUNDING = 2e-13
+
+#: The largest rounding error, relative to the sum of squares itself, that the cost may carry
+#: when read from the normal equations instead of from the errors
+#: (:meth:`ModalCost._expanded_sse`).  The bound it is checked against is a worst case: the
+#: errors measured on the manipulator's populations, in the box and around ``ssest``'s
+#: minimum, were 1e-3 of the bound or less, 1e-10 of the sum at most; far below the 3 %
+#: (``1 / sqrt(N)`` at N = 1,500) at which two candidates' costs differ significantly.
+EXPANSION_TOLERANCE = 1e-6
 
 
 def _solve(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -150,6 +169,7 @@ class ModalCost:
         std = np.std(self.y, axis=0)
         self.scale = np.where(std > 0, std, 1.0) if ny > 1 else np.ones(1)
         self._target = self.y / self.scale
+        self._yy = np.einsum("no,no->o", self._target, self._target)
         self._std = float(np.std(self._target)) if ny == 1 else 1.0
 
     # ------------------------------------------------------------------ the fit
@@ -254,46 +274,102 @@ class ModalCost:
         # response (compiled: made row by row, never stored, unless orthogonal)
         job = (np.concatenate([a.reshape(P, -1), p], axis=1), self.u, self._target)
         options = (s.n_modes, s.feedthrough, estimate)
+        k_in = ns + (nu if s.feedthrough else 0)
+        phi = sse = None
         if orthogonal:
             phi = kernels.modal_regressors(job[0], self.u, *options)
-            coef = _solve_orthogonal(phi, np.broadcast_to(self._target, (P, *self._target.shape)))
+            gram = rhs = None
+            coef, used, x0 = self._steps(a, k_in, phi=phi)
+        elif kernels.BACKEND == "c" and not want_residual:
+            gram, rhs, coef, used, x0, sse, ok = kernels.modal_fit(
+                *job, *options, ridge=RIDGE, rounding=SUM_ROUNDING, tolerance=EXPANSION_TOLERANCE
+            )
+            if not ok.all():  # a pivot lost to rounding: those rows by the NumPy steps
+                bad = ~ok
+                coef[bad], used[bad], x0[bad] = self._steps(a[bad], k_in, gram[bad], rhs[bad])
+                sse[bad] = self._expanded_sse(gram[bad], rhs[bad], used[bad])
         else:
             gram, rhs = kernels.modal_normal(*job, *options)
-            coef = _solve(gram, rhs)  # (P, k, ny)
-        k_in = ns + (nu if s.feedthrough else 0)
-        x0 = np.zeros((P, ns))
-        used = coef[:, :k_in, :]  # the gains, and no free response of each output's own
-        if estimate:
-            # step 2: the residual of step 1 is orthogonal to the free basis, so the x0 that
-            # best matches the outputs' free responses minimises the weighted distance of
-            # its coefficients L x0 to step 1's beta in the basis's Gram matrix M
-            L = self._free_map(a, coef[:, :ns, :])  # (P, ny, F, ns)
-            beta = np.moveaxis(coef[:, k_in:, :], 2, 1)[..., None]  # (P, ny, F, 1)
-            if orthogonal:
-                # the basis's Gram matrix is R' R of its QR factor R: the distance is
-                # |R (L x0 - beta)|, a least-squares problem over every output's rows
-                R = np.linalg.qr(phi[:, :, k_in:], mode="r")[:, None]
-                x0 = _solve_orthogonal((R @ L).reshape(P, -1, ns),
-                                       (R @ beta).reshape(P, -1, 1))[:, :, 0]  # fmt: skip
-            else:
-                ML = gram[:, None, k_in:, k_in:] @ L
-                normal = np.einsum("pofi,pofj->pij", L, ML)
-                rhs = np.einsum("pofi,pofc->pic", ML, beta)
-                x0 = _solve(normal, rhs)[:, :, 0]
-            shared = np.moveaxis((L @ x0[:, None, :, None])[..., 0], 1, 2)  # (P, F, ny)
-            used = np.concatenate([used, shared], axis=1)
+            coef, used, x0 = self._steps(a, k_in, gram, rhs)
         if orthogonal:
             residual = self._target - phi @ used
             sse = np.einsum("pno,pno->p", residual, residual)
+        elif want_residual:
+            residual, sse = kernels.modal_residual(*job, used, *options)
         else:
-            residual, sse = kernels.modal_residual(*job, used, *options,
-                                                   want_residual=want_residual)  # fmt: skip
+            residual = None
+            if sse is None:
+                sse = self._expanded_sse(gram, rhs, used)
+            again = np.flatnonzero(np.isnan(sse))
+            if again.size:
+                sse[again] = kernels.modal_residual(job[0][again], *job[1:], used[again],
+                                                    *options, want_residual=False)[1]  # fmt: skip
         gains = coef[:, :k_in, :] * self.scale  # back to output units
         parts = [modal, np.swapaxes(gains[:, :ns, :], 1, 2).reshape(P, -1)]
         if s.feedthrough:
             parts.append(np.swapaxes(gains[:, ns:, :], 1, 2).reshape(P, -1))
         parts.append(x0)
         return np.concatenate(parts, axis=1), residual, sse
+
+    def _steps(
+        self, a: np.ndarray, k_in: int, gram: np.ndarray | None = None,
+        rhs: np.ndarray | None = None, *, phi: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """The module's two steps from the normal equations (or, with ``phi``, from the
+        stored regressors by QR factors): ``(coef, used, x0)``.
+
+        ``coef`` (P, k, ny) is step 1's least-squares fit, ``used`` the realised model's
+        coefficients (its gains, and the free responses of its ``x0`` (P, ns)).
+        """
+        P, ns = a.shape[0], self.structure.n_states
+        if phi is not None:
+            target = np.broadcast_to(self._target, (P, *self._target.shape))
+            coef = _solve_orthogonal(phi, target)
+        else:
+            coef = _solve(gram, rhs)  # (P, k, ny)
+        x0 = np.zeros((P, ns))
+        used = coef[:, :k_in, :]  # the gains, and no free response of each output's own
+        if self.initial != "estimate":
+            return coef, used, x0
+        # step 2: the residual of step 1 is orthogonal to the free basis, so the x0 that
+        # best matches the outputs' free responses minimises the weighted distance of its
+        # coefficients L x0 to step 1's beta in the basis's Gram matrix M
+        L = self._free_map(a, coef[:, :ns, :])  # (P, ny, F, ns)
+        beta = np.moveaxis(coef[:, k_in:, :], 2, 1)[..., None]  # (P, ny, F, 1)
+        if phi is not None:
+            # the basis's Gram matrix is R' R of its QR factor R: the distance is
+            # |R (L x0 - beta)|, a least-squares problem over every output's rows
+            R = np.linalg.qr(phi[:, :, k_in:], mode="r")[:, None]
+            x0 = _solve_orthogonal((R @ L).reshape(P, -1, ns),
+                                   (R @ beta).reshape(P, -1, 1))[:, :, 0]  # fmt: skip
+        else:
+            ML = gram[:, None, k_in:, k_in:] @ L
+            normal = np.swapaxes(L.reshape(P, -1, ns), 1, 2) @ ML.reshape(P, -1, ns)
+            toward = np.swapaxes(ML.reshape(P, -1, ns), 1, 2) @ beta.reshape(P, -1, 1)
+            x0 = _solve(normal, toward)[:, :, 0]
+        shared = np.moveaxis((L @ x0[:, None, :, None])[..., 0], 1, 2)  # (P, F, ny)
+        return coef, np.concatenate([used, shared], axis=1), x0
+
+    def _expanded_sse(self, gram: np.ndarray, rhs: np.ndarray, used: np.ndarray) -> np.ndarray:
+        """``sum_o |y_o - phi c_o|^2`` from the normal equations, NaN where rounding could
+        move it by more than :data:`EXPANSION_TOLERANCE` of itself.
+
+        ``y_o' y_o - 2 c_o' phi' y_o + c_o' G c_o`` for every candidate (``gram`` (P, k, k),
+        ``rhs`` (P, k, ny), ``used`` (P, k, ny)).  Each entry of ``G`` and ``phi' y`` is a sum
+        of ``N`` products, summed in blocks of 64 rows: its rounding error is at most
+        :data:`SUM_ROUNDING` of ``sqrt(G_ii G_jj)`` (Cauchy-Schwarz bounds the sum of the
+        products' magnitudes), so the expansion is within ``SUM_ROUNDING (|y_o| + sum_i |c_i|
+        sqrt(G_ii))^2`` of the errors' own sum of squares.  Where that bound exceeds the
+        tolerance (a near-perfect fit, or gains that cancel each other on nearly collinear
+        columns) the candidate is marked NaN for the exact pass over its errors.
+        """
+        c = used
+        quad = np.einsum("pio,pio->po", c, gram @ c)
+        sse = self._yy - 2.0 * np.einsum("pio,pio->po", c, rhs) + quad
+        weight = np.einsum("pio,pi->po", np.abs(c), np.sqrt(np.abs(np.einsum("pii->pi", gram))))
+        bound = SUM_ROUNDING * (np.sqrt(self._yy) + weight) ** 2
+        total = sse.sum(axis=1)
+        return np.where(bound.sum(axis=1) <= EXPANSION_TOLERANCE * total, total, np.nan)
 
     # ------------------------------------------------------------------ the cost
     def __call__(self, modal: Any) -> np.ndarray:

@@ -56,6 +56,7 @@ __all__ = [
     "free_fit_compiled",
     "initial_state_fit",
     "initial_state_fit_reference",
+    "modal_fit",
     "modal_normal",
     "modal_regressors",
     "modal_regressors_reference",
@@ -432,6 +433,63 @@ def modal_normal(
     _c.modal_normal(poles, u, target, gram, rhs, m, bool(feedthrough), bool(free_response),
                     _threads_for(P * N * k * k))  # fmt: skip
     return gram, rhs
+
+
+def modal_fit(
+    poles: np.ndarray, u: np.ndarray, target: np.ndarray, m: int, feedthrough: bool,
+    estimate: bool, *, ridge: float, rounding: float, tolerance: float,
+) -> tuple[np.ndarray, ...]:  # fmt: skip
+    """Every candidate's fit from its normal equations, compiled (the C route of the NumPy
+    steps of :meth:`flexid.costs.modal.ModalCost.fit`; ``BACKEND == "c"`` only).
+
+    Parameters
+    ----------
+    poles, u, m, feedthrough
+        As :func:`modal_regressors`.
+    target : ndarray, shape (N, ny)
+    estimate : bool
+        Fit the shared initial state (the regressors then hold the free responses).
+    ridge : float
+        Added to the unit diagonal of each scaled least-squares problem.
+    rounding, tolerance : float
+        The sum of squares is read from the normal equations where ``rounding (|y_o| +
+        sum_i |c_i| sqrt(gram_ii))^2``, summed over the outputs, is at most ``tolerance`` of
+        it, and is NaN elsewhere.
+
+    Returns
+    -------
+    gram : ndarray, shape (P, k, k)
+    rhs : ndarray, shape (P, k, ny)
+        The normal equations (:func:`modal_normal`).
+    fitted : ndarray, shape (P, k, ny)
+        The least-squares coefficients.
+    used : ndarray, shape (P, k, ny)
+        The realised model's: the gains, and the free responses of its initial state.
+    x0 : ndarray, shape (P, nu (2 m + r))
+        Its initial state (zeros without ``estimate``).
+    sse : ndarray, shape (P,)
+        Its sum of squared errors, or NaN.
+    ok : ndarray of bool, shape (P,)
+        False where a Cholesky factor met a non-positive pivot (that row's other outputs are
+        then not set).
+    """
+    if BACKEND != "c":
+        raise RuntimeError("modal_fit is the compiled route; the NumPy one is ModalCost's")
+    poles = np.ascontiguousarray(poles, dtype=float)
+    u = np.ascontiguousarray(u, dtype=float)
+    target = np.ascontiguousarray(target, dtype=float)
+    P, width = poles.shape
+    N, nu = u.shape
+    ny = target.shape[1]
+    k = nu * width + (nu if feedthrough else 0) + (width if estimate else 0)
+    gram, rhs = np.empty((P, k, k)), np.empty((P, k, ny))
+    fitted, used = np.empty((P, k, ny)), np.empty((P, k, ny))
+    x0, sse, ok = np.empty((P, nu * width)), np.empty(P), np.empty(P, dtype=np.uint8)
+    yy = np.einsum("no,no->o", target, target)
+    _c.modal_fit(poles, u, target, yy, gram, rhs, fitted, used, x0, sse, ok, m,
+                 bool(feedthrough), bool(estimate), float(ridge), float(rounding),
+                 float(tolerance), _threads_for(P * N * k * k))  # fmt: skip
+    return gram, rhs, fitted, used, x0, sse, ok.astype(bool)
 
 
 def modal_residual(

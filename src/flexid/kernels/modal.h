@@ -18,12 +18,20 @@ typedef struct {
     double *rhs;          /* (P, k, ny): phi' target, or NULL */
     double *residual;     /* (P, N, ny): target - phi coef, or NULL */
     double *sse;          /* (P,): its sum of squares, or NULL */
+    /* modal_fit: the fit of every candidate from its normal equations (gram, rhs set) */
+    const double *yy;     /* (ny,): target' target */
+    double *fitted;       /* (P, k, ny): the least-squares coefficients, or NULL */
+    double *used;         /* (P, k, ny): those of the realised model */
+    double *x0;           /* (P, nu (2 m + r)): its initial state */
+    unsigned char *ok;    /* (P,): 1, or 0 where a solve met a non-positive pivot */
+    double ridge, rounding, tolerance;
+    int estimate;         /* fit the shared initial state (free_response) */
     Py_ssize_t P, m, r, N, nu, ny, k;
     int feedthrough;   /* nu columns of u after the filtered ones */
     int free_response; /* 2 m + r free-response columns last */
 } modal_job;
 
-/* modal_regressors, modal_normal, modal_residual: the job (what its non-NULL outputs ask
+/* modal_regressors, modal_normal, modal_residual, modal_fit: the job (what its non-NULL outputs ask
  * for) on up to n_threads threads; 0, or -1 out of memory. */
 int flexid_modal_run(const modal_job *J, int n_threads);
 

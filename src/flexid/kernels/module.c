@@ -23,7 +23,9 @@
  *   modal_regressors(poles, u, phi, m, feedthrough, free_response[, threads])
  *   modal_normal(poles, u, target, gram, rhs, m, feedthrough, free_response[, threads])
  *   modal_residual(poles, u, target, coef, residual, sse, m, feedthrough, free_response
- *                  [, threads])                                            modal.c
+ *                  [, threads])
+ *   modal_fit(poles, u, target, yy, gram, rhs, fitted, used, x0, sse, ok, m, feedthrough,
+ *             estimate, ridge, rounding, tolerance[, threads])             modal.c
  *
  * and simd([name]), defined here: the instruction set the kernels run (simd.h), (in use,
  * best) as names, and with a name ("generic", "avx2", "avx512") that one from then on.
@@ -494,6 +496,49 @@ static PyObject *py_modal_residual(PyObject *self, PyObject *args)
     return finish(v, N, rc);
 }
 
+static PyObject *py_modal_fit(PyObject *self, PyObject *args)
+{
+    enum { POLES, U, TARGET, YY, GRAM, RHS, FITTED, USED, X0, SSE, OK, N };
+    static const arg_spec spec[N] = {IN("poles"), IN("u"),        IN("target"), IN("yy"),
+                                     OUT("gram"),  OUT("rhs"),     OUT("fitted"), OUT("used"),
+                                     OUT("x0"),    OUT("sse"),     OUT_U8("ok")};
+    PyObject *o[N] = {NULL};
+    arg v[N] = {0};
+    Py_ssize_t m;
+    int feedthrough, estimate, n_threads = 1;
+    double ridge, rounding, tolerance;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOnppddd|i", &o[POLES], &o[U], &o[TARGET], &o[YY],
+                          &o[GRAM], &o[RHS], &o[FITTED], &o[USED], &o[X0], &o[SSE], &o[OK], &m,
+                          &feedthrough, &estimate, &ridge, &rounding, &tolerance, &n_threads))
+        return NULL;
+    int rc = get_args("modal_fit", spec, N, o, v);
+    modal_job J = {0};
+    if (rc == 0) rc = modal_sizes("modal_fit", &v[POLES], &v[U], m, feedthrough, estimate, &J);
+    J.ny = dim(&v[TARGET], 1);
+    if (rc == 0 && (J.ny < 1 || !SHAPE(&v[TARGET], J.N, J.ny) || !SHAPE(&v[YY], J.ny) ||
+                    !SHAPE(&v[GRAM], J.P, J.k, J.k) || !SHAPE(&v[RHS], J.P, J.k, J.ny) ||
+                    !SHAPE(&v[FITTED], J.P, J.k, J.ny) || !SHAPE(&v[USED], J.P, J.k, J.ny) ||
+                    !SHAPE(&v[X0], J.P, J.nu * (2 * J.m + J.r)) || !SHAPE(&v[SSE], J.P) ||
+                    !SHAPE(&v[OK], J.P)))
+        rc = invalid("modal_fit: target (N, ny), yy (ny,), gram (P, k, k), rhs, fitted and "
+                     "used (P, k, ny), x0 (P, nu (2 m + r)), sse and ok (P,)");
+    J.target = DATA(&v[TARGET]);
+    J.yy = DATA(&v[YY]);
+    J.gram = DATA(&v[GRAM]);
+    J.rhs = DATA(&v[RHS]);
+    J.fitted = DATA(&v[FITTED]);
+    J.used = DATA(&v[USED]);
+    J.x0 = DATA(&v[X0]);
+    J.sse = DATA(&v[SSE]);
+    J.ok = (unsigned char *)v[OK].view.buf;
+    J.ridge = ridge;
+    J.rounding = rounding;
+    J.tolerance = tolerance;
+    J.estimate = estimate;
+    if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_modal_run(&J, n_threads));
+    return finish(v, N, rc);
+}
+
 #if defined(__GNUC__)
 static PyObject *py_arx_fit(PyObject *self, PyObject *args)
 {
@@ -674,6 +719,10 @@ static PyMethodDef methods[] = {
     {"modal_residual", py_modal_residual, METH_VARARGS,
      "modal_residual(poles, u, target, coef, residual, sse, m, feedthrough, free_response"
      "[, threads]): their fit's errors and sums of squares (see modal.c)."},
+    {"modal_fit", py_modal_fit, METH_VARARGS,
+     "modal_fit(poles, u, target, yy, gram, rhs, fitted, used, x0, sse, ok, m, feedthrough, "
+     "estimate, ridge, rounding, tolerance[, threads]): every candidate's fit from its normal "
+     "equations (see modal.c)."},
     {"twin_rotor_run", py_twin_rotor_run, METH_VARARGS,
      "twin_rotor_run(params, x, u, out, n_sub, h, lock_yaw, square_law[, threads]): twin rotor "
      "RK4; params (22,) shared or (B, 22) per rotor (see twin_rotor.c)."},
