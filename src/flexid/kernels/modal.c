@@ -314,6 +314,35 @@ static inline Py_ssize_t modal_first(Py_ssize_t I, Py_ssize_t L4)
 MODAL_TILE(v8d, 8)
 MODAL_TILE(v4d, 4)
 
+/* Rows I .. I + 3 against columns J .. J + 15 as two 512-bit vectors: eight sums in flight
+ * and each row's four entries read once for both (32-register copies) */
+static inline __attribute__((always_inline)) void
+modal_tile16(const double *restrict R, Py_ssize_t b, Py_ssize_t kp, Py_ssize_t I, Py_ssize_t J,
+             double *restrict g)
+{
+    v8d a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0}, b0 = {0}, b1 = {0}, b2 = {0}, b3 = {0};
+    for (Py_ssize_t t = 0; t < b; ++t) {
+        const double *rt = R + t * kp;
+        const v8d x = *(const v8d *)(rt + J), z = *(const v8d *)(rt + J + 8);
+        a0 += rt[I] * x;
+        b0 += rt[I] * z;
+        a1 += rt[I + 1] * x;
+        b1 += rt[I + 1] * z;
+        a2 += rt[I + 2] * x;
+        b2 += rt[I + 2] * z;
+        a3 += rt[I + 3] * x;
+        b3 += rt[I + 3] * z;
+    }
+    *(v8d *)(g + I * kp + J) += a0;
+    *(v8d *)(g + I * kp + J + 8) += b0;
+    *(v8d *)(g + (I + 1) * kp + J) += a1;
+    *(v8d *)(g + (I + 1) * kp + J + 8) += b1;
+    *(v8d *)(g + (I + 2) * kp + J) += a2;
+    *(v8d *)(g + (I + 2) * kp + J + 8) += b2;
+    *(v8d *)(g + (I + 3) * kp + J) += a3;
+    *(v8d *)(g + (I + 3) * kp + J + 8) += b3;
+}
+
 /* modal_tile8 for 16-register copies: the 8 columns as two 256-bit vectors (GCC splits a
  * 512-bit vector there through memory), 8 sums in flight without splitting the rows */
 static inline __attribute__((always_inline)) void
@@ -393,6 +422,8 @@ modal_block(const double *restrict R, const double *restrict Y, Py_ssize_t b, Py
     if (isa > 0) {
         for (Py_ssize_t I = 0; I < kp; I += 4) {
             Py_ssize_t J = modal_first(I, L4);
+            if (isa == 2)
+                for (; J + 16 <= kp; J += 16) modal_tile16(R, b, kp, I, J, g);
             for (; J + 8 <= kp; J += 8)
                 if (isa == 2)
                     modal_tile8(R, b, kp, I, J, g, 1);
@@ -437,29 +468,30 @@ static double modal_entry(const modal_lanes *S, Py_ssize_t a, Py_ssize_t c)
 /* X (n, q) solves (D^-1 G D^-1 + ridge I) D X = D^-1 B, D the square roots of G's diagonal
  * (1 where it is 0): the normal equations scaled to a unit diagonal with a ridge, by a
  * Cholesky factor in work (n (n + 1)); 0, or -1 at a non-positive pivot. */
-static int modal_solve(const double *G, const double *B, Py_ssize_t n, Py_ssize_t q,
-                       double ridge, double *work, double *X)
+static inline __attribute__((always_inline)) int
+modal_solve(const double *G, const double *B, Py_ssize_t n, Py_ssize_t q, double ridge,
+            double *work, double *X)
 {
-    double *A = work, *d = work + n * n;
+    double *A = work, *d = work + n * n; /* d: 1 / sqrt(G_ii) */
     for (Py_ssize_t i = 0; i < n; ++i) {
         const double g = fabs(G[i * n + i]);
-        d[i] = g > 0.0 ? sqrt(g) : 1.0;
+        d[i] = g > 0.0 ? 1.0 / sqrt(g) : 1.0;
     }
     for (Py_ssize_t j = 0; j < n; ++j) { /* lower factor, column by column */
-        double s = G[j * n + j] / (d[j] * d[j]) + ridge;
+        double s = G[j * n + j] * d[j] * d[j] + ridge;
         for (Py_ssize_t p = 0; p < j; ++p) s -= A[j * n + p] * A[j * n + p];
         if (!(s > 0.0)) return -1;
-        const double pivot = sqrt(s);
+        const double pivot = sqrt(s), inverse = 1.0 / pivot;
         A[j * n + j] = pivot;
         for (Py_ssize_t i = j + 1; i < n; ++i) {
-            double v = G[i * n + j] / (d[i] * d[j]);
+            double v = G[i * n + j] * d[i] * d[j];
             for (Py_ssize_t p = 0; p < j; ++p) v -= A[i * n + p] * A[j * n + p];
-            A[i * n + j] = v / pivot;
+            A[i * n + j] = v * inverse;
         }
     }
     for (Py_ssize_t c = 0; c < q; ++c) {
         for (Py_ssize_t i = 0; i < n; ++i) { /* L w = D^-1 b */
-            double v = B[i * q + c] / d[i];
+            double v = B[i * q + c] * d[i];
             for (Py_ssize_t p = 0; p < i; ++p) v -= A[i * n + p] * X[p * q + c];
             X[i * q + c] = v / A[i * n + i];
         }
@@ -468,14 +500,15 @@ static int modal_solve(const double *G, const double *B, Py_ssize_t n, Py_ssize_
             for (Py_ssize_t p = i + 1; p < n; ++p) v -= A[p * n + i] * X[p * q + c];
             X[i * q + c] = v / A[i * n + i];
         }
-        for (Py_ssize_t i = 0; i < n; ++i) X[i * q + c] /= d[i];
+        for (Py_ssize_t i = 0; i < n; ++i) X[i * q + c] *= d[i];
     }
     return 0;
 }
 
 /* modal_fit's steps for one candidate from its normal equations (module notes; the NumPy
  * route is ModalCost._fit's): 0, or -1 at a non-positive pivot. */
-static int modal_fit_candidate(const modal_job *J, modal_lanes *S, Py_ssize_t cand)
+static inline __attribute__((always_inline)) int
+modal_fit_candidate(const modal_job *J, modal_lanes *S, Py_ssize_t cand)
 {
     const Py_ssize_t m = J->m, r = J->r, nu = J->nu, ny = J->ny, k = J->k;
     const Py_ssize_t ns = nu * (2 * m + r), F = 2 * m + r;
@@ -490,8 +523,10 @@ static int modal_fit_candidate(const modal_job *J, modal_lanes *S, Py_ssize_t ca
     memcpy(used, coef, sizeof(double) * (size_t)(k_in * ny));
     memset(x0, 0, sizeof(double) * (size_t)ns);
     if (J->estimate) {
-        /* L[o][f][i]: output o's free-response coefficient f from x0 = e_i (ModalCost._free_map) */
-        memset(Lm, 0, sizeof(double) * (size_t)(ny * F * ns));
+        /* Lm[o][f][i]: output o's free-response coefficient f from x0 = e_i
+         * (ModalCost._free_map); column i has entries only in its own group's rows f0(i)
+         * .. f0(i) + width(i) - 1 (a mode's two, a real pole's one), so the products with M,
+         * the free basis's Gram matrix, run over those rows alone */
         Py_ssize_t i = 0;
         for (Py_ssize_t g = 0; g < m; ++g) {
             const double a1 = poles[2 * g], a2 = poles[2 * g + 1];
@@ -510,37 +545,45 @@ static int modal_fit_candidate(const modal_job *J, modal_lanes *S, Py_ssize_t ca
             for (Py_ssize_t j = 0; j < nu; ++j, ++i)
                 for (Py_ssize_t o = 0; o < ny; ++o)
                     Lm[o * F * ns + (2 * m + g) * ns + i] = coef[i * ny + o];
-        /* ML = M L with M the free basis's Gram matrix; normal = sum_o L' M L,
-         * toward = sum_o L' M beta_o with beta the free-response coefficients */
+#define MODAL_ROWS(c) ((c) < 2 * m * nu ? 2 * ((c) / (2 * nu)) : 2 * m + ((c) - 2 * m * nu) / nu)
+#define MODAL_WIDTH(c) ((c) < 2 * m * nu ? 2 : 1)
+        /* ML = M L; toward = sum_o (M L)' beta_o, beta the free-response coefficients */
         for (Py_ssize_t o = 0; o < ny; ++o)
-            for (Py_ssize_t f = 0; f < F; ++f)
-                for (Py_ssize_t c = 0; c < ns; ++c) {
+            for (Py_ssize_t c = 0; c < ns; ++c) {
+                const Py_ssize_t e0 = MODAL_ROWS(c), w = MODAL_WIDTH(c);
+                for (Py_ssize_t f = 0; f < F; ++f) {
                     double v = 0.0;
-                    for (Py_ssize_t e = 0; e < F; ++e)
+                    for (Py_ssize_t e = e0; e < e0 + w; ++e)
                         v += G[(k_in + f) * k + k_in + e] * Lm[o * F * ns + e * ns + c];
                     ML[o * F * ns + f * ns + c] = v;
                 }
+            }
         for (Py_ssize_t a = 0; a < ns; ++a) {
+            const Py_ssize_t e0 = MODAL_ROWS(a), w = MODAL_WIDTH(a);
             double t = 0.0;
             for (Py_ssize_t o = 0; o < ny; ++o)
                 for (Py_ssize_t f = 0; f < F; ++f)
                     t += ML[o * F * ns + f * ns + a] * coef[(k_in + f) * ny + o];
             toward[a] = t;
-            for (Py_ssize_t c = 0; c < ns; ++c) {
+            for (Py_ssize_t c = 0; c < ns; ++c) { /* normal = sum_o L' M L */
                 double v = 0.0;
                 for (Py_ssize_t o = 0; o < ny; ++o)
-                    for (Py_ssize_t f = 0; f < F; ++f)
+                    for (Py_ssize_t f = e0; f < e0 + w; ++f)
                         v += Lm[o * F * ns + f * ns + a] * ML[o * F * ns + f * ns + c];
                 normal[a * ns + c] = v;
             }
         }
         if (modal_solve(normal, toward, ns, 1, J->ridge, work, x0) != 0) return -1;
         for (Py_ssize_t f = 0; f < F; ++f)
-            for (Py_ssize_t o = 0; o < ny; ++o) {
-                double v = 0.0;
-                for (Py_ssize_t c = 0; c < ns; ++c) v += Lm[o * F * ns + f * ns + c] * x0[c];
-                used[(k_in + f) * ny + o] = v;
-            }
+            for (Py_ssize_t o = 0; o < ny; ++o) used[(k_in + f) * ny + o] = 0.0;
+        for (Py_ssize_t c = 0; c < ns; ++c) { /* the free responses L x0 */
+            const Py_ssize_t e0 = MODAL_ROWS(c), w = MODAL_WIDTH(c);
+            for (Py_ssize_t e = e0; e < e0 + w; ++e)
+                for (Py_ssize_t o = 0; o < ny; ++o)
+                    used[(k_in + e) * ny + o] += Lm[o * F * ns + e * ns + c] * x0[c];
+        }
+#undef MODAL_ROWS
+#undef MODAL_WIDTH
     }
     /* the sum of squares from the expansion, where its rounding bound allows */
     double total = 0.0, bound = 0.0;
@@ -613,6 +656,7 @@ modal_candidate_in(const modal_job *J, modal_lanes *S, Py_ssize_t cand, const in
             for (Py_ssize_t o = 0; o < ny; ++o) rhs[i * ny + o] = S->scale[i] * S->h[o * kp + a];
         }
     if (J->sse && !J->used) J->sse[cand] = sse;
+    if (J->used) J->ok[cand] = modal_fit_candidate(J, S, cand) == 0;
 }
 
 /* modal_candidate_in once per instruction set (simd.h), the one in use picked at run time */
@@ -639,7 +683,6 @@ static int modal_unit(const void *ctx, Py_ssize_t cand, void **scratch)
     modal_lanes S;
     modal_begin(J, cand, *scratch, &S);
     SIMD_PICK(modal_candidate_g, modal_candidate_v3, modal_candidate_v4)(J, &S, cand);
-    if (J->used) J->ok[cand] = modal_fit_candidate(J, &S, cand) == 0;
     return 0;
 }
 
