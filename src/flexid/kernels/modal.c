@@ -49,9 +49,10 @@
  * x(t - 2), then the inputs, zero-padded to whole vectors: "internal" columns) and mapped,
  * with its scale, to the documented order only where it leaves the kernel.
  *
- * The normal equations are summed over blocks of MODAL_BLOCK rows in tiles of 4 x 8
- * entries, their sums in registers, with at least eight sums in flight (the latency of a
- * multiply-add is four cycles and two issue per cycle).  The products of two x(t - 2) columns
+ * The normal equations are summed over blocks of MODAL_BLOCK rows in tiles of 4 rows by 16,
+ * 8 or 4 columns from each band's diagonal on, their sums in registers, with at least eight
+ * sums in flight (a multiply-add's latency is four cycles and two issue per cycle).  The
+ * products of two x(t - 2) columns
  * are not summed: they are those of the x(t - 1) columns over one row fewer (every lane's
  * x(-2) is 0), so that block is the x(t - 1) block less the last row's products.  Each
  * candidate runs in one copy per instruction set (simd.h; the one in use picked at run
@@ -259,19 +260,18 @@ modal_row_fit(const double *restrict rt, const double *restrict c, Py_ssize_t kp
 }
 
 /* Whether the tiles summed hold entry (a, c) of the internal normal equations: the
- * x(t - 1) rows from their own tile of 8 on, the x(t - 2) rows only against the inputs
- * (columns 2 L4 on, a multiple of 8), the inputs' rows from their own tile of 8 on. */
+ * x(t - 1) rows and the inputs' rows from their own band of 4 on (the diagonal), the
+ * x(t - 2) rows only against the inputs (columns 2 L4 on). */
 static inline int modal_summed(Py_ssize_t a, Py_ssize_t c, Py_ssize_t L4)
 {
     if (a >= L4 && a < 2 * L4) return c >= 2 * L4;
-    return c >= a / 8 * 8;
+    return c >= a / 4 * 4;
 }
 
-/* The first column of the tile row I's tiles: 8 wide from there to kp, the last 4 wide
- * where kp is not a multiple of 8. */
+/* The first column of the tiles of the band of rows I .. I + 3 (I a multiple of 4). */
 static inline Py_ssize_t modal_first(Py_ssize_t I, Py_ssize_t L4)
 {
-    return (I >= L4 && I < 2 * L4) ? 2 * L4 : I / 8 * 8;
+    return (I >= L4 && I < 2 * L4) ? 2 * L4 : I;
 }
 
 /* One tile's sums: rows I .. I + 3 of R against its columns J .. J + W - 1 (W = 8: v8d, or 4:
@@ -372,32 +372,30 @@ modal_tile8n(const double *restrict R, Py_ssize_t b, Py_ssize_t kp, Py_ssize_t I
     *(v4d *)(g + (I + 3) * kp + J + 4) += b3;
 }
 
-/* h's columns I .. I + W - 1 for outputs o and o + 1 (pair) over b rows; with `wide` the
- * rows in four interleaved sums, added at the end. */
+/* h's columns I .. I + W - 1 for outputs o and o + 1 (pair) over b rows, the rows in four
+ * interleaved sums (eight in flight with both outputs), added at the end. */
 #define MODAL_RHS(V, W)                                                                       \
-    static inline __attribute__((always_inline)) void modal_rhs##W(                          \
+    static inline __attribute__((always_inline)) void modal_rhs##W(                           \
         const double *restrict R, const double *restrict Y, Py_ssize_t b, Py_ssize_t kp,      \
-        Py_ssize_t ny, Py_ssize_t o, Py_ssize_t I, double *restrict h, const int pair,        \
-        const int wide)                                                                       \
+        Py_ssize_t ny, Py_ssize_t o, Py_ssize_t I, double *restrict h, const int pair)        \
     {                                                                                         \
         V a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0}, c0 = {0}, c1 = {0}, c2 = {0}, c3 = {0};     \
         Py_ssize_t t = 0;                                                                     \
-        if (wide)                                                                             \
-            for (; t + 4 <= b; t += 4) {                                                      \
-                const double *r = R + t * kp + I, *y = Y + t * ny + o;                        \
-                const V x0 = *(const V *)r, x1 = *(const V *)(r + kp);                        \
-                const V x2 = *(const V *)(r + 2 * kp), x3 = *(const V *)(r + 3 * kp);         \
-                a0 += y[0] * x0;                                                              \
-                a1 += y[ny] * x1;                                                             \
-                a2 += y[2 * ny] * x2;                                                         \
-                a3 += y[3 * ny] * x3;                                                         \
-                if (pair) {                                                                   \
-                    c0 += y[1] * x0;                                                          \
-                    c1 += y[ny + 1] * x1;                                                     \
-                    c2 += y[2 * ny + 1] * x2;                                                 \
-                    c3 += y[3 * ny + 1] * x3;                                                 \
-                }                                                                             \
+        for (; t + 4 <= b; t += 4) {                                                          \
+            const double *r = R + t * kp + I, *y = Y + t * ny + o;                            \
+            const V x0 = *(const V *)r, x1 = *(const V *)(r + kp);                            \
+            const V x2 = *(const V *)(r + 2 * kp), x3 = *(const V *)(r + 3 * kp);             \
+            a0 += y[0] * x0;                                                                  \
+            a1 += y[ny] * x1;                                                                 \
+            a2 += y[2 * ny] * x2;                                                             \
+            a3 += y[3 * ny] * x3;                                                             \
+            if (pair) {                                                                       \
+                c0 += y[1] * x0;                                                              \
+                c1 += y[ny + 1] * x1;                                                         \
+                c2 += y[2 * ny + 1] * x2;                                                     \
+                c3 += y[3 * ny + 1] * x3;                                                     \
             }                                                                                 \
+        }                                                                                     \
         for (; t < b; ++t) {                                                                  \
             const V x = *(const V *)(R + t * kp + I);                                         \
             a0 += Y[t * ny + o] * x;                                                          \
@@ -422,8 +420,10 @@ modal_block(const double *restrict R, const double *restrict Y, Py_ssize_t b, Py
     if (isa > 0) {
         for (Py_ssize_t I = 0; I < kp; I += 4) {
             Py_ssize_t J = modal_first(I, L4);
-            if (isa == 2)
+            if (isa == 2) { /* from the band's tile of 16: a few entries more, fewer loops */
+                if (J == I) J = I / 16 * 16;
                 for (; J + 16 <= kp; J += 16) modal_tile16(R, b, kp, I, J, g);
+            }
             for (; J + 8 <= kp; J += 8)
                 if (isa == 2)
                     modal_tile8(R, b, kp, I, J, g, 1);
@@ -435,8 +435,8 @@ modal_block(const double *restrict R, const double *restrict Y, Py_ssize_t b, Py
             const int pair = o + 1 < ny;
             Py_ssize_t I = 0;
             if (isa == 2)
-                for (; I + 8 <= kp; I += 8) modal_rhs8(R, Y, b, kp, ny, o, I, h, pair, 1);
-            for (; I < kp; I += 4) modal_rhs4(R, Y, b, kp, ny, o, I, h, pair, isa == 2);
+                for (; I + 8 <= kp; I += 8) modal_rhs8(R, Y, b, kp, ny, o, I, h, pair);
+            for (; I < kp; I += 4) modal_rhs4(R, Y, b, kp, ny, o, I, h, pair);
         }
         return;
     }
