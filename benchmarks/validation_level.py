@@ -22,9 +22,9 @@ Run:  python benchmarks/validation_level.py [--records 500] [--systems arx oe bj
                                             [--power] [--workers 2] [--out FILE.jsonl]
                                             [--first SEED]
 (systems: arx, oe, bj, two-mode, oe16 (the manipulator's OE(16,16,1) as a true system),
-manipulator, twin-rotor, two-sensor (a state-space model of two outputs, its joint verdict:
-every output's tests and the test between their residuals under one Holm correction); with
---power, the wrong models of those systems)
+manipulator, twin-rotor, two-sensor and four-mode-sensors (state-space models of two outputs,
+two and four modes: their joint verdicts, every output's tests and the test between their
+residuals under one Holm correction); with --power, the wrong models of those systems)
 """
 
 from __future__ import annotations
@@ -57,17 +57,21 @@ C, D = [1.0, 0.5], [1.0, -0.8]  # the Box-Jenkins noise: a low-pass colour
 #: one of them missing.
 F2 = np.real(np.poly([0.97 * np.exp(s * 2j * np.pi * f) for f in (0.05, 0.15) for s in (1, -1)]))
 B2 = [0.0, 0.3, 0.2, -0.1, 0.05]
-#: Two sensors of two lightly damped modes (3 Hz at 2 %, 11 Hz at 5 %, 100 Hz sampling: the
-#: tests' model), their gains drawn once, white noise of a tenth of each output's deviation.
+#: Two sensors of lightly damped modes (100 Hz sampling; the two-mode model is the tests'),
+#: their gains drawn once, white noise of a tenth of each output's deviation.
 SENSOR_NOISE = 0.1
+#: Their modes (Hz, damping): two (3 and 11 Hz) or four (2, 5, 11 and 23 Hz).
+SENSOR_MODES = {"two-sensor": [3.0, 0.02, 11.0, 0.05],
+                "four-mode-sensors": [2.0, 0.02, 5.0, 0.03, 11.0, 0.05, 23.0, 0.04]}  # fmt: skip
 
 
-def _two_sensor_truth():
+def _sensor_truth(system: str):
     from flexid.models.statespace import StateSpaceStructure
 
-    gains = np.random.default_rng(12345).standard_normal(8)
-    return StateSpaceStructure(4, 1, 2).model(np.r_[3.0, 0.02, 11.0, 0.05, gains, np.zeros(4)],
-                                              0.01)  # fmt: skip
+    modes = SENSOR_MODES[system]
+    order = len(modes)
+    gains = np.random.default_rng(12345).standard_normal(2 * order)
+    return StateSpaceStructure(order, 1, 2).model(np.r_[modes, gains, np.zeros(order)], 0.01)
 
 
 def _record(system: str, rng: np.random.Generator) -> tuple[flexid.IOData, object]:
@@ -87,8 +91,8 @@ def _record(system: str, rng: np.random.Generator) -> tuple[flexid.IOData, objec
                                  inputs=["main_rotor"])  # fmt: skip
         return record, None
     n = N_SAMPLES
-    if system == "two-sensor":
-        true = _two_sensor_truth()
+    if system in SENSOR_MODES:
+        true = _sensor_truth(system)
         u = rng.standard_normal((n, 1))
         y = true.simulate(u)
         y += SENSOR_NOISE * np.std(y, axis=0) * rng.standard_normal(y.shape)
@@ -137,6 +141,7 @@ FITS = {
     "manipulator": ({"structure": "oe", "nb": 16, "nf": 16, "nk": 1}, "pem"),
     "oe16": ({"structure": "oe", "nb": 16, "nf": 16, "nk": 1}, "pem"),
     "two-sensor": ({"structure": "ss", "order": 4}, "pem"),
+    "four-mode-sensors": ({"structure": "ss", "order": 8}, "pem"),
 }
 
 #: Known-wrong models for the power table: (system, orders, how).
