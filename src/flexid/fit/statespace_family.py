@@ -28,6 +28,7 @@ from ..models.families import Family, ReferenceFit
 from ..models.specs import CostSpec, SearchSpec
 from ..models.statespace import StateSpaceModel, StateSpaceStructure, state_sequence
 from ..optimisers import Problem
+from ..validation.portmanteau import ParameterEffect, estimation_root
 from ..validation.verdict import ValidationReport, residual_report
 from .parametrisation import SearchBox
 from .reference import StartOrReference, _simulation_in_own_bounds
@@ -196,6 +197,74 @@ def free_response_fit(model: StateSpaceModel, u: np.ndarray, y: np.ndarray) -> n
     return np.linalg.lstsq(design, ((y - forced) / scale).reshape(-1), rcond=None)[0]
 
 
+#: Relative step of the central differences of the simulated outputs in the parameters: the
+#: simulation's rounding (a few eps times the gain of a lightly damped mode, about 1e-13
+#: relative) over the step stays near 1e-7 of the derivative, the truncation error
+#: (step squared) below 1e-11.
+GRADIENT_STEP = 1e-6
+
+
+def _output_gradient(model: StateSpaceModel, record: IOData, initial: str) -> np.ndarray:
+    """``d e / d theta`` of every output's simulation residual on ``record``, ``(N, ny, p)``,
+    over the realised structure's parameters but the initial state (which each tested
+    record fits anew under ``initial="estimate"``, so the derivative runs through that fit).
+    """
+    s, theta, dt = model.structure, model.theta, model.dt
+    n_dynamic = theta.size - s.n_states
+
+    def simulated(th: np.ndarray) -> np.ndarray:
+        m = s.model(th, dt)
+        x0 = free_response_fit(m, record.u, record.y) if initial == "estimate" else None
+        return m.simulate(record.u, x0=np.zeros(m.order) if x0 is None else x0)
+
+    out = np.empty((record.n_samples, model.n_outputs, n_dynamic))
+    for j in range(n_dynamic):
+        h = GRADIENT_STEP * max(abs(theta[j]), 1e-3)
+        up, down = theta.copy(), theta.copy()
+        up[j] += h
+        down[j] -= h
+        out[:, :, j] = -(simulated(up) - simulated(down)) / (2.0 * h)
+    return out
+
+
+def _parameter_effect(
+    model: StateSpaceModel, record: IOData, estimated_on: Any, k: int, initial: str
+) -> ParameterEffect | None:
+    """How the model's estimate enters output ``k``'s residual tests on ``record``
+    (:mod:`flexid.validation.portmanteau`), or None: the parameters then taken as known.
+
+    On a held-out record the estimation error of the structure's parameters (its initial
+    state aside) is added to the null. Its covariance is that of the estimate weighing each
+    output by its noise, ``(sum_o J_o' J_o / sigma_o^2)^-1`` from the estimation records'
+    gradients ``J_o`` and residual deviations ``sigma_o``: exact where the fit's own weights
+    (each output's standard deviation) are proportional to the noise, a lower bound of it
+    otherwise. On the estimation record itself the estimate is partialled out of the tests
+    with one output; with several the joint estimate is orthogonal to no single output's
+    gradient, and the parameters are taken as known. None, too, for a model that is not a
+    realisation of its structure (a subspace estimate's matrices).
+    """
+    if estimated_on is None or not getattr(model, "realised", False):
+        return None
+    if isinstance(estimated_on, str) and estimated_on != "same":
+        raise DataError(f"estimated_on must be 'same', a record or records, got {estimated_on!r}")
+    if isinstance(estimated_on, str) and model.n_outputs > 1:
+        return None
+    here = _output_gradient(model, record, initial)[:, k, :]
+    if isinstance(estimated_on, str):
+        return ParameterEffect(here)
+    records = [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
+    rows = []
+    for r in records:
+        if r.n_outputs != model.n_outputs:
+            r = r.select(outputs=list(model.output_names))
+        x0 = free_response_fit(model, r.u, r.y) if initial == "estimate" else np.zeros(model.order)
+        sigma = np.std(r.y - model.simulate(r.u, x0=x0), axis=0)
+        weight = sigma[k] / np.where(sigma > 0, sigma, 1.0)  # sigma_k / sigma_o
+        gradient = _output_gradient(model, r, initial) * weight[None, :, None]
+        rows.append(gradient.reshape(-1, gradient.shape[2]))
+    return ParameterEffect(here, estimation_root(rows))
+
+
 class StateSpaceFamily(Family):
     """State-space models: modes, real poles and every sensor's gains."""
 
@@ -337,6 +406,7 @@ class StateSpaceFamily(Family):
                 f"a state-space model's initial state is estimated or zero, not {initial!r}"
             )
         u, y = record.u, record.y
+        effect = _parameter_effect(model, record, estimated_on, k, initial)
         x0 = free_response_fit(model, u, y) if initial == "estimate" else np.zeros(model.order)
         with np.errstate(all="ignore"):
             ysim = model.simulate(u, x0=x0)
@@ -350,7 +420,7 @@ class StateSpaceFamily(Family):
             predictor_stable=model.predictor_stable if y1 is not None else None,
             output_unit=record.output_units[k] if record.output_units else "",
             response=lambda f: model.frequency_response(f)[:, k, :],
-            input_units=record.input_units,
+            input_units=record.input_units, effect=effect,
         )  # fmt: skip
 
     validate.__doc__ = None  # Family.validate's
@@ -359,7 +429,8 @@ class StateSpaceFamily(Family):
         self, model: Any, estimation: Any, validation: Any, *, max_lag: int, initial: str
     ) -> ValidationReport:
         return self.validate(model, validation, max_lag=max_lag, initial=initial, split=None,
-                             dt=None, output=model.output_names[0])  # fmt: skip
+                             dt=None, output=model.output_names[0],
+                             estimated_on=estimation)  # fmt: skip
 
     held_out.__doc__ = None  # Family.held_out's
 

@@ -175,6 +175,12 @@ class StateSpaceModel:
         self._theta = None if theta is None else np.array(theta, dtype=float).reshape(-1)
 
     @property
+    def realised(self) -> bool:
+        """Whether :attr:`theta` is the parameter vector of :attr:`structure` (a model its
+        ``model(theta)`` made), rather than the matrices' entries."""
+        return self._theta is not None
+
+    @property
     def theta(self) -> np.ndarray:
         """The parameter vector (see the ``theta`` parameter)."""
         if self._theta is not None:
