@@ -13,7 +13,7 @@ from flexid.data import IOData
 from flexid.errors import ConfigError, DataError, ModelOrderError
 from flexid.fit.estimation import build_problem
 from flexid.fit.statespace_fit import ModalBox, modal_start, ssest
-from flexid.models.statespace import StateSpaceStructure
+from flexid.models.statespace import StateSpaceModel, StateSpaceStructure
 from flexid.validation.diagnostics import format_fit
 
 DT = 0.01
@@ -232,6 +232,57 @@ def test_a_near_perfect_fit_is_summed_from_its_errors():
     _, residual = cost.residuals(near)
     direct = np.einsum("pno,pno->p", residual, residual)
     np.testing.assert_allclose(sse, direct, rtol=flexid.costs.modal.EXPANSION_TOLERANCE)
+
+
+def test_the_residual_gradient_of_a_gain_is_its_state():
+    # from rest every output is linear in its own gains: the central difference of the
+    # residual in gain C[o, i] is minus state i's response from rest on output o and zero on
+    # the other, to the difference's rounding (1e-7 of the state, GRADIENT_STEP's reason)
+    from flexid.fit.statespace_family import _output_gradient
+    from flexid.models.statespace import state_sequence
+
+    rng = np.random.default_rng(6)
+    true = _true_model(rng)
+    record = IOData(rng.standard_normal((400, 1)), rng.standard_normal((400, 2)), dt=DT)
+    gradient = _output_gradient(true, record, "zero")
+    s = true.structure
+    assert gradient.shape == (400, 2, true.theta.size - s.n_states)
+    states = state_sequence(true.A, record.u @ true.B.T, np.zeros(s.n_states))  # (N, n)
+    first = s.n_search  # the gains of output 0 follow the modal parameters, then output 1's
+    for o in range(2):
+        for i in range(s.n_states):
+            column = gradient[:, :, first + o * s.n_states + i]
+            scale = np.max(np.abs(states[:, i]))
+            assert np.max(np.abs(column[:, o] + states[:, i])) < 1e-7 * scale
+            assert np.max(np.abs(column[:, 1 - o])) < 1e-7 * scale
+
+
+def test_a_held_out_state_space_report_carries_the_estimation_error(two_sensor_record):
+    # the held-out tests of a realised state-space model add its estimate's error to their
+    # null, as a polynomial model's do (every test but the squared residuals' u2'-e2', which
+    # the estimate moves at second order only); the estimation record's are partialled with
+    # one output, taken as known with several (the joint estimate is orthogonal to no single
+    # output's gradient); a model given by its matrices has no parameter vector: known
+    _, record = two_sensor_record
+    ident = flexid.identify(record, structure="ss", order=4, optimiser="pem")
+    p = ident.model.theta.size - ident.model.structure.n_states  # modes and gains: 12
+
+    def rules(report):
+        return {t.parameters for t in report.all_tests if "2'-e2'" not in t.name}
+
+    for estimation, held_out in ident.outputs:
+        assert rules(held_out) == {f"the estimation error of {p} parameters added to the "
+                                   "tests' null"}  # fmt: skip
+        assert rules(estimation) == {"the parameters taken as known"}
+    one = flexid.identify(record, structure="ss", order=4, optimiser="pem", output="tip")
+    assert rules(one.estimation) == {"the estimate of 8 parameters partialled out of the tests"}
+    assert rules(one.validation) == {"the estimation error of 8 parameters added to the tests' "
+                                     "null"}  # fmt: skip
+    m = ident.model
+    matrices = StateSpaceModel(m.A, m.B, m.C, dt=m.dt, output_names=m.output_names)
+    est, val = record.split(2 / 3)
+    report = flexid.validate(matrices, val, output="tip", estimated_on=est)
+    assert {t.parameters for t in report.all_tests} == {"the parameters taken as known"}
 
 
 def test_the_structure_refuses_what_it_cannot_hold():
