@@ -314,63 +314,39 @@ static inline Py_ssize_t modal_first(Py_ssize_t I, Py_ssize_t L4)
 MODAL_TILE(v8d, 8)
 MODAL_TILE(v4d, 4)
 
-/* Rows I .. I + 3 against columns J .. J + 15 as two 512-bit vectors: eight sums in flight
- * and each row's four entries read once for both (32-register copies) */
-static inline __attribute__((always_inline)) void
-modal_tile16(const double *restrict R, Py_ssize_t b, Py_ssize_t kp, Py_ssize_t I, Py_ssize_t J,
-             double *restrict g)
-{
-    v8d a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0}, b0 = {0}, b1 = {0}, b2 = {0}, b3 = {0};
-    for (Py_ssize_t t = 0; t < b; ++t) {
-        const double *rt = R + t * kp;
-        const v8d x = *(const v8d *)(rt + J), z = *(const v8d *)(rt + J + 8);
-        a0 += rt[I] * x;
-        b0 += rt[I] * z;
-        a1 += rt[I + 1] * x;
-        b1 += rt[I + 1] * z;
-        a2 += rt[I + 2] * x;
-        b2 += rt[I + 2] * z;
-        a3 += rt[I + 3] * x;
-        b3 += rt[I + 3] * z;
+/* Rows I .. I + 3 against columns J .. J + 2 W - 1 as two vectors per row: eight sums in
+ * flight, each row's four entries read once for both.  modal_tile16 (512-bit vectors) for
+ * 32-register copies; modal_tile8n (256-bit) for 16-register ones, where GCC would split a
+ * 512-bit vector through memory. */
+#define MODAL_TILE2(NAME, V, W)                                                               \
+    static inline __attribute__((always_inline)) void NAME(                                   \
+        const double *restrict R, Py_ssize_t b, Py_ssize_t kp, Py_ssize_t I, Py_ssize_t J,    \
+        double *restrict g)                                                                   \
+    {                                                                                         \
+        V a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0}, b0 = {0}, b1 = {0}, b2 = {0}, b3 = {0};     \
+        for (Py_ssize_t t = 0; t < b; ++t) {                                                  \
+            const double *rt = R + t * kp;                                                    \
+            const V x = *(const V *)(rt + J), z = *(const V *)(rt + J + W);                   \
+            a0 += rt[I] * x;                                                                  \
+            b0 += rt[I] * z;                                                                  \
+            a1 += rt[I + 1] * x;                                                              \
+            b1 += rt[I + 1] * z;                                                              \
+            a2 += rt[I + 2] * x;                                                              \
+            b2 += rt[I + 2] * z;                                                              \
+            a3 += rt[I + 3] * x;                                                              \
+            b3 += rt[I + 3] * z;                                                              \
+        }                                                                                     \
+        *(V *)(g + I * kp + J) += a0;                                                         \
+        *(V *)(g + I * kp + J + W) += b0;                                                     \
+        *(V *)(g + (I + 1) * kp + J) += a1;                                                   \
+        *(V *)(g + (I + 1) * kp + J + W) += b1;                                               \
+        *(V *)(g + (I + 2) * kp + J) += a2;                                                   \
+        *(V *)(g + (I + 2) * kp + J + W) += b2;                                               \
+        *(V *)(g + (I + 3) * kp + J) += a3;                                                   \
+        *(V *)(g + (I + 3) * kp + J + W) += b3;                                               \
     }
-    *(v8d *)(g + I * kp + J) += a0;
-    *(v8d *)(g + I * kp + J + 8) += b0;
-    *(v8d *)(g + (I + 1) * kp + J) += a1;
-    *(v8d *)(g + (I + 1) * kp + J + 8) += b1;
-    *(v8d *)(g + (I + 2) * kp + J) += a2;
-    *(v8d *)(g + (I + 2) * kp + J + 8) += b2;
-    *(v8d *)(g + (I + 3) * kp + J) += a3;
-    *(v8d *)(g + (I + 3) * kp + J + 8) += b3;
-}
-
-/* modal_tile8 for 16-register copies: the 8 columns as two 256-bit vectors (GCC splits a
- * 512-bit vector there through memory), 8 sums in flight without splitting the rows */
-static inline __attribute__((always_inline)) void
-modal_tile8n(const double *restrict R, Py_ssize_t b, Py_ssize_t kp, Py_ssize_t I, Py_ssize_t J,
-             double *restrict g)
-{
-    v4d a0 = {0}, a1 = {0}, a2 = {0}, a3 = {0}, b0 = {0}, b1 = {0}, b2 = {0}, b3 = {0};
-    for (Py_ssize_t t = 0; t < b; ++t) {
-        const double *rt = R + t * kp;
-        const v4d x = *(const v4d *)(rt + J), z = *(const v4d *)(rt + J + 4);
-        a0 += rt[I] * x;
-        b0 += rt[I] * z;
-        a1 += rt[I + 1] * x;
-        b1 += rt[I + 1] * z;
-        a2 += rt[I + 2] * x;
-        b2 += rt[I + 2] * z;
-        a3 += rt[I + 3] * x;
-        b3 += rt[I + 3] * z;
-    }
-    *(v4d *)(g + I * kp + J) += a0;
-    *(v4d *)(g + I * kp + J + 4) += b0;
-    *(v4d *)(g + (I + 1) * kp + J) += a1;
-    *(v4d *)(g + (I + 1) * kp + J + 4) += b1;
-    *(v4d *)(g + (I + 2) * kp + J) += a2;
-    *(v4d *)(g + (I + 2) * kp + J + 4) += b2;
-    *(v4d *)(g + (I + 3) * kp + J) += a3;
-    *(v4d *)(g + (I + 3) * kp + J + 4) += b3;
-}
+MODAL_TILE2(modal_tile16, v8d, 8)
+MODAL_TILE2(modal_tile8n, v4d, 4)
 
 /* h's columns I .. I + W - 1 for outputs o and o + 1 (pair) over b rows, the rows in four
  * interleaved sums (eight in flight with both outputs), added at the end. */
