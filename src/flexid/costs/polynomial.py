@@ -852,8 +852,12 @@ class PolynomialCost(ErrorCost):
         free = None
         if self.initial == "estimate":  # the same call when nb = n (the same array)
             free = basis if nb == n else orthogonal_numerators(den, n)
-        target = targets = None
-        if self.initial == "measured":
+        target = targets = state = None
+        if self.initial == "measured" and not (one_step and self._deg_y):
+            # no output numerator: the free part is the free response from the measured
+            # outputs, which the kernel subtracts from the shared target
+            target, state = self._target, self._state[:n]
+        elif self.initial == "measured":
             # the free part: the predictor with B = 0 from the measured outputs (its input
             # part is zero, so only num_y y is formed)
             num_y = self._predictor(p)[1]
@@ -868,7 +872,7 @@ class PolynomialCost(ErrorCost):
         sig = np.concatenate([np.zeros(nk), self.u[: self.N - nk, 0]])
         coef, sse, ok = kernels.flagged_fit(
             den[:, 1:], basis, sig, target, targets, lead=p["d"] if self._nd else None,
-            free_basis=free, restart=self.initial == "measured", tol=_REFINE_TOL,
+            free_basis=free, restart=self.initial == "measured", state=state, tol=_REFINE_TOL,
         )  # fmt: skip
         return self._b_of(coef, [basis]), sse, ok
 

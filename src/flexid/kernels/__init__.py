@@ -1180,6 +1180,7 @@ def flagged_fit(
     lead: np.ndarray | None = None,
     free_basis: np.ndarray | None = None,
     restart: bool = False,
+    state: np.ndarray | None = None,
     tol: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The least-squares numerator of one input in the orthogonal numerators' basis, compiled.
@@ -1218,6 +1219,11 @@ def flagged_fit(
         response.
     restart : bool
         The regressors from rest at ``t = start`` (the rule ``"measured"``).
+    state : ndarray, shape (n,), optional
+        Past outputs ``y(start - 1) .. y(start - n)`` (:func:`ar_recursion`'s ``state``),
+        with ``target``: each candidate's target is ``target`` less the free response of
+        ``1/den`` from them (the rule ``"measured"`` of a predictor with no output
+        numerator), formed in the kernel instead of a ``(P, K)`` ``targets``.
     tol : float
         Refinement tolerance (relative step below which a row has converged).
 
@@ -1245,6 +1251,8 @@ def flagged_fit(
         )
     if (target is None) == (targets is None):
         raise FlexidError("flagged_fit: give target or targets, not both")
+    if state is not None and target is None:
+        raise FlexidError("flagged_fit: state is subtracted from a shared target only")
     coef = np.empty((p, nb))
     sse = np.empty(p)
     ok = np.empty(p, dtype=np.uint8)
@@ -1257,5 +1265,6 @@ def flagged_fit(
                    np.ascontiguousarray(sig, dtype=float),
                    None if target is None else np.ascontiguousarray(target, dtype=float),
                    None if targets is None else np.ascontiguousarray(targets, dtype=float),
+                   None if state is None else np.ascontiguousarray(state, dtype=float),
                    bool(restart), float(tol), coef, sse, ok, _threads_for(work))  # fmt: skip
     return coef, sse, ok.view(bool)

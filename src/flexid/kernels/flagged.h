@@ -23,6 +23,8 @@ struct fl_ctx {
     const double *sig;    /* (N,): the input delayed by nk */
     const double *target; /* (K,), or NULL with targets */
     const double *targets; /* (P, K), or NULL */
+    const double *state;   /* (n,): y(-1) .. y(-n) before t = N - K, the target less the free
+                            * response of 1/den from them; or NULL */
     Py_ssize_t P, n, nb, nl, N, K, a_stride, lead_stride;
     int restart; /* the regressors from rest at t = N - K (the rule "measured") */
     double tol;  /* the refinement's tolerance (polynomial._REFINE_TOL) */

@@ -33,28 +33,47 @@ FLN(fl_rec_impl)(const FLV *A, const FLV *f, FLV *y, Py_ssize_t len, FLV *Z0, co
 #undef FL_STEP
 }
 
-/* dst[t] = sum_(i = lo .. hi) c[i] src[t - i], t = 0 .. len - 1, each sum in the order of i,
- * 8 samples side by side (independent chains) */
+/* One lattice stage over t = 0 .. len - 1 (Levinson's step-up of the numerators): from
+ * f = f_(m-1), the previous stage's b = b_(m-1) (zeros before t = 0) and the reflection
+ * coefficient k, b_m(t) = b(t - 1) + k f(t) into bn and, with update, f_m(t) = f(t) + k
+ * b(t - 1) in place of f */
 static inline __attribute__((always_inline)) void
-FLN(fl_fir)(const FLV *c, int lo, int hi, const FLV *src, FLV *dst, Py_ssize_t len)
+FLN(fl_stage)(FLV *f, const FLV *b, FLV *bn, const FLV k, Py_ssize_t len, const int update)
 {
-    const FLV zero = {0};
-    Py_ssize_t t = 0;
-    for (; t + 8 <= len; t += 8) {
-        FLV s[8];
-        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) s[r] = zero;
-        for (int i = lo; i <= hi; ++i) {
-            const FLV ci = c[i];
-            const FLV *x = src + t - i;
-            _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) s[r] += ci * x[r];
+    if (update)
+        for (Py_ssize_t t = 0; t < len; ++t) {
+            const FLV old = b[t - 1], fo = f[t];
+            bn[t] = old + k * fo;
+            f[t] = fo + k * old;
         }
-        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) dst[t + r] = s[r];
+    else
+        for (Py_ssize_t t = 0; t < len; ++t) bn[t] = b[t - 1] + k * f[t];
+}
+
+/* The regressors P_m(q) s, m = 0 .. count - 1, of the orthogonal numerators' basis in
+ * lattice form: P_m is the reversed step-up polynomial of order m (m <= n; kref[m] its
+ * reflection coefficient, the basis' entry P_m[0]) and P_m = q^-(m - n) P_n above, so
+ * b_m(t) = b_(m-1)(t - 1) + k_m f_(m-1)(t), f_m(t) = f_(m-1)(t) + k_m b_(m-1)(t - 1),
+ * b_0 = f_0 = s: two multiply-adds a regressor and sample where the FIR filters of the
+ * basis take m + 1.  s over t = 0 .. len - 1 with zeros before; out row m (ld apart) gets
+ * b_m(t) for t = off .. len - 1; f (len) and the two rows t0, t1 (len each, with count - n
+ * or more zeros before) are scratch. */
+static inline __attribute__((always_inline)) void
+FLN(fl_lattice)(const FLV *s, const FLV *kref, const int count, const int n, Py_ssize_t len,
+                Py_ssize_t off, FLV *out, Py_ssize_t ld, FLV *f, FLV *t0, FLV *t1)
+{
+    const int top = count - 1 < n ? count - 1 : n; /* stages of the step-up */
+    for (Py_ssize_t t = 0; t < len; ++t) f[t] = s[t];
+    const FLV *b = s;
+    for (Py_ssize_t t = off; t < len; ++t) out[t - off] = s[t];
+    for (int m = 1; m <= top; ++m) {
+        FLV *bn = (m & 1) ? t0 : t1;
+        FLN(fl_stage)(f, b, bn, kref[m], len, m < top);
+        for (Py_ssize_t t = off; t < len; ++t) out[m * ld + t - off] = bn[t];
+        b = bn;
     }
-    for (; t < len; ++t) {
-        FLV s = zero;
-        for (int i = lo; i <= hi; ++i) s += c[i] * src[t - i];
-        dst[t] = s;
-    }
+    for (int m = top + 1; m < count; ++m) /* q^-(m - n) P_n: b_n delayed */
+        for (Py_ssize_t t = off; t < len; ++t) out[m * ld + t - off] = b[t - (m - top)];
 }
 
 /* out[i * ros + j * cos] += sum_k X[i * len + k] Y[j * len + k], k = k0 .. k1 - 1 in order,
@@ -208,6 +227,7 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
     FLV *wv = buf + FL_PAD, *xv = wv + N + FL_PAD, *hv = xv + N + FL_PAD;
     FLV *R = hv + K, *e = R + (Py_ssize_t)(nr + 1) * K, *G = e + K;
     FLV *Lc = G + (nr + 1) * (nr + 1);
+    FLV *t0 = Lc + nr * nr + FL_PAD, *t1 = t0 + N + FL_PAD; /* the lattice's rows */
     /* w(t) = sum_k lead_k sig(t - k) over t = 0 .. N - 1 (zeros before) */
     for (Py_ssize_t t = 0; t < N; ++t) {
         if (!c->lead) {
@@ -218,25 +238,24 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         for (int k = 0; k < nl && k <= t; ++k) s += Lv[k] * c->sig[t - k];
         wv[t] = s;
     }
+    FLV kref[FL_MAXNB]; /* the reflection coefficients of den: P_m[0], m = 1 .. */
+    for (int m = 0; m < nb; ++m) kref[m] = Tv[m * nb];
     for (int k = 0; k < n; ++k) Z[k] = zero;
     if (!c->restart) {
-        rec(A, wv, xv, N, Z);
-        for (int m = 0; m < nb; ++m) /* P_m has the terms max(0, m - n) .. m */
-            FLN(fl_fir)(Tv + m * nb, m - n > 0 ? m - n : 0, m, xv + start, R + m * K, K);
-    } else {
-        for (int m = 0; m < nb; ++m) {
-            FLN(fl_fir)(Tv + m * nb, m - n > 0 ? m - n : 0, m, wv + start, xv, K);
-            rec(A, xv, R + m * K, K, Z);
-        }
+        rec(A, wv, xv, N, Z); /* x; then the P_m(q) x in lattice form, w's row as scratch */
+        FLN(fl_lattice)(xv, kref, nb, n, N, start, R, K, wv, t0, t1);
+    } else { /* the P_m(q) w into the regressors' rows, then each one's recursion in place */
+        FLN(fl_lattice)(wv, kref, nb, n, N, start, R, K, xv, t0, t1);
+        for (int m = 0; m < nb; ++m) rec(A, R + m * K, R + m * K, K, Z);
     }
     if (free_) {
-        FLV Tf[FL_MAXN * FL_MAXN];
-        for (int i = 0; i < n * n; ++i)
-            for (int l = 0; l < FLW; ++l) Tf[i][l] = c->fbasis[row[l] * n * n + i];
         Z[0] = zero + 1.0; /* the impulse response: y(0) = 1 */
         rec(A, NULL, hv, K, Z);
         Z[0] = zero;
-        for (int k = 0; k < n; ++k) FLN(fl_fir)(Tf + k * n, 0, k, hv, R + (nb + k) * K, K);
+        FLV kfree[FL_MAXN]; /* the same coefficients, from the free responses' basis */
+        for (int m = 0; m < n; ++m)
+            for (int l = 0; l < FLW; ++l) kfree[m][l] = c->fbasis[row[l] * n * n + m * n];
+        FLN(fl_lattice)(hv, kfree, n, n, K, 0, R + (Py_ssize_t)nb * K, K, e, t0, t1);
     }
     FLV *zt = R + (Py_ssize_t)nr * K;
     for (Py_ssize_t t = 0; t < K; ++t) {
@@ -245,6 +264,14 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         } else {
             for (int l = 0; l < FLW; ++l) zt[t][l] = c->targets[row[l] * K + t];
         }
+    }
+    if (c->state) { /* less the free response from the past outputs (ar_recursion's state) */
+        for (int i = 0; i < n; ++i) {
+            Z[i] = zero;
+            for (int j = 1; j <= n - i; ++j) Z[i] -= A[i + j - 1] * c->state[j - 1];
+        }
+        rec(A, NULL, e, K, Z);
+        for (Py_ssize_t t = 0; t < K; ++t) zt[t] -= e[t];
     }
     /* G (nr + 1 rows of nr + 1): the Gram matrix, its last row the products with z */
     const int ld = nr + 1;

@@ -657,18 +657,19 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
 }
 static PyObject *py_flagged_fit(PyObject *self, PyObject *args)
 {
-    enum { A, BASIS, LEAD, FBASIS, SIG, TARGET, TARGETS, COEF, SSE, OK, N };
+    enum { A, BASIS, LEAD, FBASIS, SIG, TARGET, TARGETS, STATE, COEF, SSE, OK, N };
     static const arg_spec spec[N] = {
         ROWS("a"),     IN("basis"),      ROWS_OPT("lead"), IN_OPT("fbasis"), IN("sig"),
-        IN_OPT("target"), IN_OPT("targets"), OUT("coef_out"), OUT("sse_out"), OUT_U8("ok_out"),
+        IN_OPT("target"), IN_OPT("targets"), IN_OPT("state"), OUT("coef_out"),
+        OUT("sse_out"), OUT_U8("ok_out"),
     };
     PyObject *o[N] = {NULL};
     arg v[N] = {0};
     int n_threads = 1, restart;
     double tol;
-    if (!PyArg_ParseTuple(args, "OOOOOOOpdOOO|i", &o[A], &o[BASIS], &o[LEAD], &o[FBASIS],
-                          &o[SIG], &o[TARGET], &o[TARGETS], &restart, &tol, &o[COEF], &o[SSE],
-                          &o[OK], &n_threads))
+    if (!PyArg_ParseTuple(args, "OOOOOOOOpdOOO|i", &o[A], &o[BASIS], &o[LEAD], &o[FBASIS],
+                          &o[SIG], &o[TARGET], &o[TARGETS], &o[STATE], &restart, &tol,
+                          &o[COEF], &o[SSE], &o[OK], &n_threads))
         return NULL;
     int rc = get_args("flagged_fit", spec, N, o, v);
     const Py_ssize_t P = dim(&v[A], 0), n = dim(&v[A], 1), nb = dim(&v[BASIS], 1),
@@ -679,16 +680,19 @@ static PyObject *py_flagged_fit(PyObject *self, PyObject *args)
          (v[LEAD].have && (dim(&v[LEAD], 0) != P || nl < 1 || nl > FL_MAXNL)) ||
          !OPT_SHAPE(&v[FBASIS], P, n, n) || !SHAPE(&v[SIG], Ns) ||
          v[TARGET].have == v[TARGETS].have || !OPT_SHAPE(&v[TARGET], K) ||
-         !OPT_SHAPE(&v[TARGETS], P, K) || K < 1 || K > Ns || !SHAPE(&v[COEF], P, nb) ||
+         !OPT_SHAPE(&v[TARGETS], P, K) || K < 1 || K > Ns || !OPT_SHAPE(&v[STATE], n) ||
+         (v[STATE].have && !v[TARGET].have) || !SHAPE(&v[COEF], P, nb) ||
          !SHAPE(&v[SSE], P) || !SHAPE(&v[OK], P)))
         rc = invalid("flagged_fit: a (P, n) with 1 <= n <= 24, basis (P, nb, nb) with 1 <= nb "
                      "<= 16, lead (P, nl) with 1 <= nl <= 8 or None, fbasis (P, n, n) or "
                      "None, sig (N,), target (K,) or targets (P, K) (one of them) with 1 <= K "
-                     "<= N, coef_out (P, nb), sse_out (P,), ok_out (P,)");
+                     "<= N, state (n,) with target or None, coef_out (P, nb), sse_out (P,), "
+                     "ok_out (P,)");
     const fl_ctx problem = {
         DATA(&v[A]), DATA(&v[BASIS]), DATA(&v[LEAD]), DATA(&v[FBASIS]), DATA(&v[SIG]),
-        DATA(&v[TARGET]), DATA(&v[TARGETS]), P, n, nb, nl, Ns, K, v[A].stride,
-        v[LEAD].have ? v[LEAD].stride : 0, restart, tol, DATA(&v[COEF]), DATA(&v[SSE]),
+        DATA(&v[TARGET]), DATA(&v[TARGETS]), DATA(&v[STATE]), P, n, nb, nl, Ns, K,
+        v[A].stride, v[LEAD].have ? v[LEAD].stride : 0, restart, tol, DATA(&v[COEF]),
+        DATA(&v[SSE]),
         (unsigned char *)v[OK].view.buf,
     };
     if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_flagged_fit(&problem, n_threads));
@@ -739,7 +743,7 @@ static PyMethodDef methods[] = {
      "coef_out[, threads[, first, noise]]): errors of 1/den filters with the initial state "
      "fitted (see initial_state.c)."},
     {"flagged_fit", py_flagged_fit, METH_VARARGS,
-     "flagged_fit(a, basis, lead, fbasis, sig, target, targets, restart, tol, coef_out, "
+     "flagged_fit(a, basis, lead, fbasis, sig, target, targets, state, restart, tol, coef_out, "
      "sse_out, ok_out[, threads]): the fitted numerator in the orthogonal numerators' basis "
      "(see flagged.c)."},
 #endif
