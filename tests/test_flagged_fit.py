@@ -3,12 +3,12 @@
 ``PolynomialCost._fitted_b_compiled`` (:func:`flexid.kernels.flagged_fit`) solves the
 least-squares problem of ``PolynomialCost.b_regressors`` for one input, as
 ``_fitted_b_recursions`` does, with the regressors formed otherwise: one recursion of
-``1/den`` and FIR filters of it (the rules ``"zero"`` and ``"estimate"``), each regressor's
-own recursion from ``start`` (``"measured"``), the free responses as FIR filters of one
-impulse response.  Both routes' regressors carry rounding errors of a few ``eps`` times the
-gain of ``1/den`` (the recursion's error, amplified by the poles next to the circle: about
-1e-10 relative at radius 0.99 and order 16), and both solve the normal equations of the
-column-scaled regressors with refinement from the residual.  So the bound here: against the
+``1/den`` and a lattice filter of it (the rules ``"zero"`` and ``"estimate"``), each
+regressor's own recursion from ``start`` (``"measured"``), the free responses as lattice
+filters of one impulse response.  Both routes' regressors carry rounding errors of a few
+``eps`` times the gain of ``1/den`` (the recursion's error, amplified by the poles next to
+the circle: about 1e-10 relative at radius 0.99 and order 16), and both solve the normal
+equations of the column-scaled regressors with refinement from the residual.  So the bound here: against the
 solution of the same problem with the regressors formed in long double (80-bit, 11 more bits)
 and solved by SVD, the compiled route's error is at most ``RATIO`` times that of the
 recursions, plus a floor of ``FLOOR_EPS eps kappa^2`` (kappa the condition number of the
@@ -126,13 +126,15 @@ def record(rng: np.random.Generator, a: np.ndarray, n_samples: int = 600):
 
 def population(name: str, rng: np.random.Generator):
     """A structure, its record and candidates: random, and next to the circle (to 0.9985)."""
-    if name == "oe":
-        s = structure("oe", nb=6, nf=8, nk=1)
-        plant = near_circle(8, 1, rng, 0.99)[0]
-        f = np.r_[near_circle(8, 4, rng, 0.9985),
-                  plant + 1e-7 * rng.standard_normal((2, 8)),
-                  near_circle(8, 2, rng, 0.95)]  # fmt: skip
-        X = np.c_[np.zeros((f.shape[0], 6)), f]
+    if name in ("oe", "oe-wide"):
+        # nb < nf, and nb > nf (numerators past the step-up: delays of the last one)
+        nb, nf = (6, 8) if name == "oe" else (9, 4)
+        s = structure("oe", nb=nb, nf=nf, nk=1)
+        plant = near_circle(nf, 1, rng, 0.99)[0]
+        f = np.r_[near_circle(nf, 4, rng, 0.9985),
+                  plant + 1e-7 * rng.standard_normal((2, nf)),
+                  near_circle(nf, 2, rng, 0.95)]  # fmt: skip
+        X = np.c_[np.zeros((f.shape[0], nb)), f]
     else:  # Box-Jenkins: D on the input, a target per candidate
         s = structure("bj", nb=5, nc=2, nd=2, nf=6, nk=1)
         plant = near_circle(6, 1, rng, 0.99)[0]
@@ -144,7 +146,7 @@ def population(name: str, rng: np.random.Generator):
 
 @compiled
 @pytest.mark.parametrize("initial", ["zero", "estimate", "measured"])
-@pytest.mark.parametrize("name", ["oe", "bj", "oe16"])
+@pytest.mark.parametrize("name", ["oe", "oe-wide", "bj", "oe16"])
 def test_compiled_route_is_as_exact_as_the_recursions(name, initial):
     """Random and near-circle candidates (orders 6 and 8, where both routes are near eps), and
     the benchmark's OE(16,16,1) next to the plant's poles (both near 1e-9 to 1e-6)."""
@@ -261,6 +263,10 @@ def test_flagged_fit_rejects_bad_arguments():
         kernels.flagged_fit(a, T[:, :2], sig, target, tol=1e-9)
     with pytest.raises(ValueError, match="flagged_fit"):
         kernels.flagged_fit(a, T, sig, np.ones(21), tol=1e-9)
+    with pytest.raises(FlexidError, match="shared target"):
+        kernels.flagged_fit(a, T, sig, None, np.ones((2, 15)), state=np.ones(2), tol=1e-9)
+    with pytest.raises(ValueError, match="flagged_fit"):
+        kernels.flagged_fit(a, T, sig, target, state=np.ones(3), restart=True, tol=1e-9)
     # zero regressors: a singular Gram matrix, flagged
     _, _, ok = kernels.flagged_fit(a, T, np.zeros(20), target, tol=1e-9)
     assert not ok.any()
@@ -282,3 +288,33 @@ def test_the_numpy_route_is_the_recursions(monkeypatch):
     b, sse = cost._fitted_b(X)
     b_r, sse_r = cost._fitted_b_recursions(X)
     assert not called and np.array_equal(b, b_r) and np.array_equal(sse, sse_r)
+
+
+@compiled
+def test_the_measured_free_response_formed_in_the_kernel_is_the_recursions():
+    """Under "measured" with no output numerator the kernel subtracts the free response from
+    the past outputs itself: the same fit as with the targets formed by ar_recursion (to the
+    refinement's tolerance: the two targets differ in rounding only)."""
+    s, data, X = benchmark_case()
+    cost = PolynomialCost(s, data, initial="measured")
+    X = X[cost._admissible(X)]
+    p = cost._parts(X)
+    den = poly_mul_rows(p["a"], p["f"][0])
+    n = den.shape[1] - 1
+    basis = orthogonal_numerators(den, s.nb[0])
+    y0, _ = kernels.ar_recursion(den[:, 1:], np.zeros((X.shape[0], cost.K)), cost._state[:n])
+    sig = np.r_[0.0, cost.u[: cost.N - 1, 0]]
+    common = dict(restart=True, tol=pc._REFINE_TOL)
+    b_s, sse_s, ok_s = kernels.flagged_fit(den[:, 1:], basis, sig, cost._target,
+                                           state=cost._state[:n], **common)  # fmt: skip
+    b_t, sse_t, ok_t = kernels.flagged_fit(den[:, 1:], basis, sig, None, cost._target - y0,
+                                           **common)  # fmt: skip
+    assert ok_s.all() and ok_t.all()
+    # 1e-6: the coefficients of the P_m move by the targets' rounding times the problem's
+    # conditioning (kappa about 3, gains about 1e5 next to these poles)
+    np.testing.assert_allclose(b_s, b_t, rtol=1e-6, atol=1e-6 * np.abs(b_t).max())
+    np.testing.assert_allclose(sse_s, sse_t, rtol=1e-9)
+    # and a wrong state is seen
+    b_w, _, _ = kernels.flagged_fit(den[:, 1:], basis, sig, cost._target,
+                                    state=cost._state[:n] + 1.0, **common)  # fmt: skip
+    assert np.abs(b_w - b_t).max() > 1e-3 * np.abs(b_t).max()

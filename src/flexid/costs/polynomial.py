@@ -45,7 +45,7 @@ Variable projection (:meth:`PolynomialCost.fit_numerator`)
     recursion per coefficient of ``B``, plus the ``n`` free responses under ``"estimate"``)
     and a small least-squares solve per candidate.  With one input and the compiled kernels
     that problem is solved by :func:`flexid.kernels.flagged_fit` (the same regressors and
-    solve: one recursion of ``1/den`` and FIR filters of it, each regressor's own recursion
+    solve: one recursion of ``1/den`` and a lattice filter of it, each regressor's own recursion
     under ``"measured"``, the Gram matrix summed directly, no ``(P, nb, K)`` arrays); the
     recursions remain the reference route and take the rows it cannot solve.
 """
@@ -832,8 +832,8 @@ class PolynomialCost(ErrorCost):
 
         The same least-squares problem (:meth:`b_regressors`: the regressors in the
         orthogonal numerators' basis, the free responses under ``"estimate"``, the target of
-        the predictor) and the same solve, compiled: one recursion of ``1/den`` and FIR
-        filters of it in place of one recursion per coefficient (each regressor's own
+        the predictor) and the same solve, compiled: one recursion of ``1/den`` and a lattice
+        filter of it in place of one recursion per coefficient (each regressor's own
         recursion from ``start`` under ``"measured"``), and no ``(P, nb, K)`` arrays.
 
         Returns

@@ -1190,12 +1190,12 @@ def flagged_fit(
     equations of the column-scaled regressors, up to two refinement steps with the residual
     formed from the regressors), without ``(P, nb, K)`` arrays.  With ``w = lead sig`` and
     ``start = N - K``, regressor ``m`` over ``t >= start`` is ``P_m(q)/den(q) w`` from rest
-    at ``t = 0`` (one recursion of ``1/den`` and ``nb`` FIR filters of it, where the route of
+    at ``t = 0`` (one recursion of ``1/den`` and a lattice filter of it, where the route of
     one recursion per coefficient runs ``nb`` recursions: the same signals), or with
     ``restart`` the response of ``1/den`` to ``P_m(q) w`` from rest at ``t = start`` (the
     rule ``"measured"``: each regressor's own recursion, since their transients differ);
     with ``free_basis`` the ``n`` free responses ``Q_k(q)/den(q) delta`` from ``t = start``
-    are unknowns too (FIR filters of one impulse response).  Its rounding errors are those of
+    are unknowns too (the same lattice on one impulse response).  Its rounding errors are those of
     the recursions' route, a few ``eps`` times the gain of ``1/den``
     (``tests/test_flagged_fit.py`` measures them).  The compiled kernels only: the route of
     one recursion per coefficient is the reference.

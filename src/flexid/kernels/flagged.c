@@ -20,18 +20,22 @@
  * (t - nk) and start = N - K, regressor m is, over t = start .. N - 1,
  *
  *   restart 0:  g_m = P_m(q) x, x = w / den from rest at t = 0: one recursion of 1/den and
- *               nb FIR filters of it, where the route of one recursion per coefficient runs
+ *               the P_m(q) x of it, where the route of one recursion per coefficient runs
  *               nb recursions of P_m w / den (the same signals: 1/den and P_m commute);
  *   restart 1:  the response of 1/den to P_m(q) w from rest at t = start (each regressor's
  *               own recursion: their transients differ, so they are no filters of one
  *               signal);
  *
- * and with fbasis the free responses from t = start are n more, the FIR filters Q_k(q) h of
- * the impulse response h of 1/den from t = start (where the route of one recursion per
- * coefficient runs n recursions of Q_k(q) delta / den).  Both ways of forming a regressor
- * carry rounding errors of the same size, a few eps times the gain of 1/den (measured
- * against long double: 1e-10 relative, either way, next to the poles of
- * benchmarks/bench_structures.py).
+ * and with fbasis the free responses from t = start are n more, the Q_k(q) h of the impulse
+ * response h of 1/den from t = start (where the route of one recursion per coefficient runs
+ * n recursions of Q_k(q) delta / den).  The P_m and Q_k are den's reversed step-down
+ * polynomials, so all of them are formed by one lattice (Levinson's step-up, fl_lattice:
+ * two multiply-adds a regressor and sample, where the FIR filters of their coefficients
+ * take m + 1); the reflection coefficients are the basis' own P_m[0].  Both ways of forming
+ * a regressor carry rounding errors of the same size, a few eps times the gain of 1/den
+ * (measured against long double: 1e-10 relative, either way, next to the poles of
+ * benchmarks/bench_structures.py).  With state (restart, shared target) the target is
+ * less the free response of 1/den from those past outputs, formed here.
  *
  * Then, per block of candidates (one per SIMD lane; one copy per instruction set, simd.h)
  * with subnormals flushed to zero: the Gram matrix of the regressors and their products with
