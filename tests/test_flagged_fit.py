@@ -1,19 +1,19 @@
 """The compiled orthogonal route of the fitted numerator (issue 44), against exact arithmetic.
 
-``PolynomialCost._fitted_b_compiled`` (:func:`flexid.kernels.flagged_fit`) solves the
-least-squares problem of ``PolynomialCost.b_regressors`` for one input, as
+``PolynomialCost._fitted_b_compiled`` (:func:`flexid.kernels.flagged_fit`) solves the least-
+squares problem of ``PolynomialCost.b_regressors`` for one input, as
 ``_fitted_b_recursions`` does, with the regressors formed otherwise: one recursion of
 ``1/den`` and a lattice filter of it (the rules ``"zero"`` and ``"estimate"``), each
 regressor's own recursion from ``start`` (``"measured"``), the free responses as lattice
-filters of one impulse response.  Both routes' regressors carry rounding errors of a few
+filters of one impulse response. Both routes' regressors carry rounding errors of a few
 ``eps`` times the gain of ``1/den`` (the recursion's error, amplified by the poles next to
 the circle: about 1e-10 relative at radius 0.99 and order 16), and both solve the normal
-equations of the column-scaled regressors with refinement from the residual.  So the bound here: against the
-solution of the same problem with the regressors formed in long double (80-bit, 11 more bits)
-and solved by SVD, the compiled route's error is at most ``RATIO`` times that of the
-recursions, plus a floor of ``FLOOR_EPS eps kappa^2`` (kappa the condition number of the
-scaled regressors: the normal equations' own error, below which neither route is
-meaningfully ranked).  A wrong regressor, transient or free response would be off by many
+equations of the column-scaled regressors with refinement from the residual. So the bound
+here: against the solution of the same problem with the regressors formed in long double
+(80-bit, 11 more bits) and solved by SVD, the compiled route's error is at most ``RATIO``
+times that of the recursions, plus a floor of ``FLOOR_EPS eps kappa^2`` (kappa the condition
+number of the scaled regressors: the normal equations' own error, below which neither route
+is meaningfully ranked). A wrong regressor, transient or free response would be off by many
 orders of magnitude more.
 
 The rows the lag-sum kernel accepts must not change at all: their ``B`` and sums of squares
