@@ -34,20 +34,24 @@ FLN(fl_rec_impl)(const FLV *A, const FLV *f, FLV *y, Py_ssize_t len, FLV *Z0, co
 }
 
 /* One lattice stage over t = 0 .. len - 1 (Levinson's step-up of the numerators): from
- * f = f_(m-1), the previous stage's b = b_(m-1) (zeros before t = 0) and the reflection
- * coefficient k, b_m(t) = b(t - 1) + k f(t) into bn and, with update, f_m(t) = f(t) + k
- * b(t - 1) in place of f */
+ * fin = f_(m-1), the previous stage's b = b_(m-1) (zeros before t = 0) and the reflection
+ * coefficient k, b_m(t) = b(t - 1) + k fin(t) into bn (and into out[t - off] for t >= off)
+ * and, with fout, f_m(t) = fin(t) + k b(t - 1) into fout (fin itself is fine) */
 static inline __attribute__((always_inline)) void
-FLN(fl_stage)(FLV *f, const FLV *b, FLV *bn, const FLV k, Py_ssize_t len, const int update)
+FLN(fl_stage)(const FLV *fin, FLV *fout, const FLV *b, FLV *bn, const FLV k, Py_ssize_t len,
+              FLV *out, Py_ssize_t off)
 {
-    if (update)
-        for (Py_ssize_t t = 0; t < len; ++t) {
-            const FLV old = b[t - 1], fo = f[t];
-            bn[t] = old + k * fo;
-            f[t] = fo + k * old;
-        }
-    else
-        for (Py_ssize_t t = 0; t < len; ++t) bn[t] = b[t - 1] + k * f[t];
+    Py_ssize_t t = 0;
+#define FL_STAGE(store)                                                                       \
+    do {                                                                                      \
+        const FLV old_ = b[t - 1], fo_ = fin[t], bt_ = old_ + k * fo_;                         \
+        bn[t] = bt_;                                                                          \
+        if (fout) fout[t] = fo_ + k * old_;                                                   \
+        if (store) out[t - off] = bt_;                                                        \
+    } while (0)
+    for (; t < off; ++t) FL_STAGE(0);
+    for (; t < len; ++t) FL_STAGE(1);
+#undef FL_STAGE
 }
 
 /* The regressors P_m(q) s, m = 0 .. count - 1, of the orthogonal numerators' basis in
@@ -63,14 +67,13 @@ FLN(fl_lattice)(const FLV *s, const FLV *kref, const int count, const int n, Py_
                 Py_ssize_t off, FLV *out, Py_ssize_t ld, FLV *f, FLV *t0, FLV *t1)
 {
     const int top = count - 1 < n ? count - 1 : n; /* stages of the step-up */
-    for (Py_ssize_t t = 0; t < len; ++t) f[t] = s[t];
-    const FLV *b = s;
+    const FLV *b = s, *fin = s;
     for (Py_ssize_t t = off; t < len; ++t) out[t - off] = s[t];
     for (int m = 1; m <= top; ++m) {
         FLV *bn = (m & 1) ? t0 : t1;
-        FLN(fl_stage)(f, b, bn, kref[m], len, m < top);
-        for (Py_ssize_t t = off; t < len; ++t) out[m * ld + t - off] = bn[t];
+        FLN(fl_stage)(fin, m < top ? f : NULL, b, bn, kref[m], len, out + m * ld, off);
         b = bn;
+        fin = f;
     }
     for (int m = top + 1; m < count; ++m) /* q^-(m - n) P_n: b_n delayed */
         for (Py_ssize_t t = off; t < len; ++t) out[m * ld + t - off] = b[t - (m - top)];
