@@ -255,20 +255,19 @@ def test_flagged_fit_does_not_depend_on_the_thread_count():
 @compiled
 def test_flagged_fit_rejects_bad_arguments():
     a = np.full((2, 2), 0.1)
-    T = np.broadcast_to(np.eye(3), (2, 3, 3)).copy()
     sig, target = np.ones(20), np.ones(15)
     with pytest.raises(FlexidError, match="target or targets"):
-        kernels.flagged_fit(a, T, sig, target, np.ones((2, 15)), tol=1e-9)
+        kernels.flagged_fit(a, 3, sig, target, np.ones((2, 15)), tol=1e-9)
+    with pytest.raises(FlexidError, match="out of range"):
+        kernels.flagged_fit(a, 17, sig, target, tol=1e-9)
     with pytest.raises(ValueError, match="flagged_fit"):
-        kernels.flagged_fit(a, T[:, :2], sig, target, tol=1e-9)
-    with pytest.raises(ValueError, match="flagged_fit"):
-        kernels.flagged_fit(a, T, sig, np.ones(21), tol=1e-9)
+        kernels.flagged_fit(a, 3, sig, np.ones(21), tol=1e-9)
     with pytest.raises(FlexidError, match="shared target"):
-        kernels.flagged_fit(a, T, sig, None, np.ones((2, 15)), state=np.ones(2), tol=1e-9)
+        kernels.flagged_fit(a, 3, sig, None, np.ones((2, 15)), state=np.ones(2), tol=1e-9)
     with pytest.raises(ValueError, match="flagged_fit"):
-        kernels.flagged_fit(a, T, sig, target, state=np.ones(3), restart=True, tol=1e-9)
+        kernels.flagged_fit(a, 3, sig, target, state=np.ones(3), restart=True, tol=1e-9)
     # zero regressors: a singular Gram matrix, flagged
-    _, _, ok = kernels.flagged_fit(a, T, np.zeros(20), target, tol=1e-9)
+    _, _, ok = kernels.flagged_fit(a, 3, np.zeros(20), target, tol=1e-9)
     assert not ok.any()
 
 
@@ -281,7 +280,7 @@ def test_the_numpy_route_is_the_recursions(monkeypatch):
     X = X[cost._admissible(X)]
     assert not cost._compiled_fit
     with pytest.raises(FlexidError, match="not in use"):
-        kernels.flagged_fit(np.full((1, 2), 0.1), np.eye(2)[None], np.ones(9), np.ones(5), tol=1e-9)
+        kernels.flagged_fit(np.full((1, 2), 0.1), 2, np.ones(9), np.ones(5), tol=1e-9)
     called = []
     monkeypatch.setattr(pc.PolynomialCost, "_fitted_b_compiled",
                         lambda self, X: called.append(1))  # fmt: skip
@@ -301,13 +300,12 @@ def test_the_measured_free_response_formed_in_the_kernel_is_the_recursions():
     p = cost._parts(X)
     den = poly_mul_rows(p["a"], p["f"][0])
     n = den.shape[1] - 1
-    basis = orthogonal_numerators(den, s.nb[0])
     y0, _ = kernels.ar_recursion(den[:, 1:], np.zeros((X.shape[0], cost.K)), cost._state[:n])
     sig = np.r_[0.0, cost.u[: cost.N - 1, 0]]
     common = dict(restart=True, tol=pc._REFINE_TOL)
-    b_s, sse_s, ok_s = kernels.flagged_fit(den[:, 1:], basis, sig, cost._target,
+    b_s, sse_s, ok_s = kernels.flagged_fit(den[:, 1:], s.nb[0], sig, cost._target,
                                            state=cost._state[:n], **common)  # fmt: skip
-    b_t, sse_t, ok_t = kernels.flagged_fit(den[:, 1:], basis, sig, None, cost._target - y0,
+    b_t, sse_t, ok_t = kernels.flagged_fit(den[:, 1:], s.nb[0], sig, None, cost._target - y0,
                                            **common)  # fmt: skip
     assert ok_s.all() and ok_t.all()
     # 1e-6: the coefficients of the P_m move by the targets' rounding times the problem's
@@ -315,6 +313,6 @@ def test_the_measured_free_response_formed_in_the_kernel_is_the_recursions():
     np.testing.assert_allclose(b_s, b_t, rtol=1e-6, atol=1e-6 * np.abs(b_t).max())
     np.testing.assert_allclose(sse_s, sse_t, rtol=1e-9)
     # and a wrong state is seen
-    b_w, _, _ = kernels.flagged_fit(den[:, 1:], basis, sig, cost._target,
+    b_w, _, _ = kernels.flagged_fit(den[:, 1:], s.nb[0], sig, cost._target,
                                     state=cost._state[:n] + 1.0, **common)  # fmt: skip
     assert np.abs(b_w - b_t).max() > 1e-3 * np.abs(b_t).max()

@@ -847,11 +847,8 @@ class PolynomialCost(ErrorCost):
         p = self._parts(X)
         one_step = self.predictor == "one-step"
         den = poly_mul_rows(p["c"] if one_step else p["a"], p["f"][0])
-        n, nb = den.shape[1] - 1, s.nb[0]
-        basis = orthogonal_numerators(den, nb)
-        free = None
-        if self.initial == "estimate":  # the same call when nb = n (the same array)
-            free = basis if nb == n else orthogonal_numerators(den, n)
+        nb = s.nb[0]
+        n = den.shape[1] - 1
         target = targets = state = None
         if self.initial == "measured" and not (one_step and self._deg_y):
             # no output numerator: the free part is the free response from the measured
@@ -870,11 +867,11 @@ class PolynomialCost(ErrorCost):
             target = self._target
         nk = s.nk[0]
         sig = np.concatenate([np.zeros(nk), self.u[: self.N - nk, 0]])
-        coef, sse, ok = kernels.flagged_fit(
-            den[:, 1:], basis, sig, target, targets, lead=p["d"] if self._nd else None,
-            free_basis=free, restart=self.initial == "measured", state=state, tol=_REFINE_TOL,
+        return kernels.flagged_fit(
+            den[:, 1:], nb, sig, target, targets, lead=p["d"] if self._nd else None,
+            free=self.initial == "estimate", restart=self.initial == "measured", state=state,
+            tol=_REFINE_TOL,
         )  # fmt: skip
-        return self._b_of(coef, [basis]), sse, ok
 
     def _filtered_target(self, p: dict[str, Any]) -> np.ndarray:
         """``z = (D A / C) y`` (P, K) of the one-step predictor, from rest at ``t = 0``."""

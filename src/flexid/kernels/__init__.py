@@ -1172,31 +1172,33 @@ def flagged_fit_compiled(n: int, nb: int, nl: int = 1) -> bool:
 
 def flagged_fit(
     a: np.ndarray,
-    basis: np.ndarray,
+    nb: int,
     sig: np.ndarray,
     target: np.ndarray | None,
     targets: np.ndarray | None = None,
     *,
     lead: np.ndarray | None = None,
-    free_basis: np.ndarray | None = None,
+    free: bool = False,
     restart: bool = False,
     state: np.ndarray | None = None,
     tol: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The least-squares numerator of one input in the orthogonal numerators' basis, compiled.
+    """The least-squares numerator of one input, solved in the orthogonal numerators' basis.
 
     The problem of :meth:`flexid.costs.polynomial.PolynomialCost.b_regressors` for one
     input, solved as :func:`flexid.costs.polynomial._least_squares_rows` solves it (normal
     equations of the column-scaled regressors, up to two refinement steps with the residual
     formed from the regressors), without ``(P, nb, K)`` arrays.  With ``w = lead sig`` and
     ``start = N - K``, regressor ``m`` over ``t >= start`` is ``P_m(q)/den(q) w`` from rest
-    at ``t = 0`` (one recursion of ``1/den`` and a lattice filter of it, where the route of
-    one recursion per coefficient runs ``nb`` recursions: the same signals), or with
+    at ``t = 0``, ``P_m`` the orthogonal numerators
+    (:func:`~flexid.costs.polynomial.orthogonal_numerators`, from the step-down of ``den``
+    in the kernel): one recursion of ``1/den`` and a lattice filter of it, where the route
+    of one recursion per coefficient runs ``nb`` recursions (the same signals); or with
     ``restart`` the response of ``1/den`` to ``P_m(q) w`` from rest at ``t = start`` (the
     rule ``"measured"``: each regressor's own recursion, since their transients differ);
-    with ``free_basis`` the ``n`` free responses ``Q_k(q)/den(q) delta`` from ``t = start``
-    are unknowns too (the same lattice on one impulse response).  Its rounding errors are those of
-    the recursions' route, a few ``eps`` times the gain of ``1/den``
+    with ``free`` the ``n`` free responses ``Q_k(q)/den(q) delta`` from ``t = start`` are
+    unknowns too (the same lattice on one impulse response).  Its rounding errors are those
+    of the recursions' route, a few ``eps`` times the gain of ``1/den``
     (``tests/test_flagged_fit.py`` measures them).  The compiled kernels only: the route of
     one recursion per coefficient is the reference.
 
@@ -1204,8 +1206,8 @@ def flagged_fit(
     ----------
     a : ndarray, shape (P, n)
         ``a_1 .. a_n`` of each ``den``, stable.
-    basis : ndarray, shape (P, nb, nb)
-        The numerators ``P_m`` (:func:`~flexid.costs.polynomial.orthogonal_numerators`).
+    nb : int
+        Terms of ``B``.
     sig : ndarray, shape (N,)
         The input delayed by ``nk`` (zeros before it).
     target : ndarray, shape (K,), or None
@@ -1214,9 +1216,8 @@ def flagged_fit(
         Per-candidate targets in place of ``target`` (give exactly one of them).
     lead : ndarray, shape (P, nl), optional
         A numerator on the input (``D`` of a one-step predictor); None: 1.
-    free_basis : ndarray, shape (P, n, n), optional
-        The free responses' numerators (``orthogonal_numerators(den, n)``); None: no free
-        response.
+    free : bool
+        The free responses from ``t = start`` are unknowns too (the rule ``"estimate"``).
     restart : bool
         The regressors from rest at ``t = start`` (the rule ``"measured"``).
     state : ndarray, shape (n,), optional
@@ -1229,10 +1230,10 @@ def flagged_fit(
 
     Returns
     -------
-    coef : ndarray, shape (P, nb)
-        The coefficients of the ``P_m``.
+    b : ndarray, shape (P, nb)
+        ``B`` in powers of ``q^-1`` (the fitted combination of the ``P_m``).
     sse : ndarray, shape (P,)
-        Sums of squares of the residual at ``coef`` (and the fitted free responses): that of
+        Sums of squares of the residual at ``b`` (and the fitted free responses): that of
         the last residual formed, less the last refinement step's share
         (``|e - R s|^2 = |e|^2 - 2 s.R'e + s'Gs``, a correction far below ``|e|^2``).
     ok : ndarray of bool, shape (P,)
@@ -1242,7 +1243,6 @@ def flagged_fit(
     """
     a = _rows(np.atleast_2d(np.asarray(a, dtype=float)))
     p, n = a.shape
-    nb = basis.shape[1]
     nl = 1 if lead is None else np.shape(lead)[-1]
     if not flagged_fit_compiled(n, nb, nl):
         raise FlexidError(
@@ -1257,14 +1257,13 @@ def flagged_fit(
     sse = np.empty(p)
     ok = np.empty(p, dtype=np.uint8)
     k = (target if target is not None else targets).shape[-1]
-    nr = nb + (n if free_basis is not None else 0)
+    nr = nb + (n if free else 0)
     work = p * k * (nr * (nr + 1) // 2 + nb * (nb + 1) // 2 + 4 * nr)
-    _c.flagged_fit(a, np.ascontiguousarray(basis, dtype=float),
-                   None if lead is None else _rows(np.asarray(lead, dtype=float)),
-                   None if free_basis is None else np.ascontiguousarray(free_basis, dtype=float),
+    _c.flagged_fit(a, None if lead is None else _rows(np.asarray(lead, dtype=float)),
                    np.ascontiguousarray(sig, dtype=float),
                    None if target is None else np.ascontiguousarray(target, dtype=float),
                    None if targets is None else np.ascontiguousarray(targets, dtype=float),
                    None if state is None else np.ascontiguousarray(state, dtype=float),
-                   bool(restart), float(tol), coef, sse, ok, _threads_for(work))  # fmt: skip
+                   bool(free), bool(restart), float(tol), coef, sse, ok,
+                   _threads_for(work))  # fmt: skip
     return coef, sse, ok.view(bool)

@@ -1,20 +1,19 @@
 /*
  * flagged.c: the fitted numerator in the orthogonal numerators' basis, and nothing else.
  *
- *   flagged_fit(a, basis, lead, fbasis, sig, target, targets, restart, tol, coef_out,
+ *   flagged_fit(a, lead, sig, target, targets, state, free, restart, tol, coef_out,
  *               sse_out, ok_out[, threads])
  *       The least-squares problem of flexid.costs.polynomial.PolynomialCost.b_regressors for
  *       one input, solved as _least_squares_rows solves it (flexid.kernels.flagged_fit): for
- *       each candidate, a (P, n) the a_1 .. a_n of its den (1 <= n <= 24, stable), basis
- *       (P, nb, nb) the numerators P_m (orthogonal_numerators(den, nb), 1 <= nb <= 16), lead
- *       (P, nl) a numerator on the input (D of a one-step predictor; None: 1), fbasis
- *       (P, n, n) the free responses' numerators (orthogonal_numerators(den, n); None: no
- *       free response, the rules "zero" and "measured"), sig (N,) the input delayed by nk,
- *       target (K,) shared or targets (P, K) per candidate (the other None), restart 1 for
- *       the rule "measured".  Writes coef_out (P, nb) (the coefficients of the P_m), sse_out
- *       (P,) and ok_out (P,) uint8, 0 where the Cholesky factorisation broke down, the
- *       refinement still moved after two steps, or a result is not finite (the caller
- *       solves those rows another way).
+ *       each candidate, a (P, n) the a_1 .. a_n of its den (1 <= n <= 24, stable), lead
+ *       (P, nl) a numerator on the input (D of a one-step predictor; None: 1), sig (N,) the
+ *       input delayed by nk, target (K,) shared or targets (P, K) per candidate (the other
+ *       None), state (n,) past outputs whose free response the shared target loses (or
+ *       None), free 1 for the rule "estimate" (the n free responses are unknowns too),
+ *       restart 1 for the rule "measured".  Writes coef_out (P, nb), 1 <= nb <= 16, the
+ *       fitted B in powers of q^-1, sse_out (P,) and ok_out (P,) uint8, 0 where the
+ *       Cholesky factorisation broke down, the refinement still moved after two steps, or a
+ *       result is not finite (the caller solves those rows another way).
  *
  * The regressors are those of the NumPy route, formed in fewer operations.  With w = lead u
  * (t - nk) and start = N - K, regressor m is, over t = start .. N - 1,
@@ -26,16 +25,18 @@
  *               own recursion: their transients differ, so they are no filters of one
  *               signal);
  *
- * and with fbasis the free responses from t = start are n more, the Q_k(q) h of the impulse
+ * and with free the free responses from t = start are n more, the Q_k(q) h of the impulse
  * response h of 1/den from t = start (where the route of one recursion per coefficient runs
  * n recursions of Q_k(q) delta / den).  The P_m and Q_k are den's reversed step-down
  * polynomials, so all of them are formed by one lattice (Levinson's step-up, fl_lattice:
  * two multiply-adds a regressor and sample, where the FIR filters of their coefficients
- * take m + 1); the reflection coefficients are the basis' own P_m[0].  Both ways of forming
- * a regressor carry rounding errors of the same size, a few eps times the gain of 1/den
- * (measured against long double: 1e-10 relative, either way, next to the poles of
- * benchmarks/bench_structures.py).  With state (restart, shared target) the target is
- * less the free response of 1/den from those past outputs, formed here.
+ * take m + 1); the reflection coefficients come from den's step-down here, as
+ * orthogonal_numerators computes them (all zero, the plain shifts, where it breaks down),
+ * and B = sum_m c_m P_m from their step-up, the polynomials the lattice applied.  Both
+ * ways of forming a regressor carry rounding errors of the same size, a few eps times the
+ * gain of 1/den (measured against long double: 1e-10 relative, either way, next to the
+ * poles of benchmarks/bench_structures.py).  With state (restart, shared target) the
+ * target is less the free response of 1/den from those past outputs, formed here.
  *
  * Then, per block of candidates (one per SIMD lane; one copy per instruction set, simd.h)
  * with subnormals flushed to zero: the Gram matrix of the regressors and their products with
@@ -118,7 +119,7 @@ static int fl_unit(const void *ctx, Py_ssize_t u, void **scratch)
 {
     const fl_job *j = (const fl_job *)ctx;
     const fl_ctx *c = &j->c;
-    const Py_ssize_t nr = c->nb + (c->fbasis ? c->n : 0);
+    const Py_ssize_t nr = c->nb + (c->free_state ? c->n : 0);
     if (!*scratch) {
         const size_t count = (size_t)(2 * (FL_PAD + c->N) + FL_PAD + c->K + (nr + 1) * c->K +
                                       c->K + (nr + 1) * (nr + 1) + nr * nr + 2 * (FL_PAD + c->N));

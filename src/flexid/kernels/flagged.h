@@ -17,18 +17,18 @@ typedef struct fl_ctx fl_ctx;
 typedef void (*fl_rec_fn)(const v4d *A, const v4d *f, v4d *y, Py_ssize_t len, v4d *Z);
 struct fl_ctx {
     const double *a;      /* (P, n), rows a_stride apart */
-    const double *basis;  /* (P, nb, nb): the numerators P_m of the regressors */
     const double *lead;   /* (P, nl), rows lead_stride apart, or NULL: 1 */
-    const double *fbasis; /* (P, n, n): the free responses' numerators, or NULL: none */
     const double *sig;    /* (N,): the input delayed by nk */
     const double *target; /* (K,), or NULL with targets */
     const double *targets; /* (P, K), or NULL */
     const double *state;   /* (n,): y(-1) .. y(-n) before t = N - K, the target less the free
                             * response of 1/den from them; or NULL */
     Py_ssize_t P, n, nb, nl, N, K, a_stride, lead_stride;
-    int restart; /* the regressors from rest at t = N - K (the rule "measured") */
+    int free_state; /* the n free responses from t = N - K are unknowns too (the rule
+                     * "estimate") */
+    int restart;    /* the regressors from rest at t = N - K (the rule "measured") */
     double tol;  /* the refinement's tolerance (polynomial._REFINE_TOL) */
-    double *coef, *sse; /* (P, nb), (P,) */
+    double *coef, *sse; /* (P, nb): B in powers of q^-1; (P,) */
     unsigned char *ok;  /* (P,) */
 };
 

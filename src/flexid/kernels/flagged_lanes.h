@@ -56,7 +56,7 @@ FLN(fl_stage)(const FLV *fin, FLV *fout, const FLV *b, FLV *bn, const FLV k, Py_
 
 /* The regressors P_m(q) s, m = 0 .. count - 1, of the orthogonal numerators' basis in
  * lattice form: P_m is the reversed step-up polynomial of order m (m <= n; kref[m] its
- * reflection coefficient, the basis' entry P_m[0]) and P_m = q^-(m - n) P_n above, so
+ * reflection coefficient, from den's step-down) and P_m = q^-(m - n) P_n above, so
  * b_m(t) = b_(m-1)(t - 1) + k_m f_(m-1)(t), f_m(t) = f_(m-1)(t) + k_m b_(m-1)(t - 1),
  * b_0 = f_0 = s: two multiply-adds a regressor and sample where the FIR filters of the
  * basis take m + 1.  s over t = 0 .. len - 1 with zeros before; out row m (ld apart) gets
@@ -212,17 +212,15 @@ static inline __attribute__((always_inline)) void
 FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const FLN(fl_rec_fn) rec)
 {
     const Py_ssize_t P = c->P, N = c->N, K = c->K, start = N - K;
-    const int n = (int)c->n, nb = (int)c->nb, nl = (int)c->nl, free_ = c->fbasis != NULL;
+    const int n = (int)c->n, nb = (int)c->nb, nl = (int)c->nl, free_ = c->free_state;
     const int nr = nb + (free_ ? n : 0), tile = wide ? 4 : 3;
     const Py_ssize_t w = P - q < FLW ? P - q : FLW;
     const FLV zero = {0};
     Py_ssize_t row[FLW];
     for (int l = 0; l < FLW; ++l) row[l] = q + (l < w ? l : 0);
-    FLV A[FL_MAXN], Tv[FL_MAXNB * FL_MAXNB], Lv[FL_MAXNL], Z[FL_MAXN];
+    FLV A[FL_MAXN], Lv[FL_MAXNL], Z[FL_MAXN];
     for (int k = 0; k < n; ++k)
         for (int l = 0; l < FLW; ++l) A[k][l] = c->a[row[l] * c->a_stride + k];
-    for (int i = 0; i < nb * nb; ++i)
-        for (int l = 0; l < FLW; ++l) Tv[i][l] = c->basis[row[l] * nb * nb + i];
     for (int k = 0; k < nl && c->lead; ++k)
         for (int l = 0; l < FLW; ++l) Lv[k][l] = c->lead[row[l] * c->lead_stride + k];
     /* the scratch: w and x (or one forcing) with FL_PAD zeros before each, h, the regressors
@@ -241,8 +239,26 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         for (int k = 0; k < nl && k <= t; ++k) s += Lv[k] * c->sig[t - k];
         wv[t] = s;
     }
-    FLV kref[FL_MAXNB]; /* the reflection coefficients of den: P_m[0], m = 1 .. */
-    for (int m = 0; m < nb; ++m) kref[m] = Tv[m * nb];
+    /* den's reflection coefficients k_1 .. k_n by its step-down, lane by lane (all zero,
+     * the plain shifts, where it breaks down in rounding: orthogonal_numerators' rule) */
+    FLV kref[FL_MAXN + 1];
+    for (int l = 0; l < FLW; ++l) {
+        double cur[FL_MAXN + 1], nxt[FL_MAXN + 1];
+        int fine = 1;
+        cur[0] = 1.0;
+        for (int k = 1; k <= n; ++k) cur[k] = A[k - 1][l];
+        for (int m = n; m >= 1; --m) {
+            const double k = cur[m], g = 1.0 - k * k;
+            kref[m][l] = k;
+            for (int i = 0; i < m; ++i) nxt[i] = (cur[i] - k * cur[m - i]) / g;
+            for (int i = 0; i < m; ++i) {
+                cur[i] = nxt[i];
+                fine = fine && isfinite(nxt[i]);
+            }
+        }
+        for (int m = 1; m <= n && !fine; ++m) kref[m][l] = 0.0;
+        kref[0][l] = 0.0;
+    }
     for (int k = 0; k < n; ++k) Z[k] = zero;
     if (!c->restart) {
         rec(A, wv, xv, N, Z); /* x; then the P_m(q) x in lattice form, w's row as scratch */
@@ -255,10 +271,7 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         Z[0] = zero + 1.0; /* the impulse response: y(0) = 1 */
         rec(A, NULL, hv, K, Z);
         Z[0] = zero;
-        FLV kfree[FL_MAXN]; /* the same coefficients, from the free responses' basis */
-        for (int m = 0; m < n; ++m)
-            for (int l = 0; l < FLW; ++l) kfree[m][l] = c->fbasis[row[l] * n * n + m * n];
-        FLN(fl_lattice)(hv, kfree, n, n, K, 0, R + (Py_ssize_t)nb * K, K, e, t0, t1);
+        FLN(fl_lattice)(hv, kref, n, n, K, 0, R + (Py_ssize_t)nb * K, K, e, t0, t1);
     }
     FLV *zt = R + (Py_ssize_t)nr * K;
     for (Py_ssize_t t = 0; t < K; ++t) {
@@ -336,11 +349,28 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         any = 0;
         for (int l = 0; l < FLW; ++l) any |= moving[l];
     }
+    /* B = sum_m c_m P_m, the P_m by the step-up of the same coefficients (the polynomials
+     * the lattice applied): A_m = A_(m-1) + k_m q^-1 rev(A_(m-1)), P_m = rev(A_m) for m <= n,
+     * q^-(m - n) P_n above */
+    FLV Am[FL_MAXN + 1], An[FL_MAXN + 1], bq[FL_MAXNB];
+    const int top = nb - 1 < n ? nb - 1 : n;
+    for (int i = 0; i < nb; ++i) bq[i] = zero;
+    Am[0] = zero + 1.0;
+    bq[0] = cf[0];
+    for (int m = 1; m <= top; ++m) {
+        An[0] = Am[0];
+        for (int i = 1; i < m; ++i) An[i] = Am[i] + kref[m] * Am[m - i];
+        An[m] = kref[m];
+        for (int i = 0; i <= m; ++i) Am[i] = An[i];
+        for (int j = 0; j <= m; ++j) bq[j] += cf[m] * Am[m - j];
+    }
+    for (int m = top + 1; m < nb; ++m)
+        for (int j = m - top; j <= m; ++j) bq[j] += cf[m] * Am[m - j];
     for (Py_ssize_t l = 0; l < w; ++l) {
         int fine = good[l] && !moving[l] && isfinite(sse[l]);
         for (int i = 0; i < nb; ++i) {
-            c->coef[(q + l) * nb + i] = cf[i][l];
-            fine = fine && isfinite(cf[i][l]);
+            c->coef[(q + l) * nb + i] = bq[i][l];
+            fine = fine && isfinite(bq[i][l]);
         }
         c->sse[q + l] = sse[l];
         c->ok[q + l] = (unsigned char)fine;

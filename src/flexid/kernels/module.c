@@ -657,43 +657,40 @@ static PyObject *py_free_fit(PyObject *self, PyObject *args)
 }
 static PyObject *py_flagged_fit(PyObject *self, PyObject *args)
 {
-    enum { A, BASIS, LEAD, FBASIS, SIG, TARGET, TARGETS, STATE, COEF, SSE, OK, N };
+    enum { A, LEAD, SIG, TARGET, TARGETS, STATE, COEF, SSE, OK, N };
     static const arg_spec spec[N] = {
-        ROWS("a"),     IN("basis"),      ROWS_OPT("lead"), IN_OPT("fbasis"), IN("sig"),
-        IN_OPT("target"), IN_OPT("targets"), IN_OPT("state"), OUT("coef_out"),
-        OUT("sse_out"), OUT_U8("ok_out"),
+        ROWS("a"),         ROWS_OPT("lead"),   IN("sig"),      IN_OPT("target"),
+        IN_OPT("targets"), IN_OPT("state"),    OUT("coef_out"), OUT("sse_out"),
+        OUT_U8("ok_out"),
     };
     PyObject *o[N] = {NULL};
     arg v[N] = {0};
-    int n_threads = 1, restart;
+    int n_threads = 1, free_state, restart;
     double tol;
-    if (!PyArg_ParseTuple(args, "OOOOOOOOpdOOO|i", &o[A], &o[BASIS], &o[LEAD], &o[FBASIS],
-                          &o[SIG], &o[TARGET], &o[TARGETS], &o[STATE], &restart, &tol,
-                          &o[COEF], &o[SSE], &o[OK], &n_threads))
+    if (!PyArg_ParseTuple(args, "OOOOOOppdOOO|i", &o[A], &o[LEAD], &o[SIG], &o[TARGET],
+                          &o[TARGETS], &o[STATE], &free_state, &restart, &tol, &o[COEF],
+                          &o[SSE], &o[OK], &n_threads))
         return NULL;
     int rc = get_args("flagged_fit", spec, N, o, v);
-    const Py_ssize_t P = dim(&v[A], 0), n = dim(&v[A], 1), nb = dim(&v[BASIS], 1),
+    const Py_ssize_t P = dim(&v[A], 0), n = dim(&v[A], 1), nb = dim(&v[COEF], 1),
                      Ns = dim(&v[SIG], 0), nl = v[LEAD].have ? dim(&v[LEAD], 1) : 1,
                      K = v[TARGET].have ? dim(&v[TARGET], 0) : dim(&v[TARGETS], 1);
     if (rc == 0 &&
-        (n < 1 || n > FL_MAXN || nb < 1 || nb > FL_MAXNB || !SHAPE(&v[BASIS], P, nb, nb) ||
+        (n < 1 || n > FL_MAXN || nb < 1 || nb > FL_MAXNB || !SHAPE(&v[COEF], P, nb) ||
          (v[LEAD].have && (dim(&v[LEAD], 0) != P || nl < 1 || nl > FL_MAXNL)) ||
-         !OPT_SHAPE(&v[FBASIS], P, n, n) || !SHAPE(&v[SIG], Ns) ||
-         v[TARGET].have == v[TARGETS].have || !OPT_SHAPE(&v[TARGET], K) ||
-         !OPT_SHAPE(&v[TARGETS], P, K) || K < 1 || K > Ns || !OPT_SHAPE(&v[STATE], n) ||
-         (v[STATE].have && !v[TARGET].have) || !SHAPE(&v[COEF], P, nb) ||
+         !SHAPE(&v[SIG], Ns) || v[TARGET].have == v[TARGETS].have ||
+         !OPT_SHAPE(&v[TARGET], K) || !OPT_SHAPE(&v[TARGETS], P, K) || K < 1 || K > Ns ||
+         !OPT_SHAPE(&v[STATE], n) || (v[STATE].have && !v[TARGET].have) ||
          !SHAPE(&v[SSE], P) || !SHAPE(&v[OK], P)))
-        rc = invalid("flagged_fit: a (P, n) with 1 <= n <= 24, basis (P, nb, nb) with 1 <= nb "
-                     "<= 16, lead (P, nl) with 1 <= nl <= 8 or None, fbasis (P, n, n) or "
-                     "None, sig (N,), target (K,) or targets (P, K) (one of them) with 1 <= K "
-                     "<= N, state (n,) with target or None, coef_out (P, nb), sse_out (P,), "
-                     "ok_out (P,)");
+        rc = invalid("flagged_fit: a (P, n) with 1 <= n <= 24, lead (P, nl) with 1 <= nl <= 8 "
+                     "or None, sig (N,), target (K,) or targets (P, K) (one of them) with 1 <= "
+                     "K <= N, state (n,) with target or None, coef_out (P, nb) with 1 <= nb <= "
+                     "16, sse_out (P,), ok_out (P,)");
     const fl_ctx problem = {
-        DATA(&v[A]), DATA(&v[BASIS]), DATA(&v[LEAD]), DATA(&v[FBASIS]), DATA(&v[SIG]),
-        DATA(&v[TARGET]), DATA(&v[TARGETS]), DATA(&v[STATE]), P, n, nb, nl, Ns, K,
-        v[A].stride, v[LEAD].have ? v[LEAD].stride : 0, restart, tol, DATA(&v[COEF]),
-        DATA(&v[SSE]),
-        (unsigned char *)v[OK].view.buf,
+        DATA(&v[A]), DATA(&v[LEAD]), DATA(&v[SIG]), DATA(&v[TARGET]), DATA(&v[TARGETS]),
+        DATA(&v[STATE]), P, n, nb, nl, Ns, K, v[A].stride,
+        v[LEAD].have ? v[LEAD].stride : 0, free_state, restart, tol, DATA(&v[COEF]),
+        DATA(&v[SSE]), (unsigned char *)v[OK].view.buf,
     };
     if (rc == 0) RUN_WITHOUT_GIL(rc, flexid_flagged_fit(&problem, n_threads));
     return finish(v, N, rc);
@@ -743,8 +740,8 @@ static PyMethodDef methods[] = {
      "coef_out[, threads[, first, noise]]): errors of 1/den filters with the initial state "
      "fitted (see initial_state.c)."},
     {"flagged_fit", py_flagged_fit, METH_VARARGS,
-     "flagged_fit(a, basis, lead, fbasis, sig, target, targets, state, restart, tol, coef_out, "
-     "sse_out, ok_out[, threads]): the fitted numerator in the orthogonal numerators' basis "
+     "flagged_fit(a, lead, sig, target, targets, state, free, restart, tol, coef_out, sse_out, "
+     "ok_out[, threads]): the fitted numerator, solved in the orthogonal numerators' basis "
      "(see flagged.c)."},
 #endif
     {"simd", py_simd, METH_VARARGS,
