@@ -144,12 +144,44 @@ def population(name: str, rng: np.random.Generator):
     return s, record(rng, plant), X
 
 
+def _simd_levels() -> list[str]:
+    """The compiled kernels' instruction sets this CPU runs (all, not only the best)."""
+    if not kernels.flagged_fit_compiled(1, 1):
+        return ["none"]
+    from flexid import _kernels
+
+    order = ["generic", "avx2", "avx512"]
+    best = _kernels.simd()[1]
+    return order[: order.index(best) + 1] if best in order else [best]
+
+
+@pytest.fixture(params=_simd_levels())
+def simd(request):
+    """Run the kernels on one instruction set, then restore the one in use."""
+    if request.param == "none":
+        yield request.param
+        return
+    from flexid import _kernels
+
+    before = _kernels.simd()[0]
+    _kernels.simd(request.param)
+    try:
+        yield request.param
+    finally:
+        _kernels.simd(before)
+
+
 @compiled
 @pytest.mark.parametrize("initial", ["zero", "estimate", "measured"])
 @pytest.mark.parametrize("name", ["oe", "oe-wide", "bj", "oe16"])
-def test_compiled_route_is_as_exact_as_the_recursions(name, initial):
+def test_compiled_route_is_as_exact_as_the_recursions(name, initial, simd):
     """Random and near-circle candidates (orders 6 and 8, where both routes are near eps), and
-    the benchmark's OE(16,16,1) next to the plant's poles (both near 1e-9 to 1e-6)."""
+    the benchmark's OE(16,16,1) next to the plant's poles (both near 1e-9 to 1e-6), on every
+    instruction set the CPU runs (their copies round differently: with or without fused
+    multiply-adds).  The bound is over the population: the recursions' own error moves by
+    orders of magnitude from row to row with the luck of their rounding (4.6e-11 on one row
+    and 3.4e-9 on the next, next to the poles), so a row's error is held to RATIO times the
+    largest of theirs, plus the floor."""
     if name == "oe16":
         s, data, X = benchmark_case()
     else:
@@ -165,9 +197,9 @@ def test_compiled_route_is_as_exact_as_the_recursions(name, initial):
     scale = np.abs(b_ex).max(axis=1)
     err_c = np.abs(b_c - b_ex).max(axis=1) / scale
     err_r = np.abs(b_r - b_ex).max(axis=1) / scale
-    assert (err_c <= RATIO * err_r + floor).all(), (err_c, err_r, floor)
+    assert (err_c <= RATIO * err_r.max() + floor).all(), (err_c, err_r, floor)
     serr_c, serr_r = np.abs(sse_c - sse_ex) / sse_ex, np.abs(sse_r - sse_ex) / sse_ex
-    assert (serr_c <= RATIO * serr_r + floor).all(), (serr_c, serr_r, floor)
+    assert (serr_c <= RATIO * serr_r.max() + floor).all(), (serr_c, serr_r, floor)
 
 
 def benchmark_case():
