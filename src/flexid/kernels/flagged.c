@@ -51,12 +51,13 @@
  * alone) nor on the thread count.  The blocks are split between `threads` threads.
  */
 #include "flagged.h"
+#include "polynomial.h"
 #include "pool.h"
 
 #if defined(__GNUC__)
 #define FL_PAD 32 /* zeros stored before each signal (>= nb - 1 + nl - 1 and >= n - 1) */
 #define FL_MAXR (FL_MAXNB + FL_MAXN) /* regressors nb + n */
-#define FL_CHUNK 24                  /* samples of a chunk of the Gram matrix (fl_products) */
+#define FL_CHUNK 64                  /* samples of a chunk of the Gram matrix (fl_products) */
 
 /* The kernel in blocks of 4 (the baseline and AVX2 copies) and of 8 (AVX-512) */
 #define FLV v4d
@@ -122,7 +123,8 @@ static int fl_unit(const void *ctx, Py_ssize_t u, void **scratch)
     const Py_ssize_t nr = c->nb + (c->free_state ? c->n : 0);
     if (!*scratch) {
         const size_t count = (size_t)(2 * (FL_PAD + c->N) + FL_PAD + c->K + (nr + 1) * c->K +
-                                      c->K + (nr + 1) * (nr + 1) + nr * nr + 2 * (FL_PAD + c->N));
+                                      c->K + (nr + 1) * (nr + 1) + nr * nr +
+                                      2 * (FL_PAD + c->N));
         *scratch = calloc(count, (size_t)j->width * sizeof(double));
         if (!*scratch) return -1;
     }

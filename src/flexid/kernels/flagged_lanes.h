@@ -243,21 +243,10 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
      * the plain shifts, where it breaks down in rounding: orthogonal_numerators' rule) */
     FLV kref[FL_MAXN + 1];
     for (int l = 0; l < FLW; ++l) {
-        double cur[FL_MAXN + 1], nxt[FL_MAXN + 1];
-        int fine = 1;
-        cur[0] = 1.0;
-        for (int k = 1; k <= n; ++k) cur[k] = A[k - 1][l];
-        for (int m = n; m >= 1; --m) {
-            const double k = cur[m], g = 1.0 - k * k;
-            kref[m][l] = k;
-            for (int i = 0; i < m; ++i) nxt[i] = (cur[i] - k * cur[m - i]) / g;
-            for (int i = 0; i < m; ++i) {
-                cur[i] = nxt[i];
-                fine = fine && isfinite(nxt[i]);
-            }
-        }
-        for (int m = 1; m <= n && !fine; ++m) kref[m][l] = 0.0;
+        double work[FL_MAXN], k[FL_MAXN];
+        const int fine = flexid_reflection(c->a + row[l] * c->a_stride, n, work, k);
         kref[0][l] = 0.0;
+        for (int m = 1; m <= n; ++m) kref[m][l] = fine ? k[m - 1] : 0.0;
     }
     for (int k = 0; k < n; ++k) Z[k] = zero;
     if (!c->restart) {

@@ -16,34 +16,33 @@
  */
 #include "polynomial.h"
 
-static void schur_cohn_rows(const double *a, Py_ssize_t stride, Py_ssize_t P, Py_ssize_t n,
-                            unsigned char *out,
-                            double *c)
+int flexid_reflection(const double *a, Py_ssize_t n, double *c, double *k)
 {
-    for (Py_ssize_t p = 0; p < P; ++p) {
-        const double *row = a + p * stride;
-        int ok = 1;
-        for (Py_ssize_t j = 0; j < n; ++j) {
-            if (!isfinite(row[j])) ok = 0;
-            c[j] = row[j];
-        }
-        for (Py_ssize_t m = n; ok && m > 0; --m) {
-            const double k = c[m - 1];
-            if (!(fabs(k) < 1.0)) {
-                ok = 0;
-                break;
-            }
-            const double d = 1.0 - k * k;
-            Py_ssize_t i = 0, j = m - 2;
-            for (; i < j; ++i, --j) {
-                const double lo = c[i], hi = c[j];
-                c[i] = (lo - k * hi) / d;
-                c[j] = (hi - k * lo) / d;
-            }
-            if (i == j) c[i] = (c[i] - k * c[i]) / d;
-        }
-        out[p] = (unsigned char)ok;
+    for (Py_ssize_t j = 0; j < n; ++j) {
+        if (!isfinite(a[j])) return 0;
+        c[j] = a[j];
     }
+    for (Py_ssize_t m = n; m > 0; --m) {
+        const double km = c[m - 1];
+        if (!(fabs(km) < 1.0)) return 0;
+        if (k) k[m - 1] = km;
+        const double d = 1.0 - km * km;
+        Py_ssize_t i = 0, j = m - 2;
+        for (; i < j; ++i, --j) {
+            const double lo = c[i], hi = c[j];
+            c[i] = (lo - km * hi) / d;
+            c[j] = (hi - km * lo) / d;
+        }
+        if (i == j) c[i] = (c[i] - km * c[i]) / d;
+    }
+    return 1;
+}
+
+static void schur_cohn_rows(const double *a, Py_ssize_t stride, Py_ssize_t P, Py_ssize_t n,
+                            unsigned char *out, double *c)
+{
+    for (Py_ssize_t p = 0; p < P; ++p)
+        out[p] = (unsigned char)flexid_reflection(a + p * stride, n, c, NULL);
 }
 
 int flexid_schur_cohn(const double *a, Py_ssize_t stride, Py_ssize_t P, Py_ssize_t n,
