@@ -46,7 +46,7 @@
  * stopping where its step is below tol relative (_least_squares_rows' criterion; a lane that
  * still moves after two steps is flagged, as _least_squares_rows solves such a row again by
  * SVD); the sum of squares is that of the last residual formed, corrected for the last step
- * (see fl_quad_impl).  Blocks of 4 candidates, or 8 with AVX-512 under restart (see
+ * (see fl_quad_impl).  Blocks of 4 candidates, or 8 with AVX-512 (see
  * flexid_flagged_fit); the results of a candidate depend on neither (each lane computes
  * alone) nor on the thread count.  The blocks are split between `threads` threads.
  */
@@ -104,7 +104,6 @@ FL_QUAD(g, SIMD_G, 4, v4d, 0)
 #if defined(SIMD_X86)
 FL_QUAD(v3_, SIMD_V3, 4, v4d, 0)
 FL_QUAD(v4_, SIMD_V4, 8, v8d, 1)
-FL_QUAD(v4n_, SIMD_V4, 4, v4d, 1)
 #endif
 
 typedef void (*fl_quad_fn)(const fl_ctx *, Py_ssize_t, void *);
@@ -123,8 +122,8 @@ static int fl_unit(const void *ctx, Py_ssize_t u, void **scratch)
     const Py_ssize_t nr = c->nb + (c->free_state ? c->n : 0);
     if (!*scratch) {
         const size_t count = (size_t)(2 * (FL_PAD + c->N) + FL_PAD + c->K + (nr + 1) * c->K +
-                                      c->K + (nr + 1) * (nr + 1) + nr * nr +
-                                      2 * (FL_PAD + c->N));
+                                      c->K + (nr + 1) * (nr + 1) + nr * nr + FL_PAD +
+                                      c->N + 2 * FL_CHUNK);
         *scratch = calloc(count, (size_t)j->width * sizeof(double));
         if (!*scratch) return -1;
     }
@@ -138,12 +137,14 @@ int flexid_flagged_fit(const fl_ctx *problem, int n_threads)
 {
     fl_job job;
     job.c = *problem;
-    /* AVX-512: blocks of 8 for the rule "measured", whose nb recursions are chains of
-     * dependent steps (8 lanes do twice the work per step); blocks of 4 otherwise, where the
-     * regressors of a block of 8 (3 MB at order 16, K = 1,500) would stream from the
-     * last-level cache at every pass (measured: 8 lanes 20 % slower there) */
-    job.fn = SIMD_PICK(fl_quad_g, fl_quad_v3_, job.c.restart ? fl_quad_v4_ : fl_quad_v4n_);
-    job.width = SIMD_PICK(4, 4, job.c.restart ? 8 : 4);
+    /* AVX-512: blocks of 8.  The regressors are formed and their Gram matrix summed chunk
+     * by chunk, and the residual's products are added while its rows are in the cache, so a
+     * block's regressors (3 MB at order 16, K = 1,500, with 8 lanes) are written once and read
+     * once from further out; the rule "measured"'s nb recursions are chains of dependent steps,
+     * which 8 lanes run at the cost of 4 (measured, AMD Zen 4, OE(16,16,1) next to the poles:
+     * 8 lanes about 10 % faster than 4 under "estimate", level under "zero") */
+    job.fn = SIMD_PICK(fl_quad_g, fl_quad_v3_, fl_quad_v4_);
+    job.width = SIMD_PICK(4, 4, 8);
     return flexid_run_units(&job, fl_unit, (job.c.P + job.width - 1) / job.width, n_threads);
 }
 #endif

@@ -1,14 +1,14 @@
 /*
  * flagged_lanes.h: the kernel of flagged.c for one vector type, included by flagged.c once
  * per width (FLV the vector of FLW candidates, FLN(name) the name of its copy): 4 lanes, and
- * 8 for the AVX-512 copy of the rule "measured", whose nb recursions are chains of dependent
- * steps that 8 lanes run at the cost of 4.  Not a header of its own job: it is flagged.c's
- * code, written once for both widths.
+ * 8 for the AVX-512 copy.  Not a header of its own job: it is flagged.c's code, written once
+ * for both widths.
  */
 typedef void (*FLN(fl_rec_fn))(const FLV *A, const FLV *f, FLV *y, Py_ssize_t len, FLV *Z0);
 
 /* y(t) = f(t) + Z_0, Z_k <- Z_(k+1) - a_(k+1) y(t): the transposed direct form with the state
- * in registers (n a constant), from the state Z0 (f NULL: no input) */
+ * in registers (n a constant), from the state Z0, which is left as the state after the last
+ * sample (f NULL: no input) */
 static inline __attribute__((always_inline)) void
 FLN(fl_rec_impl)(const FLV *A, const FLV *f, FLV *y, Py_ssize_t len, FLV *Z0, const int n)
 {
@@ -31,117 +31,151 @@ FLN(fl_rec_impl)(const FLV *A, const FLV *f, FLV *y, Py_ssize_t len, FLV *Z0, co
     else
         for (Py_ssize_t t = 0; t < len; ++t) FL_STEP(zero);
 #undef FL_STEP
+    for (int k = 0; k < n; ++k) Z0[k] = Z[k]; /* the state after y(len - 1): a run goes on */
 }
 
-/* One lattice stage over t = 0 .. len - 1 (Levinson's step-up of the numerators): from
- * fin = f_(m-1), the previous stage's b = b_(m-1) (zeros before t = 0) and the reflection
- * coefficient k, b_m(t) = b(t - 1) + k fin(t) into bn (and into out[t - off] for t >= off)
- * and, with fout, f_m(t) = fin(t) + k b(t - 1) into fout (fin itself is fine) */
+/* G stages m0 .. m0 + G - 1 of the lattice (Levinson's step-up of the numerators) over
+ * samples i = 0 .. len - 1, the stages' delayed values in registers: from fin = f_(m0-1) and
+ * bin = b_(m0-1), and d[j] = b_(m0-1+j) one sample before the first (left as those after the
+ * last), b_m(t) = b_(m-1)(t - 1) + k_m f_(m-1)(t) into out row m - m0 (ld apart) where store,
+ * f_m(t) = f_(m-1)(t) + k_m b_(m-1)(t - 1), and the last stage's f and b into fout and bout
+ * (which may be fin and bin: each sample is read before it is written) */
 static inline __attribute__((always_inline)) void
-FLN(fl_stage)(const FLV *fin, FLV *fout, const FLV *b, FLV *bn, const FLV k, Py_ssize_t len,
-              FLV *out, Py_ssize_t off)
+FLN(fl_stages)(const FLV *fin, const FLV *bin, FLV *fout, FLV *bout, FLV *d, const FLV *k,
+               const int G, const Py_ssize_t len, FLV *out, const Py_ssize_t ld, const int store)
 {
-    Py_ssize_t t = 0;
-#define FL_STAGE(store)                                                                       \
-    do {                                                                                      \
-        const FLV old_ = b[t - 1], fo_ = fin[t], bt_ = old_ + k * fo_;                         \
-        bn[t] = bt_;                                                                          \
-        if (fout) fout[t] = fo_ + k * old_;                                                   \
-        if (store) out[t - off] = bt_;                                                        \
-    } while (0)
-    for (; t < off; ++t) FL_STAGE(0);
-    for (; t < len; ++t) FL_STAGE(1);
-#undef FL_STAGE
+    FLV dd[4], kk[4];
+    _Pragma("GCC unroll 4") for (int j = 0; j < G; ++j) {
+        dd[j] = d[j];
+        kk[j] = k[j];
+    }
+    for (Py_ssize_t i = 0; i < len; ++i) {
+        FLV fv = fin[i], bv = bin[i];
+        _Pragma("GCC unroll 4") for (int j = 0; j < G; ++j) {
+            const FLV old = dd[j];
+            dd[j] = bv;
+            bv = old + kk[j] * fv;
+            fv = fv + kk[j] * old;
+            if (store) out[j * ld + i] = bv;
+        }
+        fout[i] = fv;
+        bout[i] = bv;
+    }
+    _Pragma("GCC unroll 4") for (int j = 0; j < G; ++j) d[j] = dd[j];
 }
 
 /* The regressors P_m(q) s, m = 0 .. count - 1, of the orthogonal numerators' basis in
- * lattice form: P_m is the reversed step-up polynomial of order m (m <= n; kref[m] its
- * reflection coefficient, from den's step-down) and P_m = q^-(m - n) P_n above, so
+ * lattice form, over the samples t = t0 .. t1 - 1 of a run that goes on from call to call:
+ * P_m is the reversed step-up polynomial of order m (m <= n; kref[m] its reflection
+ * coefficient, from den's step-down) and P_m = q^-(m - n) P_n above, so
  * b_m(t) = b_(m-1)(t - 1) + k_m f_(m-1)(t), f_m(t) = f_(m-1)(t) + k_m b_(m-1)(t - 1),
- * b_0 = f_0 = s: two multiply-adds a regressor and sample where the FIR filters of the
- * basis take m + 1.  s over t = 0 .. len - 1 with zeros before; out row m (ld apart) gets
- * b_m(t) for t = off .. len - 1; f (len) and the two rows t0, t1 (len each, with count - n
- * or more zeros before) are scratch. */
+ * b_0 = f_0 = s: two multiply-adds a regressor and sample where the FIR filters of the basis
+ * take m + 1, in groups of four stages that keep their delayed values in registers (one pass
+ * over the samples a group, not one a stage).  s indexed by t, with zeros before t = 0;
+ * with store, out row m (ld apart) gets b_m(t) at t - off (t0 >= off); bd (n) holds the
+ * b_m(t0 - 1), m < top, zeros before the first call; f and bp (t1 - t0 each) are scratch,
+ * and btop (indexed by t, count - n or more zeros before t = 0) keeps b_n for the delays. */
 static inline __attribute__((always_inline)) void
-FLN(fl_lattice)(const FLV *s, const FLV *kref, const int count, const int n, Py_ssize_t len,
-                Py_ssize_t off, FLV *out, Py_ssize_t ld, FLV *f, FLV *t0, FLV *t1)
+FLN(fl_lattice)(const FLV *s, const FLV *kref, const int count, const int n, Py_ssize_t t0,
+                Py_ssize_t t1, Py_ssize_t off, FLV *out, Py_ssize_t ld, const int store, FLV *bd,
+                FLV *f, FLV *bp, FLV *btop)
 {
     const int top = count - 1 < n ? count - 1 : n; /* stages of the step-up */
-    const FLV *b = s, *fin = s;
-    for (Py_ssize_t t = off; t < len; ++t) out[t - off] = s[t];
-    for (int m = 1; m <= top; ++m) {
-        FLV *bn = (m & 1) ? t0 : t1;
-        FLN(fl_stage)(fin, m < top ? f : NULL, b, bn, kref[m], len, out + m * ld, off);
-        b = bn;
+    const Py_ssize_t len = t1 - t0;
+    FLV *o = out + (t0 - off);
+    if (store)
+        for (Py_ssize_t i = 0; i < len; ++i) o[i] = s[t0 + i];
+    const FLV *fin = s + t0, *bin = s + t0;
+    for (int m0 = 1; m0 <= top; m0 += 4) {
+        const int G = top - m0 + 1 < 4 ? top - m0 + 1 : 4;
+        FLV *om = o + m0 * ld, *dm = bd + m0 - 1;
+        const FLV *km = kref + m0;
+        if (G == 4)
+            FLN(fl_stages)(fin, bin, f, bp, dm, km, 4, len, om, ld, store);
+        else if (G == 3)
+            FLN(fl_stages)(fin, bin, f, bp, dm, km, 3, len, om, ld, store);
+        else if (G == 2)
+            FLN(fl_stages)(fin, bin, f, bp, dm, km, 2, len, om, ld, store);
+        else
+            FLN(fl_stages)(fin, bin, f, bp, dm, km, 1, len, om, ld, store);
         fin = f;
+        bin = bp;
     }
-    for (int m = top + 1; m < count; ++m) /* q^-(m - n) P_n: b_n delayed */
-        for (Py_ssize_t t = off; t < len; ++t) out[m * ld + t - off] = b[t - (m - top)];
+    if (count - 1 <= top) return;
+    for (Py_ssize_t i = 0; i < len; ++i) btop[t0 + i] = bin[i];
+    if (store)
+        for (int m = top + 1; m < count; ++m) /* q^-(m - n) P_n: b_n delayed */
+            for (Py_ssize_t i = 0; i < len; ++i) o[m * ld + i] = btop[t0 + i - (m - top)];
 }
 
 /* out[i * ros + j * cos] += sum_k X[i * len + k] Y[j * len + k], k = k0 .. k1 - 1 in order,
- * for a tile of tr x tc entries, their sums in registers */
+ * for a tile of tr x tc entries (with tri only those with b <= a, the lower half of a tile on
+ * the diagonal), their sums in registers */
 static inline __attribute__((always_inline)) void
 FLN(fl_tile)(const FLV *X, const FLV *Y, const Py_ssize_t len, const int i0, const int j0,
         const int tr, const int tc, FLV *out, const Py_ssize_t ros, const Py_ssize_t cos,
-        const Py_ssize_t k0, const Py_ssize_t k1)
+        const Py_ssize_t k0, const Py_ssize_t k1, const int tri)
 {
     FLV s[4][4];
     _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
         _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b)
-            s[a][b] = out[(i0 + a) * ros + (j0 + b) * cos];
+            if (!tri || b <= a) s[a][b] = out[(i0 + a) * ros + (j0 + b) * cos];
     for (Py_ssize_t k = k0; k < k1; ++k) {
         FLV x[4], y[4];
         _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a) x[a] = X[(i0 + a) * len + k];
         _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b) y[b] = Y[(j0 + b) * len + k];
         _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
-            _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b) s[a][b] += x[a] * y[b];
+            _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b)
+                if (!tri || b <= a) s[a][b] += x[a] * y[b];
     }
     _Pragma("GCC unroll 4") for (int a = 0; a < tr; ++a)
         _Pragma("GCC unroll 4") for (int b = 0; b < tc; ++b)
-            out[(i0 + a) * ros + (j0 + b) * cos] = s[a][b];
+            if (!tri || b <= a) out[(i0 + a) * ros + (j0 + b) * cos] = s[a][b];
 }
 
-/* out = the nx x ny products of fl_tile (with lower, only the tiles that reach j <= i), in
- * tiles of t x t (t = 4 with 32 registers, 3 with 16), the edges in 1 x t, t x 1 and 1 x 1.
- * The samples run in chunks of FL_CHUNK, every tile over one chunk before the next: a chunk
- * of the rows stays in the first-level cache for all its tiles, where tile after tile over
- * the whole record would stream the rows (a megabyte and more) from further out each time.
- * Each sum still adds its products in the order of k. */
+/* out += the nx x ny products of fl_tile over the samples k0 .. k1 - 1 (with lower, only the
+ * entries j <= i), in tiles of t x t (t = 4 with 32 registers, 3 with 16), the edges in
+ * 1 x t, t x 1 and 1 x 1.  Called chunk after chunk of FL_CHUNK samples while the chunk's
+ * rows are in the first-level cache for all its tiles (tile after tile over the whole record
+ * would stream the rows, a megabyte and more, from further out each time); each sum still
+ * adds its products in the order of k. */
 static inline __attribute__((always_inline)) void
 FLN(fl_products)(const FLV *X, const int nx, const FLV *Y, const int ny, const Py_ssize_t len,
-            FLV *out, const Py_ssize_t ros, const Py_ssize_t cos, const int lower, const int t)
+            FLV *out, const Py_ssize_t ros, const Py_ssize_t cos, const int lower, const int t,
+            const Py_ssize_t k0, const Py_ssize_t k1)
 {
-    const FLV zero = {0};
     const int mx = nx - nx % t, my = ny - ny % t;
-    for (int i = 0; i < nx; ++i)
-        for (int j = 0; j < ny; ++j) out[i * ros + j * cos] = zero;
-    for (Py_ssize_t k0 = 0; k0 < len; k0 += FL_CHUNK) {
-        const Py_ssize_t k1 = k0 + FL_CHUNK < len ? k0 + FL_CHUNK : len;
-        for (int i = 0; i < mx; i += t)
-            for (int j = 0; j < my && (!lower || j <= i + t - 1); j += t)
-                FLN(fl_tile)(X, Y, len, i, j, t, t, out, ros, cos, k0, k1);
-        for (int i = mx; i < nx; ++i)
-            for (int j = 0; j < my && (!lower || j <= i); j += t)
-                FLN(fl_tile)(X, Y, len, i, j, 1, t, out, ros, cos, k0, k1);
-        for (int j = my; j < ny; ++j)
-            for (int i = lower ? j - j % t : 0; i < mx; i += t)
-                FLN(fl_tile)(X, Y, len, i, j, t, 1, out, ros, cos, k0, k1);
-        for (int i = mx; i < nx; ++i)
-            for (int j = my; j < ny && (!lower || j <= i); ++j)
-                FLN(fl_tile)(X, Y, len, i, j, 1, 1, out, ros, cos, k0, k1);
-    }
+    for (int i = 0; i < mx; i += t)
+        for (int j = 0; j < my && (!lower || j <= i + t - 1); j += t) {
+            if (lower && j == i)
+                FLN(fl_tile)(X, Y, len, i, j, t, t, out, ros, cos, k0, k1, 1);
+            else
+                FLN(fl_tile)(X, Y, len, i, j, t, t, out, ros, cos, k0, k1, 0);
+        }
+    for (int i = mx; i < nx; ++i)
+        for (int j = 0; j < my && (!lower || j <= i); j += t)
+            FLN(fl_tile)(X, Y, len, i, j, 1, t, out, ros, cos, k0, k1, 0);
+    for (int j = my; j < ny; ++j)
+        for (int i = lower ? j - j % t : 0; i < mx; i += t)
+            FLN(fl_tile)(X, Y, len, i, j, t, 1, out, ros, cos, k0, k1, 0);
+    for (int i = mx; i < nx; ++i)
+        for (int j = my; j < ny && (!lower || j <= i); ++j)
+            FLN(fl_tile)(X, Y, len, i, j, 1, 1, out, ros, cos, k0, k1, 0);
 }
 
-/* e = z - sum_j c_j R_j over the len samples (R rows of len, z the row after the last), 8
- * samples side by side; returns sum e^2 */
-static inline __attribute__((always_inline)) FLV
-FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len, FLV *e)
+/* e = z - sum_j c_j R_j over the len samples (R rows of len, z the row after the last) and
+ * st_j = sum_t R_j(t) e(t), 8 samples side by side: the sweep over the rows that forms e on
+ * those 8 leaves them in the first-level cache for the sweep that adds their products (each
+ * st_j in the order of t).  Each e^2 into ee[t % 8] (ee[0] for the samples after the last 8);
+ * fl_sum8(ee) is then sum e^2. */
+static inline __attribute__((always_inline)) void
+FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len, FLV *e,
+                 FLV ee[8], FLV *st)
 {
     const FLV zero = {0};
     const FLV *z = R + nr * len;
-    FLV ee[8];
     _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) ee[r] = zero;
+    for (int j = 0; j < nr; ++j) st[j] = zero;
     Py_ssize_t t = 0;
     for (; t + 8 <= len; t += 8) {
         FLV s[8];
@@ -154,13 +188,24 @@ FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len,
             e[t + r] = s[r];
             ee[r] += s[r] * s[r];
         }
+        for (int j = 0; j < nr; ++j) {
+            const FLV *x = R + j * len + t;
+            FLV a = st[j];
+            _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) a += x[r] * s[r];
+            st[j] = a;
+        }
     }
     for (; t < len; ++t) {
         FLV s = z[t];
         for (int j = 0; j < nr; ++j) s -= c[j] * R[j * len + t];
         e[t] = s;
         ee[0] += s * s;
+        for (int j = 0; j < nr; ++j) st[j] += R[j * len + t] * s;
     }
+}
+
+static inline __attribute__((always_inline)) FLV FLN(fl_sum8)(const FLV ee[8])
+{
     return ((ee[0] + ee[1]) + (ee[2] + ee[3])) + ((ee[4] + ee[5]) + (ee[6] + ee[7]));
 }
 
@@ -224,11 +269,12 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
     for (int k = 0; k < nl && c->lead; ++k)
         for (int l = 0; l < FLW; ++l) Lv[k][l] = c->lead[row[l] * c->lead_stride + k];
     /* the scratch: w and x (or one forcing) with FL_PAD zeros before each, h, the regressors
-     * and the target (rows of K), the residual, the Gram matrix and its factor */
+     * and the target (rows of K), the residual, the Gram matrix and its factor, b_n of the
+     * lattice (FL_PAD zeros before), the lattice's two rows of a chunk */
     FLV *wv = buf + FL_PAD, *xv = wv + N + FL_PAD, *hv = xv + N + FL_PAD;
     FLV *R = hv + K, *e = R + (Py_ssize_t)(nr + 1) * K, *G = e + K;
     FLV *Lc = G + (nr + 1) * (nr + 1);
-    FLV *t0 = Lc + nr * nr + FL_PAD, *t1 = t0 + N + FL_PAD; /* the lattice's rows */
+    FLV *btop = Lc + nr * nr + FL_PAD, *fc = btop + N, *bc = fc + FL_CHUNK;
     /* w(t) = sum_k lead_k sig(t - k) over t = 0 .. N - 1 (zeros before) */
     for (Py_ssize_t t = 0; t < N; ++t) {
         if (!c->lead) {
@@ -249,18 +295,17 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         for (int m = 1; m <= n; ++m) kref[m][l] = fine ? k[m - 1] : 0.0;
     }
     for (int k = 0; k < n; ++k) Z[k] = zero;
+    /* the lattice's input: x = w / den from rest, or with restart w itself (each regressor's
+     * recursion then runs from rest at t = start) */
+    const FLV *lin = wv;
     if (!c->restart) {
-        rec(A, wv, xv, N, Z); /* x; then the P_m(q) x in lattice form, w's row as scratch */
-        FLN(fl_lattice)(xv, kref, nb, n, N, start, R, K, wv, t0, t1);
-    } else { /* the P_m(q) w into the regressors' rows, then each one's recursion in place */
-        FLN(fl_lattice)(wv, kref, nb, n, N, start, R, K, xv, t0, t1);
-        for (int m = 0; m < nb; ++m) rec(A, R + m * K, R + m * K, K, Z);
+        rec(A, wv, xv, N, Z);
+        lin = xv;
     }
-    if (free_) {
-        Z[0] = zero + 1.0; /* the impulse response: y(0) = 1 */
+    if (free_) { /* the impulse response from t = start: y(0) = 1 */
+        for (int k = 0; k < n; ++k) Z[k] = zero;
+        Z[0] = zero + 1.0;
         rec(A, NULL, hv, K, Z);
-        Z[0] = zero;
-        FLN(fl_lattice)(hv, kref, n, n, K, 0, R + (Py_ssize_t)nb * K, K, e, t0, t1);
     }
     FLV *zt = R + (Py_ssize_t)nr * K;
     for (Py_ssize_t t = 0; t < K; ++t) {
@@ -278,9 +323,32 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         rec(A, NULL, e, K, Z);
         for (Py_ssize_t t = 0; t < K; ++t) zt[t] -= e[t];
     }
-    /* G (nr + 1 rows of nr + 1): the Gram matrix, its last row the products with z */
+    /* The regressors chunk by chunk, and the Gram matrix G (nr + 1 rows of nr + 1, its last
+     * row the products with z) over each chunk while its rows are in the cache: the lattice
+     * over the samples before start first (nothing stored), then each chunk's P_m(q) of the
+     * input (and with restart their recursions, each going on from its state), the free
+     * responses' Q_k(q) h, and the chunk's products */
+    FLV bdx[FL_MAXN], bdh[FL_MAXN], Zr[FL_MAXNB][FL_MAXN];
+    for (int k = 0; k < n; ++k) bdx[k] = bdh[k] = zero;
+    for (int m = 0; m < nb; ++m)
+        for (int k = 0; k < n; ++k) Zr[m][k] = zero;
+    for (Py_ssize_t t = 0; t < start; t += FL_CHUNK) {
+        const Py_ssize_t t1 = t + FL_CHUNK < start ? t + FL_CHUNK : start;
+        FLN(fl_lattice)(lin, kref, nb, n, t, t1, 0, R, K, 0, bdx, fc, bc, btop);
+    }
     const int ld = nr + 1;
-    FLN(fl_products)(R, nr + 1, R, nr, K, G, ld, 1, 1, tile);
+    for (int i = 0; i < ld * ld; ++i) G[i] = zero;
+    for (Py_ssize_t k0 = 0; k0 < K; k0 += FL_CHUNK) {
+        const Py_ssize_t k1 = k0 + FL_CHUNK < K ? k0 + FL_CHUNK : K;
+        FLN(fl_lattice)(lin, kref, nb, n, start + k0, start + k1, start, R, K, 1, bdx, fc, bc,
+                        btop);
+        if (c->restart)
+            for (int m = 0; m < nb; ++m) rec(A, R + m * K + k0, R + m * K + k0, k1 - k0, Zr[m]);
+        if (free_)
+            FLN(fl_lattice)(hv, kref, n, n, k0, k1, 0, R + (Py_ssize_t)nb * K, K, 1, bdh, fc, bc,
+                            NULL);
+        FLN(fl_products)(R, nr + 1, R, nr, K, G, ld, 1, 1, tile, k0, k1);
+    }
     FLV sc[FL_MAXR], inv[FL_MAXR], Rp[FL_MAXR], cf[FL_MAXR], st[FL_MAXR];
     for (int i = 0; i < nr; ++i)
         for (int l = 0; l < FLW; ++l) {
@@ -305,8 +373,9 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
     for (int l = 0; l < FLW; ++l) moving[l] = l < w;
     FLV sse = zero, raw[FL_MAXR];
     for (int it = 0; it < 2 && any; ++it) {
-        const FLV ee = FLN(fl_residual)(R, nr, cf, K, e);
-        FLN(fl_products)(R, nr, e, 1, K, st, 1, 1, 0, tile);
+        FLV e8[8];
+        FLN(fl_residual)(R, nr, cf, K, e, e8, st);
+        const FLV ee = FLN(fl_sum8)(e8);
         for (int i = 0; i < nr; ++i) {
             raw[i] = st[i];
             st[i] *= inv[i];
