@@ -270,11 +270,11 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         for (int l = 0; l < FLW; ++l) Lv[k][l] = c->lead[row[l] * c->lead_stride + k];
     /* the scratch: w and x (or one forcing) with FL_PAD zeros before each, h, the regressors
      * and the target (rows of K), the residual, the Gram matrix and its factor, b_n of the
-     * lattice (FL_PAD zeros before), the lattice's two rows of a chunk */
+     * lattice (FL_PAD zeros before), the lattice's two rows of a span */
     FLV *wv = buf + FL_PAD, *xv = wv + N + FL_PAD, *hv = xv + N + FL_PAD;
     FLV *R = hv + K, *e = R + (Py_ssize_t)(nr + 1) * K, *G = e + K;
     FLV *Lc = G + (nr + 1) * (nr + 1);
-    FLV *btop = Lc + nr * nr + FL_PAD, *fc = btop + N, *bc = fc + FL_CHUNK;
+    FLV *btop = Lc + nr * nr + FL_PAD, *fc = btop + N, *bc = fc + FL_SPAN;
     /* w(t) = sum_k lead_k sig(t - k) over t = 0 .. N - 1 (zeros before) */
     for (Py_ssize_t t = 0; t < N; ++t) {
         if (!c->lead) {
@@ -323,31 +323,34 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
         rec(A, NULL, e, K, Z);
         for (Py_ssize_t t = 0; t < K; ++t) zt[t] -= e[t];
     }
-    /* The regressors chunk by chunk, and the Gram matrix G (nr + 1 rows of nr + 1, its last
-     * row the products with z) over each chunk while its rows are in the cache: the lattice
-     * over the samples before start first (nothing stored), then each chunk's P_m(q) of the
+    /* The regressors span by span, and the Gram matrix G (nr + 1 rows of nr + 1, its last
+     * row the products with z) over each span while its rows are in the cache: the lattice
+     * over the samples before start first (nothing stored), then each span's P_m(q) of the
      * input (and with restart their recursions, each going on from its state), the free
-     * responses' Q_k(q) h, and the chunk's products */
+     * responses' Q_k(q) h, and the span's products, chunk by chunk */
     FLV bdx[FL_MAXN], bdh[FL_MAXN], Zr[FL_MAXNB][FL_MAXN];
     for (int k = 0; k < n; ++k) bdx[k] = bdh[k] = zero;
     for (int m = 0; m < nb; ++m)
         for (int k = 0; k < n; ++k) Zr[m][k] = zero;
-    for (Py_ssize_t t = 0; t < start; t += FL_CHUNK) {
-        const Py_ssize_t t1 = t + FL_CHUNK < start ? t + FL_CHUNK : start;
+    for (Py_ssize_t t = 0; t < start; t += FL_SPAN) {
+        const Py_ssize_t t1 = t + FL_SPAN < start ? t + FL_SPAN : start;
         FLN(fl_lattice)(lin, kref, nb, n, t, t1, 0, R, K, 0, bdx, fc, bc, btop);
     }
     const int ld = nr + 1;
     for (int i = 0; i < ld * ld; ++i) G[i] = zero;
-    for (Py_ssize_t k0 = 0; k0 < K; k0 += FL_CHUNK) {
-        const Py_ssize_t k1 = k0 + FL_CHUNK < K ? k0 + FL_CHUNK : K;
-        FLN(fl_lattice)(lin, kref, nb, n, start + k0, start + k1, start, R, K, 1, bdx, fc, bc,
+    for (Py_ssize_t s0 = 0; s0 < K; s0 += FL_SPAN) {
+        const Py_ssize_t s1 = s0 + FL_SPAN < K ? s0 + FL_SPAN : K;
+        FLN(fl_lattice)(lin, kref, nb, n, start + s0, start + s1, start, R, K, 1, bdx, fc, bc,
                         btop);
         if (c->restart)
-            for (int m = 0; m < nb; ++m) rec(A, R + m * K + k0, R + m * K + k0, k1 - k0, Zr[m]);
+            for (int m = 0; m < nb; ++m) rec(A, R + m * K + s0, R + m * K + s0, s1 - s0, Zr[m]);
         if (free_)
-            FLN(fl_lattice)(hv, kref, n, n, k0, k1, 0, R + (Py_ssize_t)nb * K, K, 1, bdh, fc, bc,
+            FLN(fl_lattice)(hv, kref, n, n, s0, s1, 0, R + (Py_ssize_t)nb * K, K, 1, bdh, fc, bc,
                             NULL);
-        FLN(fl_products)(R, nr + 1, R, nr, K, G, ld, 1, 1, tile, k0, k1);
+        for (Py_ssize_t k0 = s0; k0 < s1; k0 += FL_CHUNK) {
+            const Py_ssize_t k1 = k0 + FL_CHUNK < s1 ? k0 + FL_CHUNK : s1;
+            FLN(fl_products)(R, nr + 1, R, nr, K, G, ld, 1, 1, tile, k0, k1);
+        }
     }
     FLV sc[FL_MAXR], inv[FL_MAXR], Rp[FL_MAXR], cf[FL_MAXR], st[FL_MAXR];
     for (int i = 0; i < nr; ++i)
