@@ -19,11 +19,13 @@ each under the initial-condition rules the cost has (ARX: ``measured``; the stru
 structures' rows time the one-pass fit of the initial state
 (:func:`flexid.kernels.initial_state_fit`).
 
-Run:  python benchmarks/bench_structures.py
+Run:  python benchmarks/bench_structures.py [--simd avx2]
+(``--simd``: the compiled kernels' instruction set, default the best this CPU has.)
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only cost
@@ -64,6 +66,16 @@ def stable_population(struct, rng: np.random.Generator) -> np.ndarray:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--simd", choices=["generic", "avx2", "avx512"], default=None)
+    args = parser.parse_args()
+    simd = "none"
+    if kernels.BACKEND == "c":
+        from flexid import _kernels
+
+        if args.simd:
+            _kernels.simd(args.simd)
+        simd = _kernels.simd()[0]
     rng = np.random.default_rng(0)
     u, y = record(rng)
     arx = ARXStructure(16, 16, 1)
@@ -122,8 +134,8 @@ def main() -> None:
         rows.append((name, "   ".join(cells)))
     print_table(
         rows,
-        f"N = {N}, population {P}, kernels {kernels.BACKEND}; per candidate and the ratio to "
-        "the ARX row of the same kind (given parameters, or b fitted), on "
+        f"N = {N}, population {P}, kernels {kernels.BACKEND} ({simd}); per candidate and the "
+        "ratio to the ARX row of the same kind (given parameters, or b fitted), on "
         + " and ".join(f"{n} thread{'s' * (n > 1)}" for n in counts),
     )
 
