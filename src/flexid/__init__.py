@@ -50,12 +50,12 @@ are registered once both flexid and Gymnasium are imported, in either order (see
 
 from __future__ import annotations
 
-import importlib
 import sys
 from collections.abc import Callable
 from typing import Any
 
 from ._gymnasium_hook import install as _install_gymnasium_hook
+from ._lazy import lazy_exports
 from ._moved import FINDER as _MOVED_FINDER
 from ._version import __version__
 from .errors import (
@@ -178,20 +178,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _LAZY:
-        raise AttributeError(f"module 'flexid' has no attribute {name!r}")
-    module_name = _LAZY[name]
-    if module_name is None:
-        value = importlib.import_module(f".{name}", __name__)
-    else:
-        value = getattr(importlib.import_module(f".{module_name}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 
 def _register_notebook_figures() -> None:

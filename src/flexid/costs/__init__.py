@@ -21,7 +21,7 @@ The metrics a cost reports are :mod:`flexid.costs.metrics`.
 
 from __future__ import annotations
 
-from ..models._lazy import lazy_exports
+from .._lazy import lazy_exports
 
 # public name -> submodule that defines it (imported on first use, so importing one
 # submodule does not import the others)

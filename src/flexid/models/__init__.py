@@ -24,7 +24,7 @@ classes.
 
 from __future__ import annotations
 
-from ._lazy import lazy_exports
+from .._lazy import lazy_exports
 
 # public name -> submodule that defines it (imported on first use, so importing one
 # submodule does not import the others)

@@ -1,7 +1,7 @@
 """A package's names imported from its submodules on first use (:pep:`562`).
 
-:mod:`flexid.models` and :mod:`flexid.costs` export their classes this way, so importing one
-submodule does not import the others.
+The front door, :mod:`flexid.models` and :mod:`flexid.costs` export their names this way, so
+importing one submodule does not import the others.
 """
 
 from __future__ import annotations
@@ -15,19 +15,24 @@ __all__: list[str] = []
 
 
 def lazy_exports(
-    package: str, table: Mapping[str, str]
+    package: str, table: Mapping[str, str | None]
 ) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
     """The module ``__getattr__`` and ``__dir__`` of ``package`` for the names of ``table``.
 
     ``__getattr__`` imports a name from its submodule (``table``: public name -> submodule
-    of ``package``) and keeps it in the package's namespace, so it is imported once.
+    of ``package``, or None where the name is a submodule itself) and keeps it in the
+    package's namespace, so it is imported once.
     """
     namespace = sys.modules[package].__dict__
 
     def __getattr__(name: str) -> Any:
         if name not in table:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        value = getattr(importlib.import_module(f".{table[name]}", package), name)
+        module = table[name]
+        if module is None:
+            value = importlib.import_module(f".{name}", package)
+        else:
+            value = getattr(importlib.import_module(f".{module}", package), name)
         namespace[name] = value
         return value
 
