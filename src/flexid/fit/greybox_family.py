@@ -21,6 +21,7 @@ from ..models.greybox_library import greybox_model
 from ..models.specs import CostSpec, SearchSpec
 from ..models.vocabulary import GREYBOX_REFERENCE_STARTS
 from ..validation.diagnostics import _check_max_lag
+from ..validation.portmanteau import ParameterEffect, estimation_root
 from ..validation.verdict import (
     GREYBOX_ESTIMATED_RULE,
     GREYBOX_RULE,
@@ -74,7 +75,8 @@ class GreyBoxFamily(Family):
         split: float | int | None, dt: float | None, output: str | None,
         estimated_on: Any = None,
     ) -> ValidationReport:
-        return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt, output=output)
+        return _validate_greybox(model, data, max_lag=max_lag, split=split, dt=dt, output=output,
+                                 estimated_on=estimated_on)
 
     validate.__doc__ = None  # Family.validate's
 
@@ -137,7 +139,7 @@ def _linearised_poles(model: Any, dt: float) -> np.ndarray:
 
 def _validate_greybox(
     model: Any, data: Any, *, max_lag: int, split: float | int | None, dt: float | None,
-    output: str | None = None,
+    output: str | None = None, estimated_on: Any = None,
 ) -> ValidationReport:
     """:func:`validate` for a grey-box model: simulated from its own initial state."""
     u_full, y_all, sample_time = record_for(model, data, dt)
@@ -171,7 +173,76 @@ def _validate_greybox(
         y_full, None, ysim_full, u_full, start=start, dt=sample_time, max_lag=max_lag,
         names=list(model.inputs), output_name=str(model.outputs[k]), initial=rule,
         initial_one_step=rule, poles=_linearised_poles(model, sample_time), zeros=[],
+        effect=_parameter_effect(model, u_full, sample_time, k, start, estimated_on),
     )
+
+
+#: Relative step of the central differences of a grey-box model's simulation (of each
+#: estimated parameter's magnitude, at least 1e-3 of it): their truncation error is of the
+#: order of the step squared, their rounding of eps over the step, both far below the
+#: estimate's own standard error.
+GRADIENT_STEP = 1e-6
+
+
+def _simulation_gradient(model: GreyBoxModel, u: np.ndarray, dt: float) -> np.ndarray:
+    """``d e / d theta`` (N, n_y, n_free) of the simulation errors ``e = y - y_sim`` with
+    respect to the estimated parameters: central differences, the ``2 n_free`` perturbed
+    parameter sets simulated as one population."""
+    theta = model.theta
+    p = theta.size
+    h = GRADIENT_STEP * np.maximum(np.abs(theta), 1e-3)
+    free = np.repeat(theta[None, :], 2 * p, axis=0)
+    free[np.arange(p), np.arange(p)] += h
+    free[p + np.arange(p), np.arange(p)] -= h
+    with np.errstate(all="ignore"):
+        y = model.simulate(model.full(free), u, dt)
+    return -np.moveaxis((y[:p] - y[p:]) / (2.0 * h[:, None, None]), 0, -1)
+
+
+def _parameter_effect(
+    model: GreyBoxModel, u: np.ndarray, dt: float, k: int, start: int, estimated_on: Any
+) -> ParameterEffect | None:
+    """How the estimate of a grey-box model's parameters enters output ``k``'s residual
+    tests (:mod:`flexid.validation.portmanteau`), or None: the parameters taken as known.
+
+    The gradient of output ``k``'s simulation error over the tested samples (``t >= start``)
+    and, for a held-out record, the triangular factor of the gradient on the estimation
+    record(s), every sample (the simulation cost counts them all). With several outputs the
+    estimate weighs each output's errors: their gradients are stacked, each scaled by
+    ``sigma_k / sigma_o`` (the estimation records' residual deviations), so that the factor
+    gives the estimate's covariance in output ``k``'s noise, exact where the cost's weights
+    are proportional to the noise, as for the state-space family. On the estimation record
+    itself the estimate is partialled out with one output; with several the joint estimate
+    is orthogonal to no single output's gradient, and the parameters are taken as known.
+    The initial states a model estimates count like its other parameters (on a validation
+    record of their own, where they are refitted, as if estimated with the rest). None where
+    the model estimates nothing or its simulation is not finite.
+    """
+    if estimated_on is None or model.n_free == 0:
+        return None
+    if isinstance(estimated_on, str) and estimated_on != "same":
+        raise DataError(f"estimated_on must be 'same', a record or records, got {estimated_on!r}")
+    n_y = len(model.outputs)
+    if isinstance(estimated_on, str) and n_y > 1:
+        return None
+    here = _simulation_gradient(model, u, dt)[start:, k, :]
+    if not np.isfinite(here).all():
+        return None
+    if isinstance(estimated_on, str):
+        return ParameterEffect(here)
+    records = [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
+    rows = []
+    for r in records:
+        u_r, y_r, dt_r = record_for(model, r, None)
+        g = _simulation_gradient(model, u_r, dt_r)
+        if n_y > 1:
+            with np.errstate(all="ignore"):
+                sigma = np.std(y_r - model.simulate(model.nominal, u_r, dt_r)[0], axis=0)
+            g = g * (sigma[k] / np.where(sigma > 0, sigma, 1.0))[None, :, None]
+        rows.append(g.reshape(-1, g.shape[2]))
+        if not np.isfinite(rows[-1]).all():
+            return None
+    return ParameterEffect(here, estimation_root(rows))
 
 
 def greybox_of(structure: Any, greybox: str | GreyBoxModel | None) -> GreyBoxModel | None:

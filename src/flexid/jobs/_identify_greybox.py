@@ -313,9 +313,10 @@ def identify_greybox(
     reports: dict[str, tuple[ValidationReport, ValidationReport]] = {}
     for name in model.outputs:
         reports[name] = (
-            validate(fitted, est, max_lag=max_lag, output=name, alpha=alpha),
+            validate(fitted, est, max_lag=max_lag, output=name, alpha=alpha,
+                     estimated_on="same"),
             validate(on_val, val_record, max_lag=max_lag, split=val_split, output=name,
-                     alpha=alpha),
+                     alpha=alpha, estimated_on=est),
         )
     t_end = time.perf_counter()
     first = reports[model.outputs[0]]
