@@ -81,8 +81,8 @@ def test_identify_adds_the_estimation_error_to_the_held_out_null():
     for with_error, as_known in zip(ident.validation.all_tests, known.all_tests):
         assert with_error.name == as_known.name
         assert with_error.p_value >= as_known.p_value - 1e-12
-    cross = [t for t in ident.validation.all_tests if t.name.startswith("cross")][0]
-    assert cross.p_value > [t for t in known.all_tests if t.name == cross.name][0].p_value
+    cross = next(t for t in ident.validation.all_tests if t.name.startswith("cross"))
+    assert cross.p_value > next(t for t in known.all_tests if t.name == cross.name).p_value
 
 
 def test_the_effect_is_none_where_nothing_is_estimated_and_a_bad_argument_is_named():
@@ -92,3 +92,32 @@ def test_the_effect_is_none_where_nothing_is_estimated_and_a_bad_argument_is_nam
     assert _parameter_effect(_lag(), u, DT, 0, 10, None) is None
     with pytest.raises(DataError, match="estimated_on"):
         _parameter_effect(_lag(), u, DT, 0, 10, "elsewhere")
+
+
+def test_several_outputs_weigh_each_output_by_its_noise():
+    # two sensors of one state, the second with twice the noise: the estimate's information
+    # in the first output's noise is g'g (1 + 1/4), g the first output's gradient
+    model = GreyBoxModel(
+        "lag on two sensors",
+        lambda x, u, p: ((p.K * u[:, 0] - x[:, 0]) / p.T)[:, None],
+        lambda x, u, p: np.column_stack([x[:, 0], x[:, 0]]),
+        states=("x",),
+        inputs=("u",),
+        outputs=("y1", "y2"),
+        parameters=(GreyParameter("K", 2.0, 0.1, 10.0), GreyParameter("T", 0.4, 0.05, 5.0)),
+        substep=DT / 2,
+    )
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal(600)
+    clean = model.simulate(model.nominal, u, DT)[0]
+    noise = rng.standard_normal(clean.shape) * [0.05, 0.1]
+    noise -= noise.mean(axis=0)
+    noise *= [0.05, 0.1] / noise.std(axis=0)  # residual deviations exactly 0.05 and 0.1
+    est = IOData(u, clean + noise, dt=DT, input_names=["u"], output_names=["y1", "y2"])
+    effect = _parameter_effect(model, u, DT, 0, 100, est)
+    g = _simulation_gradient(model, u, DT)[:, 0, :]
+    expected = g.T @ g * 1.25
+    np.testing.assert_allclose(effect.root.T @ effect.root, expected, rtol=1e-10)
+    np.testing.assert_array_equal(effect.gradient, g[100:])
+    # on the estimation record the joint estimate is orthogonal to no one output's gradient
+    assert _parameter_effect(model, u, DT, 0, 0, "same") is None

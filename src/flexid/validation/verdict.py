@@ -930,8 +930,10 @@ def validate(
         partial that out), or records held out from ``data``, whose estimation error adds to
         the residual (the tests add its covariance); see :mod:`flexid.validation.portmanteau`.
         Default: the parameters taken as known, as for a model not estimated from data.
-        Only the polynomial family accounts for it; other families' tests take their
-        parameters as known and their reports say so.
+        The polynomial, state-space and grey-box families account for it (a state-space or
+        grey-box model of several outputs on its held-out records only); a model they cannot
+        differentiate (a state-space model given by its matrices) takes its parameters as
+        known, and its report says so.
 
     Returns
     -------
