@@ -135,10 +135,10 @@ FLN(fl_tile)(const FLV *X, const FLV *Y, const Py_ssize_t len, const int i0, con
 
 /* out += the nx x ny products of fl_tile over the samples k0 .. k1 - 1 (with lower, only the
  * entries j <= i), in tiles of t x t (t = 4 with 32 registers, 3 with 16), the edges in
- * 1 x t, t x 1 and 1 x 1.  Called chunk after chunk of FL_CHUNK samples while the chunk's
- * rows are in the first-level cache for all its tiles (tile after tile over the whole record
- * would stream the rows, a megabyte and more, from further out each time); each sum still
- * adds its products in the order of k. */
+ * 1 x t, t x 1 and 1 x 1.  Called chunk after chunk of FL_CHUNK samples, so that a chunk
+ * of the rows stays close in the cache for all its tiles, and a tile's own rows in the first
+ * level (tile after tile over the whole record would stream the rows, a megabyte and more,
+ * from further out each time); each sum still adds its products in the order of k. */
 static inline __attribute__((always_inline)) void
 FLN(fl_products)(const FLV *X, const int nx, const FLV *Y, const int ny, const Py_ssize_t len,
             FLV *out, const Py_ssize_t ros, const Py_ssize_t cos, const int lower, const int t,
@@ -163,14 +163,14 @@ FLN(fl_products)(const FLV *X, const int nx, const FLV *Y, const int ny, const P
             FLN(fl_tile)(X, Y, len, i, j, 1, 1, out, ros, cos, k0, k1, 0);
 }
 
-/* e = z - sum_j c_j R_j over the len samples (R rows of len, z the row after the last) and
- * st_j = sum_t R_j(t) e(t), 8 samples side by side: the sweep over the rows that forms e on
- * those 8 leaves them in the first-level cache for the sweep that adds their products (each
- * st_j in the order of t).  Each e^2 into ee[t % 8] (ee[0] for the samples after the last 8);
- * fl_sum8(ee) is then sum e^2. */
+/* The residual e = z - sum_j c_j R_j over the len samples (R rows of len, z the row after
+ * the last) and st_j = sum_t R_j(t) e(t), 8 samples side by side: the sweep over the rows
+ * that forms e on those 8 leaves them in the first-level cache for the sweep that adds their
+ * products (each st_j in the order of t).  Each e^2 into ee[t % 8] (ee[0] for the samples
+ * after the last 8); fl_sum8(ee) is then sum e^2.  e itself is not kept. */
 static inline __attribute__((always_inline)) void
-FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len, FLV *e,
-                 FLV ee[8], FLV *st)
+FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len, FLV ee[8],
+                 FLV *st)
 {
     const FLV zero = {0};
     const FLV *z = R + nr * len;
@@ -184,10 +184,7 @@ FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len,
             const FLV cj = c[j], *x = R + j * len + t;
             _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) s[r] -= cj * x[r];
         }
-        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) {
-            e[t + r] = s[r];
-            ee[r] += s[r] * s[r];
-        }
+        _Pragma("GCC unroll 8") for (int r = 0; r < 8; ++r) ee[r] += s[r] * s[r];
         for (int j = 0; j < nr; ++j) {
             const FLV *x = R + j * len + t;
             FLV a = st[j];
@@ -198,7 +195,6 @@ FLN(fl_residual)(const FLV *R, const int nr, const FLV *c, const Py_ssize_t len,
     for (; t < len; ++t) {
         FLV s = z[t];
         for (int j = 0; j < nr; ++j) s -= c[j] * R[j * len + t];
-        e[t] = s;
         ee[0] += s * s;
         for (int j = 0; j < nr; ++j) st[j] += R[j * len + t] * s;
     }
@@ -269,8 +265,9 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
     for (int k = 0; k < nl && c->lead; ++k)
         for (int l = 0; l < FLW; ++l) Lv[k][l] = c->lead[row[l] * c->lead_stride + k];
     /* the scratch: w and x (or one forcing) with FL_PAD zeros before each, h, the regressors
-     * and the target (rows of K), the residual, the Gram matrix and its factor, b_n of the
-     * lattice (FL_PAD zeros before), the lattice's two rows of a span */
+     * and the target (rows of K), a row of K (the free response from the past outputs), the
+     * Gram matrix and its factor, b_n of the lattice (FL_PAD zeros before), the lattice's two
+     * rows of a span */
     FLV *wv = buf + FL_PAD, *xv = wv + N + FL_PAD, *hv = xv + N + FL_PAD;
     FLV *R = hv + K, *e = R + (Py_ssize_t)(nr + 1) * K, *G = e + K;
     FLV *Lc = G + (nr + 1) * (nr + 1);
@@ -377,7 +374,7 @@ FLN(fl_quad_impl)(const fl_ctx *c, Py_ssize_t q, FLV *buf, const int wide, const
     FLV sse = zero, raw[FL_MAXR];
     for (int it = 0; it < 2 && any; ++it) {
         FLV e8[8];
-        FLN(fl_residual)(R, nr, cf, K, e, e8, st);
+        FLN(fl_residual)(R, nr, cf, K, e8, st);
         const FLV ee = FLN(fl_sum8)(e8);
         for (int i = 0; i < nr; ++i) {
             raw[i] = st[i];
