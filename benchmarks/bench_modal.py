@@ -17,7 +17,6 @@ Run:  python benchmarks/bench_modal.py [--simd avx2]
 
 from __future__ import annotations
 
-import argparse
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only cost
@@ -25,6 +24,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads on
 import platform
 
 import numpy as np
+from _simd import simd_from_arguments
 from bench_costs import interleaved_medians
 
 from flexid import kernels
@@ -41,16 +41,7 @@ P = int(os.environ.get("BENCH_P", 50))
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--simd", choices=["generic", "avx2", "avx512"], default=None)
-    args = parser.parse_args()
-    simd = "none"
-    if kernels.BACKEND == "c":
-        from flexid import _kernels
-
-        if args.simd:
-            _kernels.simd(args.simd)
-        simd = _kernels.simd()[0]
+    simd = simd_from_arguments(__doc__.splitlines()[0])
     record = generate("manipulator", preset="paper-manipulator", seed=0,
                       outputs=["hub_angle", "tip_acceleration"])  # fmt: skip
     record = record.split(index=N)[0]

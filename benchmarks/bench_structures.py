@@ -25,12 +25,12 @@ Run:  python benchmarks/bench_structures.py [--simd avx2]
 
 from __future__ import annotations
 
-import argparse
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only cost
 
 import numpy as np
+from _simd import simd_from_arguments
 from _table import print_table
 from bench_costs import interleaved_medians
 from scipy import signal
@@ -66,16 +66,7 @@ def stable_population(struct, rng: np.random.Generator) -> np.ndarray:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--simd", choices=["generic", "avx2", "avx512"], default=None)
-    args = parser.parse_args()
-    simd = "none"
-    if kernels.BACKEND == "c":
-        from flexid import _kernels
-
-        if args.simd:
-            _kernels.simd(args.simd)
-        simd = _kernels.simd()[0]
+    simd = simd_from_arguments(__doc__.splitlines()[0])
     rng = np.random.default_rng(0)
     u, y = record(rng)
     arx = ARXStructure(16, 16, 1)
