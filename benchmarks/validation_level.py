@@ -220,18 +220,14 @@ def one(task: tuple[str, str, int]) -> dict:
         # a grey-box model runs on from the record's start into the held-out third (its state
         # there is not its own initial state): validated as identify does by default
         ident = flexid.identify(data, optimiser=how, split=2 / 3, alpha=ALPHA, **orders)
-        return {
-            "name": name,
-            "seed": seed,
-            "estimation": _verdicts(ident.estimation),
-            "held out": _verdicts(ident.validation),
-            "held out, known": _verdicts(
-                flexid.validate(ident.model, data, split=2 / 3, alpha=ALPHA)
-            ),
-            "old rule": {"passed": all(_old_rule(t) for t in ident.validation.all_tests)},
-            "true model": _verdicts(flexid.validate(true, data, split=2 / 3, alpha=ALPHA)),
-        }
-    ident = flexid.identify(est, optimiser=how, validation=val, alpha=ALPHA, **orders)
+
+        def held_out(model):
+            return flexid.validate(model, data, split=2 / 3, alpha=ALPHA)
+    else:
+        ident = flexid.identify(est, optimiser=how, validation=val, alpha=ALPHA, **orders)
+
+        def held_out(model):
+            return flexid.validate(model, val, alpha=ALPHA)
     if data.n_outputs > 1:
         return {"name": name, "seed": seed, **_several(ident, true, val)}
     out = {
@@ -239,11 +235,11 @@ def one(task: tuple[str, str, int]) -> dict:
         "seed": seed,
         "estimation": _verdicts(ident.estimation),
         "held out": _verdicts(ident.validation),
-        "held out, known": _verdicts(flexid.validate(ident.model, val, alpha=ALPHA)),
+        "held out, known": _verdicts(held_out(ident.model)),
         "old rule": {"passed": all(_old_rule(t) for t in ident.validation.all_tests)},
     }
     if true is not None and name == system:
-        out["true model"] = _verdicts(flexid.validate(true, val, alpha=ALPHA))
+        out["true model"] = _verdicts(held_out(true))
     return out
 
 

@@ -21,7 +21,12 @@ from ..models.greybox_library import greybox_model
 from ..models.specs import CostSpec, SearchSpec
 from ..models.vocabulary import GREYBOX_REFERENCE_STARTS
 from ..validation.diagnostics import _check_max_lag
-from ..validation.portmanteau import ParameterEffect, estimation_root
+from ..validation.portmanteau import (
+    GRADIENT_STEP,
+    ParameterEffect,
+    estimation_records,
+    estimation_root,
+)
 from ..validation.verdict import (
     GREYBOX_ESTIMATED_RULE,
     GREYBOX_RULE,
@@ -177,13 +182,6 @@ def _validate_greybox(
     )
 
 
-#: Relative step of the central differences of a grey-box model's simulation (of each
-#: estimated parameter's magnitude, at least 1e-3 of it): their truncation error is of the
-#: order of the step squared, their rounding of eps over the step, both far below the
-#: estimate's own standard error.
-GRADIENT_STEP = 1e-6
-
-
 def _simulation_gradient(model: GreyBoxModel, u: np.ndarray, dt: float) -> np.ndarray:
     """``d e / d theta`` (N, n_y, n_free) of the simulation errors ``e = y - y_sim`` with
     respect to the estimated parameters: central differences, the ``2 n_free`` perturbed
@@ -218,19 +216,17 @@ def _parameter_effect(
     record of their own, where they are refitted, as if estimated with the rest). None where
     the model estimates nothing or its simulation is not finite.
     """
-    if estimated_on is None or model.n_free == 0:
+    records = estimation_records(estimated_on)
+    if records is None or model.n_free == 0:
         return None
-    if isinstance(estimated_on, str) and estimated_on != "same":
-        raise DataError(f"estimated_on must be 'same', a record or records, got {estimated_on!r}")
     n_y = len(model.outputs)
-    if isinstance(estimated_on, str) and n_y > 1:
+    if records == "same" and n_y > 1:
         return None
     here = _simulation_gradient(model, u, dt)[start:, k, :]
     if not np.isfinite(here).all():
         return None
-    if isinstance(estimated_on, str):
+    if records == "same":
         return ParameterEffect(here)
-    records = [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
     rows = []
     for r in records:
         u_r, y_r, dt_r = record_for(model, r, None)

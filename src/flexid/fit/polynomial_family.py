@@ -39,7 +39,7 @@ from ..models.vocabulary import (
 )
 from ..optimisers import Problem
 from ..validation.diagnostics import _check_max_lag
-from ..validation.portmanteau import ParameterEffect, estimation_root
+from ..validation.portmanteau import ParameterEffect, estimation_records, estimation_root
 from ..validation.verdict import ValidationReport, residual_report
 from .estimation import (
     EstimationProblem,
@@ -324,10 +324,9 @@ def _parameter_effect(
     the estimation records' gradients.  None when the model was not estimated from data, or its
     gradient cannot be had (a duck-typed model, an unstable predictor): the report then
     takes the parameters as known and says so."""
-    if estimated_on is None:
+    records = estimation_records(estimated_on)
+    if records is None:
         return None
-    if isinstance(estimated_on, str) and estimated_on != "same":
-        raise DataError(f"estimated_on must be 'same', a record or records, got {estimated_on!r}")
     try:
         poly = model if isinstance(model, PolynomialModel) else _as_polynomial(model)
 
@@ -336,9 +335,8 @@ def _parameter_effect(
             return prediction_jacobian(poly.structure, poly.theta, u, r.y[:, 0], initial)[1]
 
         here = gradient(record)
-        if isinstance(estimated_on, str):
+        if records == "same":
             return ParameterEffect(here)
-        records = [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
         root = estimation_root([gradient(r) for r in records])
     except (DataError, ModelOrderError):
         return None

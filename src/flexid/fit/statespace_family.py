@@ -28,7 +28,12 @@ from ..models.families import Family, ReferenceFit
 from ..models.specs import CostSpec, SearchSpec
 from ..models.statespace import StateSpaceModel, StateSpaceStructure, state_sequence
 from ..optimisers import Problem
-from ..validation.portmanteau import ParameterEffect, estimation_root
+from ..validation.portmanteau import (
+    GRADIENT_STEP,
+    ParameterEffect,
+    estimation_records,
+    estimation_root,
+)
 from ..validation.verdict import ValidationReport, residual_report
 from .parametrisation import SearchBox
 from .reference import StartOrReference, _simulation_in_own_bounds
@@ -197,13 +202,6 @@ def free_response_fit(model: StateSpaceModel, u: np.ndarray, y: np.ndarray) -> n
     return np.linalg.lstsq(design, ((y - forced) / scale).reshape(-1), rcond=None)[0]
 
 
-#: Relative step of the central differences of the simulated outputs in the parameters: the
-#: simulation's rounding (a few eps times the gain of a lightly damped mode, about 1e-13
-#: relative) over the step stays near 1e-7 of the derivative, the truncation error
-#: (step squared) below 1e-11.
-GRADIENT_STEP = 1e-6
-
-
 def _output_gradient(model: StateSpaceModel, record: IOData, initial: str) -> np.ndarray:
     """``d e / d theta`` of every output's simulation residual on ``record``, ``(N, ny, p)``,
     over the realised structure's parameters but the initial state (which each tested
@@ -243,16 +241,14 @@ def _parameter_effect(
     gradient, and the parameters are taken as known. None, too, for a model that is not a
     realisation of its structure (a subspace estimate's matrices).
     """
-    if estimated_on is None or not getattr(model, "realised", False):
+    records = estimation_records(estimated_on)
+    if records is None or not getattr(model, "realised", False):
         return None
-    if isinstance(estimated_on, str) and estimated_on != "same":
-        raise DataError(f"estimated_on must be 'same', a record or records, got {estimated_on!r}")
-    if isinstance(estimated_on, str) and model.n_outputs > 1:
+    if records == "same" and model.n_outputs > 1:
         return None
     here = _output_gradient(model, record, initial)[:, k, :]
-    if isinstance(estimated_on, str):
+    if records == "same":
         return ParameterEffect(here)
-    records = [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
     rows = []
     for r in records:
         if r.n_outputs != model.n_outputs:

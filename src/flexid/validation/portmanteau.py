@@ -62,15 +62,27 @@ from typing import Any
 import numpy as np
 from scipy import linalg, stats
 
+from ..data.records import IOData
+from ..errors import DataError
+
 __all__ = [
+    "GRADIENT_STEP",
     "KNOWN",
     "ParameterEffect",
     "Portmanteau",
     "describe",
+    "estimation_records",
     "estimation_root",
     "holm",
     "portmanteau",
 ]
+
+#: Relative step of the central differences by which the families without an analytic
+#: gradient differentiate their simulated outputs (of each parameter's magnitude, at least
+#: 1e-3 of it): a simulation's rounding (a few eps times the gain of a lightly damped mode,
+#: about 1e-13 relative) over the step stays near 1e-7 of the derivative, the truncation
+#: error (the step squared) below 1e-11.
+GRADIENT_STEP = 1e-6
 
 #: How a report words tests whose parameters were taken as known (no :class:`ParameterEffect`).
 KNOWN = "the parameters taken as known"
@@ -120,6 +132,33 @@ class ParameterEffect:
         if self.held_out:
             return f"the estimation error of {p} parameters added to the tests' null"
         return f"the estimate of {p} parameters partialled out of the tests"
+
+
+def estimation_records(estimated_on: Any) -> str | list | None:
+    """``estimated_on`` of :func:`flexid.validate`, checked: None, ``"same"`` or a list.
+
+    Parameters
+    ----------
+    estimated_on : None, "same", IOData or sequence of IOData
+
+    Returns
+    -------
+    None, "same" or list of IOData
+
+    Raises
+    ------
+    DataError
+        A string other than ``"same"``.
+    """
+    if estimated_on is None:
+        return None
+    if isinstance(estimated_on, str):
+        if estimated_on != "same":
+            raise DataError(
+                f"estimated_on must be 'same', a record or records, got {estimated_on!r}"
+            )
+        return "same"
+    return [estimated_on] if isinstance(estimated_on, IOData) else list(estimated_on)
 
 
 def estimation_root(gradients: Any) -> np.ndarray:
